@@ -1,0 +1,15 @@
+//! Analysis shared by both motile models (MODEL.md §5, §6): the non-uniform FFT, correlation
+//! functions of particle configurations and of fields on a grid, the velocity spectrum of point
+//! forces, volume-averaged norms, correlation lengths, time averages and trajectory statistics.
+//!
+//! Everything here is pure computation: functions take data and return data. Parallel work runs
+//! on the caller's rayon pool and gives bit-identical results for any pool size.
+#![warn(missing_docs)]
+
+pub mod fft3;
+pub mod kernel;
+pub mod nufft;
+pub mod quadrature;
+
+pub use fft3::{Direction, Fft3};
+pub use nufft::{NufftError, NufftPlan};

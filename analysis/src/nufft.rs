@@ -1,0 +1,487 @@
+//! Three-dimensional non-uniform FFT on the periodic box (MODEL.md §6).
+//!
+//! Type 1 (points to modes): `c(m) = sum_j f_j exp(-i k_m . x_j)`,
+//! type 2 (modes to points): `f(x_j) = sum_m c(m) exp(+i k_m . x_j)`, with `k_m = 2 pi m / L`,
+//! `m_d` in `-floor(M_d/2) ..= ceil(M_d/2) - 1`, modes stored with axis 0 fastest and the most
+//! negative mode first. Type 2 is the adjoint of type 1.
+//!
+//! Method: spread with the ES kernel ([`crate::kernel`]) onto a fine grid upsampled by 2, FFT,
+//! divide by the kernel's Fourier transform; type 2 runs the same steps backwards.
+//!
+//! Determinism: points are sorted once (stable counting sort by slab and bin). The fine grid
+//! is cut into z-slabs whose thickness depends on the grid only; each slab spreads its points,
+//! in sorted order, into a private padded buffer, and each grid plane then sums the slabs that
+//! touch it in slab order. Nothing depends on which thread did what, so the result is
+//! bit-identical for any rayon pool size.
+
+use crate::fft3::{Direction, Fft3, next_smooth_even};
+use crate::kernel::{EsKernel, MAX_WIDTH};
+use num_complex::Complex64;
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// Errors of the NUFFT.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum NufftError {
+    /// Tolerance outside the supported range.
+    #[error("NUFFT tolerance {0:e} outside the supported range [1e-15, 1e-1]")]
+    Tolerance(f64),
+    /// A mode count of zero.
+    #[error("NUFFT mode counts must be positive, got {0:?}")]
+    Modes([usize; 3]),
+    /// Box length not positive and finite.
+    #[error("box length must be positive and finite, got {0}")]
+    BoxLength(f64),
+    /// A point coordinate is NaN or infinite.
+    #[error("point {index} has a non-finite coordinate {coord:?}")]
+    NonFinitePoint {
+        /// Index of the offending point.
+        index: usize,
+        /// Its coordinates.
+        coord: [f64; 3],
+    },
+    /// A strength or coefficient vector of the wrong length.
+    #[error("vector {which} has length {got}, expected {expected}")]
+    Length {
+        /// Which input vector.
+        which: usize,
+        /// Its length.
+        got: usize,
+        /// The length the plan expects.
+        expected: usize,
+    },
+}
+
+/// Fine-grid bin width (in grid points) used to sort points within a slab.
+const SORT_BIN: usize = 16;
+
+/// A 3D NUFFT plan: modes, tolerance, fine grid, kernel, and (after [`Self::set_points`]) the
+/// sorted points.
+#[derive(Debug, Clone)]
+pub struct NufftPlan {
+    modes: [usize; 3],
+    nf: [usize; 3],
+    tol: f64,
+    kernel: EsKernel,
+    /// `1 / phihat(k)` per axis, indexed by mode position.
+    deconv: [Vec<f64>; 3],
+    fft: Fft3,
+    slab: usize,
+    /// Sorted fine-grid coordinates.
+    grid_pts: Vec<[f64; 3]>,
+    /// Original index of each sorted point.
+    perm: Vec<usize>,
+    /// `slab_start[s]..slab_start[s + 1]` are the sorted points of slab `s`.
+    slab_start: Vec<usize>,
+}
+
+impl NufftPlan {
+    /// Plan transforms with `modes` Fourier modes per axis at relative tolerance `tol`.
+    pub fn new(modes: [usize; 3], tol: f64) -> Result<Self, NufftError> {
+        if !(1e-15..=1e-1).contains(&tol) {
+            return Err(NufftError::Tolerance(tol));
+        }
+        if modes.contains(&0) {
+            return Err(NufftError::Modes(modes));
+        }
+        let kernel = EsKernel::for_tolerance(tol);
+        let w = kernel.width;
+        let nf = modes.map(|m| next_smooth_even((2 * m).max(2 * w)));
+        let deconv = [0, 1, 2].map(|d| {
+            let ks: Vec<f64> = (0..modes[d]).map(|i| mode_of(i, modes[d]) as f64).collect();
+            kernel
+                .fourier_transform(&ks, nf[d])
+                .into_iter()
+                .map(|f| 1.0 / f)
+                .collect()
+        });
+        let slab = (nf[2] / 8).max(SORT_BIN).min(nf[2]);
+        Ok(Self {
+            modes,
+            nf,
+            tol,
+            kernel,
+            deconv,
+            fft: Fft3::new(nf),
+            slab,
+            grid_pts: Vec::new(),
+            perm: Vec::new(),
+            slab_start: vec![0; 1],
+        })
+    }
+
+    /// Mode counts per axis.
+    pub fn modes(&self) -> [usize; 3] {
+        self.modes
+    }
+
+    /// Number of modes in total.
+    pub fn num_modes(&self) -> usize {
+        self.modes.iter().product()
+    }
+
+    /// Fine (upsampled) grid size per axis.
+    pub fn fine_grid(&self) -> [usize; 3] {
+        self.nf
+    }
+
+    /// Kernel width in fine-grid points.
+    pub fn kernel_width(&self) -> usize {
+        self.kernel.width
+    }
+
+    /// Requested tolerance.
+    pub fn tolerance(&self) -> f64 {
+        self.tol
+    }
+
+    /// Number of points currently set.
+    pub fn num_points(&self) -> usize {
+        self.perm.len()
+    }
+
+    /// Set the non-uniform points, in a periodic box `[0, L)^3` (points outside are wrapped).
+    /// Sorts them once; any number of transforms may follow.
+    pub fn set_points(&mut self, points: &[[f64; 3]], box_length: f64) -> Result<(), NufftError> {
+        if !(box_length.is_finite() && box_length > 0.0) {
+            return Err(NufftError::BoxLength(box_length));
+        }
+        let nf = self.nf;
+        let mut grid = Vec::with_capacity(points.len());
+        for (index, p) in points.iter().enumerate() {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(NufftError::NonFinitePoint { index, coord: *p });
+            }
+            let g: [f64; 3] = [0, 1, 2].map(|d| {
+                let f = p[d] / box_length;
+                let f = f - f.floor();
+                let g = f * nf[d] as f64;
+                if g >= nf[d] as f64 { 0.0 } else { g }
+            });
+            grid.push(g);
+        }
+        let nslab = nf[2].div_ceil(self.slab);
+        let nby = nf[1].div_ceil(SORT_BIN);
+        let nbx = nf[0].div_ceil(SORT_BIN);
+        let nbins = nslab * nby * nbx;
+        let key = |g: &[f64; 3]| {
+            let s = (g[2] as usize / self.slab).min(nslab - 1);
+            let y = (g[1] as usize / SORT_BIN).min(nby - 1);
+            let x = (g[0] as usize / SORT_BIN).min(nbx - 1);
+            (s * nby + y) * nbx + x
+        };
+        let mut counts = vec![0usize; nbins + 1];
+        for g in &grid {
+            counts[key(g) + 1] += 1;
+        }
+        for b in 0..nbins {
+            counts[b + 1] += counts[b];
+        }
+        self.slab_start = (0..=nslab).map(|s| counts[s * nby * nbx]).collect();
+        let mut next = counts;
+        self.perm = vec![0; grid.len()];
+        self.grid_pts = vec![[0.0; 3]; grid.len()];
+        for (i, g) in grid.iter().enumerate() {
+            let k = key(g);
+            self.perm[next[k]] = i;
+            self.grid_pts[next[k]] = *g;
+            next[k] += 1;
+        }
+        Ok(())
+    }
+
+    /// Type 1 for several strength vectors at once (each of length [`Self::num_points`]).
+    /// Returns one mode array per strength vector.
+    pub fn type1(&self, strengths: &[&[Complex64]]) -> Result<Vec<Vec<Complex64>>, NufftError> {
+        self.check_lengths(strengths, self.num_points())?;
+        let mut grids = self.spread(strengths);
+        grids
+            .iter_mut()
+            .map(|g| {
+                self.fft.process(g, Direction::Forward);
+                Ok(self.extract_modes(g))
+            })
+            .collect()
+    }
+
+    /// Type 2 for several mode arrays at once (each of length [`Self::num_modes`]). Returns one
+    /// vector of point values per mode array, in the caller's point order.
+    pub fn type2(&self, coeffs: &[&[Complex64]]) -> Result<Vec<Vec<Complex64>>, NufftError> {
+        self.check_lengths(coeffs, self.num_modes())?;
+        let padded: Vec<Vec<Complex64>> = coeffs
+            .iter()
+            .map(|c| {
+                let mut g = self.place_modes(c);
+                self.fft.process(&mut g, Direction::Inverse);
+                self.pad_periodic(&g)
+            })
+            .collect();
+        Ok(self.interpolate(&padded))
+    }
+
+    fn check_lengths(&self, v: &[&[Complex64]], expected: usize) -> Result<(), NufftError> {
+        for (which, s) in v.iter().enumerate() {
+            if s.len() != expected {
+                return Err(NufftError::Length {
+                    which,
+                    got: s.len(),
+                    expected,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Padding (in grid points) on each side of the padded buffers.
+    fn pad(&self) -> usize {
+        self.kernel.width
+    }
+
+    /// Spread all strength vectors onto fine grids (one per vector).
+    fn spread(&self, strengths: &[&[Complex64]]) -> Vec<Vec<Complex64>> {
+        let [n0, n1, n2] = self.nf;
+        let w = self.kernel.width;
+        let pad = self.pad();
+        let (xb, yb, zb) = (n0 + 2 * pad, n1 + 2 * pad, self.slab + 2 * pad);
+        let ns = strengths.len();
+        let nslab = self.slab_start.len() - 1;
+        // Each slab spreads into its own padded buffers, all strengths interleaved by block.
+        let slabs: Vec<Vec<Complex64>> = (0..nslab)
+            .into_par_iter()
+            .map(|s| {
+                let mut buf = vec![Complex64::default(); ns * zb * yb * xb];
+                let z_origin = (s * self.slab) as i64 - pad as i64;
+                let (mut kx, mut ky, mut kz) =
+                    ([0.0; MAX_WIDTH], [0.0; MAX_WIDTH], [0.0; MAX_WIDTH]);
+                for p in self.slab_start[s]..self.slab_start[s + 1] {
+                    let g = self.grid_pts[p];
+                    let ix = (self.kernel.eval(g[0], &mut kx) + pad as i64) as usize;
+                    let iy = (self.kernel.eval(g[1], &mut ky) + pad as i64) as usize;
+                    let iz = (self.kernel.eval(g[2], &mut kz) - z_origin) as usize;
+                    let orig = self.perm[p];
+                    for (si, st) in strengths.iter().enumerate() {
+                        let c = st[orig];
+                        let b = &mut buf[si * zb * yb * xb..(si + 1) * zb * yb * xb];
+                        for dz in 0..w {
+                            for dy in 0..w {
+                                let v = c * (kz[dz] * ky[dy]);
+                                let base = ((iz + dz) * yb + iy + dy) * xb + ix;
+                                let row = &mut b[base..base + w];
+                                for dx in 0..w {
+                                    row[dx] += v * kx[dx];
+                                }
+                            }
+                        }
+                    }
+                }
+                buf
+            })
+            .collect();
+        // Fold the slabs into the periodic grid, plane by plane, slabs in order.
+        (0..ns)
+            .map(|si| {
+                let mut grid = vec![Complex64::default(); n0 * n1 * n2];
+                grid.par_chunks_mut(n0 * n1)
+                    .enumerate()
+                    .for_each(|(z, plane)| {
+                        for (s, buf) in slabs.iter().enumerate() {
+                            let b = &buf[si * zb * yb * xb..(si + 1) * zb * yb * xb];
+                            let z_origin = (s * self.slab) as i64 - pad as i64;
+                            for zl in 0..zb {
+                                if (z_origin + zl as i64).rem_euclid(n2 as i64) as usize != z {
+                                    continue;
+                                }
+                                for yl in 0..yb {
+                                    let y = (yl as i64 - pad as i64).rem_euclid(n1 as i64) as usize;
+                                    let src = &b[(zl * yb + yl) * xb..(zl * yb + yl + 1) * xb];
+                                    let dst = &mut plane[y * n0..(y + 1) * n0];
+                                    // Interior run, then the wrapped margins.
+                                    for (x, d) in dst.iter_mut().enumerate() {
+                                        *d += src[x + pad];
+                                    }
+                                    for xl in (0..pad).chain(n0 + pad..xb) {
+                                        let x =
+                                            (xl as i64 - pad as i64).rem_euclid(n0 as i64) as usize;
+                                        dst[x] += src[xl];
+                                    }
+                                }
+                            }
+                        }
+                    });
+                grid
+            })
+            .collect()
+    }
+
+    /// Read the `modes` out of a transformed fine grid and deconvolve.
+    fn extract_modes(&self, fine: &[Complex64]) -> Vec<Complex64> {
+        let [m0, m1, m2] = self.modes;
+        let [n0, n1, _] = self.nf;
+        let mut out = vec![Complex64::default(); m0 * m1 * m2];
+        out.par_chunks_mut(m0 * m1)
+            .enumerate()
+            .for_each(|(i2, plane)| {
+                let k2 = fine_index(i2, m2, self.nf[2]);
+                for i1 in 0..m1 {
+                    let k1 = fine_index(i1, m1, n1);
+                    let c21 = self.deconv[2][i2] * self.deconv[1][i1];
+                    for i0 in 0..m0 {
+                        let k0 = fine_index(i0, m0, n0);
+                        plane[i1 * m0 + i0] =
+                            fine[(k2 * n1 + k1) * n0 + k0] * (c21 * self.deconv[0][i0]);
+                    }
+                }
+            });
+        out
+    }
+
+    /// Place deconvolved modes on a zeroed fine grid (the first half of type 2).
+    fn place_modes(&self, c: &[Complex64]) -> Vec<Complex64> {
+        let [m0, m1, m2] = self.modes;
+        let [n0, n1, n2] = self.nf;
+        let mut fine = vec![Complex64::default(); n0 * n1 * n2];
+        for i2 in 0..m2 {
+            let k2 = fine_index(i2, m2, n2);
+            for i1 in 0..m1 {
+                let k1 = fine_index(i1, m1, n1);
+                let c21 = self.deconv[2][i2] * self.deconv[1][i1];
+                for i0 in 0..m0 {
+                    let k0 = fine_index(i0, m0, n0);
+                    fine[(k2 * n1 + k1) * n0 + k0] =
+                        c[(i2 * m1 + i1) * m0 + i0] * (c21 * self.deconv[0][i0]);
+                }
+            }
+        }
+        fine
+    }
+
+    /// Periodic copy of a fine grid with `pad` extra points on each side of every axis.
+    fn pad_periodic(&self, g: &[Complex64]) -> Vec<Complex64> {
+        let [n0, n1, n2] = self.nf;
+        let pad = self.pad() as i64;
+        let (x, y, z) = (
+            n0 + 2 * pad as usize,
+            n1 + 2 * pad as usize,
+            n2 + 2 * pad as usize,
+        );
+        let mut out = vec![Complex64::default(); x * y * z];
+        out.par_chunks_mut(x * y)
+            .enumerate()
+            .for_each(|(zl, plane)| {
+                let gz = (zl as i64 - pad).rem_euclid(n2 as i64) as usize;
+                for yl in 0..y {
+                    let gy = (yl as i64 - pad).rem_euclid(n1 as i64) as usize;
+                    let src = &g[(gz * n1 + gy) * n0..(gz * n1 + gy + 1) * n0];
+                    for (xl, d) in plane[yl * x..(yl + 1) * x].iter_mut().enumerate() {
+                        *d = src[(xl as i64 - pad).rem_euclid(n0 as i64) as usize];
+                    }
+                }
+            });
+        out
+    }
+
+    /// Interpolate the padded grids at the sorted points; results in the caller's order.
+    fn interpolate(&self, padded: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
+        let [n0, n1, _] = self.nf;
+        let w = self.kernel.width;
+        let pad = self.pad() as i64;
+        let (xb, yb) = (n0 + 2 * pad as usize, n1 + 2 * pad as usize);
+        let ns = padded.len();
+        let sorted: Vec<Complex64> = self
+            .grid_pts
+            .par_chunks(1024)
+            .flat_map_iter(|chunk| {
+                let (mut kx, mut ky, mut kz) =
+                    ([0.0; MAX_WIDTH], [0.0; MAX_WIDTH], [0.0; MAX_WIDTH]);
+                let mut vals = Vec::with_capacity(chunk.len() * ns);
+                for g in chunk {
+                    let ix = (self.kernel.eval(g[0], &mut kx) + pad) as usize;
+                    let iy = (self.kernel.eval(g[1], &mut ky) + pad) as usize;
+                    let iz = (self.kernel.eval(g[2], &mut kz) + pad) as usize;
+                    for grid in padded {
+                        let mut acc = Complex64::default();
+                        for dz in 0..w {
+                            let mut accz = Complex64::default();
+                            for dy in 0..w {
+                                let base = ((iz + dz) * yb + iy + dy) * xb + ix;
+                                let row = &grid[base..base + w];
+                                let mut accy = Complex64::default();
+                                for dx in 0..w {
+                                    accy += row[dx] * kx[dx];
+                                }
+                                accz += accy * ky[dy];
+                            }
+                            acc += accz * kz[dz];
+                        }
+                        vals.push(acc);
+                    }
+                }
+                vals
+            })
+            .collect();
+        let mut out = vec![vec![Complex64::default(); self.num_points()]; ns];
+        for (p, &orig) in self.perm.iter().enumerate() {
+            for s in 0..ns {
+                out[s][orig] = sorted[p * ns + s];
+            }
+        }
+        out
+    }
+}
+
+/// Signed mode number of position `i` among `m` modes.
+pub fn mode_of(i: usize, m: usize) -> i64 {
+    i as i64 - (m / 2) as i64
+}
+
+/// Fine-grid index of mode position `i` among `m` modes on a grid of `n`.
+fn fine_index(i: usize, m: usize, n: usize) -> usize {
+    mode_of(i, m).rem_euclid(n as i64) as usize
+}
+
+/// Slow twin of type 1: the direct sum, `O(N M^3)`. For tests and small problems.
+pub fn direct_type1(
+    points: &[[f64; 3]],
+    box_length: f64,
+    strengths: &[Complex64],
+    modes: [usize; 3],
+) -> Vec<Complex64> {
+    let [m0, m1, m2] = modes;
+    let s = 2.0 * PI / box_length;
+    let mut out = vec![Complex64::default(); m0 * m1 * m2];
+    out.par_iter_mut().enumerate().for_each(|(idx, o)| {
+        let (i0, i1, i2) = (idx % m0, (idx / m0) % m1, idx / (m0 * m1));
+        let k = [mode_of(i0, m0), mode_of(i1, m1), mode_of(i2, m2)].map(|m| m as f64 * s);
+        *o = points
+            .iter()
+            .zip(strengths)
+            .map(|(x, f)| {
+                f * Complex64::from_polar(1.0, -(k[0] * x[0] + k[1] * x[1] + k[2] * x[2]))
+            })
+            .sum();
+    });
+    out
+}
+
+/// Slow twin of type 2: the direct sum.
+pub fn direct_type2(
+    points: &[[f64; 3]],
+    box_length: f64,
+    coeffs: &[Complex64],
+    modes: [usize; 3],
+) -> Vec<Complex64> {
+    let [m0, m1, m2] = modes;
+    let s = 2.0 * PI / box_length;
+    points
+        .par_iter()
+        .map(|x| {
+            let mut acc = Complex64::default();
+            for (idx, c) in coeffs.iter().enumerate() {
+                let (i0, i1, i2) = (idx % m0, (idx / m0) % m1, idx / (m0 * m1));
+                let k = [mode_of(i0, m0), mode_of(i1, m1), mode_of(i2, m2)].map(|m| m as f64 * s);
+                acc += c * Complex64::from_polar(1.0, k[0] * x[0] + k[1] * x[1] + k[2] * x[2]);
+            }
+            acc
+        })
+        .collect()
+}
