@@ -1,0 +1,313 @@
+//! Correlation functions (MODEL.md §6).
+//!
+//! A field `Phi` on the periodic box with Fourier coefficients `Phi~(k)` (so that
+//! `Phi(x) = sum_k Phi~(k) exp(i k.x)`) has the autocorrelation
+//! `C(x) = (1/|V|) integral Phi(y) Phi(y + x) dy = sum_k |Phi~(k)|^2 exp(i k.x)`, evaluated on
+//! the grid of the retained modes by an inverse FFT and averaged over spherical shells of the
+//! minimum-image distance `|x|`. Vector and tensor fields sum their components, so
+//! `Corr[Phi](0) = ||Phi||_2^2`, the volume-averaged mean square.
+//!
+//! Three sources of `Phi~`:
+//! - a particle configuration, `Phi~(k) = (1/N) sum_n phi(p_n) exp(-i k.x_n)` by a type-1 NUFFT
+//!   ([`particle_coefficients`]), for `c' = c - 1`, polarity `n = [p]` and nematic
+//!   `Q = [pp - I/3]` ([`OrderParameter`]);
+//! - a field sampled on a uniform grid (the mean-field model), by an FFT
+//!   ([`grid_coefficients`]);
+//! - point forces, through the Stokes velocity spectrum
+//!   `u~(k) = (I - kk/|k|^2)/(mu |V| |k|^2) . sum f w exp(-i k.y)` ([`velocity_spectrum`]).
+
+use crate::fft3::{Direction, Fft3};
+use crate::nufft::{NufftError, NufftPlan, mode_of};
+use num_complex::Complex64;
+use std::f64::consts::PI;
+
+/// Options for correlation functions.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CorrelationOptions {
+    /// Fourier modes per dimension for particle data. Default (`None`): `floor((L/l)/2)`
+    /// with `l = 1`, at least 4. More modes resolve shorter distances and cost more.
+    pub modes: Option<usize>,
+    /// Shell width in units of length. Default (`None`): the grid spacing `L / modes`.
+    pub shell_width: Option<f64>,
+    /// NUFFT tolerance. Default 1e-6: far below the statistical noise of any configuration.
+    pub tolerance: f64,
+}
+
+impl Default for CorrelationOptions {
+    fn default() -> Self {
+        Self {
+            modes: None,
+            shell_width: None,
+            tolerance: 1e-6,
+        }
+    }
+}
+
+impl CorrelationOptions {
+    /// Mode count for a box of side `box_length` (in rod lengths).
+    pub fn modes_for(&self, box_length: f64) -> usize {
+        self.modes
+            .unwrap_or(((box_length / 2.0).floor() as usize).max(4))
+    }
+}
+
+/// A radially averaged correlation function.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RadialCorrelation {
+    /// Shell centres (units of length); the first is 0.
+    pub r: Vec<f64>,
+    /// Shell averages of `C`.
+    pub value: Vec<f64>,
+    /// Number of grid points in each shell.
+    pub count: Vec<usize>,
+}
+
+impl RadialCorrelation {
+    /// `C(0)`: the volume-averaged mean square of the field.
+    pub fn at_zero(&self) -> f64 {
+        self.value[0]
+    }
+}
+
+/// Order parameters of a particle configuration (MODEL.md §6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OrderParameter {
+    /// Concentration fluctuation `c' = c - 1` (scalar; the k = 0 mode is removed).
+    Concentration,
+    /// Polarity `n = [p]` (3 components).
+    Polarity,
+    /// Nematic tensor `Q = [pp - I/3]` (9 components, the 6 independent ones weighted).
+    Nematic,
+}
+
+/// Fourier coefficients of several fields, one mode array each, on a cube of `modes^3`
+/// modes (layout of [`crate::nufft`]), with a weight per component (2 for the off-diagonal
+/// components of a symmetric tensor, stored once).
+#[derive(Clone, Debug)]
+pub struct Spectrum {
+    /// Modes per dimension.
+    pub modes: usize,
+    /// Box side.
+    pub box_length: f64,
+    /// One mode array per component.
+    pub components: Vec<Vec<Complex64>>,
+    /// Weight of each component in sums over components.
+    pub weights: Vec<f64>,
+}
+
+impl Spectrum {
+    /// `sum_components weight |Phi~(k)|^2`, per mode.
+    pub fn power(&self) -> Vec<f64> {
+        let n = self.modes.pow(3);
+        let mut p = vec![0.0; n];
+        for (c, w) in self.components.iter().zip(&self.weights) {
+            for (pk, ck) in p.iter_mut().zip(c) {
+                *pk += w * ck.norm_sqr();
+            }
+        }
+        p
+    }
+
+    /// Volume-averaged L2 norm, `sqrt(sum_k power)` (Parseval).
+    pub fn l2_norm(&self) -> f64 {
+        self.power().iter().sum::<f64>().sqrt()
+    }
+
+    /// Radially averaged autocorrelation.
+    pub fn correlation(&self, shell_width: Option<f64>) -> RadialCorrelation {
+        radial_autocorrelation(&self.power(), self.modes, self.box_length, shell_width)
+    }
+}
+
+/// Fourier coefficients of an order parameter of a configuration of `N` rods (centres `x`,
+/// unit orientations `p`) in a box of side `box_length`.
+pub fn particle_coefficients(
+    x: &[[f64; 3]],
+    p: &[[f64; 3]],
+    box_length: f64,
+    which: OrderParameter,
+    opts: &CorrelationOptions,
+) -> Result<Spectrum, NufftError> {
+    let modes = opts.modes_for(box_length);
+    let n = x.len();
+    let mut plan = NufftPlan::new([modes; 3], opts.tolerance)?;
+    plan.set_points(x, box_length)?;
+    let inv_n = 1.0 / n.max(1) as f64;
+    let (fields, weights): (Vec<Vec<Complex64>>, Vec<f64>) = match which {
+        OrderParameter::Concentration => (vec![vec![Complex64::new(inv_n, 0.0); n]], vec![1.0]),
+        OrderParameter::Polarity => (
+            (0..3)
+                .map(|d| {
+                    p.iter()
+                        .map(|q| Complex64::new(q[d] * inv_n, 0.0))
+                        .collect()
+                })
+                .collect(),
+            vec![1.0; 3],
+        ),
+        OrderParameter::Nematic => {
+            let mut f = Vec::new();
+            let mut w = Vec::new();
+            for (i, j) in SYM_PAIRS {
+                let iso = if i == j { 1.0 / 3.0 } else { 0.0 };
+                f.push(
+                    p.iter()
+                        .map(|q| Complex64::new((q[i] * q[j] - iso) * inv_n, 0.0))
+                        .collect(),
+                );
+                w.push(if i == j { 1.0 } else { 2.0 });
+            }
+            (f, w)
+        }
+    };
+    let refs: Vec<&[Complex64]> = fields.iter().map(|v| v.as_slice()).collect();
+    let mut components = plan.type1(&refs)?;
+    if which == OrderParameter::Concentration {
+        components[0][zero_mode(modes)] = Complex64::default();
+    }
+    Ok(Spectrum {
+        modes,
+        box_length,
+        components,
+        weights,
+    })
+}
+
+/// The independent components of a symmetric 3x3 tensor, in the order of motile's HDF5 files.
+pub const SYM_PAIRS: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+
+/// Index of the `k = 0` mode in a cube of `modes^3`.
+pub fn zero_mode(modes: usize) -> usize {
+    let c = modes / 2;
+    (c * modes + c) * modes + c
+}
+
+/// Fourier coefficients of real fields sampled on a uniform `n^3` grid (axis 0 fastest), with a
+/// weight per field; optionally with the mean removed.
+pub fn grid_coefficients(
+    fields: &[&[f64]],
+    weights: &[f64],
+    n: usize,
+    box_length: f64,
+    remove_mean: bool,
+) -> Spectrum {
+    let fft = Fft3::new([n; 3]);
+    let scale = 1.0 / (n * n * n) as f64;
+    let components = fields
+        .iter()
+        .map(|f| {
+            assert_eq!(
+                f.len(),
+                n * n * n,
+                "grid field has {} values, expected {n}^3",
+                f.len()
+            );
+            let mut c: Vec<Complex64> = f.iter().map(|&v| Complex64::new(v * scale, 0.0)).collect();
+            fft.process(&mut c, Direction::Forward);
+            // Reorder from FFT order to centred mode order.
+            let mut out = vec![Complex64::default(); n * n * n];
+            for (idx, o) in out.iter_mut().enumerate() {
+                let m = [idx % n, (idx / n) % n, idx / (n * n)]
+                    .map(|i| mode_of(i, n).rem_euclid(n as i64) as usize);
+                *o = c[(m[2] * n + m[1]) * n + m[0]];
+            }
+            if remove_mean {
+                out[zero_mode(n)] = Complex64::default();
+            }
+            out
+        })
+        .collect();
+    Spectrum {
+        modes: n,
+        box_length,
+        components,
+        weights: weights.to_vec(),
+    }
+}
+
+/// Velocity spectrum of point forces `f` at points `y` (MODEL.md §6): the Fourier coefficients
+/// of the zero-mean periodic Stokes flow, `modes^3` of them, viscosity `mu`.
+pub fn velocity_spectrum(
+    y: &[[f64; 3]],
+    f: &[[f64; 3]],
+    box_length: f64,
+    mu: f64,
+    modes: usize,
+    tolerance: f64,
+) -> Result<Spectrum, NufftError> {
+    let mut plan = NufftPlan::new([modes; 3], tolerance)?;
+    plan.set_points(y, box_length)?;
+    let comps: Vec<Vec<Complex64>> = (0..3)
+        .map(|d| f.iter().map(|v| Complex64::new(v[d], 0.0)).collect())
+        .collect();
+    let refs: Vec<&[Complex64]> = comps.iter().map(|v| v.as_slice()).collect();
+    let fk = plan.type1(&refs)?;
+    let vol = box_length.powi(3);
+    let mut u = vec![vec![Complex64::default(); modes.pow(3)]; 3];
+    for idx in 0..modes.pow(3) {
+        let k = [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+            .map(|i| 2.0 * PI * mode_of(i, modes) as f64 / box_length);
+        let k2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
+        if k2 == 0.0 {
+            continue;
+        }
+        let kf = k[0] * fk[0][idx] + k[1] * fk[1][idx] + k[2] * fk[2][idx];
+        let s = 1.0 / (mu * vol * k2);
+        for d in 0..3 {
+            u[d][idx] = (fk[d][idx] - kf * (k[d] / k2)) * s;
+        }
+    }
+    Ok(Spectrum {
+        modes,
+        box_length,
+        components: u,
+        weights: vec![1.0; 3],
+    })
+}
+
+/// Radially averaged inverse transform of a power spectrum on a `modes^3` cube (centred mode
+/// order): `C(x) = sum_k power(k) exp(i k.x)` on the grid `x = L j / modes`, averaged over shells
+/// of the minimum-image distance of width `shell_width` centred at `0, w, 2w, ...` up to `L/2`.
+pub fn radial_autocorrelation(
+    power: &[f64],
+    modes: usize,
+    box_length: f64,
+    shell_width: Option<f64>,
+) -> RadialCorrelation {
+    let n = modes;
+    let h = box_length / n as f64;
+    let width = shell_width.unwrap_or(h);
+    assert!(width > 0.0, "shell width must be positive, got {width}");
+    let mut c = vec![Complex64::default(); n * n * n];
+    for (idx, p) in power.iter().enumerate() {
+        let m = [idx % n, (idx / n) % n, idx / (n * n)]
+            .map(|i| mode_of(i, n).rem_euclid(n as i64) as usize);
+        c[(m[2] * n + m[1]) * n + m[0]] = Complex64::new(*p, 0.0);
+    }
+    Fft3::new([n; 3]).process(&mut c, Direction::Inverse);
+    let nshell = ((box_length / 2.0) / width + 0.5).floor() as usize + 1;
+    let mut sum = vec![0.0; nshell];
+    let mut count = vec![0usize; nshell];
+    for (idx, v) in c.iter().enumerate() {
+        let d = [idx % n, (idx / n) % n, idx / (n * n)].map(|i| {
+            let j = if i > n / 2 {
+                i as f64 - n as f64
+            } else {
+                i as f64
+            };
+            j * h
+        });
+        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let s = (r / width + 0.5).floor() as usize;
+        if s < nshell {
+            sum[s] += v.re;
+            count[s] += 1;
+        }
+    }
+    let keep: Vec<usize> = (0..nshell).filter(|&s| count[s] > 0).collect();
+    RadialCorrelation {
+        r: keep.iter().map(|&s| s as f64 * width).collect(),
+        value: keep.iter().map(|&s| sum[s] / count[s] as f64).collect(),
+        count: keep.iter().map(|&s| count[s]).collect(),
+    }
+}

@@ -93,7 +93,7 @@ impl EsKernel {
         for deg in (0..d).rev() {
             let c = &self.coef[deg * w..(deg + 1) * w];
             for j in 0..w {
-                out[j] = out[j].mul_add(t, c[j]);
+                out[j] = out[j] * t + c[j];
             }
         }
         i0 as i64

@@ -6,10 +6,13 @@
 //! on the caller's rayon pool and gives bit-identical results for any pool size.
 #![warn(missing_docs)]
 
+pub mod correlation;
 pub mod fft3;
 pub mod kernel;
 pub mod nufft;
 pub mod quadrature;
+pub mod stats;
 
+pub use correlation::{CorrelationOptions, OrderParameter, RadialCorrelation, Spectrum};
 pub use fft3::{Direction, Fft3};
 pub use nufft::{NufftError, NufftPlan};

@@ -245,11 +245,11 @@ impl NufftPlan {
         let (xb, yb, zb) = (n0 + 2 * pad, n1 + 2 * pad, self.slab + 2 * pad);
         let ns = strengths.len();
         let nslab = self.slab_start.len() - 1;
-        // Each slab spreads into its own padded buffers, all strengths interleaved by block.
-        let slabs: Vec<Vec<Complex64>> = (0..nslab)
+        // Each slab spreads into its own padded buffers (interleaved re/im), all strengths.
+        let slabs: Vec<Vec<f64>> = (0..nslab)
             .into_par_iter()
             .map(|s| {
-                let mut buf = vec![Complex64::default(); ns * zb * yb * xb];
+                let mut buf = vec![0.0; 2 * ns * zb * yb * xb];
                 let z_origin = (s * self.slab) as i64 - pad as i64;
                 let (mut kx, mut ky, mut kz) =
                     ([0.0; MAX_WIDTH], [0.0; MAX_WIDTH], [0.0; MAX_WIDTH]);
@@ -260,18 +260,9 @@ impl NufftPlan {
                     let iz = (self.kernel.eval(g[2], &mut kz) - z_origin) as usize;
                     let orig = self.perm[p];
                     for (si, st) in strengths.iter().enumerate() {
-                        let c = st[orig];
-                        let b = &mut buf[si * zb * yb * xb..(si + 1) * zb * yb * xb];
-                        for dz in 0..w {
-                            for dy in 0..w {
-                                let v = c * (kz[dz] * ky[dy]);
-                                let base = ((iz + dz) * yb + iy + dy) * xb + ix;
-                                let row = &mut b[base..base + w];
-                                for dx in 0..w {
-                                    row[dx] += v * kx[dx];
-                                }
-                            }
-                        }
+                        let b = &mut buf[2 * si * zb * yb * xb..2 * (si + 1) * zb * yb * xb];
+                        let at = Spot { ix, iy, iz, yb, xb };
+                        with_width!(w, spread_point(b, &at, &kx, &ky, &kz, st[orig]));
                     }
                 }
                 buf
@@ -285,7 +276,7 @@ impl NufftPlan {
                     .enumerate()
                     .for_each(|(z, plane)| {
                         for (s, buf) in slabs.iter().enumerate() {
-                            let b = &buf[si * zb * yb * xb..(si + 1) * zb * yb * xb];
+                            let b = &buf[2 * si * zb * yb * xb..2 * (si + 1) * zb * yb * xb];
                             let z_origin = (s * self.slab) as i64 - pad as i64;
                             for zl in 0..zb {
                                 if (z_origin + zl as i64).rem_euclid(n2 as i64) as usize != z {
@@ -293,16 +284,20 @@ impl NufftPlan {
                                 }
                                 for yl in 0..yb {
                                     let y = (yl as i64 - pad as i64).rem_euclid(n1 as i64) as usize;
-                                    let src = &b[(zl * yb + yl) * xb..(zl * yb + yl + 1) * xb];
+                                    let src =
+                                        &b[2 * (zl * yb + yl) * xb..2 * (zl * yb + yl + 1) * xb];
                                     let dst = &mut plane[y * n0..(y + 1) * n0];
                                     // Interior run, then the wrapped margins.
                                     for (x, d) in dst.iter_mut().enumerate() {
-                                        *d += src[x + pad];
+                                        *d += Complex64::new(
+                                            src[2 * (x + pad)],
+                                            src[2 * (x + pad) + 1],
+                                        );
                                     }
                                     for xl in (0..pad).chain(n0 + pad..xb) {
                                         let x =
                                             (xl as i64 - pad as i64).rem_euclid(n0 as i64) as usize;
-                                        dst[x] += src[xl];
+                                        dst[x] += Complex64::new(src[2 * xl], src[2 * xl + 1]);
                                     }
                                 }
                             }
@@ -426,6 +421,71 @@ impl NufftPlan {
             }
         }
         out
+    }
+}
+
+/// Where a point's kernel footprint starts in a padded buffer, and the buffer's strides.
+struct Spot {
+    ix: usize,
+    iy: usize,
+    iz: usize,
+    yb: usize,
+    xb: usize,
+}
+
+/// Calls `$f::<W>(args)` with the runtime kernel width `$w` as a compile-time constant, so the
+/// innermost loops unroll and vectorise.
+macro_rules! with_width {
+    ($w:expr, $f:ident($($arg:expr),*)) => {
+        match $w {
+            2 => $f::<2>($($arg),*),
+            3 => $f::<3>($($arg),*),
+            4 => $f::<4>($($arg),*),
+            5 => $f::<5>($($arg),*),
+            6 => $f::<6>($($arg),*),
+            7 => $f::<7>($($arg),*),
+            8 => $f::<8>($($arg),*),
+            9 => $f::<9>($($arg),*),
+            10 => $f::<10>($($arg),*),
+            11 => $f::<11>($($arg),*),
+            12 => $f::<12>($($arg),*),
+            13 => $f::<13>($($arg),*),
+            14 => $f::<14>($($arg),*),
+            15 => $f::<15>($($arg),*),
+            16 => $f::<16>($($arg),*),
+            _ => unreachable!("kernel width outside 2..=16"),
+        }
+    };
+}
+use with_width;
+
+/// Add `c * kz[dz] ky[dy] kx[dx]` to the `W^3` footprint of one point in an interleaved
+/// (re, im) buffer.
+#[inline(always)]
+fn spread_point<const W: usize>(
+    b: &mut [f64],
+    at: &Spot,
+    kx: &[f64; MAX_WIDTH],
+    ky: &[f64; MAX_WIDTH],
+    kz: &[f64; MAX_WIDTH],
+    c: Complex64,
+) {
+    // The strength times the x kernel, interleaved (re, im): each footprint row is then an
+    // axpy of length 2W with one scalar, which vectorises at any SIMD width.
+    let mut cx = [0.0; 2 * MAX_WIDTH];
+    for j in 0..W {
+        cx[2 * j] = c.re * kx[j];
+        cx[2 * j + 1] = c.im * kx[j];
+    }
+    for dz in 0..W {
+        for dy in 0..W {
+            let s = kz[dz] * ky[dy];
+            let base = 2 * (((at.iz + dz) * at.yb + at.iy + dy) * at.xb + at.ix);
+            let row = &mut b[base..base + 2 * W];
+            for i in 0..2 * W {
+                row[i] += s * cx[i];
+            }
+        }
     }
 }
 

@@ -1,0 +1,207 @@
+//! Scalar statistics of fields and trajectories (MODEL.md §6): volume-averaged L2 norms,
+//! correlation lengths, time averages over a window, mean squared displacement of unwrapped
+//! positions and orientation autocorrelation.
+
+/// Volume-averaged L2 norm of a vector field sampled on a uniform grid, one slice per
+/// component: `sqrt(mean over points of sum over components of v^2)`.
+pub fn volume_l2_norm(components: &[&[f64]]) -> f64 {
+    let n = components.first().map_or(0, |c| c.len());
+    if n == 0 {
+        return 0.0;
+    }
+    let sum: f64 = components
+        .iter()
+        .map(|c| c.iter().map(|v| v * v).sum::<f64>())
+        .sum();
+    (sum / n as f64).sqrt()
+}
+
+/// First zero crossing of a correlation function, linearly interpolated between the bracketing
+/// samples; `None` if it never changes sign.
+pub fn correlation_length(r: &[f64], c: &[f64]) -> Option<f64> {
+    for i in 1..r.len().min(c.len()) {
+        if c[i] == 0.0 {
+            return Some(r[i]);
+        }
+        if c[i - 1] > 0.0 && c[i] < 0.0 {
+            return Some(r[i - 1] + (r[i] - r[i - 1]) * c[i - 1] / (c[i - 1] - c[i]));
+        }
+    }
+    None
+}
+
+/// Mean of a sampled quantity over a time window, with a standard error.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WindowAverage {
+    /// Mean of the samples with `t0 <= t <= t1`.
+    pub mean: f64,
+    /// Standard error of the mean from batch means over [`Self::batches`] contiguous blocks
+    /// (which absorbs correlation between neighbouring samples shorter than a block); NaN
+    /// with fewer than 2 batches.
+    pub std_error: f64,
+    /// Number of samples in the window.
+    pub samples: usize,
+    /// Number of batches used for the error (up to 10, at least 2 samples each).
+    pub batches: usize,
+}
+
+/// Average of `y(t)` over `t0 <= t <= t1` (samples counted equally).
+pub fn window_average(t: &[f64], y: &[f64], t0: f64, t1: f64) -> WindowAverage {
+    let vals: Vec<f64> = t
+        .iter()
+        .zip(y)
+        .filter(|(t, _)| **t >= t0 && **t <= t1)
+        .map(|(_, y)| *y)
+        .collect();
+    let n = vals.len();
+    let mean = if n > 0 {
+        vals.iter().sum::<f64>() / n as f64
+    } else {
+        f64::NAN
+    };
+    let batches = (n / 2).min(10);
+    let std_error = if batches >= 2 {
+        let size = n / batches;
+        let means: Vec<f64> = (0..batches)
+            .map(|b| vals[b * size..(b + 1) * size].iter().sum::<f64>() / size as f64)
+            .collect();
+        let m = means.iter().sum::<f64>() / batches as f64;
+        let var = means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (batches - 1) as f64;
+        (var / batches as f64).sqrt()
+    } else {
+        f64::NAN
+    };
+    WindowAverage {
+        mean,
+        std_error,
+        samples: n,
+        batches,
+    }
+}
+
+/// Unwrapped position `x + L * image` of one particle.
+pub fn unwrap(x: [f64; 3], image: [i64; 3], box_length: f64) -> [f64; 3] {
+    [0, 1, 2].map(|d| x[d] + box_length * image[d] as f64)
+}
+
+/// Mean squared displacement `<|x_n(t) - x_n(t0)|^2>` between two sets of unwrapped positions.
+pub fn mean_squared_displacement(x0: &[[f64; 3]], xt: &[[f64; 3]]) -> f64 {
+    assert_eq!(
+        x0.len(),
+        xt.len(),
+        "MSD needs the same particles at both times"
+    );
+    if x0.is_empty() {
+        return 0.0;
+    }
+    x0.iter()
+        .zip(xt)
+        .map(|(a, b)| (0..3).map(|d| (b[d] - a[d]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / x0.len() as f64
+}
+
+/// Orientation autocorrelation `<p_n(t) . p_n(t0)>`.
+pub fn orientation_autocorrelation(p0: &[[f64; 3]], pt: &[[f64; 3]]) -> f64 {
+    assert_eq!(
+        p0.len(),
+        pt.len(),
+        "orientation autocorrelation needs the same particles at both times"
+    );
+    if p0.is_empty() {
+        return 0.0;
+    }
+    p0.iter()
+        .zip(pt)
+        .map(|(a, b)| a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+        .sum::<f64>()
+        / p0.len() as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn msd_of_straight_lines_crossing_the_box_is_v2_t2() {
+        // Particles moving at constant velocity, stored wrapped with image counters, cross the
+        // periodic boundary several times.
+        let l = 5.0;
+        let v = [[1.3, -0.4, 2.2], [-3.1, 0.0, 0.7], [0.5, 0.5, -4.0]];
+        let x0 = [[0.1, 4.9, 2.5], [4.95, 0.05, 1.0], [2.0, 3.0, 0.01]];
+        let wrapped = |t: f64| -> Vec<([f64; 3], [i64; 3])> {
+            x0.iter()
+                .zip(&v)
+                .map(|(x, v)| {
+                    let raw = [0, 1, 2].map(|d| x[d] + v[d] * t);
+                    let img = raw.map(|r| (r / l).floor() as i64);
+                    ([0, 1, 2].map(|d| raw[d] - l * img[d] as f64), img)
+                })
+                .collect()
+        };
+        let start: Vec<[f64; 3]> = wrapped(0.0)
+            .iter()
+            .map(|(x, i)| unwrap(*x, *i, l))
+            .collect();
+        for t in [0.5, 3.0, 17.25] {
+            let w = wrapped(t);
+            assert!(
+                w.iter().any(|(_, i)| i.iter().any(|&k| k != 0)),
+                "trajectories must cross the boundary"
+            );
+            let now: Vec<[f64; 3]> = w.iter().map(|(x, i)| unwrap(*x, *i, l)).collect();
+            let msd = mean_squared_displacement(&start, &now);
+            let exact = v
+                .iter()
+                .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * t * t)
+                .sum::<f64>()
+                / 3.0;
+            assert!(
+                (msd - exact).abs() <= 1e-12 * exact,
+                "t = {t}: MSD {msd} vs v^2 t^2 = {exact}"
+            );
+        }
+    }
+
+    #[test]
+    fn correlation_length_interpolates_the_first_zero() {
+        let r: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
+        let c: Vec<f64> = r.iter().map(|r| (r * 1.1).cos()).collect();
+        let zero = correlation_length(&r, &c).unwrap();
+        let exact = std::f64::consts::FRAC_PI_2 / 1.1;
+        // Linear interpolation over a step h misses c by at most h^2 max|c''| / 8, and within h of
+        // the zero |c''| = k^2 |cos| <= k^3 h; divided by |c'| ~ k: root error <= h^3 k^2 / 8.
+        let (h, k) = (0.1f64, 1.1f64);
+        let bound = h.powi(3) * k * k / 8.0;
+        assert!(
+            (zero - exact).abs() < bound,
+            "zero {zero} vs {exact}: error {:.2e} > {bound:.2e}",
+            (zero - exact).abs()
+        );
+        assert_eq!(correlation_length(&r, &vec![1.0; 50]), None);
+    }
+
+    #[test]
+    fn window_average_of_a_constant_plus_alternating_noise() {
+        let t: Vec<f64> = (0..100).map(|i| i as f64).collect();
+        let y: Vec<f64> = t
+            .iter()
+            .map(|t| 2.0 + if (*t as i64) % 2 == 0 { 0.5 } else { -0.5 })
+            .collect();
+        let a = window_average(&t, &y, 10.0, 89.0);
+        assert_eq!(a.samples, 80);
+        assert!((a.mean - 2.0).abs() < 1e-14, "mean {}", a.mean);
+        // Each batch of 8 samples averages exactly to 2: zero error.
+        assert!(a.std_error.abs() < 1e-14, "std error {}", a.std_error);
+    }
+
+    #[test]
+    fn l2_norm_and_orientation_autocorrelation() {
+        let a = [3.0, 0.0];
+        let b = [4.0, 0.0];
+        assert!((volume_l2_norm(&[&a, &b]) - (25.0f64 / 2.0).sqrt()).abs() < 1e-15);
+        let p0 = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+        let pt = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert!((orientation_autocorrelation(&p0, &pt) - 0.5).abs() < 1e-15);
+    }
+}

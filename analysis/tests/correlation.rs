@@ -1,0 +1,191 @@
+//! Correlation functions against exact answers: a single Fourier mode gives
+//! `Corr(r) = (A^2/2) sin(kr)/(kr)`; `Corr(0)` is the mean square (Parseval); a random (Poisson)
+//! configuration of N rods has the shot-noise spectrum `E|Phi~(k)|^2 = E|phi(p)|^2 / N`; the
+//! velocity spectrum of a sinusoidal force density is the exact Stokes solution.
+
+use motile_analysis::correlation::{
+    CorrelationOptions, OrderParameter, grid_coefficients, particle_coefficients, velocity_spectrum,
+};
+use motile_analysis::nufft::direct_type1;
+use num_complex::Complex64;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::f64::consts::PI;
+
+fn grid_field(n: usize, l: f64, f: impl Fn([f64; 3]) -> f64) -> Vec<f64> {
+    let h = l / n as f64;
+    (0..n * n * n)
+        .map(|i| f([i % n, (i / n) % n, i / (n * n)].map(|j| j as f64 * h)))
+        .collect()
+}
+
+#[test]
+fn single_fourier_mode_gives_half_a_squared_sinc() {
+    let (n, l, amp) = (48usize, 2.0, 1.7);
+    let m = 2.0;
+    let k = 2.0 * PI * m / l;
+    // A plane wave along a diagonal-ish direction still has Corr = (A^2/2) sinc(|k| r).
+    let field = grid_field(n, l, |x| amp * (k * x[0]).cos());
+    let spec = grid_coefficients(&[&field], &[1.0], n, l, false);
+    let corr = spec.correlation(None);
+    let h = l / n as f64;
+    let mean_sq = field.iter().map(|v| v * v).sum::<f64>() / field.len() as f64;
+    assert!(
+        (corr.at_zero() - mean_sq).abs() < 1e-11 * mean_sq,
+        "Corr(0) = {} vs mean square {mean_sq}",
+        corr.at_zero()
+    );
+    assert!((mean_sq - amp * amp / 2.0).abs() < 1e-11);
+    let mut worst: f64 = 0.0;
+    for ((r, c), count) in corr.r.iter().zip(&corr.value).zip(&corr.count).skip(1) {
+        let exact = amp * amp / 2.0 * (k * r).sin() / (k * r);
+        // Shell averaging on the lattice: the points of a shell lie within h/2 of its centre, so
+        // the radial error is at most (A^2/2) max|sinc'| k h/2 <= (A^2/2) 0.44 k h / 2, plus the
+        // angular sampling error of `count` lattice points, ~ (A^2/2) / sqrt(count).
+        let bound = amp * amp / 2.0 * (0.44 * k * h / 2.0 + 1.0 / (*count as f64).sqrt());
+        let err = (c - exact).abs();
+        worst = worst.max(err / (amp * amp / 2.0));
+        assert!(
+            err <= bound,
+            "r = {r:.4}: Corr {c:.5} vs (A^2/2) sinc(kr) {exact:.5}: error {err:.2e} > {bound:.2e}"
+        );
+    }
+    eprintln!(
+        "single mode: worst relative shell error {worst:.3e} (k h = {:.3})",
+        k * h
+    );
+}
+
+#[test]
+fn corr_at_zero_is_the_mean_square_of_a_random_vector_field() {
+    let n = 16;
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let comps: Vec<Vec<f64>> = (0..3)
+        .map(|_| {
+            (0..n * n * n)
+                .map(|_| rng.random_range(-1.0..1.0))
+                .collect()
+        })
+        .collect();
+    let refs: Vec<&[f64]> = comps.iter().map(|v| v.as_slice()).collect();
+    let spec = grid_coefficients(&refs, &[1.0; 3], n, 1.0, false);
+    let ms = comps
+        .iter()
+        .map(|c| c.iter().map(|v| v * v).sum::<f64>())
+        .sum::<f64>()
+        / (n * n * n) as f64;
+    let c0 = spec.correlation(None).at_zero();
+    assert!(
+        (c0 - ms).abs() < 1e-12 * ms,
+        "Corr(0) {c0} vs mean square {ms}"
+    );
+    assert!(
+        (spec.l2_norm() - ms.sqrt()).abs() < 1e-12,
+        "Parseval norm {} vs {}",
+        spec.l2_norm(),
+        ms.sqrt()
+    );
+    assert!((motile_analysis::stats::volume_l2_norm(&refs) - ms.sqrt()).abs() < 1e-14);
+}
+
+fn random_rods(n: usize, l: f64, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let x = (0..n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..l)))
+        .collect();
+    let p = (0..n)
+        .map(|_| {
+            let z: f64 = rng.random_range(-1.0..1.0);
+            let phi: f64 = rng.random_range(0.0..2.0 * PI);
+            let s = (1.0 - z * z).sqrt();
+            [s * phi.cos(), s * phi.sin(), z]
+        })
+        .collect();
+    (x, p)
+}
+
+#[test]
+fn particle_coefficients_match_the_direct_sum() {
+    let l = 10.0;
+    let (x, p) = random_rods(500, l, 5);
+    let opts = CorrelationOptions {
+        modes: Some(8),
+        ..Default::default()
+    };
+    let spec = particle_coefficients(&x, &p, l, OrderParameter::Polarity, &opts).unwrap();
+    for d in 0..3 {
+        let s: Vec<Complex64> = p
+            .iter()
+            .map(|q| Complex64::new(q[d] / x.len() as f64, 0.0))
+            .collect();
+        let exact = direct_type1(&x, l, &s, [8; 3]);
+        let err = spec.components[d]
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        let scale = exact.iter().map(|b| b.norm()).fold(0.0, f64::max);
+        assert!(
+            err <= 10.0 * opts.tolerance * scale,
+            "component {d}: max error {err:.2e} (scale {scale:.2e})"
+        );
+    }
+}
+
+#[test]
+fn random_configuration_has_the_shot_noise_spectrum() {
+    // For N independent uniform rods, E|Phi~(k)|^2 = E|phi(p)|^2 / N at every k != 0 (and at k = 0
+    // for the zero-mean polarity and nematic densities). The estimate sums ~K^3/2 independent
+    // exponential variables (Phi~(-k) is the conjugate of Phi~(k)): relative standard deviation
+    // sqrt(2 / K^3). We allow 5 standard deviations.
+    let (n, l, k) = (20_000usize, 16.0, 8usize);
+    let (x, p) = random_rods(n, l, 6);
+    let opts = CorrelationOptions::default();
+    assert_eq!(opts.modes_for(l), k);
+    let modes = (k * k * k) as f64;
+    let rel_sd = (2.0 / modes).sqrt();
+    for (which, expected) in [
+        (OrderParameter::Concentration, (modes - 1.0) / n as f64),
+        (OrderParameter::Polarity, modes / n as f64),
+        (OrderParameter::Nematic, modes * (2.0 / 3.0) / n as f64),
+    ] {
+        let spec = particle_coefficients(&x, &p, l, which, &opts).unwrap();
+        let c0 = spec.correlation(None).at_zero();
+        let rel = (c0 - expected) / expected;
+        eprintln!(
+            "{which:?}: Corr(0) = {c0:.4e}, shot noise {expected:.4e}, deviation {rel:+.3} ({:.1} sd)",
+            rel / rel_sd
+        );
+        assert!(
+            rel.abs() < 5.0 * rel_sd,
+            "{which:?}: Corr(0) = {c0:.4e} vs shot noise {expected:.4e}: {rel:+.3} > 5 sd ({rel_sd:.3})"
+        );
+    }
+}
+
+#[test]
+fn velocity_spectrum_of_a_sinusoidal_force_is_the_stokes_solution() {
+    // Force density f(x) = F0 sin(2 pi x_2 / L) e_1, sampled as point forces f h^3 on an n^3 grid
+    // (exact for this band-limited field): u = F0 / (mu k^2) sin(k x_2) e_1, so
+    // ||u||_2 = F0 / (sqrt(2) mu k^2).
+    let (n, l, f0, mu) = (12usize, 3.0, 0.8, 1.3);
+    let h = l / n as f64;
+    let k = 2.0 * PI / l;
+    let mut y = Vec::new();
+    let mut f = Vec::new();
+    for i in 0..n * n * n {
+        let x = [i % n, (i / n) % n, i / (n * n)].map(|j| j as f64 * h + 0.1 * h);
+        y.push(x);
+        f.push([f0 * (k * x[1]).sin() * h.powi(3), 0.0, 0.0]);
+    }
+    for tol in [1e-4, 1e-8] {
+        let spec = velocity_spectrum(&y, &f, l, mu, 8, tol).unwrap();
+        let exact = f0 / (2f64.sqrt() * mu * k * k);
+        let norm = spec.l2_norm();
+        assert!(
+            (norm - exact).abs() <= 10.0 * tol * exact,
+            "tol {tol:.0e}: ||u|| = {norm:.10} vs exact {exact:.10}"
+        );
+        assert!((spec.correlation(None).at_zero().sqrt() - norm).abs() < 1e-12);
+    }
+}
