@@ -1,0 +1,88 @@
+//! Atomic file output: every file is written to a temporary sibling, flushed to disk, and
+//! renamed over the target, so a killed run leaves either the old file or the new one, never a
+//! truncated one.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Errors of run-directory input and output. Each names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    /// A filesystem operation failed.
+    #[error("{path}: {source}")]
+    Fs {
+        /// The file or directory.
+        path: PathBuf,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// An HDF5 file could not be read or written.
+    #[error("{path}: HDF5: {message}")]
+    Hdf5 {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// A file's content is not what motile expects.
+    #[error("{path}: {message}")]
+    Content {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
+}
+
+pub(crate) fn fs_err(path: &Path) -> impl FnOnce(std::io::Error) -> IoError + '_ {
+    move |source| IoError::Fs {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Write `bytes` to `path` atomically (temporary file in the same directory, fsync, rename,
+/// fsync of the directory).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    fs::create_dir_all(dir).map_err(fs_err(dir))?;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    {
+        let mut f = fs::File::create(&tmp).map_err(fs_err(&tmp))?;
+        f.write_all(bytes).map_err(fs_err(&tmp))?;
+        f.sync_all().map_err(fs_err(&tmp))?;
+    }
+    fs::rename(&tmp, path).map_err(fs_err(path))?;
+    // Make the rename itself durable; not all filesystems allow opening a directory.
+    if let Ok(d) = fs::File::open(dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn replaces_content_and_leaves_no_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("sub/a.txt");
+        write_atomic(&p, b"first").unwrap();
+        write_atomic(&p, b"second").unwrap();
+        assert_eq!(fs::read(&p).unwrap(), b"second");
+        let names: Vec<_> = fs::read_dir(p.parent().unwrap())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 1, "leftover files: {names:?}");
+    }
+}

@@ -1,0 +1,11 @@
+//! The `motile` command line's library: run directories, HDF5 snapshots, analysis of runs,
+//! figures. Physics lives in the model crates; this crate decides what to show and where to
+//! write it.
+#![warn(missing_docs)]
+
+pub mod analyze;
+pub mod demo;
+pub mod io;
+pub mod plot;
+pub mod rundir;
+pub mod snapshot;

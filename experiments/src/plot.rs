@@ -1,0 +1,127 @@
+//! Line charts as PNG and SVG (plotters), with labelled axes and a legend.
+
+use plotters::prelude::*;
+use std::path::Path;
+
+/// One curve: legend label and points.
+#[derive(Clone, Debug)]
+pub struct Series {
+    /// Legend label.
+    pub label: String,
+    /// `(x, y)` points.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A chart description.
+#[derive(Clone, Debug)]
+pub struct Chart<'a> {
+    /// Title.
+    pub title: &'a str,
+    /// x-axis label with unit.
+    pub x_label: &'a str,
+    /// y-axis label with unit.
+    pub y_label: &'a str,
+    /// Curves.
+    pub series: Vec<Series>,
+}
+
+const COLORS: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+];
+
+fn range(series: &[Series], pick: impl Fn(&(f64, f64)) -> f64) -> (f64, f64) {
+    let vals: Vec<f64> = series
+        .iter()
+        .flat_map(|s| s.points.iter().map(&pick))
+        .filter(|v| v.is_finite())
+        .collect();
+    let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = if hi > lo {
+        0.05 * (hi - lo)
+    } else {
+        0.5 * lo.abs().max(1.0)
+    };
+    (lo - pad, hi + pad)
+}
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    chart: &Chart,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (x0, x1) = range(&chart.series, |p| p.0);
+    let (y0, y1) = range(&chart.series, |p| p.1);
+    let mut c = ChartBuilder::on(&root)
+        .caption(chart.title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| e.to_string())?;
+    c.configure_mesh()
+        .x_desc(chart.x_label)
+        .y_desc(chart.y_label)
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (i, s) in chart.series.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        c.draw_series(LineSeries::new(
+            s.points.iter().copied(),
+            color.stroke_width(2),
+        ))
+        .map_err(|e| e.to_string())?
+        .label(s.label.clone())
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    }
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 15))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())
+}
+
+/// Draw `chart` to `<stem>.png` and `<stem>.svg` (each written atomically).
+pub fn line_chart(stem: &Path, chart: &Chart) -> Result<(), crate::io::IoError> {
+    let err = |p: &Path, m: String| crate::io::IoError::Content {
+        path: p.to_path_buf(),
+        message: format!("drawing chart: {m}"),
+    };
+    let dir = stem.parent().unwrap_or(Path::new("."));
+    let name = stem
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let png = stem.with_extension("png");
+    let tmp = dir.join(format!(".{name}.render.png"));
+    draw(
+        BitMapBackend::new(&tmp, (900, 600)).into_drawing_area(),
+        chart,
+    )
+    .map_err(|m| err(&png, m))?;
+    let bytes = std::fs::read(&tmp).map_err(crate::io::fs_err(&tmp))?;
+    let _ = std::fs::remove_file(&tmp);
+    crate::io::write_atomic(&png, &bytes)?;
+    let mut svg = String::new();
+    draw(
+        SVGBackend::with_string(&mut svg, (900, 600)).into_drawing_area(),
+        chart,
+    )
+    .map_err(|m| err(&png, m))?;
+    crate::io::write_atomic(&stem.with_extension("svg"), svg.as_bytes())
+}

@@ -1,0 +1,239 @@
+//! Run directories: one layout for every kind of run.
+//!
+//! ```text
+//! <run>/config.toml        the fully resolved config ([motile] version, model, seed + the model's own)
+//! <run>/timeseries.csv     one row per diagnostic time; header names carry units
+//! <run>/snapshots/snap_NNNNNN.h5   HDF5 snapshots (crate::snapshot)
+//! <run>/checkpoints/       restart files (written by the models' runners)
+//! <run>/run.log            what the run did, with wall-clock stamps
+//! <run>/analysis/          written by `motile analyze`
+//! ```
+//!
+//! Every file except the append-only log is written atomically ([`crate::io::write_atomic`]).
+
+use crate::io::{IoError, fs_err, write_atomic};
+use crate::snapshot::{Snapshot, read_snapshot};
+use serde::Serialize;
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+/// Provenance written at the top of every `config.toml`.
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct RunHeader {
+    /// motile version that wrote the run.
+    pub version: String,
+    /// Model: "particle", "meanfield" or "analysis".
+    pub model: String,
+    /// Random seed.
+    pub seed: u64,
+}
+
+#[derive(Serialize)]
+struct ConfigFile<'a, C: Serialize> {
+    motile: &'a RunHeader,
+    #[serde(flatten)]
+    config: &'a C,
+}
+
+/// A run directory on disk.
+#[derive(Clone, Debug)]
+pub struct RunDir {
+    root: PathBuf,
+}
+
+impl RunDir {
+    /// Create (or reuse) the directory and write the resolved config.
+    pub fn create<C: Serialize>(
+        root: &Path,
+        model: &str,
+        seed: u64,
+        config: &C,
+    ) -> Result<Self, IoError> {
+        fs::create_dir_all(root.join("snapshots")).map_err(fs_err(root))?;
+        let header = RunHeader {
+            version: env!("CARGO_PKG_VERSION").into(),
+            model: model.into(),
+            seed,
+        };
+        let text = toml::to_string_pretty(&ConfigFile {
+            motile: &header,
+            config,
+        })
+        .map_err(|e| IoError::Content {
+            path: root.join("config.toml"),
+            message: e.to_string(),
+        })?;
+        write_atomic(&root.join("config.toml"), text.as_bytes())?;
+        Ok(Self {
+            root: root.to_path_buf(),
+        })
+    }
+
+    /// Open an existing run directory.
+    pub fn open(root: &Path) -> Result<Self, IoError> {
+        if !root.join("config.toml").is_file() {
+            return Err(IoError::Content {
+                path: root.to_path_buf(),
+                message: "not a motile run directory (no config.toml)".into(),
+            });
+        }
+        Ok(Self {
+            root: root.to_path_buf(),
+        })
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.root
+    }
+
+    /// The provenance header of `config.toml`.
+    pub fn header(&self) -> Result<RunHeader, IoError> {
+        #[derive(serde::Deserialize)]
+        struct Head {
+            motile: RunHeader,
+        }
+        let p = self.root.join("config.toml");
+        let text = fs::read_to_string(&p).map_err(fs_err(&p))?;
+        let h: Head = toml::from_str(&text).map_err(|e| IoError::Content {
+            path: p,
+            message: e.to_string(),
+        })?;
+        Ok(h.motile)
+    }
+
+    /// Path of snapshot number `index`.
+    pub fn snapshot_path(&self, index: usize) -> PathBuf {
+        self.root
+            .join("snapshots")
+            .join(format!("snap_{index:06}.h5"))
+    }
+
+    /// Snapshot files in order.
+    pub fn snapshot_paths(&self) -> Result<Vec<PathBuf>, IoError> {
+        let dir = self.root.join("snapshots");
+        let mut v: Vec<PathBuf> = fs::read_dir(&dir)
+            .map_err(fs_err(&dir))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                p.extension().is_some_and(|e| e == "h5")
+                    && p.file_name()
+                        .is_some_and(|n| n.to_string_lossy().starts_with("snap_"))
+            })
+            .collect();
+        v.sort();
+        Ok(v)
+    }
+
+    /// Read every snapshot, in order.
+    pub fn snapshots(&self) -> Result<Vec<Snapshot>, IoError> {
+        self.snapshot_paths()?
+            .iter()
+            .map(|p| read_snapshot(p))
+            .collect()
+    }
+
+    /// Append a line to `run.log` with a UNIX-time stamp, flushed at once.
+    pub fn log(&self, line: &str) -> Result<(), IoError> {
+        let p = self.root.join("run.log");
+        let mut f = fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&p)
+            .map_err(fs_err(&p))?;
+        let t = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map(|d| d.as_secs_f64())
+            .unwrap_or(0.0);
+        writeln!(f, "[{t:.3}] {line}").map_err(fs_err(&p))?;
+        f.flush().map_err(fs_err(&p))
+    }
+}
+
+/// A table of diagnostics, one row per time, written atomically as CSV.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimeSeries {
+    /// Column names, each with its unit in brackets, e.g. `t [1/beta]`.
+    pub columns: Vec<String>,
+    /// Rows of values.
+    pub rows: Vec<Vec<f64>>,
+}
+
+impl TimeSeries {
+    /// An empty table with these columns.
+    pub fn new(columns: &[&str]) -> Self {
+        Self {
+            columns: columns.iter().map(|s| s.to_string()).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// Add a row (must have one value per column).
+    pub fn push(&mut self, row: Vec<f64>) {
+        assert_eq!(
+            row.len(),
+            self.columns.len(),
+            "time-series row has the wrong number of values"
+        );
+        self.rows.push(row);
+    }
+
+    /// A column by name.
+    pub fn column(&self, name: &str) -> Option<Vec<f64>> {
+        let i = self.columns.iter().position(|c| c == name)?;
+        Some(self.rows.iter().map(|r| r[i]).collect())
+    }
+
+    /// CSV text (full precision).
+    pub fn to_csv(&self) -> String {
+        let mut s = self.columns.join(",");
+        s.push('\n');
+        for r in &self.rows {
+            let cells: Vec<String> = r.iter().map(|v| format!("{v:e}")).collect();
+            s.push_str(&cells.join(","));
+            s.push('\n');
+        }
+        s
+    }
+
+    /// Write atomically.
+    pub fn write(&self, path: &Path) -> Result<(), IoError> {
+        write_atomic(path, self.to_csv().as_bytes())
+    }
+
+    /// Read a CSV written by [`Self::write`].
+    pub fn read(path: &Path) -> Result<Self, IoError> {
+        let text = fs::read_to_string(path).map_err(fs_err(path))?;
+        let mut lines = text.lines();
+        let columns: Vec<String> = lines
+            .next()
+            .unwrap_or("")
+            .split(',')
+            .map(|s| s.to_string())
+            .collect();
+        let mut rows = Vec::new();
+        for (i, line) in lines.enumerate() {
+            let row: Result<Vec<f64>, _> =
+                line.split(',').map(|c| c.trim().parse::<f64>()).collect();
+            let row = row.map_err(|e| IoError::Content {
+                path: path.to_path_buf(),
+                message: format!("line {}: {e}", i + 2),
+            })?;
+            if row.len() != columns.len() {
+                return Err(IoError::Content {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "line {} has {} values, header has {}",
+                        i + 2,
+                        row.len(),
+                        columns.len()
+                    ),
+                });
+            }
+            rows.push(row);
+        }
+        Ok(Self { columns, rows })
+    }
+}
