@@ -16,6 +16,39 @@ use std::f64::consts::PI;
 /// Widest kernel supported (tolerance 1e-15).
 pub const MAX_WIDTH: usize = 16;
 
+/// `ceil(y)` as an integer without a libm call (baseline x86-64 has no rounding instruction).
+#[inline(always)]
+fn ceil_i64(y: f64) -> i64 {
+    let t = y as i64; // truncates toward zero
+    if (t as f64) < y { t + 1 } else { t }
+}
+
+/// Evaluates `$e` (which may use `W`) with the runtime kernel width `$w` bound to the
+/// compile-time constant `W`, so that loops over the kernel unroll and vectorise.
+macro_rules! with_kernel_width {
+    ($w:expr, $obj:ident . $f:ident ( $($arg:expr),* )) => {
+        match $w {
+            2 => $obj.$f::<2>($($arg),*),
+            3 => $obj.$f::<3>($($arg),*),
+            4 => $obj.$f::<4>($($arg),*),
+            5 => $obj.$f::<5>($($arg),*),
+            6 => $obj.$f::<6>($($arg),*),
+            7 => $obj.$f::<7>($($arg),*),
+            8 => $obj.$f::<8>($($arg),*),
+            9 => $obj.$f::<9>($($arg),*),
+            10 => $obj.$f::<10>($($arg),*),
+            11 => $obj.$f::<11>($($arg),*),
+            12 => $obj.$f::<12>($($arg),*),
+            13 => $obj.$f::<13>($($arg),*),
+            14 => $obj.$f::<14>($($arg),*),
+            15 => $obj.$f::<15>($($arg),*),
+            16 => $obj.$f::<16>($($arg),*),
+            _ => unreachable!("kernel width outside 2..=16"),
+        }
+    };
+}
+pub(crate) use with_kernel_width;
+
 /// ES kernel of a given width, with its piecewise-polynomial evaluation table.
 #[derive(Clone, Debug)]
 pub struct EsKernel {
@@ -83,20 +116,30 @@ impl EsKernel {
     /// leftmost index `ceil(g - w/2)`. Horner's rule on the fitted polynomials.
     #[inline(always)]
     pub fn eval(&self, g: f64, out: &mut [f64; MAX_WIDTH]) -> i64 {
-        let half = self.width as f64 / 2.0;
-        let i0 = (g - half).ceil();
-        let u = i0 - (g - half); // in [0, 1)
-        let t = 2.0 * u - 1.0;
-        let w = self.width;
+        crate::kernel::with_kernel_width!(self.width, self.eval_w(g, out))
+    }
+
+    /// [`Self::eval`] with the width as a compile-time constant (must equal `self.width`), so
+    /// the loops unroll; the spreading loops call this directly.
+    #[inline(always)]
+    pub fn eval_w<const W: usize>(&self, g: f64, out: &mut [f64; MAX_WIDTH]) -> i64 {
+        debug_assert_eq!(W, self.width);
+        let y = g - W as f64 / 2.0;
+        let i0 = ceil_i64(y);
+        let t = 2.0 * (i0 as f64 - y) - 1.0; // 2u - 1 with u in [0, 1)
         let d = self.degree;
-        out[..w].copy_from_slice(&self.coef[d * w..(d + 1) * w]);
+        let mut acc = [0.0; W];
+        acc.copy_from_slice(&self.coef[d * W..(d + 1) * W]);
         for deg in (0..d).rev() {
-            let c = &self.coef[deg * w..(deg + 1) * w];
-            for j in 0..w {
-                out[j] = out[j] * t + c[j];
+            let c: &[f64; W] = self.coef[deg * W..(deg + 1) * W]
+                .try_into()
+                .expect("coefficient row");
+            for j in 0..W {
+                acc[j] = acc[j] * t + c[j];
             }
         }
-        i0 as i64
+        out[..W].copy_from_slice(&acc);
+        i0
     }
 
     /// `(w/2) * integral_{-1}^{1} phi(z) cos(alpha z) dz`: the kernel's Fourier transform in

@@ -15,7 +15,7 @@
 //! bit-identical for any rayon pool size.
 
 use crate::fft3::{Direction, Fft3, next_smooth_even};
-use crate::kernel::{EsKernel, MAX_WIDTH};
+use crate::kernel::{EsKernel, MAX_WIDTH, with_kernel_width};
 use num_complex::Complex64;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -71,6 +71,8 @@ pub struct NufftPlan {
     grid_pts: Vec<[f64; 3]>,
     /// Original index of each sorted point.
     perm: Vec<usize>,
+    /// Sorted position of each original point (inverse of `perm`).
+    inv_perm: Vec<usize>,
     /// `slab_start[s]..slab_start[s + 1]` are the sorted points of slab `s`.
     slab_start: Vec<usize>,
 }
@@ -106,6 +108,7 @@ impl NufftPlan {
             slab,
             grid_pts: Vec::new(),
             perm: Vec::new(),
+            inv_perm: Vec::new(),
             slab_start: vec![0; 1],
         })
     }
@@ -179,14 +182,17 @@ impl NufftPlan {
         }
         self.slab_start = (0..=nslab).map(|s| counts[s * nby * nbx]).collect();
         let mut next = counts;
+        let mut inv = vec![0; grid.len()];
         self.perm = vec![0; grid.len()];
         self.grid_pts = vec![[0.0; 3]; grid.len()];
         for (i, g) in grid.iter().enumerate() {
             let k = key(g);
             self.perm[next[k]] = i;
+            inv[i] = next[k];
             self.grid_pts[next[k]] = *g;
             next[k] += 1;
         }
+        self.inv_perm = inv;
         Ok(())
     }
 
@@ -245,26 +251,27 @@ impl NufftPlan {
         let (xb, yb, zb) = (n0 + 2 * pad, n1 + 2 * pad, self.slab + 2 * pad);
         let ns = strengths.len();
         let nslab = self.slab_start.len() - 1;
+        // Strengths in sorted point order: a gather loop overlaps its cache misses, which the
+        // spreading loop cannot.
+        let sorted: Vec<Vec<Complex64>> = strengths
+            .iter()
+            .map(|st| self.perm.par_iter().map(|&i| st[i]).collect())
+            .collect();
+        let sorted: Vec<&[Complex64]> = sorted.iter().map(|v| v.as_slice()).collect();
         // Each slab spreads into its own padded buffers (interleaved re/im), all strengths.
         let slabs: Vec<Vec<f64>> = (0..nslab)
             .into_par_iter()
             .map(|s| {
                 let mut buf = vec![0.0; 2 * ns * zb * yb * xb];
                 let z_origin = (s * self.slab) as i64 - pad as i64;
-                let (mut kx, mut ky, mut kz) =
-                    ([0.0; MAX_WIDTH], [0.0; MAX_WIDTH], [0.0; MAX_WIDTH]);
-                for p in self.slab_start[s]..self.slab_start[s + 1] {
-                    let g = self.grid_pts[p];
-                    let ix = (self.kernel.eval(g[0], &mut kx) + pad as i64) as usize;
-                    let iy = (self.kernel.eval(g[1], &mut ky) + pad as i64) as usize;
-                    let iz = (self.kernel.eval(g[2], &mut kz) - z_origin) as usize;
-                    let orig = self.perm[p];
-                    for (si, st) in strengths.iter().enumerate() {
-                        let b = &mut buf[2 * si * zb * yb * xb..2 * (si + 1) * zb * yb * xb];
-                        let at = Spot { ix, iy, iz, yb, xb };
-                        with_width!(w, spread_point(b, &at, &kx, &ky, &kz, st[orig]));
-                    }
-                }
+                let spot = Spot {
+                    ix: 0,
+                    iy: 0,
+                    iz: 0,
+                    yb,
+                    xb,
+                };
+                with_kernel_width!(w, self.spread_slab(s, z_origin, &spot, &sorted, &mut buf));
                 buf
             })
             .collect();
@@ -306,6 +313,40 @@ impl NufftPlan {
                 grid
             })
             .collect()
+    }
+
+    /// Spread the points of slab `s` into its padded buffers (kernel width `W`); `strengths`
+    /// are in sorted point order.
+    fn spread_slab<const W: usize>(
+        &self,
+        s: usize,
+        z_origin: i64,
+        strides: &Spot,
+        strengths: &[&[Complex64]],
+        buf: &mut [f64],
+    ) {
+        let pad = self.pad() as i64;
+        let block = 2 * (self.slab + 2 * self.pad()) * strides.yb * strides.xb;
+        let (mut kx, mut ky, mut kz) = ([0.0; MAX_WIDTH], [0.0; MAX_WIDTH], [0.0; MAX_WIDTH]);
+        for p in self.slab_start[s]..self.slab_start[s + 1] {
+            let g = self.grid_pts[p];
+            let at = Spot {
+                ix: (self.kernel.eval_w::<W>(g[0], &mut kx) + pad) as usize,
+                iy: (self.kernel.eval_w::<W>(g[1], &mut ky) + pad) as usize,
+                iz: (self.kernel.eval_w::<W>(g[2], &mut kz) - z_origin) as usize,
+                ..*strides
+            };
+            for (si, st) in strengths.iter().enumerate() {
+                spread_point::<W>(
+                    &mut buf[si * block..(si + 1) * block],
+                    &at,
+                    &kx,
+                    &ky,
+                    &kz,
+                    st[p],
+                );
+            }
+        }
     }
 
     /// Read the `modes` out of a transformed fine grid and deconvolve.
@@ -414,17 +455,20 @@ impl NufftPlan {
                 vals
             })
             .collect();
-        let mut out = vec![vec![Complex64::default(); self.num_points()]; ns];
-        for (p, &orig) in self.perm.iter().enumerate() {
-            for s in 0..ns {
-                out[s][orig] = sorted[p * ns + s];
-            }
-        }
-        out
+        // Back to the caller's order as a parallel gather (a scatter would be serial).
+        (0..ns)
+            .map(|s| {
+                self.inv_perm
+                    .par_iter()
+                    .map(|&p| sorted[p * ns + s])
+                    .collect()
+            })
+            .collect()
     }
 }
 
 /// Where a point's kernel footprint starts in a padded buffer, and the buffer's strides.
+#[derive(Clone, Copy)]
 struct Spot {
     ix: usize,
     iy: usize,
@@ -432,32 +476,6 @@ struct Spot {
     yb: usize,
     xb: usize,
 }
-
-/// Calls `$f::<W>(args)` with the runtime kernel width `$w` as a compile-time constant, so the
-/// innermost loops unroll and vectorise.
-macro_rules! with_width {
-    ($w:expr, $f:ident($($arg:expr),*)) => {
-        match $w {
-            2 => $f::<2>($($arg),*),
-            3 => $f::<3>($($arg),*),
-            4 => $f::<4>($($arg),*),
-            5 => $f::<5>($($arg),*),
-            6 => $f::<6>($($arg),*),
-            7 => $f::<7>($($arg),*),
-            8 => $f::<8>($($arg),*),
-            9 => $f::<9>($($arg),*),
-            10 => $f::<10>($($arg),*),
-            11 => $f::<11>($($arg),*),
-            12 => $f::<12>($($arg),*),
-            13 => $f::<13>($($arg),*),
-            14 => $f::<14>($($arg),*),
-            15 => $f::<15>($($arg),*),
-            16 => $f::<16>($($arg),*),
-            _ => unreachable!("kernel width outside 2..=16"),
-        }
-    };
-}
-use with_width;
 
 /// Add `c * kz[dz] ky[dy] kx[dx]` to the `W^3` footprint of one point in an interleaved
 /// (re, im) buffer.
