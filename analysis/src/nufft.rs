@@ -149,48 +149,51 @@ impl NufftPlan {
         if !(box_length.is_finite() && box_length > 0.0) {
             return Err(NufftError::BoxLength(box_length));
         }
-        let nf = self.nf;
-        let mut grid = Vec::with_capacity(points.len());
-        for (index, p) in points.iter().enumerate() {
-            if !p.iter().all(|c| c.is_finite()) {
-                return Err(NufftError::NonFinitePoint { index, coord: *p });
-            }
-            let g: [f64; 3] = [0, 1, 2].map(|d| {
-                let f = p[d] / box_length;
-                let f = f - f.floor();
-                let g = f * nf[d] as f64;
-                if g >= nf[d] as f64 { 0.0 } else { g }
-            });
-            grid.push(g);
+        if let Some(index) = points.par_iter().position_first(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(NufftError::NonFinitePoint { index, coord: points[index] });
         }
+        let nf = self.nf;
         let nslab = nf[2].div_ceil(self.slab);
         let nby = nf[1].div_ceil(SORT_BIN);
         let nbx = nf[0].div_ceil(SORT_BIN);
         let nbins = nslab * nby * nbx;
-        let key = |g: &[f64; 3]| {
-            let s = (g[2] as usize / self.slab).min(nslab - 1);
-            let y = (g[1] as usize / SORT_BIN).min(nby - 1);
-            let x = (g[0] as usize / SORT_BIN).min(nbx - 1);
-            (s * nby + y) * nbx + x
-        };
+        let slab = self.slab;
+        // Fine-grid coordinates and sort keys, in parallel.
+        let inv_l = 1.0 / box_length;
+        let keyed: Vec<([f64; 3], u32)> = points
+            .par_iter()
+            .map(|p| {
+                let g = [0, 1, 2].map(|d| {
+                    let f = p[d] * inv_l;
+                    let g = (f - floor(f)) * nf[d] as f64;
+                    if g >= nf[d] as f64 { 0.0 } else { g }
+                });
+                let s = (g[2] as usize / slab).min(nslab - 1);
+                let y = (g[1] as usize / SORT_BIN).min(nby - 1);
+                let x = (g[0] as usize / SORT_BIN).min(nbx - 1);
+                (g, ((s * nby + y) * nbx + x) as u32)
+            })
+            .collect();
+        // Stable counting sort by key (serial: cheap, and fixes the order for any thread count).
         let mut counts = vec![0usize; nbins + 1];
-        for g in &grid {
-            counts[key(g) + 1] += 1;
+        for &(_, k) in &keyed {
+            counts[k as usize + 1] += 1;
         }
         for b in 0..nbins {
             counts[b + 1] += counts[b];
         }
         self.slab_start = (0..=nslab).map(|s| counts[s * nby * nbx]).collect();
         let mut next = counts;
-        let mut inv = vec![0; grid.len()];
-        self.perm = vec![0; grid.len()];
-        self.grid_pts = vec![[0.0; 3]; grid.len()];
-        for (i, g) in grid.iter().enumerate() {
-            let k = key(g);
-            self.perm[next[k]] = i;
-            inv[i] = next[k];
-            self.grid_pts[next[k]] = *g;
-            next[k] += 1;
+        let mut inv = vec![0; points.len()];
+        self.perm = vec![0; points.len()];
+        self.grid_pts = vec![[0.0; 3]; points.len()];
+        // Writes go to one stream per bin, which caches well (a gather through perm would not).
+        for (i, &(g, k)) in keyed.iter().enumerate() {
+            let slot = &mut next[k as usize];
+            self.perm[*slot] = i;
+            self.grid_pts[*slot] = g;
+            inv[i] = *slot;
+            *slot += 1;
         }
         self.inv_perm = inv;
         Ok(())
@@ -505,6 +508,14 @@ fn spread_point<const W: usize>(
             }
         }
     }
+}
+
+/// `floor(x)` without a libm call (baseline x86-64 has no rounding instruction); exact for
+/// `|x| < 2^52`, which box coordinates are.
+#[inline(always)]
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64; // truncates toward zero
+    if t > x { t - 1.0 } else { t }
 }
 
 /// Signed mode number of position `i` among `m` modes.
