@@ -16,14 +16,21 @@ use std::time::Duration;
 
 fn data(n: usize, len: usize) -> (Vec<[f64; 3]>, Vec<Complex64>) {
     let mut rng = ChaCha8Rng::seed_from_u64(42);
-    let pts = (0..n).map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..2.0 * PI))).collect();
-    let v = (0..len).map(|_| Complex64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))).collect();
+    let pts = (0..n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..2.0 * PI)))
+        .collect();
+    let v = (0..len)
+        .map(|_| Complex64::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
+        .collect();
     (pts, v)
 }
 
 fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("nufft");
-    group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(3));
     for ty in [1u32, 2] {
         for n in [100_000usize, 1_000_000] {
             for m in [32usize, 64, 128] {
@@ -31,12 +38,27 @@ fn bench(c: &mut Criterion) {
                 let (pts, v) = data(n, len);
                 for tol in [1e-3, 1e-6, 1e-9] {
                     for threads in [1usize, 2] {
-                        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                        let pool = rayon::ThreadPoolBuilder::new()
+                            .num_threads(threads)
+                            .build()
+                            .unwrap();
                         let mut plan = NufftPlan::new([m; 3], tol).unwrap();
                         pool.install(|| plan.set_points(&pts, 2.0 * PI)).unwrap();
-                        let id = BenchmarkId::new(format!("type{ty}/{n}/{m}/{tol:e}"), format!("{threads}threads"));
+                        let id = BenchmarkId::new(
+                            format!("type{ty}/{n}/{m}/{tol:e}"),
+                            format!("{threads}threads"),
+                        );
                         group.bench_function(id, |b| {
-                            b.iter(|| pool.install(|| if ty == 1 { plan.type1(&[&v]) } else { plan.type2(&[&v]) }).unwrap())
+                            b.iter(|| {
+                                pool.install(|| {
+                                    if ty == 1 {
+                                        plan.type1(&[&v])
+                                    } else {
+                                        plan.type2(&[&v])
+                                    }
+                                })
+                                .unwrap()
+                            })
                         });
                     }
                 }
@@ -45,11 +67,15 @@ fn bench(c: &mut Criterion) {
     }
     let (pts, _) = data(1_000_000, 0);
     for threads in [1usize, 2] {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         let mut plan = NufftPlan::new([64; 3], 1e-6).unwrap();
-        group.bench_function(BenchmarkId::new("set_points/1000000/64", format!("{threads}threads")), |b| {
-            b.iter(|| pool.install(|| plan.set_points(&pts, 2.0 * PI)).unwrap())
-        });
+        group.bench_function(
+            BenchmarkId::new("set_points/1000000/64", format!("{threads}threads")),
+            |b| b.iter(|| pool.install(|| plan.set_points(&pts, 2.0 * PI)).unwrap()),
+        );
     }
     group.finish();
 }

@@ -149,8 +149,14 @@ impl NufftPlan {
         if !(box_length.is_finite() && box_length > 0.0) {
             return Err(NufftError::BoxLength(box_length));
         }
-        if let Some(index) = points.par_iter().position_first(|p| !p.iter().all(|c| c.is_finite())) {
-            return Err(NufftError::NonFinitePoint { index, coord: points[index] });
+        if let Some(index) = points
+            .par_iter()
+            .position_first(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(NufftError::NonFinitePoint {
+                index,
+                coord: points[index],
+            });
         }
         let nf = self.nf;
         let nslab = nf[2].div_ceil(self.slab);

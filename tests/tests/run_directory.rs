@@ -219,3 +219,31 @@ fn bad_files_are_named_in_errors() {
             .contains("tolerance = 1e0 is outside the allowed range")
     );
 }
+
+#[test]
+fn analysis_is_bit_identical_for_one_and_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = DemoConfig {
+        box_length: 10.0,
+        snapshots: 2,
+        ..Default::default()
+    };
+    let run = write_demo_run(&dir.path().join("run"), &cfg).unwrap();
+    let snaps = run.snapshots().unwrap();
+    let report = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| analyze(&snaps, &AnalyzeOptions::default()).unwrap())
+    };
+    let (a, b) = (report(1), report(2));
+    assert_eq!(
+        a.timeseries, b.timeseries,
+        "time series differ between 1 and 2 threads"
+    );
+    assert_eq!(
+        a.mean, b.mean,
+        "time-averaged correlations differ between 1 and 2 threads"
+    );
+}
