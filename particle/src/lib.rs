@@ -1,5 +1,22 @@
-//! The particle model of MODEL.md §1-§3: rigid rods, periodic neighbour search, contacts,
-//! slender-body hydrodynamics. Not implemented yet (issues "Particle engine, part 1/2"); the
-//! crate exists so the workspace has its final shape and the dependency direction
-//! `analysis <- particle <- experiments` is fixed.
+//! The particle model of MODEL.md §1-§3: rigid rods in a triply periodic box, periodic
+//! neighbour search, steric contacts as a complementarity problem solved by BBPGD, and explicit
+//! time stepping with quaternion orientation updates. Hydrodynamics plugs in through
+//! [`mobility::Mobility`] (here only `LocalDrag`, `hydrodynamics = "none"`).
+//!
+//! State ([`rods::RodSet`]) is plain data; [`step::Stepper`] owns only the mobility, the solver
+//! and scratch memory, and returns a [`step::StepReport`] instead of printing.
 #![warn(missing_docs)]
+
+pub mod cells;
+pub mod contact;
+pub mod geometry;
+pub mod init;
+pub mod mobility;
+pub mod rods;
+pub mod step;
+pub mod units;
+
+pub use contact::{ContactParams, ContactSolver};
+pub use mobility::{LocalDrag, Mobility};
+pub use rods::RodSet;
+pub use step::{StepError, StepReport, Stepper};

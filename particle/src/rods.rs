@@ -1,0 +1,73 @@
+//! The rods' state (MODEL.md §1): centres wrapped into the periodic box, unit quaternions, and
+//! the periodic images each rod has crossed, so unwrapped trajectories are exact.
+
+use crate::geometry::{Quat, Vec3, quat_axis};
+use serde::{Deserialize, Serialize};
+
+/// N rigid rods in a periodic cube.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RodSet {
+    /// Box side L (rod lengths).
+    pub box_length: f64,
+    /// Centres in `[0, L)^3`.
+    pub x: Vec<Vec3>,
+    /// Unit quaternions; the orientation is `p = q z q*`.
+    pub q: Vec<Quat>,
+    /// Periodic images crossed since the start: unwrapped centre = `x + L * image`.
+    pub image: Vec<[i64; 3]>,
+}
+
+impl RodSet {
+    /// Number of rods.
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// True when there are no rods.
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// Orientation of rod `i`.
+    pub fn p(&self, i: usize) -> Vec3 {
+        quat_axis(self.q[i])
+    }
+
+    /// All orientations.
+    pub fn orientations(&self) -> Vec<Vec3> {
+        self.q.iter().map(|q| quat_axis(*q)).collect()
+    }
+
+    /// Move rod `i` by `dx`, wrapping into the box and counting images.
+    pub fn translate(&mut self, i: usize, dx: Vec3) {
+        let l = self.box_length;
+        for d in 0..3 {
+            let mut c = self.x[i][d] + dx[d];
+            // Steps are far shorter than the box, so one wrap suffices; loop for safety.
+            while c >= l {
+                c -= l;
+                self.image[i][d] += 1;
+            }
+            while c < 0.0 {
+                c += l;
+                self.image[i][d] -= 1;
+            }
+            // -tiny + L can round to L.
+            if c >= l {
+                c = 0.0;
+                self.image[i][d] += 1;
+            }
+            self.x[i][d] = c;
+        }
+    }
+
+    /// Unwrapped centres.
+    pub fn unwrapped(&self) -> Vec<Vec3> {
+        let l = self.box_length;
+        self.x
+            .iter()
+            .zip(&self.image)
+            .map(|(x, i)| [0, 1, 2].map(|d| x[d] + l * i[d] as f64))
+            .collect()
+    }
+}

@@ -1,0 +1,249 @@
+//! One time step of the particle model (MODEL.md §1, §3):
+//!
+//! 1. neighbour search (cell list) and one constraint per pair closer than `b + margin`;
+//! 2. free velocities from the [`Mobility`] (swimming, later hydrodynamics);
+//! 3. contact multipliers from the complementarity problem ([`ContactSolver`]);
+//! 4. velocities `V = V_free + M D lambda`; explicit Euler for centres (wrapped, image counters
+//!    kept) and `q <- theta(dt w) q` for orientations;
+//! 5. the true (nonlinear) largest overlap among the constrained pairs after the move.
+
+use crate::cells::CellList;
+use crate::contact::{Constraint, ContactError, ContactParams, ContactReport, ContactSolver};
+use crate::geometry::{
+    Vec3, axpy, min_image, norm, quat_exp, quat_mul, scale, segment_distance, sub,
+};
+use crate::mobility::{Mobility, RodVelocities};
+use crate::rods::RodSet;
+use crate::units::{DIAMETER, ROD_LENGTH};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// What a step did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StepReport {
+    /// Contact solver report.
+    pub contact: ContactReport,
+    /// Largest overlap among constrained pairs after the step (rod lengths).
+    pub max_overlap: f64,
+    /// Mean rod speed.
+    pub mean_speed: f64,
+    /// Polar order `|mean p|`.
+    pub polar_order: f64,
+    /// Sum of all contact forces (zero up to round-off: they are equal and opposite).
+    pub net_contact_force: Vec3,
+    /// Seconds in neighbour search, constraint assembly, free velocities, contact solve, update.
+    pub seconds: [f64; 5],
+}
+
+/// Step failures.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum StepError {
+    /// The contact solver failed.
+    #[error(transparent)]
+    Contact(#[from] ContactError),
+    /// Rods overlap beyond the tolerance after the step.
+    #[error(
+        "rods {i} and {j} overlap by {overlap:.3e} l after the step (tolerance {tolerance:.1e} l): reduce dt or increase contact.margin"
+    )]
+    Overlap {
+        /// First rod.
+        i: u32,
+        /// Second rod.
+        j: u32,
+        /// Overlap depth.
+        overlap: f64,
+        /// Tolerance.
+        tolerance: f64,
+    },
+    /// A velocity or position became NaN or infinite.
+    #[error("rod {0} has a non-finite velocity or position")]
+    NonFinite(usize),
+}
+
+/// Advances a [`RodSet`]; owns the mobility, the contact solver and scratch memory only.
+#[derive(Debug)]
+pub struct Stepper {
+    /// Contact settings.
+    pub contact: ContactParams,
+    mobility: Box<dyn Mobility>,
+    solver: ContactSolver,
+    velocities: RodVelocities,
+    contact_force: Vec<Vec3>,
+}
+
+/// Constraints for all pairs whose centerlines are closer than `b + margin`.
+pub fn constraints(
+    rods: &RodSet,
+    p: &[Vec3],
+    pairs: &[(u32, u32)],
+    margin: f64,
+) -> Vec<Constraint> {
+    let l = rods.box_length;
+    pairs
+        .par_iter()
+        .filter_map(|&(i, j)| {
+            let (iu, ju) = (i as usize, j as usize);
+            let d = min_image(sub(rods.x[ju], rods.x[iu]), l);
+            let xj = axpy(rods.x[iu], 1.0, d);
+            let (s, t, dist) = segment_distance(rods.x[iu], p[iu], xj, p[ju], ROD_LENGTH);
+            let phi = dist - DIAMETER;
+            if phi >= margin {
+                return None;
+            }
+            let ri = scale(s, p[iu]);
+            let rj = scale(t, p[ju]);
+            let sep = sub(axpy(rods.x[iu], 1.0, ri), axpy(xj, 1.0, rj));
+            // Touching centerlines (dist = 0) have no direction: push along the centres' line.
+            let n = if dist > 1e-12 {
+                scale(1.0 / dist, sep)
+            } else {
+                scale(-1.0 / norm(d).max(1e-300), d)
+            };
+            Some(Constraint {
+                i,
+                j,
+                ri,
+                rj,
+                n,
+                phi,
+            })
+        })
+        .collect()
+}
+
+impl Stepper {
+    /// A stepper with the given mobility and contact settings.
+    pub fn new(mobility: Box<dyn Mobility>, contact: ContactParams) -> Self {
+        Self {
+            contact,
+            mobility,
+            solver: ContactSolver::default(),
+            velocities: RodVelocities::default(),
+            contact_force: Vec::new(),
+        }
+    }
+
+    /// Velocities of the last step.
+    pub fn velocities(&self) -> &RodVelocities {
+        &self.velocities
+    }
+
+    /// Contact force on each rod in the last step.
+    pub fn contact_forces(&self) -> &[Vec3] {
+        &self.contact_force
+    }
+
+    /// The mobility's name.
+    pub fn mobility_name(&self) -> &'static str {
+        self.mobility.name()
+    }
+
+    /// Advance `rods` by `dt`.
+    pub fn step(&mut self, rods: &mut RodSet, dt: f64) -> Result<StepReport, StepError> {
+        let n = rods.len();
+        let mut seconds = [0.0; 5];
+        let t0 = Instant::now();
+        let p = rods.orientations();
+        let reach = ROD_LENGTH + DIAMETER + self.contact.margin;
+        let cells = CellList::build(&rods.x, rods.box_length, reach);
+        let pairs = cells.pairs(&rods.x, reach);
+        seconds[0] = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let cons = constraints(rods, &p, &pairs, self.contact.margin);
+        seconds[1] = t1.elapsed().as_secs_f64();
+        let t2 = Instant::now();
+        if self.velocities.v.len() != n {
+            self.velocities = RodVelocities::zeros(n);
+        }
+        self.mobility
+            .free_velocities(rods, &p, &mut self.velocities);
+        seconds[2] = t2.elapsed().as_secs_f64();
+        let t3 = Instant::now();
+        let (lambda, contact) = self.solver.solve(
+            &cons,
+            &p,
+            &self.velocities.v,
+            &self.velocities.w,
+            self.mobility.as_ref(),
+            dt,
+            &self.contact,
+        )?;
+        seconds[3] = t3.elapsed().as_secs_f64();
+        let t4 = Instant::now();
+        let ft = if cons.is_empty() {
+            vec![([0.0; 3], [0.0; 3]); n]
+        } else {
+            self.solver.forces(&cons, &lambda, n)
+        };
+        let mob = self.mobility.as_ref();
+        self.velocities
+            .v
+            .par_iter_mut()
+            .zip(self.velocities.w.par_iter_mut())
+            .zip(&ft)
+            .zip(&p)
+            .for_each(|(((v, w), (f, t)), p)| {
+                let (dv, dw) = mob.local(*p, *f, *t);
+                *v = axpy(*v, 1.0, dv);
+                *w = axpy(*w, 1.0, dw);
+            });
+        self.contact_force = ft.iter().map(|(f, _)| *f).collect();
+        let net_contact_force =
+            [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| self.contact_force[r][d]));
+        for r in 0..n {
+            let (v, w) = (self.velocities.v[r], self.velocities.w[r]);
+            if !(v.iter().chain(&w).all(|c| c.is_finite())) {
+                return Err(StepError::NonFinite(r));
+            }
+            rods.translate(r, scale(dt, v));
+            rods.q[r] = quat_mul(quat_exp(scale(dt, w)), rods.q[r]);
+        }
+        seconds[4] = t4.elapsed().as_secs_f64();
+        // True overlaps after the move, over the constrained pairs.
+        let p_new = rods.orientations();
+        let (max_overlap, worst) = cons
+            .par_iter()
+            .map(|c| {
+                let (i, j) = (c.i as usize, c.j as usize);
+                let d = min_image(sub(rods.x[j], rods.x[i]), rods.box_length);
+                let (_, _, dist) = segment_distance(
+                    rods.x[i],
+                    p_new[i],
+                    axpy(rods.x[i], 1.0, d),
+                    p_new[j],
+                    ROD_LENGTH,
+                );
+                (DIAMETER - dist, (c.i, c.j))
+            })
+            .reduce(
+                || (0.0, (0, 0)),
+                |a, b| {
+                    if b.0 > a.0 || (b.0 == a.0 && b.1 < a.1) {
+                        b
+                    } else {
+                        a
+                    }
+                },
+            );
+        if max_overlap > self.contact.overlap_tolerance {
+            return Err(StepError::Overlap {
+                i: worst.0,
+                j: worst.1,
+                overlap: max_overlap,
+                tolerance: self.contact.overlap_tolerance,
+            });
+        }
+        let mean_speed =
+            crate::contact::det_sum(n, |r| norm(self.velocities.v[r])) / n.max(1) as f64;
+        let mp = [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| p_new[r][d]) / n.max(1) as f64);
+        Ok(StepReport {
+            contact,
+            max_overlap: max_overlap.max(0.0),
+            mean_speed,
+            polar_order: norm(mp),
+            net_contact_force,
+            seconds,
+        })
+    }
+}
