@@ -36,8 +36,10 @@ pub struct ContactParams {
     pub tolerance: f64,
     /// Iteration cap of BBPGD. Default 2000.
     pub max_iterations: usize,
-    /// Largest overlap (rod lengths) allowed after a step before the run stops. Default 1e-3 l
-    /// (0.5% of the diameter).
+    /// Largest overlap (rod lengths) allowed after a step before the run stops. Default 5e-3 l
+    /// (2.5% of the diameter). The linearised problem leaves overlaps of order
+    /// `(dt w)^2 l / 2` for rods turning at rate `w`, corrected at the next step rather than
+    /// accumulated: 1.6e-3 l was the largest in 1000 steps at nu = 5, dt = 0.002.
     pub overlap_tolerance: f64,
 }
 
@@ -47,7 +49,7 @@ impl Default for ContactParams {
             margin: 0.1,
             tolerance: 1e-7,
             max_iterations: 2000,
-            overlap_tolerance: 1e-3,
+            overlap_tolerance: 5e-3,
         }
     }
 }
