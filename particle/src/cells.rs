@@ -53,59 +53,94 @@ impl CellList {
         self.n
     }
 
+    /// Particle indices in cell order (a spatially coherent ordering).
+    pub fn order(&self) -> &[u32] {
+        &self.members
+    }
+
+    /// The same cells over particles renumbered in cell order (`order()[k]` becomes `k`).
+    pub fn renumbered(&self) -> Self {
+        Self {
+            n: self.n,
+            box_length: self.box_length,
+            start: self.start.clone(),
+            members: (0..self.members.len() as u32).collect(),
+        }
+    }
+
     /// Every pair `(i, j)`, `i < j`, whose centres are closer than `cutoff` (minimum image),
     /// sorted. `cutoff` must not exceed the cell side used to build the list.
     pub fn pairs(&self, x: &[Vec3], cutoff: f64) -> Vec<(u32, u32)> {
+        let mut pairs = self.map_pairs(x, cutoff, |i, j, _| Some((i.min(j), i.max(j))));
+        pairs.par_sort_unstable();
+        pairs
+    }
+
+    /// `f(i, j, d)` for every unordered pair closer than `cutoff`, with `d` the minimum-image
+    /// vector from `i` to `j`, keeping the `Some` results. Each pair is visited once (half
+    /// stencil), in an order fixed by the cells, so the output is the same for any thread count.
+    pub fn map_pairs<T: Send>(
+        &self,
+        x: &[Vec3],
+        cutoff: f64,
+        f: impl Fn(u32, u32, Vec3) -> Option<T> + Sync + Send,
+    ) -> Vec<T> {
         let l = self.box_length;
         let c2 = cutoff * cutoff;
-        let close = |i: usize, j: usize| {
-            let d = min_image(sub(x[j], x[i]), l);
-            dot(d, d) < c2
+        let visit = |i: u32, j: u32, out: &mut Vec<T>| {
+            let d = min_image(sub(x[j as usize], x[i as usize]), l);
+            if dot(d, d) < c2
+                && let Some(t) = f(i, j, d)
+            {
+                out.push(t);
+            }
         };
-        let mut pairs: Vec<(u32, u32)> = if self.n < 3 {
-            (0..x.len())
+        if self.n < 3 {
+            return (0..x.len() as u32)
                 .into_par_iter()
                 .flat_map_iter(|i| {
-                    ((i + 1)..x.len())
-                        .filter(move |&j| close(i, j))
-                        .map(move |j| (i as u32, j as u32))
-                })
-                .collect()
-        } else {
-            let n = self.n as i64;
-            (0..self.n.pow(3))
-                .into_par_iter()
-                .flat_map_iter(|c| {
-                    let (cx, cy, cz) = (
-                        (c % self.n) as i64,
-                        ((c / self.n) % self.n) as i64,
-                        (c / (self.n * self.n)) as i64,
-                    );
                     let mut out = Vec::new();
-                    for &i in &self.members[self.start[c]..self.start[c + 1]] {
-                        for dz in -1..=1 {
-                            for dy in -1..=1 {
-                                for dx in -1..=1 {
-                                    let nc = (((cz + dz).rem_euclid(n) * n
-                                        + (cy + dy).rem_euclid(n))
-                                        * n
-                                        + (cx + dx).rem_euclid(n))
-                                        as usize;
-                                    for &j in &self.members[self.start[nc]..self.start[nc + 1]] {
-                                        if i < j && close(i as usize, j as usize) {
-                                            out.push((i, j));
-                                        }
-                                    }
-                                }
-                            }
-                        }
+                    for j in i + 1..x.len() as u32 {
+                        visit(i, j, &mut out);
                     }
                     out
                 })
-                .collect()
-        };
-        pairs.par_sort_unstable();
-        pairs
+                .collect();
+        }
+        let n = self.n as i64;
+        // The 13 "forward" neighbour offsets; with the own cell, each pair of cells once.
+        let forward: Vec<[i64; 3]> = (-1..=1)
+            .flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| [dx, dy, dz])))
+            .filter(|o| o[2] > 0 || (o[2] == 0 && (o[1] > 0 || (o[1] == 0 && o[0] > 0))))
+            .collect();
+        (0..self.n.pow(3))
+            .into_par_iter()
+            .flat_map_iter(|c| {
+                let (cx, cy, cz) = (
+                    (c % self.n) as i64,
+                    ((c / self.n) % self.n) as i64,
+                    (c / (self.n * self.n)) as i64,
+                );
+                let own = &self.members[self.start[c]..self.start[c + 1]];
+                let mut out = Vec::new();
+                for (k, &i) in own.iter().enumerate() {
+                    for &j in &own[k + 1..] {
+                        visit(i, j, &mut out);
+                    }
+                }
+                for o in &forward {
+                    let nc = (((cz + o[2]).rem_euclid(n) * n + (cy + o[1]).rem_euclid(n)) * n
+                        + (cx + o[0]).rem_euclid(n)) as usize;
+                    let other = &self.members[self.start[nc]..self.start[nc + 1]];
+                    for &i in own {
+                        for &j in other {
+                            visit(i, j, &mut out);
+                        }
+                    }
+                }
+                out
+            })
+            .collect()
     }
 }
 

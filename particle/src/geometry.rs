@@ -93,9 +93,41 @@ pub fn quat_from_axis(p: Vec3) -> Quat {
 }
 
 /// Minimum-image vector of `d` in a periodic box of side `l`.
+///
+/// Differences of wrapped coordinates lie in `(-l, l)` and take the first branch; `round`
+/// itself would be a libm call on baseline x86-64, so the rare far case rounds by truncation.
 #[inline]
 pub fn min_image(d: Vec3, l: f64) -> Vec3 {
-    d.map(|c| c - l * (c / l).round())
+    let h = 0.5 * l;
+    d.map(|c| {
+        if c > h {
+            if c - l <= h {
+                c - l
+            } else {
+                c - l * ((c / l).abs() + 0.5).trunc_fast().copysign(c)
+            }
+        } else if c < -h {
+            if c + l >= -h {
+                c + l
+            } else {
+                c - l * ((c / l).abs() + 0.5).trunc_fast().copysign(c)
+            }
+        } else {
+            c
+        }
+    })
+}
+
+/// Truncation toward zero without a libm call (exact below 2^63).
+trait TruncFast {
+    fn trunc_fast(self) -> f64;
+}
+
+impl TruncFast for f64 {
+    #[inline]
+    fn trunc_fast(self) -> f64 {
+        self as i64 as f64
+    }
 }
 
 /// Closest points of two segments `a0 + s u`, `b0 + t v` with `s, t in [-h, h]` (`h` the
@@ -201,6 +233,22 @@ mod tests {
             (dist - 0.15).abs() < 1e-12,
             "distance {dist}, expected 0.15 through the boundary"
         );
+    }
+
+    #[test]
+    fn min_image_matches_rounding_everywhere() {
+        let l = 3.0;
+        for k in -4000..=4000 {
+            let c = k as f64 * 0.00377 - 0.0001;
+            let fast = min_image([c, -c, 0.5 * c], l);
+            let slow = [c, -c, 0.5 * c].map(|c| c - l * (c / l).round());
+            for d in 0..3 {
+                assert!(
+                    (fast[d] - slow[d]).abs() < 1e-12,
+                    "c = {c}: {fast:?} vs {slow:?}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -72,42 +72,54 @@ pub struct Stepper {
     contact_force: Vec<Vec3>,
 }
 
-/// Constraints for all pairs whose centerlines are closer than `b + margin`.
+/// The constraint between rods `i` and `j` (centres `x`, axes `p`; `d`: minimum-image vector
+/// from `x_i` to `x_j`), if their centerlines are closer than `b + margin`.
+pub fn constraint(
+    x: &[Vec3],
+    p: &[Vec3],
+    i: u32,
+    j: u32,
+    d: Vec3,
+    margin: f64,
+) -> Option<Constraint> {
+    let (iu, ju) = (i as usize, j as usize);
+    let xj = axpy(x[iu], 1.0, d);
+    let (s, t, dist) = segment_distance(x[iu], p[iu], xj, p[ju], ROD_LENGTH);
+    let phi = dist - DIAMETER;
+    if phi >= margin {
+        return None;
+    }
+    let ri = scale(s, p[iu]);
+    let rj = scale(t, p[ju]);
+    let sep = sub(axpy(x[iu], 1.0, ri), axpy(xj, 1.0, rj));
+    // Touching centerlines (dist = 0) have no direction: push along the centres' line.
+    let n = if dist > 1e-12 {
+        scale(1.0 / dist, sep)
+    } else {
+        scale(-1.0 / norm(d).max(1e-300), d)
+    };
+    Some(Constraint {
+        i,
+        j,
+        ri,
+        rj,
+        n,
+        phi,
+    })
+}
+
+/// Constraints for the given pairs (slow path for tests and small problems).
 pub fn constraints(
     rods: &RodSet,
     p: &[Vec3],
     pairs: &[(u32, u32)],
     margin: f64,
 ) -> Vec<Constraint> {
-    let l = rods.box_length;
     pairs
-        .par_iter()
+        .iter()
         .filter_map(|&(i, j)| {
-            let (iu, ju) = (i as usize, j as usize);
-            let d = min_image(sub(rods.x[ju], rods.x[iu]), l);
-            let xj = axpy(rods.x[iu], 1.0, d);
-            let (s, t, dist) = segment_distance(rods.x[iu], p[iu], xj, p[ju], ROD_LENGTH);
-            let phi = dist - DIAMETER;
-            if phi >= margin {
-                return None;
-            }
-            let ri = scale(s, p[iu]);
-            let rj = scale(t, p[ju]);
-            let sep = sub(axpy(rods.x[iu], 1.0, ri), axpy(xj, 1.0, rj));
-            // Touching centerlines (dist = 0) have no direction: push along the centres' line.
-            let n = if dist > 1e-12 {
-                scale(1.0 / dist, sep)
-            } else {
-                scale(-1.0 / norm(d).max(1e-300), d)
-            };
-            Some(Constraint {
-                i,
-                j,
-                ri,
-                rj,
-                n,
-                phi,
-            })
+            let d = min_image(sub(rods.x[j as usize], rods.x[i as usize]), rods.box_length);
+            constraint(&rods.x, p, i, j, d, margin)
         })
         .collect()
 }
@@ -140,6 +152,10 @@ impl Stepper {
     }
 
     /// Advance `rods` by `dt`.
+    ///
+    /// Internally the rods are renumbered in cell order (spatially coherent, so the contact
+    /// solver's gathers hit cache); constraints carry those internal indices, and velocities
+    /// and forces are mapped back to the caller's numbering.
     pub fn step(&mut self, rods: &mut RodSet, dt: f64) -> Result<StepReport, StepError> {
         let n = rods.len();
         let mut seconds = [0.0; 5];
@@ -147,10 +163,14 @@ impl Stepper {
         let p = rods.orientations();
         let reach = ROD_LENGTH + DIAMETER + self.contact.margin;
         let cells = CellList::build(&rods.x, rods.box_length, reach);
-        let pairs = cells.pairs(&rods.x, reach);
+        let order = cells.order();
+        let xs: Vec<Vec3> = order.par_iter().map(|&i| rods.x[i as usize]).collect();
+        let ps: Vec<Vec3> = order.par_iter().map(|&i| p[i as usize]).collect();
+        let sorted = cells.renumbered();
         seconds[0] = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let cons = constraints(rods, &p, &pairs, self.contact.margin);
+        let margin = self.contact.margin;
+        let cons = sorted.map_pairs(&xs, reach, |i, j, d| constraint(&xs, &ps, i, j, d, margin));
         seconds[1] = t1.elapsed().as_secs_f64();
         let t2 = Instant::now();
         if self.velocities.v.len() != n {
@@ -158,24 +178,39 @@ impl Stepper {
         }
         self.mobility
             .free_velocities(rods, &p, &mut self.velocities);
+        let fv: Vec<Vec3> = order
+            .par_iter()
+            .map(|&i| self.velocities.v[i as usize])
+            .collect();
+        let fw: Vec<Vec3> = order
+            .par_iter()
+            .map(|&i| self.velocities.w[i as usize])
+            .collect();
         seconds[2] = t2.elapsed().as_secs_f64();
         let t3 = Instant::now();
         let (lambda, contact) = self.solver.solve(
             &cons,
-            &p,
-            &self.velocities.v,
-            &self.velocities.w,
+            &ps,
+            &fv,
+            &fw,
             self.mobility.as_ref(),
             dt,
             &self.contact,
         )?;
         seconds[3] = t3.elapsed().as_secs_f64();
         let t4 = Instant::now();
-        let ft = if cons.is_empty() {
-            vec![([0.0; 3], [0.0; 3]); n]
-        } else {
-            self.solver.forces(&cons, &lambda, n)
-        };
+        // Contact forces and torques, back in the caller's numbering.
+        let mut ft = vec![([0.0; 3], [0.0; 3]); n];
+        if !cons.is_empty() {
+            for (k, f) in self
+                .solver
+                .forces(&cons, &lambda, n)
+                .into_iter()
+                .enumerate()
+            {
+                ft[order[k] as usize] = f;
+            }
+        }
         let mob = self.mobility.as_ref();
         self.velocities
             .v
@@ -200,12 +235,12 @@ impl Stepper {
             rods.q[r] = quat_mul(quat_exp(scale(dt, w)), rods.q[r]);
         }
         seconds[4] = t4.elapsed().as_secs_f64();
-        // True overlaps after the move, over the constrained pairs.
+        // True overlaps after the move, over the constrained pairs (caller's numbering).
         let p_new = rods.orientations();
         let (max_overlap, worst) = cons
             .par_iter()
             .map(|c| {
-                let (i, j) = (c.i as usize, c.j as usize);
+                let (i, j) = (order[c.i as usize] as usize, order[c.j as usize] as usize);
                 let d = min_image(sub(rods.x[j], rods.x[i]), rods.box_length);
                 let (_, _, dist) = segment_distance(
                     rods.x[i],
@@ -214,7 +249,8 @@ impl Stepper {
                     p_new[j],
                     ROD_LENGTH,
                 );
-                (DIAMETER - dist, (c.i, c.j))
+                let key = (i.min(j) as u32, i.max(j) as u32);
+                (DIAMETER - dist, key)
             })
             .reduce(
                 || (0.0, (0, 0)),
