@@ -143,6 +143,7 @@ pub fn write_demo_run(out: &Path, cfg: &DemoConfig) -> anyhow::Result<RunDir> {
                 points: pts,
                 forces: f,
             }),
+            kinematics: None,
         };
         snap.write(&run.snapshot_path(k))?;
         run.log(&format!("wrote snapshot {k} at t = {t}"))?;

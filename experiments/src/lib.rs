@@ -6,6 +6,8 @@
 pub mod analyze;
 pub mod demo;
 pub mod io;
+pub mod particle_run;
 pub mod plot;
 pub mod rundir;
 pub mod snapshot;
+pub mod vtk;

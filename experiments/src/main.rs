@@ -4,7 +4,10 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use motile_experiments::analyze::{AnalyzeOptions, analyze_run};
 use motile_experiments::demo::{DemoConfig, write_demo_run};
-use motile_experiments::rundir::TimeSeries;
+use motile_experiments::particle_run::{
+    ParticleRunConfig, parse_config, resume_particle, run_particle,
+};
+use motile_experiments::rundir::{RunDir, TimeSeries};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -45,6 +48,16 @@ enum Command {
         #[arg(long)]
         t_start: Option<f64>,
     },
+    /// Particle model: `motile particle run [CONFIG] --out DIR`.
+    Particle {
+        #[command(subcommand)]
+        action: ParticleAction,
+    },
+    /// Continue a stopped or killed run from its newest checkpoint, bit for bit.
+    Resume {
+        /// Run directory.
+        run_dir: PathBuf,
+    },
     /// The main job until the solvers land: write a free-swimming suspension as a particle run,
     /// analyse it, and check the results against their exact values.
     Demo {
@@ -57,6 +70,21 @@ enum Command {
         /// Random seed.
         #[arg(long)]
         seed: Option<u64>,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+enum ParticleAction {
+    /// Run the particle model (rods, contacts, hydrodynamics = "none") into a run directory.
+    Run {
+        /// TOML config (every key optional; see README). Without it, built-in defaults.
+        config: Option<PathBuf>,
+        /// Output run directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Print the resolved config and exit.
+        #[arg(long)]
+        dry_run: bool,
     },
 }
 
@@ -96,6 +124,59 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 run_dir.join("analysis").display()
             );
             print_table(&report.timeseries);
+            Ok(())
+        }
+        Command::Particle {
+            action:
+                ParticleAction::Run {
+                    config,
+                    out,
+                    dry_run,
+                },
+        } => {
+            let cfg = match &config {
+                Some(p) => {
+                    let text = std::fs::read_to_string(p)
+                        .with_context(|| format!("{}: cannot read", p.display()))?;
+                    parse_config(&text, p)?
+                }
+                None => ParticleRunConfig::default(),
+            };
+            if dry_run {
+                print!("{}", toml::to_string_pretty(&cfg)?);
+                return Ok(());
+            }
+            let s = run_particle(
+                &cfg,
+                &out,
+                std::io::IsTerminal::is_terminal(&std::io::stderr()),
+            )?;
+            println!(
+                "particle run: {} rods, {} steps in {:.1} s ({:.2} steps/s); wrote {}",
+                s.rods.len(),
+                s.steps,
+                s.seconds,
+                s.steps as f64 / s.seconds,
+                out.display()
+            );
+            Ok(())
+        }
+        Command::Resume { run_dir } => {
+            let model = RunDir::open(&run_dir)?.header()?.model;
+            if model != "particle" {
+                anyhow::bail!(
+                    "{}: resuming a {model} run is not supported yet",
+                    run_dir.display()
+                );
+            }
+            let s = resume_particle(
+                &run_dir,
+                std::io::IsTerminal::is_terminal(&std::io::stderr()),
+            )?;
+            println!(
+                "resumed: {} steps in {:.1} s, now at step {}",
+                s.steps, s.seconds, s.final_step
+            );
             Ok(())
         }
         Command::Demo {

@@ -7,7 +7,8 @@
 //! `motile_version`; datasets `positions (N, 3)`, `orientations (N, 3)` (unit vectors),
 //! `image_counts (N, 3)` (int64, periodic images crossed: unwrapped = position + L * count),
 //! and optionally `force_points (P, 3)` with `point_forces (P, 3)`: quadrature points on the rods
-//! and the weighted force densities `f(s_j) w_j` there (what the velocity spectrum needs).
+//! and the weighted force densities `f(s_j) w_j` there (what the velocity spectrum needs), and
+//! `velocities`, `angular_velocities`, `contact_forces` (each `(N, 3)`).
 //!
 //! Mean-field snapshot, root attributes `kind = "meanfield"`, `time`, `step`, `box_length`,
 //! `grid`; datasets `Q (6, n, n, n)` with components `xx, xy, xz, yy, yz, zz` and
@@ -44,6 +45,19 @@ pub struct ParticleSnapshot {
     pub image_counts: Vec<[i64; 3]>,
     /// Quadrature points and weighted force densities there, if the model computed them.
     pub forces: Option<PointForces>,
+    /// Rod kinematics and contact forces of the step that led here, if a solver wrote them.
+    pub kinematics: Option<Kinematics>,
+}
+
+/// Velocities, angular velocities and contact forces of every rod.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Kinematics {
+    /// Centre velocities (beta l).
+    pub velocities: Vec<[f64; 3]>,
+    /// Angular velocities (beta).
+    pub angular_velocities: Vec<[f64; 3]>,
+    /// Net contact force on each rod.
+    pub contact_forces: Vec<[f64; 3]>,
 }
 
 /// One mean-field state on an `n^3` grid (flattened x fastest).
@@ -121,6 +135,17 @@ impl ParticleSnapshot {
             b.create_dataset("point_forces")
                 .with_f64_data(&flat3(f))
                 .with_shape(&[m, 3]);
+        }
+        if let Some(k) = &self.kinematics {
+            for (name, v) in [
+                ("velocities", &k.velocities),
+                ("angular_velocities", &k.angular_velocities),
+                ("contact_forces", &k.contact_forces),
+            ] {
+                b.create_dataset(name)
+                    .with_f64_data(&flat3(v))
+                    .with_shape(&[n, 3]);
+            }
         }
         let bytes = b.finish().map_err(|e| h5err(path, e))?;
         write_atomic(path, &bytes)
@@ -277,6 +302,15 @@ pub fn read_snapshot(path: &Path) -> Result<Snapshot, IoError> {
             } else {
                 None
             };
+            let kinematics = if file.dataset("velocities").is_ok() {
+                Some(Kinematics {
+                    velocities: read_rows(&file, "velocities", Some(n), path)?,
+                    angular_velocities: read_rows(&file, "angular_velocities", Some(n), path)?,
+                    contact_forces: read_rows(&file, "contact_forces", Some(n), path)?,
+                })
+            } else {
+                None
+            };
             Ok(Snapshot::Particle(ParticleSnapshot {
                 time,
                 step,
@@ -285,6 +319,7 @@ pub fn read_snapshot(path: &Path) -> Result<Snapshot, IoError> {
                 orientations,
                 image_counts,
                 forces,
+                kinematics,
             }))
         }
         "meanfield" => {

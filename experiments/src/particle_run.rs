@@ -1,0 +1,623 @@
+//! `motile particle run` and resume: drives the particle model's [`Stepper`] and owns what the
+//! model must not: the run directory, the output schedule, snapshots (HDF5 + VTK), the time
+//! series, checkpoints and progress.
+//!
+//! Checkpoints (`checkpoints/ckpt_STEP.h5`, the last two kept) hold the exact rod state (centres,
+//! quaternions, image counters) and the step number; the step has no other state, so resuming
+//! from one continues the trajectory bit for bit. On a failed step the state before it is saved
+//! as `checkpoints/last_good.h5` and the error names it.
+
+use crate::io::{IoError, write_atomic};
+use crate::rundir::{RunDir, TimeSeries};
+use crate::snapshot::{Kinematics, ParticleSnapshot, Snapshot, read_snapshot};
+use crate::vtk::{write_pvd, write_rods_vtp};
+use anyhow::{Context, bail};
+use hdf5_pure::{AttrValue, File, FileBuilder};
+use indicatif::{ProgressBar, ProgressStyle};
+use motile_particle::cells::CellList;
+use motile_particle::geometry::{axpy, quat_from_axis, segment_distance};
+use motile_particle::init::random_nonoverlapping;
+use motile_particle::units::{DIAMETER, ROD_LENGTH};
+use motile_particle::{ContactParams, LocalDrag, Mobility, RodSet, Stepper};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Configuration of a particle run (`config.toml`), every field with its default.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ParticleRunConfig {
+    /// Box side L/l. Default 10; allowed [2, 1000].
+    pub box_length: f64,
+    /// Effective volume fraction nu = N l^3 / L^3 for a random start. Default 0.625 (dilute);
+    /// allowed (0, 6] (random sequential addition stalls a little above 5).
+    pub volume_fraction: f64,
+    /// Time step, 1/beta. Default 0.002; allowed (0, 0.05]. Larger steps leave larger
+    /// overlaps (of order (dt w)^2 l) and need a larger contact.margin.
+    pub dt: f64,
+    /// End time, 1/beta. Default 2.
+    pub t_end: f64,
+    /// Random seed of the initial configuration. Default 1.
+    pub seed: u64,
+    /// Hydrodynamic coupling: "none" (free swimming with local drag). "dipole" and "sbt" come
+    /// with the hydrodynamics issue.
+    pub hydrodynamics: String,
+    /// "random", or a file: a particle snapshot (.h5) or a text table with one rod per line,
+    /// `x y z px py pz`.
+    pub initial: String,
+    /// Time between time-series rows, 1/beta. Default 0.02.
+    pub diagnostic_interval: f64,
+    /// Time between snapshots, 1/beta. Default 0.2.
+    pub snapshot_interval: f64,
+    /// Time between checkpoints, 1/beta. Default 0.5.
+    pub checkpoint_interval: f64,
+    /// Write a VTK PolyData file (.vtp) with each snapshot, and a .pvd index. Default true.
+    pub vtk: bool,
+    /// Contact solver settings.
+    pub contact: ContactParams,
+}
+
+impl Default for ParticleRunConfig {
+    fn default() -> Self {
+        Self {
+            box_length: 10.0,
+            volume_fraction: 0.625,
+            dt: 0.002,
+            t_end: 2.0,
+            seed: 1,
+            hydrodynamics: "none".into(),
+            initial: "random".into(),
+            diagnostic_interval: 0.02,
+            snapshot_interval: 0.2,
+            checkpoint_interval: 0.5,
+            vtk: true,
+            contact: ContactParams::default(),
+        }
+    }
+}
+
+fn range(name: &str, v: f64, lo: f64, hi: f64, lo_open: bool, unit: &str) -> Result<(), String> {
+    let ok = v.is_finite() && (if lo_open { v > lo } else { v >= lo }) && v <= hi;
+    if ok {
+        Ok(())
+    } else {
+        let l = if lo_open { "(" } else { "[" };
+        Err(format!(
+            "{name} = {v} is outside the allowed range {l}{lo}, {hi}] ({unit})"
+        ))
+    }
+}
+
+impl ParticleRunConfig {
+    /// Check every field; the message names the field, the value, the range and the unit.
+    pub fn validate(&self) -> Result<(), String> {
+        range(
+            "box_length",
+            self.box_length,
+            2.0,
+            1000.0,
+            false,
+            "rod lengths",
+        )?;
+        range(
+            "volume_fraction",
+            self.volume_fraction,
+            0.0,
+            6.0,
+            true,
+            "N l^3 / L^3",
+        )?;
+        range("dt", self.dt, 0.0, 0.05, true, "1/beta")?;
+        range("t_end", self.t_end, 0.0, 1e9, true, "1/beta")?;
+        for (name, v) in [
+            ("diagnostic_interval", self.diagnostic_interval),
+            ("snapshot_interval", self.snapshot_interval),
+            ("checkpoint_interval", self.checkpoint_interval),
+        ] {
+            range(name, v, self.dt, 1e9, false, "1/beta, at least dt")?;
+        }
+        range(
+            "contact.margin",
+            self.contact.margin,
+            0.0,
+            1.0,
+            true,
+            "rod lengths",
+        )?;
+        range(
+            "contact.tolerance",
+            self.contact.tolerance,
+            0.0,
+            1e-2,
+            true,
+            "rod lengths",
+        )?;
+        range(
+            "contact.max_iterations",
+            self.contact.max_iterations as f64,
+            1.0,
+            1e7,
+            false,
+            "iterations",
+        )?;
+        range(
+            "contact.overlap_tolerance",
+            self.contact.overlap_tolerance,
+            0.0,
+            0.1,
+            true,
+            "rod lengths",
+        )?;
+        if self.hydrodynamics != "none" {
+            return Err(format!(
+                "hydrodynamics = \"{}\" is not available: allowed \"none\" (\"dipole\" and \"sbt\" are not implemented yet)",
+                self.hydrodynamics
+            ));
+        }
+        if self.contact.margin < 2.5 * self.dt {
+            return Err(format!(
+                "contact.margin = {} is smaller than the distance two rods close in one step (2 U dt = {}): raise it above {}",
+                self.contact.margin,
+                2.0 * self.dt,
+                2.5 * self.dt
+            ));
+        }
+        Ok(())
+    }
+
+    /// Steps between events of an interval.
+    fn every(&self, interval: f64) -> u64 {
+        ((interval / self.dt).round() as u64).max(1)
+    }
+
+    /// Total steps.
+    pub fn total_steps(&self) -> u64 {
+        (self.t_end / self.dt).round() as u64
+    }
+}
+
+/// Parse a `config.toml` (with or without the `[motile]` header table).
+pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig> {
+    let mut table: toml::Table =
+        toml::from_str(text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    table.remove("motile");
+    let cfg: ParticleRunConfig = table
+        .try_into()
+        .map_err(|e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
+    cfg.validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(cfg)
+}
+
+/// The mobility named by `hydrodynamics` (validated: only "none" exists so far).
+fn mobility(cfg: &ParticleRunConfig) -> Box<dyn Mobility> {
+    debug_assert_eq!(cfg.hydrodynamics, "none");
+    Box::new(LocalDrag::default())
+}
+
+/// Load an initial configuration from a snapshot (.h5) or a text table, validated.
+pub fn load_configuration(path: &Path, box_length: f64) -> anyhow::Result<RodSet> {
+    let (x, p, l): (Vec<[f64; 3]>, Vec<[f64; 3]>, f64) = if path
+        .extension()
+        .is_some_and(|e| e == "h5")
+    {
+        match read_snapshot(path)? {
+            Snapshot::Particle(s) => (s.positions, s.orientations, s.box_length),
+            Snapshot::Field(_) => bail!(
+                "{}: a mean-field snapshot, not a particle configuration",
+                path.display()
+            ),
+        }
+    } else {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        let mut x = Vec::new();
+        let mut p = Vec::new();
+        for (k, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let v: Result<Vec<f64>, _> = line.split_whitespace().map(str::parse::<f64>).collect();
+            let v = v.map_err(|e| anyhow::anyhow!("{}: line {}: {e}", path.display(), k + 1))?;
+            if v.len() != 6 || !v.iter().all(|c| c.is_finite()) {
+                bail!(
+                    "{}: line {}: expected 6 finite numbers `x y z px py pz`, got {:?}",
+                    path.display(),
+                    k + 1,
+                    line
+                );
+            }
+            let n = (v[3] * v[3] + v[4] * v[4] + v[5] * v[5]).sqrt();
+            if (n - 1.0).abs() > 1e-6 {
+                bail!(
+                    "{}: line {}: orientation ({}, {}, {}) is not a unit vector (|p| = {n})",
+                    path.display(),
+                    k + 1,
+                    v[3],
+                    v[4],
+                    v[5]
+                );
+            }
+            x.push([v[0], v[1], v[2]]);
+            p.push([v[3], v[4], v[5]]);
+        }
+        (x, p, box_length)
+    };
+    if x.is_empty() {
+        bail!("{}: no rods", path.display());
+    }
+    let wrapped: Vec<[f64; 3]> = x
+        .iter()
+        .map(|c| {
+            c.map(|v| v - l * (v / l).floor())
+                .map(|v| if v >= l { 0.0 } else { v })
+        })
+        .collect();
+    let rods = RodSet {
+        box_length: l,
+        q: p.iter().map(|p| quat_from_axis(*p)).collect(),
+        image: vec![[0; 3]; x.len()],
+        x: wrapped,
+    };
+    // No two rods may overlap.
+    let reach = ROD_LENGTH + DIAMETER;
+    let cells = CellList::build(&rods.x, l, reach);
+    let po = rods.orientations();
+    let bad = cells.map_pairs(&rods.x, reach, |i, j, d| {
+        let (_, _, dist) = segment_distance(
+            rods.x[i as usize],
+            po[i as usize],
+            axpy(rods.x[i as usize], 1.0, d),
+            po[j as usize],
+            ROD_LENGTH,
+        );
+        (dist < DIAMETER - 1e-9).then_some((i.min(j), i.max(j), dist))
+    });
+    if let Some((i, j, dist)) = bad.iter().min_by_key(|b| (b.0, b.1)) {
+        bail!(
+            "{}: rods {i} and {j} overlap (centerline distance {dist:.4} < diameter {DIAMETER}); {} overlapping pairs in all",
+            path.display(),
+            bad.len()
+        );
+    }
+    Ok(rods)
+}
+
+fn write_checkpoint(path: &Path, rods: &RodSet, step: u64, time: f64) -> Result<(), IoError> {
+    let n = rods.len() as u64;
+    let mut b = FileBuilder::new();
+    b.set_attr(
+        "kind",
+        AttrValue::VarLenString("particle_checkpoint".into()),
+    );
+    b.set_attr("step", AttrValue::U64(step));
+    b.set_attr("time", AttrValue::F64(time));
+    b.set_attr("box_length", AttrValue::F64(rods.box_length));
+    let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();
+    b.create_dataset("positions")
+        .with_f64_data(&flat(&rods.x))
+        .with_shape(&[n, 3]);
+    b.create_dataset("quaternions")
+        .with_f64_data(&rods.q.iter().flatten().copied().collect::<Vec<_>>())
+        .with_shape(&[n, 4]);
+    b.create_dataset("image_counts")
+        .with_i64_data(&rods.image.iter().flatten().copied().collect::<Vec<_>>())
+        .with_shape(&[n, 3]);
+    let bytes = b.finish().map_err(|e| IoError::Hdf5 {
+        path: path.into(),
+        message: e.to_string(),
+    })?;
+    write_atomic(path, &bytes)
+}
+
+fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, u64)> {
+    let f = File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let attrs = f
+        .root()
+        .attrs()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let step = match attrs.get("step") {
+        Some(AttrValue::U64(s)) => *s,
+        Some(AttrValue::I64(s)) => *s as u64,
+        other => bail!(
+            "{}: attribute 'step' missing or of type {other:?}",
+            path.display()
+        ),
+    };
+    let box_length = match attrs.get("box_length") {
+        Some(AttrValue::F64(l)) => *l,
+        other => bail!(
+            "{}: attribute 'box_length' missing or of type {other:?}",
+            path.display()
+        ),
+    };
+    let read = |name: &str| {
+        f.dataset(name)
+            .and_then(|d| d.read_f64())
+            .map_err(|e| anyhow::anyhow!("{}: dataset '{name}': {e}", path.display()))
+    };
+    let x = read("positions")?;
+    let q = read("quaternions")?;
+    let im = f
+        .dataset("image_counts")
+        .and_then(|d| d.read_i64())
+        .map_err(|e| anyhow::anyhow!("{}: dataset 'image_counts': {e}", path.display()))?;
+    let n = x.len() / 3;
+    if q.len() != 4 * n || im.len() != 3 * n {
+        bail!(
+            "{}: datasets disagree on the number of rods",
+            path.display()
+        );
+    }
+    let rods = RodSet {
+        box_length,
+        x: x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        q: q.chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect(),
+        image: im.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    };
+    Ok((rods, step))
+}
+
+/// Latest checkpoint of a run, if any.
+pub fn latest_checkpoint(run: &RunDir) -> Option<PathBuf> {
+    let dir = run.path().join("checkpoints");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .ok()?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("ckpt_"))
+        })
+        .collect();
+    v.sort();
+    v.pop()
+}
+
+/// Columns of a particle run's `timeseries.csv`.
+pub const COLUMNS: [&str; 9] = [
+    "t [1/beta]",
+    "steps_per_second [1/s]",
+    "constraints [1]",
+    "active_contacts [1]",
+    "solver_iterations [1]",
+    "solver_residual [l]",
+    "max_overlap [l]",
+    "mean_speed [beta l]",
+    "polar_order [1]",
+];
+
+/// What a run did.
+#[derive(Clone, Debug)]
+pub struct RunSummary {
+    /// Steps taken in this invocation.
+    pub steps: u64,
+    /// Final step number.
+    pub final_step: u64,
+    /// Wall seconds.
+    pub seconds: f64,
+    /// Final rods.
+    pub rods: RodSet,
+}
+
+/// Start a new particle run in `out`.
+pub fn run_particle(
+    cfg: &ParticleRunConfig,
+    out: &Path,
+    progress: bool,
+) -> anyhow::Result<RunSummary> {
+    cfg.validate().map_err(|e| anyhow::anyhow!("config: {e}"))?;
+    let rods = if cfg.initial == "random" {
+        let n = (cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize;
+        random_nonoverlapping(n, cfg.box_length, cfg.seed, 200_000)?
+    } else {
+        load_configuration(Path::new(&cfg.initial), cfg.box_length)?
+    };
+    let run = RunDir::create(out, "particle", cfg.seed, cfg)?;
+    run.log(&format!(
+        "particle run: {} rods, L/l = {}, dt = {}, t_end = {}",
+        rods.len(),
+        rods.box_length,
+        cfg.dt,
+        cfg.t_end
+    ))?;
+    drive(cfg, &run, rods, 0, TimeSeries::new(&COLUMNS), progress)
+}
+
+/// Continue a run from its newest checkpoint.
+pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary> {
+    let run = RunDir::open(out)?;
+    let cfg_path = out.join("config.toml");
+    let cfg = parse_config(
+        &std::fs::read_to_string(&cfg_path)
+            .with_context(|| format!("{}: cannot read", cfg_path.display()))?,
+        &cfg_path,
+    )?;
+    let ckpt = latest_checkpoint(&run)
+        .ok_or_else(|| anyhow::anyhow!("{}: no checkpoint to resume from", out.display()))?;
+    let (rods, step) = read_checkpoint(&ckpt)?;
+    let t = step as f64 * cfg.dt;
+    let mut ts =
+        TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
+    ts.rows.retain(|r| r[0] <= t + 0.5 * cfg.dt);
+    run.log(&format!(
+        "resuming from {} at step {step} (t = {t})",
+        ckpt.display()
+    ))?;
+    drive(&cfg, &run, rods, step, ts, progress)
+}
+
+fn drive(
+    cfg: &ParticleRunConfig,
+    run: &RunDir,
+    mut rods: RodSet,
+    start: u64,
+    mut ts: TimeSeries,
+    progress: bool,
+) -> anyhow::Result<RunSummary> {
+    let mut stepper = Stepper::new(mobility(cfg), cfg.contact.clone());
+    let total = cfg.total_steps();
+    let (diag, snap, ckpt) = (
+        cfg.every(cfg.diagnostic_interval),
+        cfg.every(cfg.snapshot_interval),
+        cfg.every(cfg.checkpoint_interval),
+    );
+    let bar = if progress {
+        ProgressBar::new(total)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} steps {msg} [{elapsed} < {eta}]")
+            .expect("template"),
+    );
+    bar.set_position(start);
+    let mut pvd: Vec<(f64, String)> = (0..=start / snap)
+        .map(|k| ((k * snap) as f64 * cfg.dt, format!("vtk/rods_{k:06}.vtp")))
+        .collect();
+    if start == 0 {
+        pvd.clear();
+        write_snapshot(cfg, run, &rods, 0, None, &mut pvd)?;
+        write_checkpoint(
+            &run.path()
+                .join("checkpoints")
+                .join(format!("ckpt_{:09}.h5", 0)),
+            &rods,
+            0,
+            0.0,
+        )?;
+    }
+    let t_start = Instant::now();
+    let mut t_window = Instant::now();
+    let mut steps_in_window = 0u64;
+    for step in start + 1..=total {
+        let before = rods.clone();
+        let report = match stepper.step(&mut rods, cfg.dt) {
+            Ok(r) => r,
+            Err(e) => {
+                let saved = run.path().join("checkpoints").join("last_good.h5");
+                write_checkpoint(&saved, &before, step - 1, (step - 1) as f64 * cfg.dt)?;
+                run.log(&format!("step {step} failed: {e}"))?;
+                bar.abandon();
+                bail!(
+                    "step {step} (t = {:.4}) failed: {e}. The state before it is saved in {}",
+                    step as f64 * cfg.dt,
+                    saved.display()
+                );
+            }
+        };
+        steps_in_window += 1;
+        let t = step as f64 * cfg.dt;
+        if step % diag == 0 {
+            let rate = steps_in_window as f64 / t_window.elapsed().as_secs_f64().max(1e-9);
+            t_window = Instant::now();
+            steps_in_window = 0;
+            let c = &report.contact;
+            ts.push(vec![
+                t,
+                rate,
+                c.constraints as f64,
+                c.active as f64,
+                c.iterations as f64,
+                c.residual,
+                report.max_overlap,
+                report.mean_speed,
+                report.polar_order,
+            ]);
+            ts.write(&run.path().join("timeseries.csv"))?;
+            bar.set_message(format!(
+                "t = {t:.3}, {rate:.1} steps/s, {} contacts, max overlap {:.1e}",
+                c.active, report.max_overlap
+            ));
+        }
+        if step % snap == 0 {
+            let kin = Kinematics {
+                velocities: stepper.velocities().v.clone(),
+                angular_velocities: stepper.velocities().w.clone(),
+                contact_forces: stepper.contact_forces().to_vec(),
+            };
+            write_snapshot(cfg, run, &rods, step, Some(kin), &mut pvd)?;
+        }
+        if step % ckpt == 0 || step == total {
+            let dir = run.path().join("checkpoints");
+            write_checkpoint(&dir.join(format!("ckpt_{step:09}.h5")), &rods, step, t)?;
+            prune_checkpoints(&dir, 2);
+        }
+        bar.set_position(step);
+    }
+    bar.finish();
+    let seconds = t_start.elapsed().as_secs_f64();
+    run.log(&format!("finished at step {total} in {seconds:.1} s"))?;
+    Ok(RunSummary {
+        steps: total - start,
+        final_step: total,
+        seconds,
+        rods,
+    })
+}
+
+fn prune_checkpoints(dir: &Path, keep: usize) {
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let mut v: Vec<PathBuf> = rd
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.file_name()
+                .is_some_and(|n| n.to_string_lossy().starts_with("ckpt_"))
+        })
+        .collect();
+    v.sort();
+    while v.len() > keep {
+        let _ = std::fs::remove_file(v.remove(0));
+    }
+}
+
+fn write_snapshot(
+    cfg: &ParticleRunConfig,
+    run: &RunDir,
+    rods: &RodSet,
+    step: u64,
+    kin: Option<Kinematics>,
+    pvd: &mut Vec<(f64, String)>,
+) -> anyhow::Result<()> {
+    let k = (step / cfg.every(cfg.snapshot_interval)) as usize;
+    let t = step as f64 * cfg.dt;
+    let p = rods.orientations();
+    let speed: Vec<f64> = match &kin {
+        Some(k) => k
+            .velocities
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .collect(),
+        None => vec![0.0; rods.len()],
+    };
+    let snap = ParticleSnapshot {
+        time: t,
+        step,
+        box_length: rods.box_length,
+        positions: rods.x.clone(),
+        orientations: p.clone(),
+        image_counts: rods.image.clone(),
+        forces: None,
+        kinematics: kin,
+    };
+    snap.write(&run.snapshot_path(k))?;
+    if cfg.vtk {
+        let name = format!("vtk/rods_{k:06}.vtp");
+        write_rods_vtp(
+            &run.path().join(&name),
+            &rods.x,
+            &p,
+            ROD_LENGTH,
+            DIAMETER / 2.0,
+            &speed,
+        )?;
+        pvd.retain(|(_, f)| *f != name);
+        pvd.push((t, name));
+        write_pvd(&run.path().join("rods.pvd"), pvd)?;
+    }
+    Ok(())
+}

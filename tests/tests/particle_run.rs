@@ -1,0 +1,154 @@
+//! `motile particle run`: a run resumed from a checkpoint ends bit-identical to the
+//! uninterrupted run; snapshots carry velocities and contact forces, read back by h5py; the VTK
+//! files are well-formed XML; bad configs and bad initial files fail with messages that name
+//! the field or the file and the offending rods.
+
+use motile_experiments::particle_run::{
+    ParticleRunConfig, load_configuration, parse_config, resume_particle, run_particle,
+};
+use motile_experiments::snapshot::{Snapshot, read_snapshot};
+use motile_tests::{h5py_available, run_python};
+use std::path::Path;
+
+fn small() -> ParticleRunConfig {
+    ParticleRunConfig {
+        box_length: 6.0,
+        volume_fraction: 5.0,
+        t_end: 0.2,
+        snapshot_interval: 0.1,
+        checkpoint_interval: 0.1,
+        diagnostic_interval: 0.02,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn resume_from_a_checkpoint_is_bit_identical() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let full = run_particle(&small(), &a, false).unwrap();
+    run_particle(&small(), &b, false).unwrap();
+    // 100 steps, checkpoints every 50 (the last two kept: 50 and 100). Pretend the run was
+    // killed before the last one: drop it and resume from step 50.
+    std::fs::remove_file(b.join("checkpoints/ckpt_000000100.h5")).unwrap();
+    let kept: Vec<_> = std::fs::read_dir(b.join("checkpoints"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(kept.len(), 1, "{kept:?}");
+    let resumed = resume_particle(&b, false).unwrap();
+    assert_eq!(resumed.steps, 50);
+    assert!(
+        resumed.rods == full.rods,
+        "resumed trajectory differs from the uninterrupted one"
+    );
+    // Snapshots carry kinematics that balance: contact forces sum to zero.
+    let Snapshot::Particle(s) = read_snapshot(&b.join("snapshots/snap_000002.h5")).unwrap() else {
+        panic!()
+    };
+    let k = s.kinematics.expect("kinematics in a solver snapshot");
+    let net: f64 = (0..3)
+        .map(|d| k.contact_forces.iter().map(|f| f[d]).sum::<f64>().abs())
+        .sum();
+    let scale: f64 = k
+        .contact_forces
+        .iter()
+        .map(|f| f.iter().map(|c| c.abs()).sum::<f64>())
+        .sum();
+    assert!(
+        scale > 0.0 && net <= 1e-10 * scale,
+        "net contact force {net:.2e} of {scale:.2e}"
+    );
+    if !h5py_available() {
+        eprintln!(
+            "SKIPPED h5py/XML checks: python3 with h5py and numpy not found (CI installs them)"
+        );
+        return;
+    }
+    let out = run_python(
+        r#"
+import sys, h5py, numpy as np, xml.etree.ElementTree as ET
+with h5py.File(sys.argv[1] + "/snapshots/snap_000002.h5") as f:
+    v, w, c = f["velocities"][...], f["angular_velocities"][...], f["contact_forces"][...]
+    assert v.shape == w.shape == c.shape == f["positions"].shape
+    print("net force", np.abs(c.sum(axis=0)).max())
+root = ET.parse(sys.argv[1] + "/vtk/rods_000002.vtp").getroot()
+piece = root.find("PolyData/Piece")
+n = int(piece.get("NumberOfLines"))
+pts = np.array(piece.find("Points/DataArray").text.split(), float).reshape(-1, 3)
+assert pts.shape == (2 * n, 3)
+lengths = np.linalg.norm(pts[1::2] - pts[0::2], axis=1)
+assert np.allclose(lengths, 1.0), lengths[:5]
+pvd = ET.parse(sys.argv[1] + "/rods.pvd").getroot()
+print("pvd entries", len(pvd.findall("Collection/DataSet")))
+"#,
+        &[b.to_str().unwrap()],
+    );
+    assert!(out.contains("pvd entries 3"), "{out}");
+}
+
+#[test]
+fn bad_configs_name_the_field_and_the_range() {
+    let p = Path::new("case.toml");
+    let cases = [
+        (
+            "dt = 0.5",
+            "dt = 0.5 is outside the allowed range (0, 0.05] (1/beta)",
+        ),
+        (
+            "box_length = -3",
+            "box_length = -3 is outside the allowed range [2, 1000] (rod lengths)",
+        ),
+        (
+            "volume_fraction = 9",
+            "volume_fraction = 9 is outside the allowed range (0, 6]",
+        ),
+        (
+            "hydrodynamics = \"sbt\"",
+            "hydrodynamics = \"sbt\" is not available",
+        ),
+        ("dtt = 0.1", "unknown field `dtt`"),
+        (
+            "[contact]\nmargin = 0.001",
+            "contact.margin = 0.001 is smaller than the distance two rods close in one step",
+        ),
+        (
+            "snapshot_interval = 0.0001",
+            "snapshot_interval = 0.0001 is outside the allowed range",
+        ),
+    ];
+    for (text, expected) in cases {
+        let e = parse_config(text, p).unwrap_err().to_string();
+        assert!(
+            e.contains(expected) && e.contains("case.toml"),
+            "config `{text}`: got `{e}`, expected `{expected}`"
+        );
+    }
+}
+
+#[test]
+fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("rods.txt");
+    std::fs::write(&f, "1 1 1 1 0 0\n1.0 1.1 1.0 1 0 0\n5 5 5 0 0 1\n").unwrap();
+    let e = load_configuration(&f, 8.0).unwrap_err().to_string();
+    assert!(
+        e.contains("rods 0 and 1 overlap") && e.contains("rods.txt"),
+        "{e}"
+    );
+    std::fs::write(&f, "1 1 1 1 0 0\n2 2 2 0.5 0 0\n").unwrap();
+    let e = load_configuration(&f, 8.0).unwrap_err().to_string();
+    assert!(
+        e.contains("line 2") && e.contains("not a unit vector"),
+        "{e}"
+    );
+    std::fs::write(&f, "1 1 1 1 0\n").unwrap();
+    let e = load_configuration(&f, 8.0).unwrap_err().to_string();
+    assert!(
+        e.contains("line 1") && e.contains("expected 6 finite numbers"),
+        "{e}"
+    );
+    std::fs::write(&f, "1 1 1 1 0 0\n3 3 3 0 1 0\n").unwrap();
+    let rods = load_configuration(&f, 8.0).unwrap();
+    assert_eq!(rods.len(), 2);
+}
