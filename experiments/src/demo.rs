@@ -1,4 +1,4 @@
-//! `motile demo`: a free-swimming suspension, the exact solution of the particle model with
+//! `motile demo`, part 2: a free-swimming suspension, the exact solution of the particle model with
 //! hydrodynamics and contacts switched off (MODEL.md §1: an isolated rod swims at U along p),
 //! written as a particle run and analysed. It checks the analysis end to end against numbers
 //! known exactly: the shot-noise level of a random configuration and the ballistic mean squared

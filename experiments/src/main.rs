@@ -58,8 +58,8 @@ enum Command {
         /// Run directory.
         run_dir: PathBuf,
     },
-    /// The main job until the solvers land: write a free-swimming suspension as a particle run,
-    /// analyse it, and check the results against their exact values.
+    /// The main job (until the mean-field solver lands): a small dilute particle run, analysed
+    /// (OUT/particle), and free swimmers checked against exact values (OUT/free_swimmers).
     Demo {
         /// Output run directory.
         #[arg(long, default_value = "runs/demo")]
@@ -184,6 +184,24 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             box_length,
             seed,
         } => {
+            // Part 1: the particle engine on a small dilute case, analysed.
+            let pcfg = ParticleRunConfig::default();
+            let prun = out.join("particle");
+            let s = run_particle(
+                &pcfg,
+                &prun,
+                std::io::IsTerminal::is_terminal(&std::io::stderr()),
+            )?;
+            println!(
+                "particle run: {} rods, {} steps in {:.1} s -> {}",
+                s.rods.len(),
+                s.steps,
+                s.seconds,
+                prun.display()
+            );
+            let report = analyze_run(&prun, &AnalyzeOptions::default())?;
+            print_table(&report.timeseries);
+            let out = out.join("free_swimmers");
             let mut cfg = DemoConfig::default();
             cfg.box_length = box_length.unwrap_or(cfg.box_length);
             cfg.seed = seed.unwrap_or(cfg.seed);

@@ -32,6 +32,9 @@ pub struct ParticleRunConfig {
     /// Effective volume fraction nu = N l^3 / L^3 for a random start. Default 0.625 (dilute);
     /// allowed (0, 6] (random sequential addition stalls a little above 5).
     pub volume_fraction: f64,
+    /// Number of rods N for a random start; when set it replaces `volume_fraction`
+    /// (nu = N / (L/l)^3 must still lie in (0, 6]). Default: unset.
+    pub rods: Option<usize>,
     /// Time step, 1/beta. Default 0.002; allowed (0, 0.05]. Larger steps leave larger
     /// overlaps (of order (dt w)^2 l) and need a larger contact.margin.
     pub dt: f64,
@@ -62,6 +65,7 @@ impl Default for ParticleRunConfig {
         Self {
             box_length: 10.0,
             volume_fraction: 0.625,
+            rods: None,
             dt: 0.002,
             t_end: 2.0,
             seed: 1,
@@ -284,7 +288,13 @@ pub fn load_configuration(path: &Path, box_length: f64) -> anyhow::Result<RodSet
     Ok(rods)
 }
 
-fn write_checkpoint(path: &Path, rods: &RodSet, step: u64, time: f64) -> Result<(), IoError> {
+fn write_checkpoint(
+    path: &Path,
+    rods: &RodSet,
+    warm: &[((u32, u32), f64)],
+    step: u64,
+    time: f64,
+) -> Result<(), IoError> {
     let n = rods.len() as u64;
     let mut b = FileBuilder::new();
     b.set_attr(
@@ -304,6 +314,18 @@ fn write_checkpoint(path: &Path, rods: &RodSet, step: u64, time: f64) -> Result<
     b.create_dataset("image_counts")
         .with_i64_data(&rods.image.iter().flatten().copied().collect::<Vec<_>>())
         .with_shape(&[n, 3]);
+    // The contact multipliers of the last step (the next solve's warm start).
+    let pairs: Vec<i64> = warm
+        .iter()
+        .flat_map(|((a, b), _)| [*a as i64, *b as i64])
+        .collect();
+    let lambda: Vec<f64> = warm.iter().map(|w| w.1).collect();
+    b.create_dataset("warm_pairs")
+        .with_i64_data(&pairs)
+        .with_shape(&[warm.len() as u64, 2]);
+    b.create_dataset("warm_lambda")
+        .with_f64_data(&lambda)
+        .with_shape(&[warm.len() as u64]);
     let bytes = b.finish().map_err(|e| IoError::Hdf5 {
         path: path.into(),
         message: e.to_string(),
@@ -311,7 +333,7 @@ fn write_checkpoint(path: &Path, rods: &RodSet, step: u64, time: f64) -> Result<
     write_atomic(path, &bytes)
 }
 
-fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, u64)> {
+fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Vec<((u32, u32), f64)>, u64)> {
     let f = File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     let attrs = f
         .root()
@@ -358,7 +380,23 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, u64)> {
             .collect(),
         image: im.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
     };
-    Ok((rods, step))
+    let pairs = f
+        .dataset("warm_pairs")
+        .and_then(|d| d.read_i64())
+        .map_err(|e| anyhow::anyhow!("{}: dataset 'warm_pairs': {e}", path.display()))?;
+    let lambda = read("warm_lambda")?;
+    if pairs.len() != 2 * lambda.len() {
+        bail!(
+            "{}: warm_pairs and warm_lambda disagree in length",
+            path.display()
+        );
+    }
+    let warm = pairs
+        .chunks_exact(2)
+        .zip(lambda)
+        .map(|(p, l)| ((p[0] as u32, p[1] as u32), l))
+        .collect();
+    Ok((rods, warm, step))
 }
 
 /// Latest checkpoint of a run, if any.
@@ -410,7 +448,9 @@ pub fn run_particle(
 ) -> anyhow::Result<RunSummary> {
     cfg.validate().map_err(|e| anyhow::anyhow!("config: {e}"))?;
     let rods = if cfg.initial == "random" {
-        let n = (cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize;
+        let n = cfg
+            .rods
+            .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
         random_nonoverlapping(n, cfg.box_length, cfg.seed, 200_000)?
     } else {
         load_configuration(Path::new(&cfg.initial), cfg.box_length)?
@@ -423,7 +463,15 @@ pub fn run_particle(
         cfg.dt,
         cfg.t_end
     ))?;
-    drive(cfg, &run, rods, 0, TimeSeries::new(&COLUMNS), progress)
+    drive(
+        cfg,
+        &run,
+        rods,
+        Vec::new(),
+        0,
+        TimeSeries::new(&COLUMNS),
+        progress,
+    )
 }
 
 /// Continue a run from its newest checkpoint.
@@ -437,7 +485,7 @@ pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary>
     )?;
     let ckpt = latest_checkpoint(&run)
         .ok_or_else(|| anyhow::anyhow!("{}: no checkpoint to resume from", out.display()))?;
-    let (rods, step) = read_checkpoint(&ckpt)?;
+    let (rods, warm, step) = read_checkpoint(&ckpt)?;
     let t = step as f64 * cfg.dt;
     let mut ts =
         TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
@@ -446,18 +494,20 @@ pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary>
         "resuming from {} at step {step} (t = {t})",
         ckpt.display()
     ))?;
-    drive(&cfg, &run, rods, step, ts, progress)
+    drive(&cfg, &run, rods, warm, step, ts, progress)
 }
 
 fn drive(
     cfg: &ParticleRunConfig,
     run: &RunDir,
     mut rods: RodSet,
+    warm: Vec<((u32, u32), f64)>,
     start: u64,
     mut ts: TimeSeries,
     progress: bool,
 ) -> anyhow::Result<RunSummary> {
     let mut stepper = Stepper::new(mobility(cfg), cfg.contact.clone());
+    stepper.set_warm_start(warm);
     let total = cfg.total_steps();
     let (diag, snap, ckpt) = (
         cfg.every(cfg.diagnostic_interval),
@@ -485,6 +535,7 @@ fn drive(
                 .join("checkpoints")
                 .join(format!("ckpt_{:09}.h5", 0)),
             &rods,
+            &[],
             0,
             0.0,
         )?;
@@ -494,11 +545,18 @@ fn drive(
     let mut steps_in_window = 0u64;
     for step in start + 1..=total {
         let before = rods.clone();
+        let warm_before = stepper.warm_start().to_vec();
         let report = match stepper.step(&mut rods, cfg.dt) {
             Ok(r) => r,
             Err(e) => {
                 let saved = run.path().join("checkpoints").join("last_good.h5");
-                write_checkpoint(&saved, &before, step - 1, (step - 1) as f64 * cfg.dt)?;
+                write_checkpoint(
+                    &saved,
+                    &before,
+                    &warm_before,
+                    step - 1,
+                    (step - 1) as f64 * cfg.dt,
+                )?;
                 run.log(&format!("step {step} failed: {e}"))?;
                 bar.abandon();
                 bail!(
@@ -542,7 +600,13 @@ fn drive(
         }
         if step % ckpt == 0 || step == total {
             let dir = run.path().join("checkpoints");
-            write_checkpoint(&dir.join(format!("ckpt_{step:09}.h5")), &rods, step, t)?;
+            write_checkpoint(
+                &dir.join(format!("ckpt_{step:09}.h5")),
+                &rods,
+                stepper.warm_start(),
+                step,
+                t,
+            )?;
             prune_checkpoints(&dir, 2);
         }
         bar.set_position(step);

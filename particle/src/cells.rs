@@ -113,28 +113,45 @@ impl CellList {
             .flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| [dx, dy, dz])))
             .filter(|o| o[2] > 0 || (o[2] == 0 && (o[1] > 0 || (o[1] == 0 && o[0] > 0))))
             .collect();
+        // With at least 3 cells per side the periodic shift of a neighbour cell is the minimum
+        // image of every pair closer than the cutoff, so it is computed once per cell pair.
+        let scan = |i: u32, j: u32, shift: Vec3, out: &mut Vec<T>| {
+            let (xi, xj) = (x[i as usize], x[j as usize]);
+            let d = [
+                xj[0] + shift[0] - xi[0],
+                xj[1] + shift[1] - xi[1],
+                xj[2] + shift[2] - xi[2],
+            ];
+            if dot(d, d) < c2
+                && let Some(t) = f(i, j, d)
+            {
+                out.push(t);
+            }
+        };
         (0..self.n.pow(3))
             .into_par_iter()
             .flat_map_iter(|c| {
-                let (cx, cy, cz) = (
+                let cell = [
                     (c % self.n) as i64,
                     ((c / self.n) % self.n) as i64,
                     (c / (self.n * self.n)) as i64,
-                );
+                ];
                 let own = &self.members[self.start[c]..self.start[c + 1]];
                 let mut out = Vec::new();
                 for (k, &i) in own.iter().enumerate() {
                     for &j in &own[k + 1..] {
-                        visit(i, j, &mut out);
+                        scan(i, j, [0.0; 3], &mut out);
                     }
                 }
                 for o in &forward {
-                    let nc = (((cz + o[2]).rem_euclid(n) * n + (cy + o[1]).rem_euclid(n)) * n
-                        + (cx + o[0]).rem_euclid(n)) as usize;
+                    let raw = [cell[0] + o[0], cell[1] + o[1], cell[2] + o[2]];
+                    let wrapped = raw.map(|v| v.rem_euclid(n));
+                    let shift = [0, 1, 2].map(|d| l * ((raw[d] - wrapped[d]) / n) as f64);
+                    let nc = ((wrapped[2] * n + wrapped[1]) * n + wrapped[0]) as usize;
                     let other = &self.members[self.start[nc]..self.start[nc + 1]];
                     for &i in own {
                         for &j in other {
-                            visit(i, j, &mut out);
+                            scan(i, j, shift, &mut out);
                         }
                     }
                 }

@@ -117,6 +117,34 @@ pub fn det_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
     partial.iter().sum()
 }
 
+/// `[max |min(lam_new, g_new)|, |s|^2, s.y, |y|^2]` with `s = lam_new - lam`, `y = g_new - g`,
+/// summed in fixed chunks (the maximum is exact in any order).
+fn fused_stats(lam: &[f64], lam_new: &[f64], g: &[f64], g_new: &[f64]) -> [f64; 4] {
+    let m = lam.len();
+    let partial: Vec<[f64; 4]> = (0..m.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut a = [0.0f64; 4];
+            for k in c * CHUNK..((c + 1) * CHUNK).min(m) {
+                let (s, y) = (lam_new[k] - lam[k], g_new[k] - g[k]);
+                a[0] = a[0].max(lam_new[k].min(g_new[k]).abs());
+                a[1] += s * s;
+                a[2] += s * y;
+                a[3] += y * y;
+            }
+            a
+        })
+        .collect();
+    partial.iter().fold([0.0; 4], |acc, a| {
+        [
+            acc[0].max(a[0]),
+            acc[1] + a[1],
+            acc[2] + a[2],
+            acc[3] + a[3],
+        ]
+    })
+}
+
 /// Maximum of `f(k)` (exact in any order).
 fn par_max(n: usize, f: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
     (0..n)
@@ -132,6 +160,8 @@ pub struct ContactSolver {
     rod_start: Vec<usize>,
     /// (constraint, +1 for the `i` side / -1 for the `j` side), constraint order.
     rod_entries: Vec<(u32, f64)>,
+    /// Scratch: each rod's velocity response `(v, w)` in [`Self::apply`].
+    vel: Vec<(Vec3, Vec3)>,
 }
 
 impl ContactSolver {
@@ -185,24 +215,44 @@ impl ContactSolver {
         });
     }
 
-    /// `A lambda = dt D^T M D lambda`.
+    /// `out = A lambda + shift = dt D^T M D lambda + shift` (`shift` may be empty for zero).
+    /// Forces and the local mobility are fused in one pass over rods into reused buffers.
     fn apply(
-        &self,
+        &mut self,
         cons: &[Constraint],
         p: &[Vec3],
         mob: &dyn Mobility,
         dt: f64,
         lambda: &[f64],
+        shift: &[f64],
         out: &mut [f64],
     ) {
-        let ft = self.forces(cons, lambda, p.len());
-        let (v, w): (Vec<Vec3>, Vec<Vec3>) = ft
-            .par_iter()
-            .zip(p)
-            .map(|((f, t), p)| mob.local(*p, *f, *t))
-            .unzip();
-        Self::rates(cons, &v, &w, out);
-        out.par_iter_mut().for_each(|o| *o *= dt);
+        let n = p.len();
+        self.vel.resize(n, ([0.0; 3], [0.0; 3]));
+        let (start, entries) = (&self.rod_start, &self.rod_entries);
+        self.vel.par_iter_mut().enumerate().for_each(|(r, vw)| {
+            let mut f = [0.0; 3];
+            let mut t = [0.0; 3];
+            for &(a, side) in &entries[start[r]..start[r + 1]] {
+                let c = &cons[a as usize];
+                let fa = scale(side * lambda[a as usize], c.n);
+                let arm = if side > 0.0 { c.ri } else { c.rj };
+                f = axpy(f, 1.0, fa);
+                t = axpy(t, 1.0, cross(arm, fa));
+            }
+            *vw = mob.local(p[r], f, t);
+        });
+        let vel = &self.vel;
+        out.par_iter_mut()
+            .zip(cons)
+            .enumerate()
+            .for_each(|(k, (o, c))| {
+                let (i, j) = (c.i as usize, c.j as usize);
+                let vi = axpy(vel[i].0, 1.0, cross(vel[i].1, c.ri));
+                let vj = axpy(vel[j].0, 1.0, cross(vel[j].1, c.rj));
+                let s = if shift.is_empty() { 0.0 } else { shift[k] };
+                *o = dt * dot(c.n, sub(vi, vj)) + s;
+            });
     }
 
     /// Solve for the multipliers given the free velocities; returns `lambda` and a report.
@@ -215,11 +265,16 @@ impl ContactSolver {
         mob: &dyn Mobility,
         dt: f64,
         params: &ContactParams,
+        initial: &[f64],
     ) -> Result<(Vec<f64>, ContactReport), ContactError> {
         let m = cons.len();
         if m == 0 {
             return Ok((Vec::new(), ContactReport::default()));
         }
+        assert!(
+            initial.is_empty() || initial.len() == m,
+            "initial guess has the wrong length"
+        );
         self.index(cons, p.len());
         let mut q = vec![0.0; m];
         Self::rates(cons, free_v, free_w, &mut q);
@@ -227,10 +282,17 @@ impl ContactSolver {
             .zip(cons)
             .for_each(|(q, c)| *q = c.phi + dt * *q);
         let residual_of = |lam: &[f64], g: &[f64]| par_max(m, |k| lam[k].min(g[k]).abs());
-        let mut lam = vec![0.0; m];
-        let mut g = q.clone(); // gradient A lambda + q at lambda = 0
-        let mut res = residual_of(&lam, &g);
         let mut ag = vec![0.0; m];
+        // Warm start from `initial` (projected onto lambda >= 0), or from zero.
+        let (mut lam, mut g) = if initial.iter().any(|&l| l > 0.0) {
+            let lam: Vec<f64> = initial.iter().map(|l| l.max(0.0)).collect();
+            let mut g = vec![0.0; m];
+            self.apply(cons, p, mob, dt, &lam, &q, &mut g);
+            (lam, g)
+        } else {
+            (vec![0.0; m], q.clone())
+        };
+        let mut res = residual_of(&lam, &g);
         let mut iterations = 0;
         if res > params.tolerance {
             // First step: exact line search along the projected-free gradient.
@@ -243,7 +305,7 @@ impl ContactSolver {
                     }
                 })
                 .collect();
-            self.apply(cons, p, mob, dt, &gp, &mut ag);
+            self.apply(cons, p, mob, dt, &gp, &[], &mut ag);
             let gg = det_sum(m, |k| gp[k] * gp[k]);
             let gag = det_sum(m, |k| gp[k] * ag[k]);
             let mut alpha = if gag > 0.0 { gg / gag } else { 1.0 };
@@ -255,15 +317,13 @@ impl ContactSolver {
                     .par_iter_mut()
                     .enumerate()
                     .for_each(|(k, l)| *l = (lam[k] - alpha * g[k]).max(0.0));
-                self.apply(cons, p, mob, dt, &lam_new, &mut g_new);
-                g_new.par_iter_mut().zip(&q).for_each(|(g, q)| *g += q);
-                res = residual_of(&lam_new, &g_new);
+                self.apply(cons, p, mob, dt, &lam_new, &q, &mut g_new);
+                // Residual and the three Barzilai-Borwein products in one fixed-chunk pass.
+                let [r, ss, sy, yy] = fused_stats(&lam, &lam_new, &g, &g_new);
+                res = r;
                 if !res.is_finite() {
                     return Err(ContactError::NonFinite(iterations));
                 }
-                let ss = det_sum(m, |k| (lam_new[k] - lam[k]).powi(2));
-                let sy = det_sum(m, |k| (lam_new[k] - lam[k]) * (g_new[k] - g[k]));
-                let yy = det_sum(m, |k| (g_new[k] - g[k]).powi(2));
                 std::mem::swap(&mut lam, &mut lam_new);
                 std::mem::swap(&mut g, &mut g_new);
                 if res <= params.tolerance || ss == 0.0 {

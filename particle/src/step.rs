@@ -70,6 +70,9 @@ pub struct Stepper {
     solver: ContactSolver,
     velocities: RodVelocities,
     contact_force: Vec<Vec3>,
+    /// Multipliers of the last step by rod pair (caller's numbering, `i < j`), sorted: the warm
+    /// start of the next solve, and part of the state a checkpoint must keep.
+    warm: Vec<((u32, u32), f64)>,
 }
 
 /// The constraint between rods `i` and `j` (centres `x`, axes `p`; `d`: minimum-image vector
@@ -133,7 +136,18 @@ impl Stepper {
             solver: ContactSolver::default(),
             velocities: RodVelocities::default(),
             contact_force: Vec::new(),
+            warm: Vec::new(),
         }
+    }
+
+    /// The contact multipliers of the last step, by rod pair `(i, j)`, `i < j`, sorted.
+    pub fn warm_start(&self) -> &[((u32, u32), f64)] {
+        &self.warm
+    }
+
+    /// Restore the multipliers a checkpoint saved (pairs sorted, as [`Self::warm_start`]).
+    pub fn set_warm_start(&mut self, warm: Vec<((u32, u32), f64)>) {
+        self.warm = warm;
     }
 
     /// Velocities of the last step.
@@ -188,6 +202,18 @@ impl Stepper {
             .collect();
         seconds[2] = t2.elapsed().as_secs_f64();
         let t3 = Instant::now();
+        let key = |c: &crate::contact::Constraint| {
+            let (a, b) = (order[c.i as usize], order[c.j as usize]);
+            (a.min(b), a.max(b))
+        };
+        let initial: Vec<f64> = cons
+            .par_iter()
+            .map(|c| {
+                self.warm
+                    .binary_search_by_key(&key(c), |w| w.0)
+                    .map_or(0.0, |k| self.warm[k].1)
+            })
+            .collect();
         let (lambda, contact) = self.solver.solve(
             &cons,
             &ps,
@@ -196,7 +222,16 @@ impl Stepper {
             self.mobility.as_ref(),
             dt,
             &self.contact,
+            &initial,
         )?;
+        let mut warm: Vec<((u32, u32), f64)> = cons
+            .iter()
+            .zip(&lambda)
+            .filter(|(_, l)| **l > 0.0)
+            .map(|(c, l)| (key(c), *l))
+            .collect();
+        warm.par_sort_unstable_by_key(|w| w.0);
+        self.warm = warm;
         seconds[3] = t3.elapsed().as_secs_f64();
         let t4 = Instant::now();
         // Contact forces and torques, back in the caller's numbering.

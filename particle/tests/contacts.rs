@@ -158,6 +158,7 @@ fn dense_problem(r: &RodSet, cons: &[Constraint], dt: f64) -> (Vec<Vec<f64>>, Ve
                 &mob,
                 dt,
                 &ContactParams::default(),
+                &[],
             );
             solver.forces(cons, &e, p.len())
         };
@@ -239,7 +240,16 @@ fn bbpgd_agrees_with_projected_gauss_seidel() {
     let mut solver = ContactSolver::default();
     let free_w = vec![[0.0; 3]; 6];
     let (lam, report) = solver
-        .solve(&cons, &po, &po, &free_w, &LocalDrag::default(), dt, &params)
+        .solve(
+            &cons,
+            &po,
+            &po,
+            &free_w,
+            &LocalDrag::default(),
+            dt,
+            &params,
+            &[],
+        )
         .unwrap();
     let err = lam
         .iter()
