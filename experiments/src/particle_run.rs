@@ -15,6 +15,7 @@ use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, File, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
 use motile_particle::cells::CellList;
+use motile_particle::contact::WarmStart;
 use motile_particle::geometry::{axpy, quat_from_axis, segment_distance};
 use motile_particle::init::random_nonoverlapping;
 use motile_particle::units::{DIAMETER, ROD_LENGTH};
@@ -333,7 +334,7 @@ fn write_checkpoint(
     write_atomic(path, &bytes)
 }
 
-fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Vec<((u32, u32), f64)>, u64)> {
+fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, WarmStart, u64)> {
     let f = File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     let attrs = f
         .root()
@@ -501,7 +502,7 @@ fn drive(
     cfg: &ParticleRunConfig,
     run: &RunDir,
     mut rods: RodSet,
-    warm: Vec<((u32, u32), f64)>,
+    warm: WarmStart,
     start: u64,
     mut ts: TimeSeries,
     progress: bool,

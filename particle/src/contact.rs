@@ -54,6 +54,9 @@ impl Default for ContactParams {
     }
 }
 
+/// Contact multipliers by rod pair `(i, j)`, `i < j`, sorted by pair: a solve's warm start.
+pub type WarmStart = Vec<((u32, u32), f64)>;
+
 /// One constraint between rods `i < j`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Constraint {

@@ -72,7 +72,7 @@ pub struct Stepper {
     contact_force: Vec<Vec3>,
     /// Multipliers of the last step by rod pair (caller's numbering, `i < j`), sorted: the warm
     /// start of the next solve, and part of the state a checkpoint must keep.
-    warm: Vec<((u32, u32), f64)>,
+    warm: crate::contact::WarmStart,
 }
 
 /// The constraint between rods `i` and `j` (centres `x`, axes `p`; `d`: minimum-image vector
@@ -146,7 +146,7 @@ impl Stepper {
     }
 
     /// Restore the multipliers a checkpoint saved (pairs sorted, as [`Self::warm_start`]).
-    pub fn set_warm_start(&mut self, warm: Vec<((u32, u32), f64)>) {
+    pub fn set_warm_start(&mut self, warm: crate::contact::WarmStart) {
         self.warm = warm;
     }
 
