@@ -349,3 +349,34 @@ fn initialiser_reports_unreachable_densities() {
             .contains("too small")
     );
 }
+
+#[test]
+fn iteration_cap_gives_a_structured_error() {
+    let r0 = random_nonoverlapping(2560, 8.0, 11, 100_000).unwrap();
+    let mut r = r0.clone();
+    let mut s = stepper();
+    for _ in 0..20 {
+        s.step(&mut r, 0.002).unwrap();
+    }
+    let mut capped = Stepper::new(
+        Box::new(LocalDrag::default()),
+        ContactParams {
+            max_iterations: 2,
+            ..Default::default()
+        },
+    );
+    let e = capped.step(&mut r, 0.002).unwrap_err();
+    match e {
+        motile_particle::StepError::Contact(
+            motile_particle::contact::ContactError::NoConvergence {
+                iterations,
+                residual,
+                ..
+            },
+        ) => {
+            assert_eq!(iterations, 2);
+            assert!(residual > 1e-7, "residual {residual}");
+        }
+        other => panic!("expected NoConvergence, got {other:?}"),
+    }
+}

@@ -151,4 +151,28 @@ fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
     std::fs::write(&f, "1 1 1 1 0 0\n3 3 3 0 1 0\n").unwrap();
     let rods = load_configuration(&f, 8.0).unwrap();
     assert_eq!(rods.len(), 2);
+    // A snapshot of a run is a valid initial configuration, and a run can start from it.
+    let first = dir.path().join("first");
+    let done = run_particle(
+        &ParticleRunConfig {
+            t_end: 0.02,
+            ..small()
+        },
+        &first,
+        false,
+    )
+    .unwrap();
+    let snap = first.join("snapshots/snap_000000.h5");
+    let loaded = load_configuration(&snap, 99.0).unwrap();
+    assert_eq!(
+        loaded.box_length, 6.0,
+        "the snapshot's box wins over the config's"
+    );
+    assert_eq!(loaded.len(), done.rods.len());
+    let cfg = ParticleRunConfig {
+        initial: snap.to_string_lossy().into_owned(),
+        t_end: 0.02,
+        ..small()
+    };
+    run_particle(&cfg, &dir.path().join("second"), false).unwrap();
 }
