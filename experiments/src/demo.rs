@@ -8,10 +8,10 @@
 use crate::rundir::RunDir;
 use crate::snapshot::{ParticleSnapshot, PointForces};
 use motile_analysis::quadrature::gauss_legendre;
+use motile_particle::init::isotropic_orientation;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use std::f64::consts::PI;
 use std::path::Path;
 
 /// Slender-body coefficient `eta = ln(2 l / b) / (4 pi mu)` with `b = l/5`, `mu = 1`.
@@ -103,14 +103,7 @@ pub fn write_demo_run(out: &Path, cfg: &DemoConfig) -> anyhow::Result<RunDir> {
     let x0: Vec<[f64; 3]> = (0..n)
         .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..l)))
         .collect();
-    let p: Vec<[f64; 3]> = (0..n)
-        .map(|_| {
-            let z: f64 = rng.random_range(-1.0..1.0);
-            let phi: f64 = rng.random_range(0.0..2.0 * PI);
-            let s = (1.0 - z * z).sqrt();
-            [s * phi.cos(), s * phi.sin(), z]
-        })
-        .collect();
+    let p: Vec<[f64; 3]> = (0..n).map(|_| isotropic_orientation(&mut rng)).collect();
     run.log(&format!(
         "demo: {n} free swimmers, L/l = {l}, nu = {}",
         cfg.volume_fraction

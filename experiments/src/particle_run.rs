@@ -400,19 +400,22 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, WarmStart, u64)> {
     Ok((rods, warm, step))
 }
 
+/// Numbered checkpoints in a directory (`ckpt_*`), oldest first.
+fn checkpoint_paths(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    v.retain(|p| {
+        p.file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with("ckpt_"))
+    });
+    v.sort();
+    v
+}
+
 /// Latest checkpoint of a run, if any.
 pub fn latest_checkpoint(run: &RunDir) -> Option<PathBuf> {
-    let dir = run.path().join("checkpoints");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .ok()?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.file_name()
-                .is_some_and(|n| n.to_string_lossy().starts_with("ckpt_"))
-        })
-        .collect();
-    v.sort();
-    v.pop()
+    checkpoint_paths(&run.path().join("checkpoints")).pop()
 }
 
 /// Columns of a particle run's `timeseries.csv`.
@@ -624,19 +627,9 @@ fn drive(
 }
 
 fn prune_checkpoints(dir: &Path, keep: usize) {
-    let Ok(rd) = std::fs::read_dir(dir) else {
-        return;
-    };
-    let mut v: Vec<PathBuf> = rd
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.file_name()
-                .is_some_and(|n| n.to_string_lossy().starts_with("ckpt_"))
-        })
-        .collect();
-    v.sort();
-    while v.len() > keep {
-        let _ = std::fs::remove_file(v.remove(0));
+    let v = checkpoint_paths(dir);
+    for old in &v[..v.len().saturating_sub(keep)] {
+        let _ = std::fs::remove_file(old);
     }
 }
 
