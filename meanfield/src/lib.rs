@@ -1,5 +1,7 @@
-//! The mean-field model of MODEL.md §4: pseudo-spectral IMEX solver for the orientation tensor
-//! Q with the Bingham closure. Not implemented yet (issue "Mean-field solver"); the crate exists
-//! so the workspace has its final shape and the dependency direction
-//! `analysis <- meanfield <- experiments` is fixed.
+//! The mean-field model of MODEL.md §4: the orientation tensor Q with the Bingham closure.
+//! So far: the Bingham distribution's moments and its inversion ([`bingham`]), the base of the
+//! closure. The spectral Stokes solve and IMEX stepping are not implemented yet.
 #![warn(missing_docs)]
+
+pub mod bessel;
+pub mod bingham;
