@@ -6,3 +6,5 @@
 pub mod bessel;
 pub mod bingham;
 pub mod closure;
+pub mod eigen;
+pub mod solver;
