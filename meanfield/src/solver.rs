@@ -110,7 +110,7 @@ impl SpectralGrid {
     /// Grid of `n^3` points (`n` even, at least 4).
     pub fn new(n: usize) -> Self {
         assert!(
-            n >= 4 && n % 2 == 0,
+            n >= 4 && n.is_multiple_of(2),
             "grid size must be even and at least 4, got {n}"
         );
         let m = |i: usize| {
@@ -501,6 +501,20 @@ pub const SBDF2: ImexScheme = ImexScheme {
     },
 };
 
+/// Coefficients of the six components of a symmetric tensor field.
+pub type TensorCoefficients = [Vec<Complex64>; 6];
+
+/// The previous step's Q, explicit right-hand side and step size.
+#[derive(Debug, Clone)]
+pub struct History {
+    /// `Q^{n-1}`.
+    pub q_hat: TensorCoefficients,
+    /// `N^{n-1}`.
+    pub nonlinear: TensorCoefficients,
+    /// `dt_{n-1}`.
+    pub dt: f64,
+}
+
 /// Time stepper state: the current and previous Q and right-hand sides.
 #[derive(Debug, Clone)]
 pub struct MeanFieldStepper {
@@ -510,7 +524,7 @@ pub struct MeanFieldStepper {
     pub t: f64,
     /// Current Q coefficients.
     pub q_hat: [Vec<Complex64>; 6],
-    prev: Option<([Vec<Complex64>; 6], [Vec<Complex64>; 6], f64)>,
+    prev: Option<History>,
     /// Last velocity (warm start of the fixed point).
     pub u_hat: [Vec<Complex64>; 3],
 }
@@ -544,7 +558,7 @@ impl MeanFieldStepper {
     ) -> Result<MeanFieldStepReport, MeanFieldError> {
         let ev = rhs.eval(&self.q_hat, &self.u_hat)?;
         let (scheme, w) = match (&self.prev, self.scheme.steps) {
-            (Some((_, _, dt_prev)), 2) => (self.scheme, dt / dt_prev),
+            (Some(h), 2) => (self.scheme, dt / h.dt),
             _ => (SBDF1, 1.0),
         };
         let ([a0, a1, a2], [b0, b1]) = (scheme.coefficients)(w);
@@ -555,17 +569,21 @@ impl MeanFieldStepper {
                 .into_par_iter()
                 .map(|idx| {
                     let mut r = -a1 * self.q_hat[c][idx] + dt * b0 * ev.nonlinear[c][idx];
-                    if let Some((q_old, n_old, _)) = &self.prev
+                    if let Some(h) = &self.prev
                         && scheme.steps == 2
                     {
-                        r += -a2 * q_old[c][idx] + dt * b1 * n_old[c][idx];
+                        r += -a2 * h.q_hat[c][idx] + dt * b1 * h.nonlinear[c][idx];
                     }
                     r / (a0 + dt * d * g.k_squared(idx))
                 })
                 .collect()
         });
         let old_q = std::mem::replace(&mut self.q_hat, new);
-        self.prev = Some((old_q, ev.nonlinear, dt));
+        self.prev = Some(History {
+            q_hat: old_q,
+            nonlinear: ev.nonlinear,
+            dt,
+        });
         self.u_hat = ev.u;
         self.t += dt;
         Ok(MeanFieldStepReport {
