@@ -6,6 +6,7 @@
 pub mod analyze;
 pub mod demo;
 pub mod io;
+pub mod meanfield_run;
 pub mod particle_run;
 pub mod plot;
 pub mod rundir;

@@ -93,6 +93,36 @@ impl BinghamClosure {
         self.degree
     }
 
+    /// The tables as bytes (degree, then the coefficients, little-endian), for a cache file.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut b = (self.degree as u64).to_le_bytes().to_vec();
+        for c in &self.coef {
+            for v in c {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        b
+    }
+
+    /// Tables from [`Self::to_bytes`]; `None` if the bytes are not tables of that degree.
+    pub fn from_bytes(bytes: &[u8], degree: usize) -> Option<Self> {
+        let n = (degree + 1) * (degree + 1);
+        if bytes.len() != 8 + 3 * n * 8
+            || u64::from_le_bytes(bytes[..8].try_into().ok()?) != degree as u64
+        {
+            return None;
+        }
+        let vals: Vec<f64> = bytes[8..]
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+            .collect();
+        if !vals.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let coef = [0, 1, 2].map(|f| vals[f * n..(f + 1) * n].to_vec());
+        Some(Self { degree, coef })
+    }
+
     /// Eigenframe fourth moments `S_iijj` for eigenvalues `mu` (any order, summing to 1;
     /// clamped into the triangle).
     pub fn fourth(&self, mu: [f64; 3]) -> EigenFourth {

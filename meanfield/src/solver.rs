@@ -529,13 +529,22 @@ pub struct MeanFieldStepper {
     pub u_hat: [Vec<Complex64>; 3],
 }
 
-/// What a step did.
+/// What a step did, and diagnostics of the state it started from (volume averages over the
+/// unit cube).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MeanFieldStepReport {
     /// Fixed-point report of the right-hand side.
     pub rhs: RhsReport,
-    /// Smallest eigenvalue of `Q / tr Q` before the step.
+    /// Smallest eigenvalue of `Q / tr Q` before the step (realizability).
     pub min_eigenvalue: f64,
+    /// `||u||_2`, volume-averaged.
+    pub u_l2: f64,
+    /// `max_x (|u_x| + |u_y| + |u_z|)`: the CFL velocity (sum over axes).
+    pub u_max: f64,
+    /// `||E||_2 = sqrt(<E:E>)`.
+    pub e_l2: f64,
+    /// `<E:Q>`, the power the active stress injects (MODEL §4 energy identity).
+    pub e_dot_q: f64,
 }
 
 impl MeanFieldStepper {
@@ -584,11 +593,33 @@ impl MeanFieldStepper {
             nonlinear: ev.nonlinear,
             dt,
         });
+        let npts = g.len() as f64;
+        let u_l2 =
+            ev.u.iter()
+                .map(|c| c.iter().map(|v| v.norm_sqr()).sum::<f64>())
+                .sum::<f64>()
+                .sqrt();
+        let ug: [Vec<f64>; 3] = std::array::from_fn(|i| g.inverse(&ev.u[i]));
+        let u_max = (0..g.len())
+            .map(|p| ug[0][p].abs() + ug[1][p].abs() + ug[2][p].abs())
+            .fold(0.0, f64::max);
+        let w = |c: usize| if SYM[c].0 == SYM[c].1 { 1.0 } else { 2.0 };
+        let (mut ee, mut eq) = (0.0, 0.0);
+        for c in 0..6 {
+            for p in 0..g.len() {
+                ee += w(c) * ev.e[c][p] * ev.e[c][p];
+                eq += w(c) * ev.e[c][p] * ev.q[c][p];
+            }
+        }
         self.u_hat = ev.u;
         self.t += dt;
         Ok(MeanFieldStepReport {
             rhs: ev.report,
             min_eigenvalue: ev.min_eigenvalue,
+            u_l2,
+            u_max,
+            e_l2: (ee / npts).sqrt(),
+            e_dot_q: eq / npts,
         })
     }
 }
