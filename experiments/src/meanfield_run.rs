@@ -268,7 +268,7 @@ pub fn initial_state(cfg: &MeanFieldRunConfig) -> [Vec<f64>; 6] {
 }
 
 /// Columns of a mean-field `timeseries.csv`.
-pub const COLUMNS: [&str; 10] = [
+pub const COLUMNS: [&str; 13] = [
     "t [mu/|sigma_a|]",
     "dt [mu/|sigma_a|]",
     "u_l2 [L |sigma_a|/mu]",
@@ -278,6 +278,9 @@ pub const COLUMNS: [&str; 10] = [
     "fixed_point_iterations [1]",
     "fixed_point_residual [1]",
     "min_eigenvalue [1]",
+    "max_eigenvalue [1]",
+    "entropy [1]",
+    "energy_identity_residual [1]",
     "steps [1]",
 ];
 
@@ -390,6 +393,9 @@ pub fn run_meanfield(
                 report.rhs.iterations as f64,
                 report.rhs.residual,
                 report.min_eigenvalue,
+                report.max_eigenvalue,
+                report.entropy,
+                report.energy_residual,
                 steps as f64,
             ]);
             ts.write(&run.path().join("timeseries.csv"))?;

@@ -20,12 +20,30 @@ pub const DEFAULT_DEGREE: usize = 80;
 #[derive(Clone, Debug)]
 pub struct BinghamClosure {
     degree: usize,
-    /// Chebyshev coefficients `c[f][i * (d + 1) + j]` of function `f` (1111, 2222, 1122).
-    coef: [Vec<f64>; 3],
+    /// Chebyshev coefficients `c[f][i * (d + 1) + j]` of function `f`: S_1111, S_2222, S_1122,
+    /// and the entropy density `sum_i b_i mu_i - ln Z`.
+    coef: [Vec<f64>; 4],
 }
 
 /// The eigenframe fourth moments `S_iijj` of one point (symmetric 3x3).
 pub type EigenFourth = [[f64; 3]; 3];
+
+/// `(1/2) sum_i ln mu_i`: the entropy density diverges like `-(1/2) ln mu_i` as an eigenvalue
+/// vanishes, so the table holds the regular part `h + (1/2) sum ln mu_i`.
+fn log_singularity(mu: [f64; 3]) -> f64 {
+    0.5 * mu.iter().map(|m| m.max(1e-300).ln()).sum::<f64>()
+}
+
+/// Exact entropy density `int psi ln(4 pi psi) dp = sum_i b_i mu_i - ln Z` of the Bingham
+/// distribution with second-moment eigenvalues `mu` (slow: Newton plus quadrature).
+pub fn exact_entropy(mu: [f64; 3]) -> Result<f64, BinghamError> {
+    if mu.iter().all(|&m| (m - 1.0 / 3.0).abs() < 1e-15) {
+        return Ok(0.0);
+    }
+    let b = solve_exponent(mu)?;
+    let m = moments(b);
+    Ok(b.iter().zip(&mu).map(|(b, m)| b * m).sum::<f64>() - m.log_z)
+}
 
 /// Exact eigenframe fourth moments for eigenvalues `mu` (slow: Newton plus quadrature).
 pub fn exact_fourth(mu: [f64; 3]) -> Result<EigenFourth, BinghamError> {
@@ -44,12 +62,27 @@ impl BinghamClosure {
             .collect();
         let to_unit = |t: f64| 0.5 * (t + 1.0);
         // Function values on the tensor grid.
-        let values: Vec<[f64; 3]> = (0..n * n)
+        let values: Vec<[f64; 4]> = (0..n * n)
             .into_par_iter()
             .map(|idx| {
                 let (x, y) = (to_unit(nodes[idx / n]), to_unit(nodes[idx % n]));
                 let mu = [x, (1.0 - x) * y, (1.0 - x) * (1.0 - y)];
-                exact_fourth(mu).map(|s| [s[0][0], s[1][1], s[0][1]])
+                let iso = mu.iter().all(|&m| (m - 1.0 / 3.0).abs() < 1e-15);
+                let b = if iso {
+                    Ok([0.0; 3])
+                } else {
+                    solve_exponent(mu)
+                };
+                b.map(|b| {
+                    let m = moments(b);
+                    let h = b.iter().zip(&mu).map(|(b, m)| b * m).sum::<f64>() - m.log_z;
+                    [
+                        m.fourth[0][0],
+                        m.fourth[1][1],
+                        m.fourth[0][1],
+                        h + log_singularity(mu),
+                    ]
+                })
             })
             .collect::<Result<_, _>>()?;
         // 2D discrete Chebyshev transform (separable).
@@ -63,7 +96,7 @@ impl BinghamClosure {
                 2.0 / n as f64
             }
         };
-        let coef = [0, 1, 2].map(|f| {
+        let coef = [0, 1, 2, 3].map(|f| {
             // First along y: tmp[k][j] = sum_l v[k][l] T_j(y_l).
             let mut tmp = vec![0.0; n * n];
             for k in 0..n {
@@ -107,7 +140,7 @@ impl BinghamClosure {
     /// Tables from [`Self::to_bytes`]; `None` if the bytes are not tables of that degree.
     pub fn from_bytes(bytes: &[u8], degree: usize) -> Option<Self> {
         let n = (degree + 1) * (degree + 1);
-        if bytes.len() != 8 + 3 * n * 8
+        if bytes.len() != 8 + 4 * n * 8
             || u64::from_le_bytes(bytes[..8].try_into().ok()?) != degree as u64
         {
             return None;
@@ -119,13 +152,19 @@ impl BinghamClosure {
         if !vals.iter().all(|v| v.is_finite()) {
             return None;
         }
-        let coef = [0, 1, 2].map(|f| vals[f * n..(f + 1) * n].to_vec());
+        let coef = [0, 1, 2, 3].map(|f| vals[f * n..(f + 1) * n].to_vec());
         Some(Self { degree, coef })
     }
 
-    /// Eigenframe fourth moments `S_iijj` for eigenvalues `mu` (any order, summing to 1;
-    /// clamped into the triangle).
-    pub fn fourth(&self, mu: [f64; 3]) -> EigenFourth {
+    /// Entropy density `int psi ln(4 pi psi) dp` of the Bingham distribution with eigenvalues
+    /// `mu` (clamped into the triangle; it diverges logarithmically at the edges, where the table
+    /// is least accurate).
+    pub fn entropy(&self, mu: [f64; 3]) -> f64 {
+        let (tx, ty) = self.basis(mu);
+        Self::sum(&self.coef[3], &tx, &ty) - log_singularity(mu)
+    }
+
+    fn basis(&self, mu: [f64; 3]) -> (Vec<f64>, Vec<f64>) {
         let n = self.degree + 1;
         let x = mu[0].clamp(0.0, 1.0);
         let y = if x < 1.0 {
@@ -133,30 +172,37 @@ impl BinghamClosure {
         } else {
             0.5
         };
-        let cheb = |t: f64, out: &mut Vec<f64>| {
+        let cheb = |t: f64| {
             let s = 2.0 * t - 1.0;
-            out.clear();
-            out.push(1.0);
-            out.push(s);
+            let mut out = vec![1.0, s];
             for k in 2..n {
-                let v = 2.0 * s * out[k - 1] - out[k - 2];
-                out.push(v);
+                out.push(2.0 * s * out[k - 1] - out[k - 2]);
             }
             out.truncate(n);
+            out
         };
-        let (mut tx, mut ty) = (Vec::with_capacity(n + 1), Vec::with_capacity(n + 1));
-        cheb(x, &mut tx);
-        cheb(y, &mut ty);
-        let mut f = [0.0; 3];
-        for (fi, c) in f.iter_mut().zip(&self.coef) {
-            let mut acc = 0.0;
-            for i in 0..n {
-                let row = &c[i * n..(i + 1) * n];
-                let inner: f64 = row.iter().zip(&ty).map(|(a, b)| a * b).sum();
-                acc += tx[i] * inner;
-            }
-            *fi = acc;
+        (cheb(x), cheb(y))
+    }
+
+    fn sum(c: &[f64], tx: &[f64], ty: &[f64]) -> f64 {
+        let n = tx.len();
+        let mut acc = 0.0;
+        for i in 0..n {
+            let inner: f64 = c[i * n..(i + 1) * n]
+                .iter()
+                .zip(ty)
+                .map(|(a, b)| a * b)
+                .sum();
+            acc += tx[i] * inner;
         }
+        acc
+    }
+
+    /// Eigenframe fourth moments `S_iijj` for eigenvalues `mu` (any order, summing to 1;
+    /// clamped into the triangle).
+    pub fn fourth(&self, mu: [f64; 3]) -> EigenFourth {
+        let (tx, ty) = self.basis(mu);
+        let f: [f64; 3] = std::array::from_fn(|k| Self::sum(&self.coef[k], &tx, &ty));
         let [s11, s22, s12] = f;
         let s13 = mu[0] - s11 - s12;
         let s23 = mu[1] - s22 - s12;
@@ -228,6 +274,29 @@ mod tests {
             }
         }
         eprintln!("degree {}: worst table error {worst:.2e}", closure.degree());
+    }
+
+    #[test]
+    fn entropy_table_matches_quadrature_away_from_the_edges() {
+        let closure = table();
+        for mu in [
+            [1.0 / 3.0; 3],
+            [0.4, 0.35, 0.25],
+            [0.6, 0.3, 0.1],
+            [0.8, 0.15, 0.05],
+            [0.2, 0.3, 0.5],
+        ] {
+            let (fast, exact) = (closure.entropy(mu), exact_entropy(mu).unwrap());
+            eprintln!("entropy at {mu:?}: table {fast:.15} quadrature {exact:.15}");
+            assert!(
+                (fast - exact).abs() < 1e-9,
+                "mu {mu:?}: entropy table {fast} vs quadrature {exact}"
+            );
+        }
+        assert!(
+            closure.entropy([1.0 / 3.0; 3]).abs() < 1e-9,
+            "isotropic entropy must vanish"
+        );
     }
 
     #[test]

@@ -250,13 +250,18 @@ pub struct ClosureField {
     s: Vec<Sym3>,
     /// Smallest eigenvalue of `Q / tr Q` over the grid (realizability).
     pub min_eigenvalue: f64,
+    /// Largest eigenvalue of `Q / tr Q` over the grid.
+    pub max_eigenvalue: f64,
+    /// Relative entropy `H`, volume-averaged: `<c ln c + c h(Q/c)>`, `h` the tabulated
+    /// Bingham entropy density.
+    pub entropy: f64,
 }
 
 impl ClosureField {
     /// Evaluate the closure for grid values `q` (six components).
     pub fn new(closure: &BinghamClosure, q: &[Vec<f64>; 6]) -> Self {
         let n = q[0].len();
-        let per: Vec<(Sym3, Sym3, f64)> = (0..n)
+        let per: Vec<(Sym3, Sym3, [f64; 3])> = (0..n)
             .into_par_iter()
             .map(|p| {
                 let a: Sym3 =
@@ -265,14 +270,21 @@ impl ClosureField {
                 let an: Sym3 = a.map(|row| row.map(|v| v / c));
                 let (w, r) = sym3_eigen(&an);
                 let s = closure.fourth(w).map(|row| row.map(|v| v * c));
-                (r, s, w.iter().copied().fold(f64::INFINITY, f64::min))
+                let h = c * c.max(1e-300).ln() + c * closure.entropy(w);
+                let lo = w.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                (r, s, [lo, hi, h])
             })
             .collect();
-        let min_eigenvalue = per.iter().map(|p| p.2).fold(f64::INFINITY, f64::min);
+        let min_eigenvalue = per.iter().map(|p| p.2[0]).fold(f64::INFINITY, f64::min);
+        let max_eigenvalue = per.iter().map(|p| p.2[1]).fold(f64::NEG_INFINITY, f64::max);
+        let entropy = per.iter().map(|p| p.2[2]).sum::<f64>() / n as f64;
         Self {
             r: per.iter().map(|p| p.0).collect(),
             s: per.iter().map(|p| p.1).collect(),
             min_eigenvalue,
+            max_eigenvalue,
+            entropy,
         }
     }
 
@@ -343,6 +355,10 @@ pub struct RhsEval {
     pub report: RhsReport,
     /// Smallest eigenvalue of `Q / tr Q`.
     pub min_eigenvalue: f64,
+    /// Largest eigenvalue of `Q / tr Q`.
+    pub max_eigenvalue: f64,
+    /// Relative entropy `H` (volume average).
+    pub entropy: f64,
 }
 
 fn rel_change(a: &[Vec<Complex64>; 3], b: &[Vec<Complex64>; 3]) -> f64 {
@@ -466,6 +482,8 @@ impl MeanFieldRhs<'_> {
             q,
             report,
             min_eigenvalue: closure.min_eigenvalue,
+            max_eigenvalue: closure.max_eigenvalue,
+            entropy: closure.entropy,
         })
     }
 }
@@ -545,6 +563,13 @@ pub struct MeanFieldStepReport {
     pub e_l2: f64,
     /// `<E:Q>`, the power the active stress injects (MODEL §4 energy identity).
     pub e_dot_q: f64,
+    /// Largest eigenvalue of `Q / tr Q`.
+    pub max_eigenvalue: f64,
+    /// Relative entropy `H` (volume average), MODEL §4.
+    pub entropy: f64,
+    /// Energy identity residual `(<2 E:E + zeta E:S:E> - <E:Q>) / <E:Q>` (zero up to the
+    /// fixed-point tolerance).
+    pub energy_residual: f64,
 }
 
 impl MeanFieldStepper {
@@ -604,13 +629,15 @@ impl MeanFieldStepper {
             .map(|p| ug[0][p].abs() + ug[1][p].abs() + ug[2][p].abs())
             .fold(0.0, f64::max);
         let w = |c: usize| if SYM[c].0 == SYM[c].1 { 1.0 } else { 2.0 };
-        let (mut ee, mut eq) = (0.0, 0.0);
+        let (mut ee, mut eq, mut ese) = (0.0, 0.0, 0.0);
         for c in 0..6 {
             for p in 0..g.len() {
                 ee += w(c) * ev.e[c][p] * ev.e[c][p];
                 eq += w(c) * ev.e[c][p] * ev.q[c][p];
+                ese += w(c) * ev.e[c][p] * ev.se[c][p];
             }
         }
+        let energy_residual = (2.0 * ee + rhs.params.zeta * ese - eq) / eq.abs().max(1e-300);
         self.u_hat = ev.u;
         self.t += dt;
         Ok(MeanFieldStepReport {
@@ -620,6 +647,9 @@ impl MeanFieldStepper {
             u_max,
             e_l2: (ee / npts).sqrt(),
             e_dot_q: eq / npts,
+            max_eigenvalue: ev.max_eigenvalue,
+            entropy: ev.entropy,
+            energy_residual,
         })
     }
 }
