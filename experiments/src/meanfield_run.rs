@@ -7,14 +7,17 @@
 //! them evenly, never by a tiny clipped step followed by a large ratio.
 
 use crate::io::write_atomic;
-use crate::rundir::{RunDir, TimeSeries};
+use crate::rundir::{RunDir, TimeSeries, checkpoint_paths};
 use crate::snapshot::FieldSnapshot;
 use anyhow::{Context, bail};
+use hdf5_pure::{AttrValue, File, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::solver::{
-    MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SYM, SpectralGrid,
+    History, MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SYM, SpectralGrid,
+    TensorCoefficients,
 };
+use num_complex::Complex64;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -63,6 +66,8 @@ pub struct MeanFieldRunConfig {
     pub diagnostic_interval: f64,
     /// Time between snapshots. Default 5.
     pub snapshot_interval: f64,
+    /// Time between checkpoints (the last two kept). Default 5.
+    pub checkpoint_interval: f64,
 }
 
 impl Default for MeanFieldRunConfig {
@@ -86,6 +91,7 @@ impl Default for MeanFieldRunConfig {
             closure_degree: 80,
             diagnostic_interval: 0.5,
             snapshot_interval: 5.0,
+            checkpoint_interval: 5.0,
         }
     }
 }
@@ -132,6 +138,13 @@ impl MeanFieldRunConfig {
             true,
         )?;
         chk("snapshot_interval", self.snapshot_interval, 0.0, 1e6, true)?;
+        chk(
+            "checkpoint_interval",
+            self.checkpoint_interval,
+            0.0,
+            1e6,
+            true,
+        )?;
         if !(10..=200).contains(&self.closure_degree) {
             return Err(format!(
                 "closure_degree = {} is outside the allowed range [10, 200]",
@@ -287,12 +300,187 @@ pub const COLUMNS: [&str; 13] = [
 /// What a run did.
 #[derive(Clone, Debug)]
 pub struct MeanFieldSummary {
-    /// Steps taken.
+    /// Steps taken by this invocation.
     pub steps: u64,
     /// Wall seconds.
     pub seconds: f64,
-    /// Diagnostics.
+    /// Diagnostics (all rows, including those before a resume).
     pub timeseries: TimeSeries,
+    /// Final Q coefficients.
+    pub q_hat: TensorCoefficients,
+}
+
+/// The driver's clocks: step-size control and the output schedule.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Clock {
+    dt: f64,
+    prev_dt: f64,
+    next_diag: f64,
+    next_snap: f64,
+    next_ckpt: f64,
+    snap_index: u64,
+    steps: u64,
+}
+
+const CLOCK_FIELDS: [&str; 7] = [
+    "dt",
+    "prev_dt",
+    "next_diag",
+    "next_snap",
+    "next_ckpt",
+    "snap_index",
+    "steps",
+];
+
+impl Clock {
+    fn to_vec(self) -> Vec<f64> {
+        vec![
+            self.dt,
+            self.prev_dt,
+            self.next_diag,
+            self.next_snap,
+            self.next_ckpt,
+            self.snap_index as f64,
+            self.steps as f64,
+        ]
+    }
+
+    fn from_slice(v: &[f64]) -> Self {
+        Self {
+            dt: v[0],
+            prev_dt: v[1],
+            next_diag: v[2],
+            next_snap: v[3],
+            next_ckpt: v[4],
+            snap_index: v[5] as u64,
+            steps: v[6] as u64,
+        }
+    }
+}
+
+fn complex_flat(v: &[Vec<Complex64>]) -> Vec<f64> {
+    v.iter()
+        .flat_map(|c| c.iter().flat_map(|z| [z.re, z.im]))
+        .collect()
+}
+
+fn complex_unflat<const K: usize>(v: &[f64], n3: usize) -> [Vec<Complex64>; K] {
+    std::array::from_fn(|c| {
+        v[2 * c * n3..2 * (c + 1) * n3]
+            .chunks_exact(2)
+            .map(|p| Complex64::new(p[0], p[1]))
+            .collect()
+    })
+}
+
+fn write_checkpoint(
+    path: &Path,
+    stepper: &MeanFieldStepper,
+    clock: &Clock,
+    n: usize,
+) -> anyhow::Result<()> {
+    let n3 = (n * n * n) as u64;
+    let mut b = FileBuilder::new();
+    b.set_attr(
+        "kind",
+        AttrValue::VarLenString("meanfield_checkpoint".into()),
+    );
+    b.set_attr("time", AttrValue::F64(stepper.t));
+    b.set_attr("grid", AttrValue::U64(n as u64));
+    b.set_attr(
+        "clock_fields",
+        AttrValue::VarLenString(CLOCK_FIELDS.join(",")),
+    );
+    b.create_dataset("clock")
+        .with_f64_data(&clock.to_vec())
+        .with_shape(&[CLOCK_FIELDS.len() as u64]);
+    b.create_dataset("q_hat")
+        .with_f64_data(&complex_flat(&stepper.q_hat))
+        .with_shape(&[6, n3, 2]);
+    b.create_dataset("u_hat")
+        .with_f64_data(&complex_flat(&stepper.u_hat))
+        .with_shape(&[3, n3, 2]);
+    if let Some(h) = stepper.history() {
+        b.create_dataset("prev_q_hat")
+            .with_f64_data(&complex_flat(&h.q_hat))
+            .with_shape(&[6, n3, 2]);
+        b.create_dataset("prev_nonlinear")
+            .with_f64_data(&complex_flat(&h.nonlinear))
+            .with_shape(&[6, n3, 2]);
+        b.create_dataset("prev_dt")
+            .with_f64_data(&[h.dt])
+            .with_shape(&[1]);
+    }
+    let bytes = b
+        .finish()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    write_atomic(path, &bytes)?;
+    Ok(())
+}
+
+fn read_checkpoint(path: &Path, stepper: &mut MeanFieldStepper, n: usize) -> anyhow::Result<Clock> {
+    let f = File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let attrs = f
+        .root()
+        .attrs()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let t = match attrs.get("time") {
+        Some(AttrValue::F64(t)) => *t,
+        other => bail!(
+            "{}: attribute 'time' missing or of type {other:?}",
+            path.display()
+        ),
+    };
+    let read = |name: &str| {
+        f.dataset(name)
+            .and_then(|d| d.read_f64())
+            .map_err(|e| anyhow::anyhow!("{}: dataset '{name}': {e}", path.display()))
+    };
+    let n3 = n * n * n;
+    let q = read("q_hat")?;
+    let u = read("u_hat")?;
+    if q.len() != 12 * n3 || u.len() != 6 * n3 {
+        bail!(
+            "{}: checkpoint is for another grid size (expected {n}^3)",
+            path.display()
+        );
+    }
+    let history = if f.dataset("prev_dt").is_ok() {
+        Some(History {
+            q_hat: complex_unflat::<6>(&read("prev_q_hat")?, n3),
+            nonlinear: complex_unflat::<6>(&read("prev_nonlinear")?, n3),
+            dt: read("prev_dt")?[0],
+        })
+    } else {
+        None
+    };
+    stepper.restore(
+        t,
+        complex_unflat::<6>(&q, n3),
+        history,
+        complex_unflat::<3>(&u, n3),
+    );
+    Ok(Clock::from_slice(&read("clock")?))
+}
+
+/// Write a numbered checkpoint and keep only the newest two.
+fn checkpoint(
+    dir: &Path,
+    stepper: &MeanFieldStepper,
+    clock: &Clock,
+    n: usize,
+) -> anyhow::Result<()> {
+    write_checkpoint(
+        &dir.join(format!("ckpt_{:09}.h5", clock.steps)),
+        stepper,
+        clock,
+        n,
+    )?;
+    let old = checkpoint_paths(dir);
+    for p in &old[..old.len().saturating_sub(2)] {
+        let _ = std::fs::remove_file(p);
+    }
+    Ok(())
 }
 
 /// Run the mean-field model into `out`.
@@ -303,6 +491,65 @@ pub fn run_meanfield(
 ) -> anyhow::Result<MeanFieldSummary> {
     cfg.validate().map_err(|e| anyhow::anyhow!("config: {e}"))?;
     let run = RunDir::create(out, "meanfield", cfg.seed, cfg)?;
+    let grid = SpectralGrid::new(cfg.grid);
+    let stepper = MeanFieldStepper::new(&grid, &initial_state(cfg), SBDF2);
+    let dt = cfg.dt_max.min(0.1 * cfg.diagnostic_interval);
+    let clock = Clock {
+        dt,
+        prev_dt: dt,
+        next_diag: 0.0,
+        next_snap: 0.0,
+        next_ckpt: 0.0,
+        snap_index: 0,
+        steps: 0,
+    };
+    drive(
+        cfg,
+        &run,
+        &grid,
+        stepper,
+        clock,
+        TimeSeries::new(&COLUMNS),
+        progress,
+    )
+}
+
+/// Continue a mean-field run from its newest checkpoint.
+pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldSummary> {
+    let run = RunDir::open(out)?;
+    let cfg_path = out.join("config.toml");
+    let cfg = parse_config(
+        &std::fs::read_to_string(&cfg_path)
+            .with_context(|| format!("{}: cannot read", cfg_path.display()))?,
+        &cfg_path,
+    )?;
+    let grid = SpectralGrid::new(cfg.grid);
+    let ckpt = checkpoint_paths(&out.join("checkpoints"))
+        .pop()
+        .ok_or_else(|| anyhow::anyhow!("{}: no checkpoint to resume from", out.display()))?;
+    let mut stepper = MeanFieldStepper::new(&grid, &initial_state(&cfg), SBDF2);
+    let clock = read_checkpoint(&ckpt, &mut stepper, cfg.grid)?;
+    let mut ts =
+        TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
+    ts.rows
+        .retain(|r| r[0] < stepper.t - 1e-12 * cfg.t_end.max(1.0));
+    run.log(&format!(
+        "resuming from {} at t = {}",
+        ckpt.display(),
+        stepper.t
+    ))?;
+    drive(&cfg, &run, &grid, stepper, clock, ts, progress)
+}
+
+fn drive(
+    cfg: &MeanFieldRunConfig,
+    run: &RunDir,
+    grid: &SpectralGrid,
+    mut stepper: MeanFieldStepper,
+    mut clock: Clock,
+    mut ts: TimeSeries,
+    progress: bool,
+) -> anyhow::Result<MeanFieldSummary> {
     let t_tables = Instant::now();
     let closure = closure_tables(cfg.closure_degree)?;
     run.log(&format!(
@@ -310,7 +557,6 @@ pub fn run_meanfield(
         cfg.closure_degree,
         t_tables.elapsed().as_secs_f64()
     ))?;
-    let grid = SpectralGrid::new(cfg.grid);
     let params = MeanFieldParams {
         zeta: cfg.zeta,
         diffusion: cfg.diffusion,
@@ -318,12 +564,10 @@ pub fn run_meanfield(
         fixed_point_max_iterations: cfg.fixed_point_max_iterations,
     };
     let rhs = MeanFieldRhs {
-        grid: &grid,
+        grid,
         closure: &closure,
         params: &params,
     };
-    let mut stepper = MeanFieldStepper::new(&grid, &initial_state(cfg), SBDF2);
-    let mut ts = TimeSeries::new(&COLUMNS);
     let bar = if progress {
         ProgressBar::new(1000)
     } else {
@@ -333,54 +577,64 @@ pub fn run_meanfield(
         ProgressStyle::with_template("{bar:30} t {msg} [{elapsed} < {eta}]").context("template")?,
     );
     let h = 1.0 / cfg.grid as f64;
-    let mut dt = cfg.dt_max.min(0.1 * cfg.diagnostic_interval);
-    let mut prev_dt = dt;
-    let (mut next_diag, mut next_snap, mut snap_index) = (0.0, 0.0, 0usize);
-    let mut steps = 0u64;
+    let start_steps = clock.steps;
     let t0 = Instant::now();
     let eps = 1e-9 * cfg.t_end;
+    let ckpt_dir = run.path().join("checkpoints");
     while stepper.t < cfg.t_end - eps {
         let t = stepper.t;
-        let at_diag = t >= next_diag - eps;
-        let at_snap = t >= next_snap - eps;
-        if at_diag {
-            next_diag += cfg.diagnostic_interval;
+        if t >= clock.next_ckpt - eps {
+            clock.next_ckpt += cfg.checkpoint_interval;
+            checkpoint(&ckpt_dir, &stepper, &clock, cfg.grid)?;
         }
-        if at_snap {
+        let at_diag = t >= clock.next_diag - eps;
+        if at_diag {
+            clock.next_diag += cfg.diagnostic_interval;
+        }
+        if t >= clock.next_snap - eps {
             // The velocity of this Q (the stepper's is that of the previous step's state).
             let ev = rhs
                 .eval(&stepper.q_hat, &stepper.u_hat)
                 .map_err(|e| anyhow::anyhow!("snapshot at t = {t}: {e}"))?;
-            let q = ev.q;
             let u: [Vec<f64>; 3] = std::array::from_fn(|i| grid.inverse(&ev.u[i]));
             let snap = FieldSnapshot {
                 time: t,
-                step: steps,
+                step: clock.steps,
                 box_length: 1.0,
                 grid: cfg.grid,
-                q,
+                q: ev.q,
                 u,
             };
-            snap.write(&run.snapshot_path(snap_index))?;
-            snap_index += 1;
-            next_snap += cfg.snapshot_interval;
+            snap.write(&run.snapshot_path(clock.snap_index as usize))?;
+            clock.snap_index += 1;
+            clock.next_snap += cfg.snapshot_interval;
         }
         // Output time ahead: spread the remaining time over at most two equal steps.
-        let target = next_diag.min(next_snap).min(cfg.t_end);
+        let target = clock
+            .next_diag
+            .min(clock.next_snap)
+            .min(clock.next_ckpt)
+            .min(cfg.t_end);
         let remaining = target - t;
         debug_assert!(remaining > 0.0, "output clocks must be ahead of t");
-        let k = (remaining / dt).ceil().max(1.0);
-        let this_dt = if k <= 2.0 { remaining / k } else { dt };
+        let k = (remaining / clock.dt).ceil().max(1.0);
+        let this_dt = if k <= 2.0 { remaining / k } else { clock.dt };
         let report = match stepper.step(&rhs, this_dt) {
             Ok(r) => r,
             Err(e) => {
                 run.log(&format!("step at t = {t} failed: {e}"))?;
-                bail!("mean-field step at t = {t:.4} (dt = {this_dt:.3e}) failed: {e}");
+                bail!(
+                    "mean-field step at t = {t:.4} (dt = {this_dt:.3e}) failed: {e}. The last checkpoint is in {}",
+                    ckpt_dir.display()
+                );
             }
         };
-        steps += 1;
+        clock.steps += 1;
         if !report.u_l2.is_finite() {
-            bail!("mean-field run diverged at t = {t:.4}: ||u|| is not finite");
+            bail!(
+                "mean-field run diverged at t = {t:.4}: ||u|| is not finite. The last checkpoint is in {}",
+                ckpt_dir.display()
+            );
         }
         if at_diag {
             ts.push(vec![
@@ -396,7 +650,7 @@ pub fn run_meanfield(
                 report.max_eigenvalue,
                 report.entropy,
                 report.energy_residual,
-                steps as f64,
+                clock.steps as f64,
             ]);
             ts.write(&run.path().join("timeseries.csv"))?;
             bar.set_position((1000.0 * stepper.t / cfg.t_end) as u64);
@@ -405,29 +659,31 @@ pub fn run_meanfield(
                 stepper.t, cfg.t_end, this_dt, report.u_l2
             ));
         }
-        // Next step from the CFL condition, growth capped.
+        // Next step from the CFL condition (sum over axes), growth capped.
         let cfl_dt = if report.u_max > 0.0 {
             cfg.cfl * h / report.u_max
         } else {
             cfg.dt_max
         };
-        let base = if this_dt < dt {
-            this_dt.max(prev_dt.min(dt))
+        let base = if this_dt < clock.dt {
+            this_dt.max(clock.prev_dt.min(clock.dt))
         } else {
             this_dt
         };
-        prev_dt = this_dt;
-        dt = cfl_dt.min(cfg.dt_max).min(cfg.max_step_ratio * base);
+        clock.prev_dt = this_dt;
+        clock.dt = cfl_dt.min(cfg.dt_max).min(cfg.max_step_ratio * base);
     }
+    checkpoint(&ckpt_dir, &stepper, &clock, cfg.grid)?;
     bar.finish();
     let seconds = t0.elapsed().as_secs_f64();
     run.log(&format!(
-        "finished at t = {} after {steps} steps in {seconds:.1} s",
-        stepper.t
+        "finished at t = {} after {} steps in {seconds:.1} s",
+        stepper.t, clock.steps
     ))?;
     Ok(MeanFieldSummary {
-        steps,
+        steps: clock.steps - start_steps,
         seconds,
         timeseries: ts,
+        q_hat: stepper.q_hat,
     })
 }

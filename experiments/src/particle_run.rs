@@ -8,7 +8,7 @@
 //! as `checkpoints/last_good.h5` and the error names it.
 
 use crate::io::{IoError, write_atomic};
-use crate::rundir::{RunDir, TimeSeries};
+use crate::rundir::{RunDir, TimeSeries, checkpoint_paths};
 use crate::snapshot::{Kinematics, ParticleSnapshot, Snapshot, read_snapshot};
 use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
@@ -398,19 +398,6 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, WarmStart, u64)> {
         .map(|(p, l)| ((p[0] as u32, p[1] as u32), l))
         .collect();
     Ok((rods, warm, step))
-}
-
-/// Numbered checkpoints in a directory (`ckpt_*`), oldest first.
-fn checkpoint_paths(dir: &Path) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
-        .unwrap_or_default();
-    v.retain(|p| {
-        p.file_name()
-            .is_some_and(|n| n.to_string_lossy().starts_with("ckpt_"))
-    });
-    v.sort();
-    v
 }
 
 /// Latest checkpoint of a run, if any.

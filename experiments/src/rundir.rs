@@ -152,6 +152,19 @@ impl RunDir {
     }
 }
 
+/// Numbered checkpoints (`ckpt_*`) in a directory, oldest first; empty if there is none.
+pub fn checkpoint_paths(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = fs::read_dir(dir)
+        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    v.retain(|p| {
+        p.file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with("ckpt_"))
+    });
+    v.sort();
+    v
+}
+
 /// A table of diagnostics, one row per time, written atomically as CSV.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TimeSeries {

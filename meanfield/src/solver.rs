@@ -584,6 +584,25 @@ impl MeanFieldStepper {
         }
     }
 
+    /// The previous step's history (what SBDF2 needs besides the current state).
+    pub fn history(&self) -> Option<&History> {
+        self.prev.as_ref()
+    }
+
+    /// Restore a state saved from [`Self::q_hat`], [`Self::history`], [`Self::u_hat`], [`Self::t`].
+    pub fn restore(
+        &mut self,
+        t: f64,
+        q_hat: TensorCoefficients,
+        history: Option<History>,
+        u_hat: [Vec<Complex64>; 3],
+    ) {
+        self.t = t;
+        self.q_hat = q_hat;
+        self.prev = history;
+        self.u_hat = u_hat;
+    }
+
     /// Advance by `dt`.
     pub fn step(
         &mut self,
