@@ -23,11 +23,25 @@ pub enum Direction {
 }
 
 /// A planned 3D complex FFT of fixed shape.
-#[derive(Clone)]
 pub struct Fft3 {
     shape: [usize; 3],
     fwd: [Arc<dyn Fft<f64>>; 3],
     inv: [Arc<dyn Fft<f64>>; 3],
+    /// Reused transpose buffer for the slowest axis: a fresh full-size allocation per call was
+    /// page-faulted anew each time, and page faults serialise across threads. Taken out for
+    /// the duration of a transform (a concurrent caller allocates its own).
+    scratch: std::sync::Mutex<Vec<Complex64>>,
+}
+
+impl Clone for Fft3 {
+    fn clone(&self) -> Self {
+        Self {
+            shape: self.shape,
+            fwd: self.fwd.clone(),
+            inv: self.inv.clone(),
+            scratch: Default::default(),
+        }
+    }
 }
 
 impl std::fmt::Debug for Fft3 {
@@ -45,7 +59,12 @@ impl Fft3 {
         let mut planner = FftPlanner::new();
         let fwd = shape.map(|n| planner.plan_fft(n, FftDirection::Forward));
         let inv = shape.map(|n| planner.plan_fft(n, FftDirection::Inverse));
-        Self { shape, fwd, inv }
+        Self {
+            shape,
+            fwd,
+            inv,
+            scratch: Default::default(),
+        }
     }
 
     /// Shape `[n0, n1, n2]`.
@@ -114,7 +133,8 @@ impl Fft3 {
         // transform, then scatter back plane by plane.
         let p2 = &plans[2];
         let plane_len = n0 * n1;
-        let mut t = vec![Complex64::default(); data.len()];
+        let mut t = std::mem::take(&mut *self.scratch.lock().unwrap_or_else(|e| e.into_inner()));
+        t.resize(data.len(), Complex64::default());
         {
             let src = &*data;
             // t layout: (i1, i0) column-major blocks, each column a contiguous z-line.
@@ -142,6 +162,7 @@ impl Fft3 {
                     }
                 }
             });
+        *self.scratch.lock().unwrap_or_else(|e| e.into_inner()) = t;
     }
 }
 

@@ -563,10 +563,11 @@ fn drive(
         fixed_point_tolerance: cfg.fixed_point_tolerance,
         fixed_point_max_iterations: cfg.fixed_point_max_iterations,
     };
-    let rhs = MeanFieldRhs {
+    let mut rhs = MeanFieldRhs {
         grid,
         closure: &closure,
         params: &params,
+        with_entropy: false,
     };
     let bar = if progress {
         ProgressBar::new(1000)
@@ -619,6 +620,7 @@ fn drive(
         debug_assert!(remaining > 0.0, "output clocks must be ahead of t");
         let k = (remaining / clock.dt).ceil().max(1.0);
         let this_dt = if k <= 2.0 { remaining / k } else { clock.dt };
+        rhs.with_entropy = at_diag;
         let report = match stepper.step(&rhs, this_dt) {
             Ok(r) => r,
             Err(e) => {

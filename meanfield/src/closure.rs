@@ -20,13 +20,51 @@ pub const DEFAULT_DEGREE: usize = 80;
 #[derive(Clone, Debug)]
 pub struct BinghamClosure {
     degree: usize,
+    /// The four coefficient tables transposed side by side, `(d + 1) x 4 (d + 1)`: row `j`,
+    /// column `f (d + 1) + i` holds `c_f[i][j]`, so a block of `T(y)` rows times this matrix gives
+    /// every `sum_j c_f[i][j] T_j(y)` at once (one matrix product for many points).
+    stacked: ndarray::Array2<f64>,
     /// Chebyshev coefficients `c[f][i * (d + 1) + j]` of function `f`: S_1111, S_2222, S_1122,
     /// and the entropy density `sum_i b_i mu_i - ln Z`.
     coef: [Vec<f64>; 4],
 }
 
+/// Reusable buffers of [`BinghamClosure::evaluate_batch_into`].
+#[derive(Debug, Default)]
+pub struct BatchScratch {
+    tx: ndarray::Array2<f64>,
+    ty: ndarray::Array2<f64>,
+    w: ndarray::Array2<f64>,
+}
+
 /// The eigenframe fourth moments `S_iijj` of one point (symmetric 3x3).
 pub type EigenFourth = [[f64; 3]; 3];
+
+/// Collapsed coordinates `(x, y)` of eigenvalues `mu` (clamped into the unit square).
+fn collapsed(mu: [f64; 3]) -> (f64, f64) {
+    let x = mu[0].clamp(0.0, 1.0);
+    let y = if x < 1.0 {
+        (mu[1] / (1.0 - x)).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    (x, y)
+}
+
+/// `T_k(2t - 1)` for `k = 0..out.len()`, written in place (no allocation: this runs for every
+/// grid point).
+fn chebyshev_into(t: f64, out: &mut [f64]) {
+    let s = 2.0 * t - 1.0;
+    let (mut a, mut b) = (1.0, s);
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = if k == 0 { 1.0 } else { b };
+        if k > 0 {
+            let c = 2.0 * s * b - a;
+            a = b;
+            b = c;
+        }
+    }
+}
 
 /// `(1/2) sum_i ln mu_i`: the entropy density diverges like `-(1/2) ln mu_i` as an eigenvalue
 /// vanishes, so the table holds the regular part `h + (1/2) sum ln mu_i`.
@@ -118,7 +156,109 @@ impl BinghamClosure {
             }
             c
         });
-        Ok(Self { degree, coef })
+        Ok(Self::from_coefficients(degree, coef))
+    }
+
+    fn from_coefficients(degree: usize, coef: [Vec<f64>; 4]) -> Self {
+        let n = degree + 1;
+        let stacked = ndarray::Array2::from_shape_fn((n, 4 * n), |(j, col)| {
+            let (f, i) = (col / n, col % n);
+            coef[f][i * n + j]
+        });
+        Self {
+            degree,
+            stacked,
+            coef,
+        }
+    }
+
+    /// Eigenframe fourth moments (and, if asked, entropy densities) for many eigenvalue
+    /// triples at once: the same values as [`Self::fourth`] and [`Self::entropy`] up to
+    /// round-off, evaluated as one matrix product per block of points.
+    pub fn evaluate_batch(
+        &self,
+        mus: &[[f64; 3]],
+        with_entropy: bool,
+    ) -> (Vec<EigenFourth>, Vec<f64>) {
+        let mut scratch = BatchScratch::default();
+        let mut fourth = Vec::new();
+        let mut entropy = Vec::new();
+        self.evaluate_batch_into(mus, with_entropy, &mut scratch, &mut fourth, &mut entropy);
+        (fourth, entropy)
+    }
+
+    /// [`Self::evaluate_batch`] into caller-owned buffers, reusing `scratch` (allocation-free
+    /// once the scratch has grown to the block size).
+    pub fn evaluate_batch_into(
+        &self,
+        mus: &[[f64; 3]],
+        with_entropy: bool,
+        scratch: &mut BatchScratch,
+        fourth: &mut Vec<EigenFourth>,
+        entropy: &mut Vec<f64>,
+    ) {
+        let n = self.degree + 1;
+        let p = mus.len();
+        let tables = if with_entropy { 4 } else { 3 };
+        if scratch.tx.dim() != (p, n) {
+            scratch.tx = ndarray::Array2::zeros((p, n));
+            scratch.ty = ndarray::Array2::zeros((p, n));
+        }
+        if scratch.w.dim() != (p, tables * n) {
+            scratch.w = ndarray::Array2::zeros((p, tables * n));
+        }
+        for (k, mu) in mus.iter().enumerate() {
+            let (x, y) = collapsed(*mu);
+            chebyshev_into(
+                x,
+                scratch
+                    .tx
+                    .row_mut(k)
+                    .as_slice_mut()
+                    .expect("row-major scratch"),
+            );
+            chebyshev_into(
+                y,
+                scratch
+                    .ty
+                    .row_mut(k)
+                    .as_slice_mut()
+                    .expect("row-major scratch"),
+            );
+        }
+        ndarray::linalg::general_mat_mul(
+            1.0,
+            &scratch.ty,
+            &self.stacked.slice(ndarray::s![.., ..tables * n]),
+            0.0,
+            &mut scratch.w,
+        );
+        fourth.clear();
+        entropy.clear();
+        for (k, mu) in mus.iter().enumerate() {
+            let row = scratch.w.row(k);
+            let txk = scratch.tx.row(k);
+            let f: [f64; 4] = std::array::from_fn(|t| {
+                if t < tables {
+                    (0..n).map(|i| txk[i] * row[t * n + i]).sum()
+                } else {
+                    0.0
+                }
+            });
+            fourth.push(Self::assemble(*mu, [f[0], f[1], f[2]]));
+            if with_entropy {
+                entropy.push(f[3] - log_singularity(*mu));
+            }
+        }
+    }
+
+    /// The full `S_iijj` from the three tabulated ones and `sum_j S_iijj = mu_i`.
+    fn assemble(mu: [f64; 3], f: [f64; 3]) -> EigenFourth {
+        let [s11, s22, s12] = f;
+        let s13 = mu[0] - s11 - s12;
+        let s23 = mu[1] - s22 - s12;
+        let s33 = mu[2] - s13 - s23;
+        [[s11, s12, s13], [s12, s22, s23], [s13, s23, s33]]
     }
 
     /// Polynomial degree per direction.
@@ -153,7 +293,7 @@ impl BinghamClosure {
             return None;
         }
         let coef = [0, 1, 2, 3].map(|f| vals[f * n..(f + 1) * n].to_vec());
-        Some(Self { degree, coef })
+        Some(Self::from_coefficients(degree, coef))
     }
 
     /// Entropy density `int psi ln(4 pi psi) dp` of the Bingham distribution with eigenvalues
@@ -166,22 +306,11 @@ impl BinghamClosure {
 
     fn basis(&self, mu: [f64; 3]) -> (Vec<f64>, Vec<f64>) {
         let n = self.degree + 1;
-        let x = mu[0].clamp(0.0, 1.0);
-        let y = if x < 1.0 {
-            (mu[1] / (1.0 - x)).clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
-        let cheb = |t: f64| {
-            let s = 2.0 * t - 1.0;
-            let mut out = vec![1.0, s];
-            for k in 2..n {
-                out.push(2.0 * s * out[k - 1] - out[k - 2]);
-            }
-            out.truncate(n);
-            out
-        };
-        (cheb(x), cheb(y))
+        let (mut tx, mut ty) = (vec![0.0; n], vec![0.0; n]);
+        let (x, y) = collapsed(mu);
+        chebyshev_into(x, &mut tx);
+        chebyshev_into(y, &mut ty);
+        (tx, ty)
     }
 
     fn sum(c: &[f64], tx: &[f64], ty: &[f64]) -> f64 {
@@ -203,11 +332,7 @@ impl BinghamClosure {
     pub fn fourth(&self, mu: [f64; 3]) -> EigenFourth {
         let (tx, ty) = self.basis(mu);
         let f: [f64; 3] = std::array::from_fn(|k| Self::sum(&self.coef[k], &tx, &ty));
-        let [s11, s22, s12] = f;
-        let s13 = mu[0] - s11 - s12;
-        let s23 = mu[1] - s22 - s12;
-        let s33 = mu[2] - s13 - s23;
-        [[s11, s12, s13], [s12, s22, s23], [s13, s23, s33]]
+        Self::assemble(mu, f)
     }
 }
 
@@ -297,6 +422,31 @@ mod tests {
             closure.entropy([1.0 / 3.0; 3]).abs() < 1e-9,
             "isotropic entropy must vanish"
         );
+    }
+
+    #[test]
+    fn batch_evaluation_matches_pointwise() {
+        let closure = table();
+        let mus: Vec<[f64; 3]> = (0..300)
+            .map(|k| {
+                let a = 0.05 + 0.9 * ((k * 37) % 300) as f64 / 300.0;
+                let b = (1.0 - a) * ((k * 91) % 299) as f64 / 299.0;
+                [a, b, 1.0 - a - b]
+            })
+            .collect();
+        let (f, h) = closure.evaluate_batch(&mus, true);
+        for (k, mu) in mus.iter().enumerate() {
+            let single = closure.fourth(*mu);
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!(
+                        (f[k][i][j] - single[i][j]).abs() < 1e-13,
+                        "batch vs pointwise at {mu:?}"
+                    );
+                }
+            }
+            assert!((h[k] - closure.entropy(*mu)).abs() < 1e-12);
+        }
     }
 
     #[test]

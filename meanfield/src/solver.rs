@@ -253,15 +253,17 @@ pub struct ClosureField {
     /// Largest eigenvalue of `Q / tr Q` over the grid.
     pub max_eigenvalue: f64,
     /// Relative entropy `H`, volume-averaged: `<c ln c + c h(Q/c)>`, `h` the tabulated
-    /// Bingham entropy density.
+    /// Bingham entropy density (NaN when not asked for).
     pub entropy: f64,
 }
 
 impl ClosureField {
-    /// Evaluate the closure for grid values `q` (six components).
-    pub fn new(closure: &BinghamClosure, q: &[Vec<f64>; 6]) -> Self {
+    /// Evaluate the closure for grid values `q` (six components); the entropy (a diagnostic)
+    /// only if asked.
+    pub fn new(closure: &BinghamClosure, q: &[Vec<f64>; 6], with_entropy: bool) -> Self {
         let n = q[0].len();
-        let per: Vec<(Sym3, Sym3, [f64; 3])> = (0..n)
+        // Eigen-decomposition of Q / tr Q at every point.
+        let eig: Vec<(Sym3, [f64; 3], f64)> = (0..n)
             .into_par_iter()
             .map(|p| {
                 let a: Sym3 =
@@ -269,19 +271,54 @@ impl ClosureField {
                 let c = a[0][0] + a[1][1] + a[2][2];
                 let an: Sym3 = a.map(|row| row.map(|v| v / c));
                 let (w, r) = sym3_eigen(&an);
-                let s = closure.fourth(w).map(|row| row.map(|v| v * c));
-                let h = c * c.max(1e-300).ln() + c * closure.entropy(w);
-                let lo = w.iter().copied().fold(f64::INFINITY, f64::min);
-                let hi = w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                (r, s, [lo, hi, h])
+                (r, w, c)
             })
             .collect();
-        let min_eigenvalue = per.iter().map(|p| p.2[0]).fold(f64::INFINITY, f64::min);
-        let max_eigenvalue = per.iter().map(|p| p.2[1]).fold(f64::NEG_INFINITY, f64::max);
-        let entropy = per.iter().map(|p| p.2[2]).sum::<f64>() / n as f64;
+        // Table evaluation in blocks (one matrix product per block).
+        const BLOCK: usize = 512;
+        let blocks: Vec<(Vec<Sym3>, Vec<f64>)> = eig
+            .par_chunks(BLOCK)
+            .map_init(
+                || {
+                    (
+                        crate::closure::BatchScratch::default(),
+                        Vec::new(),
+                        Vec::new(),
+                    )
+                },
+                |(scratch, f, h), chunk| {
+                    let mus: Vec<[f64; 3]> = chunk.iter().map(|e| e.1).collect();
+                    closure.evaluate_batch_into(&mus, with_entropy, scratch, f, h);
+                    let s = f
+                        .iter()
+                        .zip(chunk)
+                        .map(|(f, e)| f.map(|row| row.map(|v| v * e.2)))
+                        .collect();
+                    let h = h
+                        .iter()
+                        .zip(chunk)
+                        .map(|(h, e)| e.2 * e.2.max(1e-300).ln() + e.2 * h)
+                        .collect();
+                    (s, h)
+                },
+            )
+            .collect();
+        let min_eigenvalue = eig
+            .iter()
+            .map(|e| e.1.iter().copied().fold(f64::INFINITY, f64::min))
+            .fold(f64::INFINITY, f64::min);
+        let max_eigenvalue = eig
+            .iter()
+            .map(|e| e.1.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let entropy = if with_entropy {
+            blocks.iter().flat_map(|b| b.1.iter()).sum::<f64>() / n as f64
+        } else {
+            f64::NAN
+        };
         Self {
-            r: per.iter().map(|p| p.0).collect(),
-            s: per.iter().map(|p| p.1).collect(),
+            r: eig.iter().map(|e| e.0).collect(),
+            s: blocks.into_iter().flat_map(|b| b.0).collect(),
             min_eigenvalue,
             max_eigenvalue,
             entropy,
@@ -386,6 +423,8 @@ pub struct MeanFieldRhs<'a> {
     pub closure: &'a BinghamClosure,
     /// Parameters.
     pub params: &'a MeanFieldParams,
+    /// Also evaluate the relative entropy (a diagnostic: costs a fourth table).
+    pub with_entropy: bool,
 }
 
 impl MeanFieldRhs<'_> {
@@ -409,7 +448,7 @@ impl MeanFieldRhs<'_> {
     ) -> Result<RhsEval, MeanFieldError> {
         let g = self.grid;
         let q: [Vec<f64>; 6] = std::array::from_fn(|c| g.inverse(&q_hat[c]));
-        let closure = ClosureField::new(self.closure, &q);
+        let closure = ClosureField::new(self.closure, &q, self.with_entropy);
         let zeta = self.params.zeta;
         let mut u = u_guess.clone();
         let mut report = RhsReport::default();

@@ -43,6 +43,7 @@ fn linear_growth_rate_matches_theory() {
             grid: &grid,
             closure: closure(),
             params: &params,
+            with_entropy: true,
         };
         // Q_xy = eps cos(2 pi x): wavevector along x, shear in the x-y plane.
         let q0 = state(n, |x| {
@@ -106,6 +107,7 @@ fn energy_identity_holds_to_the_fixed_point_tolerance() {
             grid: &grid,
             closure: closure(),
             params: &params,
+            with_entropy: true,
         };
         let q = nonlinear_state(n);
         let q_hat: [Vec<_>; 6] = std::array::from_fn(|c| grid.forward(&q[c], false));
@@ -146,6 +148,7 @@ fn sbdf2_converges_at_second_order() {
         grid: &grid,
         closure: closure(),
         params: &params,
+        with_entropy: true,
     };
     let q0 = nonlinear_state(n);
     let t_end = 0.4;
@@ -207,6 +210,7 @@ fn entropy_grows_at_three_times_the_active_power_to_second_order() {
         grid: &grid,
         closure: closure(),
         params: &params,
+        with_entropy: true,
     };
     let q0 = nonlinear_state(n);
     let t_end = 0.4;
