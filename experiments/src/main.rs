@@ -64,8 +64,9 @@ enum Command {
         /// Run directory.
         run_dir: PathBuf,
     },
-    /// The main job (until the mean-field solver lands): a small dilute particle run, analysed
-    /// (OUT/particle), and free swimmers checked against exact values (OUT/free_swimmers).
+    /// The main job: a small dilute particle run (OUT/particle), a small mean-field run
+    /// (OUT/meanfield), both analysed, and free swimmers checked against exact values
+    /// (OUT/free_swimmers). Comparing the two models on flows needs particle hydrodynamics.
     Demo {
         /// Output run directory.
         #[arg(long, default_value = "runs/demo")]
@@ -257,6 +258,40 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             );
             let report = analyze_run(&prun, &AnalyzeOptions::default())?;
             print_table(&report.timeseries);
+            // Part 2: the mean-field model, the paper's zeta, small grid: growth, saturation and the
+            // bound ||u||_2 <= sqrt(1/(24 pi^2)) that holds once tr Q = 1.
+            let mcfg = meanfield_run::MeanFieldRunConfig {
+                grid: 16,
+                t_end: 30.0,
+                dt_max: 0.1,
+                amplitude: 0.05,
+                mode_max: 2,
+                diagnostic_interval: 1.0,
+                snapshot_interval: 10.0,
+                checkpoint_interval: 10.0,
+                ..Default::default()
+            };
+            let mrun = out.join("meanfield");
+            let m = meanfield_run::run_meanfield(
+                &mcfg,
+                &mrun,
+                std::io::IsTerminal::is_terminal(&std::io::stderr()),
+            )?;
+            let u = m
+                .timeseries
+                .column("u_l2 [L |sigma_a|/mu]")
+                .unwrap_or_default();
+            let bound = (1.0 / (24.0 * std::f64::consts::PI.powi(2))).sqrt();
+            let peak = u.iter().copied().fold(0.0, f64::max);
+            println!(
+                "mean-field run: 16^3 to t = 30 in {:.1} s: ||u||_2 from {:.2e} to {:.3e} (peak {peak:.3e}, bound sqrt(1/(24 pi^2)) = {bound:.4}: {}) -> {}",
+                m.seconds,
+                u.first().copied().unwrap_or(f64::NAN),
+                u.last().copied().unwrap_or(f64::NAN),
+                if peak <= bound { "holds" } else { "VIOLATED" },
+                mrun.display()
+            );
+            analyze_run(&mrun, &AnalyzeOptions::default())?;
             let out = out.join("free_swimmers");
             let mut cfg = DemoConfig::default();
             cfg.box_length = box_length.unwrap_or(cfg.box_length);
