@@ -7,7 +7,7 @@
 //! them evenly, never by a tiny clipped step followed by a large ratio.
 
 use crate::io::write_atomic;
-use crate::rundir::{RunDir, TimeSeries, checkpoint_paths};
+use crate::rundir::{RunDir, TimeSeries, checkpoint_paths, parse_run_config, read_run_config};
 use crate::snapshot::FieldSnapshot;
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, File, FileBuilder};
@@ -187,15 +187,7 @@ impl MeanFieldRunConfig {
 
 /// Parse a mean-field `config.toml` (with or without the `[motile]` header).
 pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<MeanFieldRunConfig> {
-    let mut table: toml::Table =
-        toml::from_str(text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    table.remove("motile");
-    let cfg: MeanFieldRunConfig = table
-        .try_into()
-        .map_err(|e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
-    cfg.validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(cfg)
+    parse_run_config(text, path, MeanFieldRunConfig::validate)
 }
 
 /// Where closure tables are cached: `$MOTILE_CACHE_DIR`, else `~/.cache/motile`.
@@ -517,12 +509,7 @@ pub fn run_meanfield(
 /// Continue a mean-field run from its newest checkpoint.
 pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldSummary> {
     let run = RunDir::open(out)?;
-    let cfg_path = out.join("config.toml");
-    let cfg = parse_config(
-        &std::fs::read_to_string(&cfg_path)
-            .with_context(|| format!("{}: cannot read", cfg_path.display()))?,
-        &cfg_path,
-    )?;
+    let cfg: MeanFieldRunConfig = read_run_config(out, MeanFieldRunConfig::validate)?;
     let grid = SpectralGrid::new(cfg.grid);
     let ckpt = checkpoint_paths(&out.join("checkpoints"))
         .pop()

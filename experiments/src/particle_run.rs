@@ -8,7 +8,7 @@
 //! as `checkpoints/last_good.h5` and the error names it.
 
 use crate::io::{IoError, write_atomic};
-use crate::rundir::{RunDir, TimeSeries, checkpoint_paths};
+use crate::rundir::{RunDir, TimeSeries, checkpoint_paths, parse_run_config, read_run_config};
 use crate::snapshot::{Kinematics, ParticleSnapshot, Snapshot, read_snapshot};
 use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
@@ -183,15 +183,7 @@ impl ParticleRunConfig {
 
 /// Parse a `config.toml` (with or without the `[motile]` header table).
 pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig> {
-    let mut table: toml::Table =
-        toml::from_str(text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    table.remove("motile");
-    let cfg: ParticleRunConfig = table
-        .try_into()
-        .map_err(|e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
-    cfg.validate()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(cfg)
+    parse_run_config(text, path, ParticleRunConfig::validate)
 }
 
 /// The mobility named by `hydrodynamics` (validated: only "none" exists so far).
@@ -468,12 +460,7 @@ pub fn run_particle(
 /// Continue a run from its newest checkpoint.
 pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary> {
     let run = RunDir::open(out)?;
-    let cfg_path = out.join("config.toml");
-    let cfg = parse_config(
-        &std::fs::read_to_string(&cfg_path)
-            .with_context(|| format!("{}: cannot read", cfg_path.display()))?,
-        &cfg_path,
-    )?;
+    let cfg: ParticleRunConfig = read_run_config(out, ParticleRunConfig::validate)?;
     let ckpt = latest_checkpoint(&run)
         .ok_or_else(|| anyhow::anyhow!("{}: no checkpoint to resume from", out.display()))?;
     let (rods, warm, step) = read_checkpoint(&ckpt)?;

@@ -152,6 +152,34 @@ impl RunDir {
     }
 }
 
+/// Parse a run's `config.toml` text (the `[motile]` header table, if present, is ignored) into
+/// the model's config and validate it; errors name the file.
+pub fn parse_run_config<C: serde::de::DeserializeOwned>(
+    text: &str,
+    path: &Path,
+    validate: impl Fn(&C) -> Result<(), String>,
+) -> anyhow::Result<C> {
+    let mut table: toml::Table =
+        toml::from_str(text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    table.remove("motile");
+    let cfg: C = table
+        .try_into()
+        .map_err(|e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
+    validate(&cfg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(cfg)
+}
+
+/// Read and parse the `config.toml` of the run directory `out`.
+pub fn read_run_config<C: serde::de::DeserializeOwned>(
+    out: &Path,
+    validate: impl Fn(&C) -> Result<(), String>,
+) -> anyhow::Result<C> {
+    let path = out.join("config.toml");
+    let text = fs::read_to_string(&path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
+    parse_run_config(&text, &path, validate)
+}
+
 /// Numbered checkpoints (`ckpt_*`) in a directory, oldest first; empty if there is none.
 pub fn checkpoint_paths(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = fs::read_dir(dir)
