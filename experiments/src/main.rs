@@ -80,34 +80,29 @@ enum Command {
     },
 }
 
+/// Arguments of `motile <model> run`.
+#[derive(clap::Args, Debug)]
+struct RunArgs {
+    /// TOML config (every key optional; see README). Without it, built-in defaults.
+    config: Option<PathBuf>,
+    /// Output run directory.
+    #[arg(long)]
+    out: PathBuf,
+    /// Print the resolved config and exit.
+    #[arg(long)]
+    dry_run: bool,
+}
+
 #[derive(Subcommand, Debug)]
 enum ParticleAction {
     /// Run the particle model (rods, contacts, hydrodynamics = "none") into a run directory.
-    Run {
-        /// TOML config (every key optional; see README). Without it, built-in defaults.
-        config: Option<PathBuf>,
-        /// Output run directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Print the resolved config and exit.
-        #[arg(long)]
-        dry_run: bool,
-    },
+    Run(RunArgs),
 }
 
 #[derive(Subcommand, Debug)]
 enum MeanfieldAction {
     /// Run the mean-field model (Q tensor, Bingham closure; defaults: the paper's case at 32^3).
-    Run {
-        /// TOML config (every key optional; see README). Without it, built-in defaults.
-        config: Option<PathBuf>,
-        /// Output run directory.
-        #[arg(long)]
-        out: PathBuf,
-        /// Print the resolved config and exit.
-        #[arg(long)]
-        dry_run: bool,
-    },
+    Run(RunArgs),
 }
 
 fn load_options(config: &Option<PathBuf>) -> anyhow::Result<AnalyzeOptions> {
@@ -150,11 +145,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Particle {
             action:
-                ParticleAction::Run {
+                ParticleAction::Run(RunArgs {
                     config,
                     out,
                     dry_run,
-                },
+                }),
         } => {
             let cfg = match &config {
                 Some(p) => {
@@ -185,11 +180,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Meanfield {
             action:
-                MeanfieldAction::Run {
+                MeanfieldAction::Run(RunArgs {
                     config,
                     out,
                     dry_run,
-                },
+                }),
         } => {
             let cfg = match &config {
                 Some(p) => {
