@@ -105,6 +105,28 @@ enum MeanfieldAction {
     Run(RunArgs),
 }
 
+/// The config of a run command: parsed from `path` (or the defaults), printed and `None` on a
+/// dry run.
+fn resolve_config<C: Default + serde::Serialize>(
+    path: &Option<PathBuf>,
+    dry_run: bool,
+    parse: impl Fn(&str, &std::path::Path) -> anyhow::Result<C>,
+) -> anyhow::Result<Option<C>> {
+    let cfg = match path {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("{}: cannot read", p.display()))?;
+            parse(&text, p)?
+        }
+        None => C::default(),
+    };
+    if dry_run {
+        print!("{}", toml::to_string_pretty(&cfg)?);
+        return Ok(None);
+    }
+    Ok(Some(cfg))
+}
+
 fn load_options(config: &Option<PathBuf>) -> anyhow::Result<AnalyzeOptions> {
     match config {
         Some(p) => {
@@ -151,18 +173,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     dry_run,
                 }),
         } => {
-            let cfg = match &config {
-                Some(p) => {
-                    let text = std::fs::read_to_string(p)
-                        .with_context(|| format!("{}: cannot read", p.display()))?;
-                    parse_config(&text, p)?
-                }
-                None => ParticleRunConfig::default(),
-            };
-            if dry_run {
-                print!("{}", toml::to_string_pretty(&cfg)?);
+            let Some(cfg) = resolve_config(&config, dry_run, parse_config)? else {
                 return Ok(());
-            }
+            };
             let s = run_particle(
                 &cfg,
                 &out,
@@ -186,18 +199,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     dry_run,
                 }),
         } => {
-            let cfg = match &config {
-                Some(p) => {
-                    let text = std::fs::read_to_string(p)
-                        .with_context(|| format!("{}: cannot read", p.display()))?;
-                    meanfield_run::parse_config(&text, p)?
-                }
-                None => meanfield_run::MeanFieldRunConfig::default(),
-            };
-            if dry_run {
-                print!("{}", toml::to_string_pretty(&cfg)?);
+            let Some(cfg) = resolve_config(&config, dry_run, meanfield_run::parse_config)? else {
                 return Ok(());
-            }
+            };
             let s = meanfield_run::run_meanfield(
                 &cfg,
                 &out,
