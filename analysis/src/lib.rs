@@ -14,5 +14,5 @@ pub mod quadrature;
 pub mod stats;
 
 pub use correlation::{CorrelationOptions, OrderParameter, RadialCorrelation, Spectrum};
-pub use fft3::{Direction, Fft3};
+pub use fft3::{Direction, Fft3, RealFft3};
 pub use nufft::{NufftError, NufftPlan};

@@ -8,14 +8,14 @@
 
 use crate::io::write_atomic;
 use crate::rundir::{RunDir, TimeSeries, checkpoint_paths, parse_run_config, read_run_config};
-use crate::snapshot::FieldSnapshot;
+use crate::snapshot::{FieldSnapshot, Snapshot, read_snapshot};
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, File, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::solver::{
-    History, MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SYM, SpectralGrid,
-    TensorCoefficients,
+    History, MeanFieldError, MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SYM,
+    SpectralGrid, TensorCoefficients,
 };
 use num_complex::Complex64;
 use rand::{RngExt, SeedableRng};
@@ -43,9 +43,12 @@ pub struct MeanFieldRunConfig {
     pub cfl: f64,
     /// Largest ratio of consecutive steps. Default 1.5; allowed (1, 2.4).
     pub max_step_ratio: f64,
-    /// "random" (perturbations with wavenumbers |m| in [mode_min, mode_max]) or "plane_wave"
-    /// (Q_xy = amplitude cos(2 pi m.x) with m = `wavevector`).
+    /// "random" (perturbations with wavenumbers |m| in [mode_min, mode_max]), "plane_wave"
+    /// (Q_xy = amplitude cos(2 pi m.x) with m = `wavevector`) or "snapshot" (Q of the
+    /// mean-field snapshot file `snapshot`, spectrally resampled if its grid differs).
     pub initial: String,
+    /// Mean-field snapshot (.h5) to start from when `initial = "snapshot"`.
+    pub snapshot: String,
     /// Perturbation amplitude. Default 1e-2; allowed (0, 0.3].
     pub amplitude: f64,
     /// Smallest integer wavenumber of random perturbations. Default 1.
@@ -81,6 +84,7 @@ impl Default for MeanFieldRunConfig {
             cfl: 0.5,
             max_step_ratio: 1.5,
             initial: "random".into(),
+            snapshot: String::new(),
             amplitude: 1e-2,
             mode_min: 1,
             mode_max: 4,
@@ -164,9 +168,8 @@ impl MeanFieldRunConfig {
                     self.grid / 3
                 ));
             }
-        } else if self.mode_min < 1
-            || self.mode_min > self.mode_max
-            || 3 * self.mode_max > self.grid
+        } else if self.initial == "random"
+            && (self.mode_min < 1 || self.mode_min > self.mode_max || 3 * self.mode_max > self.grid)
         {
             return Err(format!(
                 "mode_min = {}, mode_max = {}: need 1 <= mode_min <= mode_max <= grid/3 = {} (the 2/3 rule keeps |m| <= n/3)",
@@ -175,11 +178,17 @@ impl MeanFieldRunConfig {
                 self.grid / 3
             ));
         }
-        if !["random", "plane_wave"].contains(&self.initial.as_str()) {
+        if !["random", "plane_wave", "snapshot"].contains(&self.initial.as_str()) {
             return Err(format!(
-                "initial = \"{}\": allowed \"random\" or \"plane_wave\"",
+                "initial = \"{}\": allowed \"random\", \"plane_wave\" or \"snapshot\"",
                 self.initial
             ));
+        }
+        if self.initial == "snapshot" && self.snapshot.is_empty() {
+            return Err(
+                "initial = \"snapshot\" needs snapshot = \"path/to/snapshot.h5\" (a mean-field snapshot)"
+                    .into(),
+            );
         }
         Ok(())
     }
@@ -213,8 +222,44 @@ pub fn closure_tables(degree: usize) -> anyhow::Result<BinghamClosure> {
     Ok(c)
 }
 
+/// Q of a mean-field snapshot on a grid of `n^3` points (spectrally resampled if the
+/// snapshot's grid differs), validated: finite, positive trace (concentration) everywhere.
+pub fn snapshot_state(path: &Path, n: usize) -> anyhow::Result<[Vec<f64>; 6]> {
+    let snap = match read_snapshot(path)? {
+        Snapshot::Field(s) => s,
+        Snapshot::Particle(_) => bail!(
+            "{}: a particle snapshot; initial = \"snapshot\" needs a mean-field one (kind = \"meanfield\")",
+            path.display()
+        ),
+    };
+    let m = snap.grid;
+    if let Some(i) = (0..m * m * m).find(|&i| snap.q[0][i] + snap.q[3][i] + snap.q[5][i] <= 0.0) {
+        bail!(
+            "{}: dataset 'Q': the trace (concentration) at point {i} is {}, must be positive",
+            path.display(),
+            snap.q[0][i] + snap.q[3][i] + snap.q[5][i]
+        );
+    }
+    if m == n {
+        return Ok(snap.q);
+    }
+    if m % 2 == 1 || m < 4 {
+        bail!(
+            "{}: grid {m} cannot be resampled (need an even grid of at least 4)",
+            path.display()
+        );
+    }
+    let (from, to) = (SpectralGrid::new(m), SpectralGrid::new(n));
+    Ok(std::array::from_fn(|c| {
+        to.inverse(&to.resample(&from.forward(&snap.q[c], false), &from))
+    }))
+}
+
 /// Initial Q on the grid.
-pub fn initial_state(cfg: &MeanFieldRunConfig) -> [Vec<f64>; 6] {
+pub fn initial_state(cfg: &MeanFieldRunConfig) -> anyhow::Result<[Vec<f64>; 6]> {
+    if cfg.initial == "snapshot" {
+        return snapshot_state(Path::new(&cfg.snapshot), cfg.grid);
+    }
     let n = cfg.grid;
     let mut q: [Vec<f64>; 6] = std::array::from_fn(|c| {
         vec![if SYM[c].0 == SYM[c].1 { 1.0 / 3.0 } else { 0.0 }; n * n * n]
@@ -227,7 +272,7 @@ pub fn initial_state(cfg: &MeanFieldRunConfig) -> [Vec<f64>; 6] {
             q[1][idx] +=
                 cfg.amplitude * (2.0 * PI * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2])).cos();
         }
-        return q;
+        return Ok(q);
     }
     // Random traceless perturbations: a sum of modes in the band, each with random traceless
     // symmetric amplitude and phase, normalised so the largest |Q' component| equals amplitude.
@@ -269,7 +314,7 @@ pub fn initial_state(cfg: &MeanFieldRunConfig) -> [Vec<f64>; 6] {
             q[c][idx] += cfg.amplitude * pert[c][idx] / peak;
         }
     }
-    q
+    Ok(q)
 }
 
 /// Columns of a mean-field `timeseries.csv`.
@@ -371,7 +416,8 @@ fn write_checkpoint(
     clock: &Clock,
     n: usize,
 ) -> anyhow::Result<()> {
-    let n3 = (n * n * n) as u64;
+    // Half spectrum of real fields: (n/2 + 1) n^2 coefficients per component.
+    let n3 = ((n / 2 + 1) * n * n) as u64;
     let mut b = FileBuilder::new();
     b.set_attr(
         "kind",
@@ -379,6 +425,10 @@ fn write_checkpoint(
     );
     b.set_attr("time", AttrValue::F64(stepper.t));
     b.set_attr("grid", AttrValue::U64(n as u64));
+    b.set_attr(
+        "spectral_layout",
+        AttrValue::VarLenString("half spectrum [i2][i1][i0 <= n/2], (re, im)".into()),
+    );
     b.set_attr(
         "clock_fields",
         AttrValue::VarLenString(CLOCK_FIELDS.join(",")),
@@ -428,7 +478,7 @@ fn read_checkpoint(path: &Path, stepper: &mut MeanFieldStepper, n: usize) -> any
             .and_then(|d| d.read_f64())
             .map_err(|e| anyhow::anyhow!("{}: dataset '{name}': {e}", path.display()))
     };
-    let n3 = n * n * n;
+    let n3 = (n / 2 + 1) * n * n;
     let q = read("q_hat")?;
     let u = read("u_hat")?;
     if q.len() != 12 * n3 || u.len() != 6 * n3 {
@@ -472,8 +522,41 @@ fn checkpoint(
     for p in &old[..old.len().saturating_sub(2)] {
         let _ = std::fs::remove_file(p);
     }
+    // A newer checkpoint supersedes the state saved before an earlier failure.
+    let _ = std::fs::remove_file(dir.join(LAST_GOOD));
     Ok(())
 }
+
+/// Save the stepper's (good) state as `checkpoints/last_good.h5` after a failure evaluating
+/// the step from it, log the failure, and build the error that says how to go on.
+fn save_failure(
+    run: &RunDir,
+    stepper: &MeanFieldStepper,
+    clock: &Clock,
+    n: usize,
+    e: &MeanFieldError,
+    dt: f64,
+) -> anyhow::Error {
+    let saved = run.path().join("checkpoints").join(LAST_GOOD);
+    let t = stepper.t;
+    let step = clock.steps + 1;
+    if let Err(w) = write_checkpoint(&saved, stepper, clock, n) {
+        return anyhow::anyhow!(
+            "mean-field step {step} at t = {t:.4} failed: {e}; saving the state before it also failed: {w:#}"
+        );
+    }
+    let _ = run.log(&format!("step {step} at t = {t} (dt = {dt:e}) failed: {e}"));
+    anyhow::anyhow!(
+        "mean-field step {step} at t = {t:.4} (dt = {dt:.3e}) failed: {e}. The state before it is saved in {}; `motile resume {}` continues from it (after editing {} if a setting caused the failure)",
+        saved.display(),
+        run.path().display(),
+        run.path().join("config.toml").display()
+    )
+}
+
+/// Name (in `checkpoints/`) of the state saved right before a failed step; it exists only
+/// until the next regular checkpoint, and `resume` prefers it.
+pub const LAST_GOOD: &str = "last_good.h5";
 
 /// Run the mean-field model into `out`.
 pub fn run_meanfield(
@@ -484,7 +567,10 @@ pub fn run_meanfield(
     cfg.validate().map_err(|e| anyhow::anyhow!("config: {e}"))?;
     let run = RunDir::create(out, "meanfield", cfg.seed, cfg)?;
     let grid = SpectralGrid::new(cfg.grid);
-    let stepper = MeanFieldStepper::new(&grid, &initial_state(cfg), SBDF2);
+    let stepper = MeanFieldStepper::new(&grid, &initial_state(cfg)?, SBDF2);
+    if cfg.initial == "snapshot" {
+        run.log(&format!("initial state: Q of {}", cfg.snapshot))?;
+    }
     let dt = cfg.dt_max.min(0.1 * cfg.diagnostic_interval);
     let clock = Clock {
         dt,
@@ -511,10 +597,21 @@ pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldS
     let run = RunDir::open(out)?;
     let cfg: MeanFieldRunConfig = read_run_config(out, MeanFieldRunConfig::validate)?;
     let grid = SpectralGrid::new(cfg.grid);
-    let ckpt = checkpoint_paths(&out.join("checkpoints"))
-        .pop()
-        .ok_or_else(|| anyhow::anyhow!("{}: no checkpoint to resume from", out.display()))?;
-    let mut stepper = MeanFieldStepper::new(&grid, &initial_state(&cfg), SBDF2);
+    // The state saved before a failed step (the config may have been edited since, e.g. a
+    // larger iteration cap), else the newest regular checkpoint.
+    let last_good = out.join("checkpoints").join(LAST_GOOD);
+    let ckpt = if last_good.is_file() {
+        last_good
+    } else {
+        checkpoint_paths(&out.join("checkpoints"))
+            .pop()
+            .ok_or_else(|| anyhow::anyhow!("{}: no checkpoint to resume from", out.display()))?
+    };
+    // Placeholder state (isotropic); the checkpoint overwrites it.
+    let iso: [Vec<f64>; 6] = std::array::from_fn(|c| {
+        vec![if SYM[c].0 == SYM[c].1 { 1.0 / 3.0 } else { 0.0 }; grid.len()]
+    });
+    let mut stepper = MeanFieldStepper::new(&grid, &iso, SBDF2);
     let clock = read_checkpoint(&ckpt, &mut stepper, cfg.grid)?;
     let mut ts =
         TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
@@ -581,9 +678,13 @@ fn drive(
         }
         if t >= clock.next_snap - eps {
             // The velocity of this Q (the stepper's is that of the previous step's state).
-            let ev = rhs
-                .eval(&stepper.q_hat, &stepper.u_hat)
-                .map_err(|e| anyhow::anyhow!("snapshot at t = {t}: {e}"))?;
+            let ev = match rhs.eval(&stepper.q_hat, &stepper.u_hat) {
+                Ok(ev) => ev,
+                Err(e) => {
+                    bar.abandon();
+                    return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, 0.0));
+                }
+            };
             let u: [Vec<f64>; 3] = std::array::from_fn(|i| grid.inverse(&ev.u[i]));
             let snap = FieldSnapshot {
                 time: t,
@@ -611,20 +712,12 @@ fn drive(
         let report = match stepper.step(&rhs, this_dt) {
             Ok(r) => r,
             Err(e) => {
-                run.log(&format!("step at t = {t} failed: {e}"))?;
-                bail!(
-                    "mean-field step at t = {t:.4} (dt = {this_dt:.3e}) failed: {e}. The last checkpoint is in {}",
-                    ckpt_dir.display()
-                );
+                // A failed step commits nothing: the stepper holds the state before it.
+                bar.abandon();
+                return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, this_dt));
             }
         };
         clock.steps += 1;
-        if !report.u_l2.is_finite() {
-            bail!(
-                "mean-field run diverged at t = {t:.4}: ||u|| is not finite. The last checkpoint is in {}",
-                ckpt_dir.display()
-            );
-        }
         if at_diag {
             ts.push(vec![
                 t,

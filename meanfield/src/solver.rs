@@ -18,7 +18,7 @@
 
 use crate::closure::BinghamClosure;
 use crate::eigen::{Sym3, sym3_eigen};
-use motile_analysis::fft3::{Direction, Fft3};
+use motile_analysis::fft3::RealFft3;
 use num_complex::Complex64;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -92,17 +92,24 @@ pub struct RhsReport {
     pub residual: f64,
 }
 
-/// Spectral grid on the unit cube: wavenumbers, transforms, dealiasing.
+/// Spectral grid on the unit cube: wavenumbers, real-to-complex transforms, dealiasing.
+///
+/// Coefficients are stored as the half spectrum of real fields: index
+/// `(i2 * n + i1) * h + i0` with `h = n / 2 + 1`, axis 0 holding `m_0 = 0..=n/2` only (the
+/// other half is the complex conjugate). Sums over the full spectrum weigh each stored mode
+/// by [`SpectralGrid::weight`].
 #[derive(Debug, Clone)]
 pub struct SpectralGrid {
     /// Points per dimension.
     pub n: usize,
-    fft: Fft3,
-    /// `2 pi m` per FFT index, Nyquist zeroed (first derivatives).
+    /// Stored modes along axis 0, `n / 2 + 1`.
+    h: usize,
+    fft: RealFft3,
+    /// `2 pi m` per FFT index, Nyquist zeroed (first derivatives); axes 1 and 2.
     k1: Vec<f64>,
-    /// `(2 pi m)^2` per FFT index (second derivatives keep the Nyquist mode).
+    /// `(2 pi m)^2` per FFT index (second derivatives keep the Nyquist mode); axes 1 and 2.
     k2: Vec<f64>,
-    /// Whether the index survives the 2/3 rule.
+    /// Whether the index survives the 2/3 rule; axes 1 and 2.
     keep: Vec<bool>,
 }
 
@@ -135,16 +142,22 @@ impl SpectralGrid {
             .collect();
         Self {
             n,
-            fft: Fft3::new([n; 3]),
+            h: n / 2 + 1,
+            fft: RealFft3::new([n; 3]),
             k1,
             k2,
             keep,
         }
     }
 
-    /// Points in total.
+    /// Grid points in total, `n^3`.
     pub fn len(&self) -> usize {
         self.n.pow(3)
+    }
+
+    /// Stored Fourier coefficients per field, `(n / 2 + 1) n^2`.
+    pub fn spectral_len(&self) -> usize {
+        self.h * self.n * self.n
     }
 
     /// True for an empty grid (never).
@@ -152,38 +165,88 @@ impl SpectralGrid {
         self.n == 0
     }
 
+    /// FFT indices `[i0, i1, i2]` of a stored coefficient (`i0 < n / 2 + 1`).
     fn idx3(&self, idx: usize) -> [usize; 3] {
         [
-            idx % self.n,
-            (idx / self.n) % self.n,
-            idx / (self.n * self.n),
+            idx % self.h,
+            (idx / self.h) % self.n,
+            idx / (self.h * self.n),
         ]
+    }
+
+    /// Weight of a stored coefficient in sums over the full spectrum: 1 on the planes
+    /// `m_0 = 0` and `m_0 = n/2`, whose conjugates are stored themselves, 2 elsewhere.
+    pub fn weight(&self, idx: usize) -> f64 {
+        let i0 = idx % self.h;
+        if i0 == 0 || i0 == self.n / 2 {
+            1.0
+        } else {
+            2.0
+        }
+    }
+
+    /// `sum_k |c_k|^2` over the full spectrum (the mean square of the field, by Parseval).
+    pub fn norm_sqr(&self, c: &[Complex64]) -> f64 {
+        c.iter()
+            .enumerate()
+            .map(|(idx, v)| self.weight(idx) * v.norm_sqr())
+            .sum()
+    }
+
+    fn kept(&self, idx: usize) -> bool {
+        let [a, b, d] = self.idx3(idx);
+        3 * a <= self.n && self.keep[b] && self.keep[d]
     }
 
     /// Fourier coefficients of a real field (forward FFT / n^3), dealiased if asked.
     pub fn forward(&self, f: &[f64], dealias: bool) -> Vec<Complex64> {
-        let scale = 1.0 / self.len() as f64;
-        let mut c: Vec<Complex64> = f
-            .par_iter()
-            .map(|&v| Complex64::new(v * scale, 0.0))
-            .collect();
-        self.fft.process(&mut c, Direction::Forward);
-        if dealias {
-            c.par_iter_mut().enumerate().for_each(|(idx, v)| {
-                let [a, b, d] = self.idx3(idx);
-                if !(self.keep[a] && self.keep[b] && self.keep[d]) {
-                    *v = Complex64::default();
-                }
-            });
-        }
+        let mut c = vec![Complex64::default(); self.spectral_len()];
+        self.forward_into(f, dealias, &mut c);
         c
+    }
+
+    /// [`Self::forward`] into a caller's buffer.
+    pub fn forward_into(&self, f: &[f64], dealias: bool, c: &mut [Complex64]) {
+        self.fft.forward(f, c);
+        let scale = 1.0 / self.len() as f64;
+        c.par_iter_mut().enumerate().for_each(|(idx, v)| {
+            *v = if !dealias || self.kept(idx) {
+                *v * scale
+            } else {
+                Complex64::default()
+            };
+        });
     }
 
     /// Grid values of a real field from its coefficients.
     pub fn inverse(&self, c: &[Complex64]) -> Vec<f64> {
-        let mut g = c.to_vec();
-        self.fft.process(&mut g, Direction::Inverse);
-        g.par_iter().map(|v| v.re).collect()
+        let mut g = vec![0.0; self.len()];
+        let mut work = c.to_vec();
+        self.fft.inverse(&mut work, &mut g);
+        g
+    }
+
+    /// Grid values of `d_dir f` from the coefficients of `f`.
+    pub fn inverse_derivative(&self, c: &[Complex64], dir: usize) -> Vec<f64> {
+        let mut work = self.derivative(c, dir);
+        let mut g = vec![0.0; self.len()];
+        self.fft.inverse(&mut work, &mut g);
+        g
+    }
+
+    /// Grid values of the symmetric gradient `(d_j u_i + d_i u_j) / 2` of velocity
+    /// coefficients `u`, component `(i, j)`.
+    pub fn inverse_strain(&self, u: &[Vec<Complex64>; 3], i: usize, j: usize) -> Vec<f64> {
+        let mut work: Vec<Complex64> = (0..self.spectral_len())
+            .into_par_iter()
+            .map(|idx| {
+                let k = self.k_vector(idx);
+                Complex64::new(0.0, 0.5) * (u[i][idx] * k[j] + u[j][idx] * k[i])
+            })
+            .collect();
+        let mut g = vec![0.0; self.len()];
+        self.fft.inverse(&mut work, &mut g);
+        g
     }
 
     /// Coefficients of `d_dir f`.
@@ -191,15 +254,42 @@ impl SpectralGrid {
         c.par_iter()
             .enumerate()
             .map(|(idx, v)| {
-                let k = self.k1[self.idx3(idx)[dir]];
+                let k = self.k_vector(idx)[dir];
                 v * Complex64::new(0.0, k)
             })
             .collect()
     }
 
+    /// Coefficients on this grid of a field given by its coefficients `c` on grid `from`
+    /// (spectral interpolation): modes with every `|m_d| < min(n, n_from) / 2` are copied,
+    /// the others (those beyond the coarser grid, and its Nyquist modes) are zero.
+    pub fn resample(&self, c: &[Complex64], from: &SpectralGrid) -> Vec<Complex64> {
+        assert_eq!(c.len(), from.spectral_len(), "resample: coefficient count");
+        let lim = (self.n.min(from.n) / 2) as i64;
+        let signed = |i: usize, n: usize| {
+            if i <= n / 2 {
+                i as i64
+            } else {
+                i as i64 - n as i64
+            }
+        };
+        let wrap = |m: i64, n: usize| m.rem_euclid(n as i64) as usize;
+        let mut out = vec![Complex64::default(); self.spectral_len()];
+        for (idx, v) in c.iter().enumerate() {
+            let [a, b, d] = from.idx3(idx);
+            let m = [a as i64, signed(b, from.n), signed(d, from.n)];
+            if m.iter().all(|x| x.abs() < lim) {
+                let j = (wrap(m[2], self.n) * self.n + wrap(m[1], self.n)) * self.h + a;
+                out[j] = *v;
+            }
+        }
+        out
+    }
+
     /// `|k|^2` at a coefficient index.
     pub fn k_squared(&self, idx: usize) -> f64 {
         let [a, b, d] = self.idx3(idx);
+        // Axis 0 stores m_0 = a >= 0 only, so (2 pi a)^2 is k2[a] as on the other axes.
         self.k2[a] + self.k2[b] + self.k2[d]
     }
 
@@ -212,8 +302,8 @@ impl SpectralGrid {
     /// Zero-mean Stokes velocity from the coefficients of a symmetric stress `sigma`:
     /// `u = (I - kk/k^2)/k^2 . (i k . sigma)`.
     pub fn stokes(&self, sigma: &[Vec<Complex64>; 6]) -> [Vec<Complex64>; 3] {
-        let n3 = self.len();
-        let mut u: [Vec<Complex64>; 3] = std::array::from_fn(|_| vec![Complex64::default(); n3]);
+        let mut u: [Vec<Complex64>; 3] =
+            std::array::from_fn(|_| vec![Complex64::default(); self.spectral_len()]);
         let (u0, rest) = u.split_at_mut(1);
         let (u1, u2) = rest.split_at_mut(1);
         u0[0]
@@ -388,6 +478,8 @@ pub struct RhsEval {
     pub se: [Vec<f64>; 6],
     /// Grid values of `Q`.
     pub q: [Vec<f64>; 6],
+    /// Grid values of `u`.
+    pub u_grid: [Vec<f64>; 3],
     /// Fixed-point report.
     pub report: RhsReport,
     /// Smallest eigenvalue of `Q / tr Q`.
@@ -398,13 +490,14 @@ pub struct RhsEval {
     pub entropy: f64,
 }
 
-fn rel_change(a: &[Vec<Complex64>; 3], b: &[Vec<Complex64>; 3]) -> f64 {
+fn rel_change(grid: &SpectralGrid, a: &[Vec<Complex64>; 3], b: &[Vec<Complex64>; 3]) -> f64 {
     let mut num = 0.0;
     let mut den = 0.0;
     for c in 0..3 {
-        for (x, y) in a[c].iter().zip(&b[c]) {
-            num += (x - y).norm_sqr();
-            den += x.norm_sqr();
+        for (idx, (x, y)) in a[c].iter().zip(&b[c]).enumerate() {
+            let w = grid.weight(idx);
+            num += w * (x - y).norm_sqr();
+            den += w * x.norm_sqr();
         }
     }
     if den == 0.0 {
@@ -432,10 +525,7 @@ impl MeanFieldRhs<'_> {
     pub fn strain(&self, u: &[Vec<Complex64>; 3]) -> [Vec<f64>; 6] {
         std::array::from_fn(|c| {
             let (i, j) = SYM[c];
-            let a = self.grid.derivative(&u[i], j);
-            let b = self.grid.derivative(&u[j], i);
-            let half: Vec<Complex64> = a.iter().zip(&b).map(|(x, y)| (x + y) * 0.5).collect();
-            self.grid.inverse(&half)
+            self.grid.inverse_strain(u, i, j)
         })
     }
 
@@ -469,7 +559,7 @@ impl MeanFieldRhs<'_> {
                 g.forward(&s, true)
             });
             let u_new = g.stokes(&sigma);
-            report.residual = rel_change(&u_new, &u);
+            report.residual = rel_change(g, &u_new, &u);
             u = u_new;
             if zeta == 0.0 || report.residual <= self.params.fixed_point_tolerance {
                 break;
@@ -484,15 +574,22 @@ impl MeanFieldRhs<'_> {
                 });
             }
         }
-        let e = self.strain(&u);
-        let se = closure.contract(&e);
-        // Velocity and gradients on the grid.
+        // Velocity and gradients on the grid; E from the gradient (no extra transforms).
         let ug: [Vec<f64>; 3] = std::array::from_fn(|i| g.inverse(&u[i]));
         let grad_u: [[Vec<f64>; 3]; 3] =
-            std::array::from_fn(|i| std::array::from_fn(|k| g.inverse(&g.derivative(&u[i], k))));
+            std::array::from_fn(|i| std::array::from_fn(|k| g.inverse_derivative(&u[i], k)));
+        let e: [Vec<f64>; 6] = std::array::from_fn(|c| {
+            let (i, j) = SYM[c];
+            grad_u[i][j]
+                .iter()
+                .zip(&grad_u[j][i])
+                .map(|(a, b)| 0.5 * (a + b))
+                .collect()
+        });
+        let se = closure.contract(&e);
         let nonlinear: [Vec<Complex64>; 6] = std::array::from_fn(|c| {
             let (i, j) = SYM[c];
-            let dq: [Vec<f64>; 3] = std::array::from_fn(|k| g.inverse(&g.derivative(&q_hat[c], k)));
+            let dq: [Vec<f64>; 3] = std::array::from_fn(|k| g.inverse_derivative(&q_hat[c], k));
             let vals: Vec<f64> = (0..g.len())
                 .into_par_iter()
                 .map(|p| {
@@ -519,6 +616,7 @@ impl MeanFieldRhs<'_> {
             e,
             se,
             q,
+            u_grid: ug,
             report,
             min_eigenvalue: closure.min_eigenvalue,
             max_eigenvalue: closure.max_eigenvalue,
@@ -619,7 +717,7 @@ impl MeanFieldStepper {
             t: 0.0,
             q_hat: std::array::from_fn(|c| grid.forward(&q[c], false)),
             prev: None,
-            u_hat: std::array::from_fn(|_| vec![Complex64::default(); grid.len()]),
+            u_hat: std::array::from_fn(|_| vec![Complex64::default(); grid.spectral_len()]),
         }
     }
 
@@ -657,7 +755,7 @@ impl MeanFieldStepper {
         let d = rhs.params.diffusion;
         let g = rhs.grid;
         let new: [Vec<Complex64>; 6] = std::array::from_fn(|c| {
-            (0..g.len())
+            (0..g.spectral_len())
                 .into_par_iter()
                 .map(|idx| {
                     let mut r = -a1 * self.q_hat[c][idx] + dt * b0 * ev.nonlinear[c][idx];
@@ -670,6 +768,14 @@ impl MeanFieldStepper {
                 })
                 .collect()
         });
+        // Nothing is committed unless the new state is finite: on an error the stepper still
+        // holds the last good state, for the caller to save.
+        if new
+            .iter()
+            .any(|c| c.iter().any(|v| !v.re.is_finite() || !v.im.is_finite()))
+        {
+            return Err(MeanFieldError::NonFinite("Q after the step"));
+        }
         let old_q = std::mem::replace(&mut self.q_hat, new);
         self.prev = Some(History {
             q_hat: old_q,
@@ -677,12 +783,8 @@ impl MeanFieldStepper {
             dt,
         });
         let npts = g.len() as f64;
-        let u_l2 =
-            ev.u.iter()
-                .map(|c| c.iter().map(|v| v.norm_sqr()).sum::<f64>())
-                .sum::<f64>()
-                .sqrt();
-        let ug: [Vec<f64>; 3] = std::array::from_fn(|i| g.inverse(&ev.u[i]));
+        let u_l2 = ev.u.iter().map(|c| g.norm_sqr(c)).sum::<f64>().sqrt();
+        let ug = &ev.u_grid;
         let u_max = (0..g.len())
             .map(|p| ug[0][p].abs() + ug[1][p].abs() + ug[2][p].abs())
             .fold(0.0, f64::max);
@@ -709,5 +811,58 @@ impl MeanFieldStepper {
             entropy: ev.entropy,
             energy_residual,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A real field with modes up to |m| = 3 on every axis, including m_0 = 0 and m_0 > 0.
+    fn field(n: usize) -> Vec<f64> {
+        (0..n * n * n)
+            .map(|idx| {
+                let x =
+                    [idx % n, (idx / n) % n, idx / (n * n)].map(|i| 2.0 * PI * i as f64 / n as f64);
+                0.3 + (x[0] + 2.0 * x[1]).cos()
+                    + 0.5 * (3.0 * x[2] - x[1]).sin()
+                    + 0.25 * (2.0 * x[0] - 3.0 * x[1] + x[2]).cos()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn half_spectrum_parseval_and_round_trip() {
+        let grid = SpectralGrid::new(10);
+        let f = field(10);
+        let c = grid.forward(&f, false);
+        let mean_sq = f.iter().map(|v| v * v).sum::<f64>() / f.len() as f64;
+        let parseval = grid.norm_sqr(&c);
+        assert!(
+            (parseval - mean_sq).abs() < 1e-13,
+            "Parseval: {parseval} vs mean square {mean_sq}"
+        );
+        let back = grid.inverse(&c);
+        let err = f
+            .iter()
+            .zip(&back)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-13, "round trip error {err:.2e}");
+    }
+
+    #[test]
+    fn resampling_a_band_limited_field_is_exact() {
+        for (from, to) in [(8, 14), (14, 8), (10, 10)] {
+            let (gf, gt) = (SpectralGrid::new(from), SpectralGrid::new(to));
+            let c = gt.resample(&gf.forward(&field(from), false), &gf);
+            let got = gt.inverse(&c);
+            let err = got
+                .iter()
+                .zip(field(to))
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(err < 1e-13, "{from} -> {to}: max error {err:.2e}");
+        }
     }
 }

@@ -111,7 +111,8 @@ fn energy_identity_holds_to_the_fixed_point_tolerance() {
         };
         let q = nonlinear_state(n);
         let q_hat: [Vec<_>; 6] = std::array::from_fn(|c| grid.forward(&q[c], false));
-        let zero: [Vec<_>; 3] = std::array::from_fn(|_| vec![Default::default(); grid.len()]);
+        let zero: [Vec<_>; 3] =
+            std::array::from_fn(|_| vec![Default::default(); grid.spectral_len()]);
         let ev = rhs.eval(&q_hat, &zero).unwrap();
         let w = |c: usize| if SYM[c].0 == SYM[c].1 { 1.0 } else { 2.0 };
         let (mut ee, mut ese, mut eq) = (0.0, 0.0, 0.0);
