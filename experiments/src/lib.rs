@@ -4,6 +4,7 @@
 #![warn(missing_docs)]
 
 pub mod analyze;
+pub mod checkpoint;
 pub mod demo;
 pub mod io;
 pub mod meanfield_run;

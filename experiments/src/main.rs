@@ -219,20 +219,28 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Resume { run_dir } => {
             let model = RunDir::open(&run_dir)?.header()?.model;
-            if model != "particle" {
-                anyhow::bail!(
-                    "{}: resuming a {model} run is not supported yet",
+            let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
+            match model.as_str() {
+                "particle" => {
+                    let s = resume_particle(&run_dir, progress)?;
+                    println!(
+                        "resumed: {} steps in {:.1} s, now at step {}",
+                        s.steps, s.seconds, s.final_step
+                    );
+                }
+                "meanfield" => {
+                    let s = meanfield_run::resume_meanfield(&run_dir, progress)?;
+                    let t = s.timeseries.rows.last().map(|r| r[0]).unwrap_or(f64::NAN);
+                    println!(
+                        "resumed: {} steps in {:.1} s; last diagnostic at t = {t}",
+                        s.steps, s.seconds
+                    );
+                }
+                other => anyhow::bail!(
+                    "{}: cannot resume a run of model \"{other}\" (expected \"particle\" or \"meanfield\")",
                     run_dir.display()
-                );
+                ),
             }
-            let s = resume_particle(
-                &run_dir,
-                std::io::IsTerminal::is_terminal(&std::io::stderr()),
-            )?;
-            println!(
-                "resumed: {} steps in {:.1} s, now at step {}",
-                s.steps, s.seconds, s.final_step
-            );
             Ok(())
         }
         Command::Demo {
@@ -342,6 +350,10 @@ fn print_table(ts: &TimeSeries) {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if cli.threads == Some(0) {
+        eprintln!("motile: error: --threads 0: need at least 1 worker thread");
+        return ExitCode::from(2);
+    }
     if let Some(t) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(t)
@@ -350,9 +362,17 @@ fn main() -> ExitCode {
         eprintln!("motile: cannot start {t} threads: {e}");
         return ExitCode::from(2);
     }
+    if let Err(e) = motile_experiments::checkpoint::install_signal_handlers() {
+        eprintln!("motile: warning: cannot install SIGINT/SIGTERM handlers: {e}");
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            if let Some(i) = e.downcast_ref::<motile_experiments::checkpoint::Interrupted>() {
+                eprintln!("motile: {i}");
+                // The shell convention for a process ended by a signal: 128 + its number.
+                return ExitCode::from((128 + i.signal).clamp(0, 255) as u8);
+            }
             eprintln!("motile: error: {e:#}");
             ExitCode::FAILURE
         }

@@ -6,8 +6,9 @@
 //! variable-step SBDF2). Output times are reached by spreading the last one or two steps before
 //! them evenly, never by a tiny clipped step followed by a large ratio.
 
+use crate::checkpoint;
 use crate::io::write_atomic;
-use crate::rundir::{RunDir, TimeSeries, checkpoint_paths, parse_run_config, read_run_config};
+use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
 use crate::snapshot::{FieldSnapshot, Snapshot, read_snapshot};
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, File, FileBuilder};
@@ -69,8 +70,16 @@ pub struct MeanFieldRunConfig {
     pub diagnostic_interval: f64,
     /// Time between snapshots. Default 5.
     pub snapshot_interval: f64,
-    /// Time between checkpoints (the last two kept). Default 5.
+    /// Time between checkpoints. Default 5.
     pub checkpoint_interval: f64,
+    /// Also checkpoint when this much wall-clock time has passed since the last one, seconds.
+    /// Default 900; allowed (0, 1e7].
+    pub checkpoint_wall_seconds: f64,
+    /// Regular checkpoints kept (older ones are deleted). Default 3; allowed [1, 1000].
+    pub checkpoints_kept: usize,
+    /// Stop when the smallest eigenvalue of Q/tr Q falls below this (realizability lost: the
+    /// flow is under-resolved). Default -0.1; allowed [-1000, 0] (-1000: never stop).
+    pub realizability_limit: f64,
 }
 
 impl Default for MeanFieldRunConfig {
@@ -96,43 +105,77 @@ impl Default for MeanFieldRunConfig {
             diagnostic_interval: 0.5,
             snapshot_interval: 5.0,
             checkpoint_interval: 5.0,
+            checkpoint_wall_seconds: 900.0,
+            checkpoints_kept: 3,
+            realizability_limit: -0.1,
         }
     }
 }
 
 impl MeanFieldRunConfig {
-    /// Check every field; the message names the field, the value and the allowed range.
+    /// Check every field; the message names the field, the value, the allowed range and the
+    /// unit (time in mu/|sigma_a|, lengths in box sides).
     pub fn validate(&self) -> Result<(), String> {
-        let chk = |name: &str, v: f64, lo: f64, hi: f64, open: bool| -> Result<(), String> {
+        let chk = |name: &str, v: f64, lo: f64, hi: f64, open: bool, unit: &str| {
             let ok = v.is_finite() && (if open { v > lo } else { v >= lo }) && v <= hi;
             if ok {
                 Ok(())
             } else {
                 Err(format!(
-                    "{name} = {v} is outside the allowed range {}{lo}, {hi}]",
+                    "{name} = {v} is outside the allowed range {}{lo}, {hi}] ({unit})",
                     if open { "(" } else { "[" }
                 ))
             }
         };
+        let time = "mu/|sigma_a|";
         if !(8..=256).contains(&self.grid) || self.grid % 2 == 1 {
             return Err(format!(
                 "grid = {} must be even and in [8, 256] (points per dimension)",
                 self.grid
             ));
         }
-        chk("zeta", self.zeta, 0.0, 10.0, false)?;
-        chk("diffusion", self.diffusion, 0.0, 1.0, false)?;
-        chk("t_end", self.t_end, 0.0, 1e6, true)?;
-        chk("dt_max", self.dt_max, 0.0, 1.0, true)?;
-        chk("cfl", self.cfl, 0.0, 2.0, true)?;
-        chk("max_step_ratio", self.max_step_ratio, 1.0, 2.4, true)?;
-        chk("amplitude", self.amplitude, 0.0, 0.3, true)?;
+        chk(
+            "zeta",
+            self.zeta,
+            0.0,
+            10.0,
+            false,
+            "sigma_b/mu, dimensionless",
+        )?;
+        chk(
+            "diffusion",
+            self.diffusion,
+            0.0,
+            1.0,
+            false,
+            "L^2 |sigma_a|/mu",
+        )?;
+        chk("t_end", self.t_end, 0.0, 1e6, true, time)?;
+        chk("dt_max", self.dt_max, 0.0, 1.0, true, time)?;
+        chk("cfl", self.cfl, 0.0, 2.0, true, "dimensionless")?;
+        chk(
+            "max_step_ratio",
+            self.max_step_ratio,
+            1.0,
+            2.4,
+            true,
+            "dimensionless; SBDF2 is zero-stable below 1 + sqrt 2",
+        )?;
+        chk(
+            "amplitude",
+            self.amplitude,
+            0.0,
+            0.3,
+            true,
+            "dimensionless, |Q'| of a trace-1 Q",
+        )?;
         chk(
             "fixed_point_tolerance",
             self.fixed_point_tolerance,
             0.0,
             1e-2,
             true,
+            "relative change of u",
         )?;
         chk(
             "diagnostic_interval",
@@ -140,15 +183,54 @@ impl MeanFieldRunConfig {
             0.0,
             1e6,
             true,
+            time,
         )?;
-        chk("snapshot_interval", self.snapshot_interval, 0.0, 1e6, true)?;
+        chk(
+            "snapshot_interval",
+            self.snapshot_interval,
+            0.0,
+            1e6,
+            true,
+            time,
+        )?;
         chk(
             "checkpoint_interval",
             self.checkpoint_interval,
             0.0,
             1e6,
             true,
+            time,
         )?;
+        chk(
+            "checkpoint_wall_seconds",
+            self.checkpoint_wall_seconds,
+            0.0,
+            1e7,
+            true,
+            "seconds of wall-clock time",
+        )?;
+        chk(
+            "realizability_limit",
+            self.realizability_limit,
+            -1000.0,
+            0.0,
+            false,
+            "eigenvalue of Q/tr Q",
+        )?;
+        chk(
+            "fixed_point_max_iterations",
+            self.fixed_point_max_iterations as f64,
+            1.0,
+            1e4,
+            false,
+            "iterations",
+        )?;
+        if !(1..=1000).contains(&self.checkpoints_kept) {
+            return Err(format!(
+                "checkpoints_kept = {} is outside the allowed range [1, 1000]",
+                self.checkpoints_kept
+            ));
+        }
         if !(10..=200).contains(&self.closure_degree) {
             return Err(format!(
                 "closure_degree = {} is outside the allowed range [10, 200]",
@@ -456,7 +538,7 @@ fn write_checkpoint(
     let bytes = b
         .finish()
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    write_atomic(path, &bytes)?;
+    checkpoint::write_verified(path, &bytes)?;
     Ok(())
 }
 
@@ -506,25 +588,18 @@ fn read_checkpoint(path: &Path, stepper: &mut MeanFieldStepper, n: usize) -> any
 }
 
 /// Write a numbered checkpoint and keep only the newest two.
-fn checkpoint(
+fn write_regular_checkpoint(
     dir: &Path,
     stepper: &MeanFieldStepper,
     clock: &Clock,
-    n: usize,
-) -> anyhow::Result<()> {
-    write_checkpoint(
-        &dir.join(format!("ckpt_{:09}.h5", clock.steps)),
-        stepper,
-        clock,
-        n,
-    )?;
-    let old = checkpoint_paths(dir);
-    for p in &old[..old.len().saturating_sub(2)] {
-        let _ = std::fs::remove_file(p);
-    }
+    cfg: &MeanFieldRunConfig,
+) -> anyhow::Result<PathBuf> {
+    let path = dir.join(format!("ckpt_{:09}.h5", clock.steps));
+    write_checkpoint(&path, stepper, clock, cfg.grid)?;
+    checkpoint::prune(dir, cfg.checkpoints_kept);
     // A newer checkpoint supersedes the state saved before an earlier failure.
-    let _ = std::fs::remove_file(dir.join(LAST_GOOD));
-    Ok(())
+    checkpoint::remove(&dir.join(LAST_GOOD));
+    Ok(path)
 }
 
 /// Save the stepper's (good) state as `checkpoints/last_good.h5` after a failure evaluating
@@ -565,9 +640,11 @@ pub fn run_meanfield(
     progress: bool,
 ) -> anyhow::Result<MeanFieldSummary> {
     cfg.validate().map_err(|e| anyhow::anyhow!("config: {e}"))?;
+    // The initial state (and any file it comes from) is checked before anything is written.
+    let q0 = initial_state(cfg)?;
     let run = RunDir::create(out, "meanfield", cfg.seed, cfg)?;
     let grid = SpectralGrid::new(cfg.grid);
-    let stepper = MeanFieldStepper::new(&grid, &initial_state(cfg)?, SBDF2);
+    let stepper = MeanFieldStepper::new(&grid, &q0, SBDF2);
     if cfg.initial == "snapshot" {
         run.log(&format!("initial state: Q of {}", cfg.snapshot))?;
     }
@@ -599,20 +676,23 @@ pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldS
     let grid = SpectralGrid::new(cfg.grid);
     // The state saved before a failed step (the config may have been edited since, e.g. a
     // larger iteration cap), else the newest regular checkpoint.
-    let last_good = out.join("checkpoints").join(LAST_GOOD);
-    let ckpt = if last_good.is_file() {
-        last_good
-    } else {
-        checkpoint_paths(&out.join("checkpoints"))
-            .pop()
-            .ok_or_else(|| anyhow::anyhow!("{}: no checkpoint to resume from", out.display()))?
-    };
+    let dir = out.join("checkpoints");
+    let mut candidates = checkpoint::newest_first(&dir);
+    if dir.join(LAST_GOOD).is_file() {
+        candidates.insert(0, dir.join(LAST_GOOD));
+    }
     // Placeholder state (isotropic); the checkpoint overwrites it.
     let iso: [Vec<f64>; 6] = std::array::from_fn(|c| {
         vec![if SYM[c].0 == SYM[c].1 { 1.0 / 3.0 } else { 0.0 }; grid.len()]
     });
     let mut stepper = MeanFieldStepper::new(&grid, &iso, SBDF2);
-    let clock = read_checkpoint(&ckpt, &mut stepper, cfg.grid)?;
+    let (ckpt, clock, warnings) =
+        checkpoint::load_newest(&candidates, |p| read_checkpoint(p, &mut stepper, cfg.grid))
+            .with_context(|| format!("resuming {}", out.display()))?;
+    for w in &warnings {
+        eprintln!("motile: warning: {w}");
+        run.log(&format!("warning: {w}"))?;
+    }
     let mut ts =
         TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
     ts.rows
@@ -664,13 +744,15 @@ fn drive(
     let h = 1.0 / cfg.grid as f64;
     let start_steps = clock.steps;
     let t0 = Instant::now();
+    let mut last_ckpt = Instant::now();
     let eps = 1e-9 * cfg.t_end;
     let ckpt_dir = run.path().join("checkpoints");
     while stepper.t < cfg.t_end - eps {
         let t = stepper.t;
         if t >= clock.next_ckpt - eps {
             clock.next_ckpt += cfg.checkpoint_interval;
-            checkpoint(&ckpt_dir, &stepper, &clock, cfg.grid)?;
+            write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;
+            last_ckpt = Instant::now();
         }
         let at_diag = t >= clock.next_diag - eps;
         if at_diag {
@@ -718,6 +800,19 @@ fn drive(
             }
         };
         clock.steps += 1;
+        if report.min_eigenvalue < cfg.realizability_limit {
+            bar.abandon();
+            let last = checkpoint::newest_first(&ckpt_dir)
+                .first()
+                .map(|p| p.display().to_string())
+                .unwrap_or_else(|| "none".into());
+            let msg = format!(
+                "Q lost realizability at step {} (t = {t:.4}): the smallest eigenvalue of Q/tr Q is {:.3e}, below realizability_limit = {} (the flow is under-resolved: raise grid or diffusion). The last good checkpoint is {last}",
+                clock.steps, report.min_eigenvalue, cfg.realizability_limit
+            );
+            run.log(&msg)?;
+            bail!(msg);
+        }
         if at_diag {
             ts.push(vec![
                 t,
@@ -754,8 +849,26 @@ fn drive(
         };
         clock.prev_dt = this_dt;
         clock.dt = cfl_dt.min(cfg.dt_max).min(cfg.max_step_ratio * base);
+        // Off-schedule checkpoints (wall clock, signal) store the state and step control as
+        // they are, so resuming from one continues the same trajectory.
+        let stop = checkpoint::stop_requested();
+        if stop.is_some() || last_ckpt.elapsed().as_secs_f64() >= cfg.checkpoint_wall_seconds {
+            let path = write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;
+            last_ckpt = Instant::now();
+            if let Some(signal) = stop {
+                bar.abandon();
+                run.log(&format!("stopped by signal {signal} at t = {}", stepper.t))?;
+                return Err(checkpoint::Interrupted {
+                    signal,
+                    at: format!("step {} (t = {:.4})", clock.steps, stepper.t),
+                    checkpoint: path,
+                    run_dir: run.path().to_path_buf(),
+                }
+                .into());
+            }
+        }
     }
-    checkpoint(&ckpt_dir, &stepper, &clock, cfg.grid)?;
+    write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;
     bar.finish();
     let seconds = t0.elapsed().as_secs_f64();
     run.log(&format!(

@@ -2,13 +2,14 @@
 //! model must not: the run directory, the output schedule, snapshots (HDF5 + VTK), the time
 //! series, checkpoints and progress.
 //!
-//! Checkpoints (`checkpoints/ckpt_STEP.h5`, the last two kept) hold the exact rod state (centres,
+//! Checkpoints (`checkpoints/ckpt_STEP.h5` with a checksum sidecar, the last few kept) hold the exact rod state (centres,
 //! quaternions, image counters) and the step number; the step has no other state, so resuming
 //! from one continues the trajectory bit for bit. On a failed step the state before it is saved
 //! as `checkpoints/last_good.h5` and the error names it.
 
-use crate::io::{IoError, write_atomic};
-use crate::rundir::{RunDir, TimeSeries, checkpoint_paths, parse_run_config, read_run_config};
+use crate::checkpoint;
+use crate::io::IoError;
+use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
 use crate::snapshot::{Kinematics, ParticleSnapshot, Snapshot, read_snapshot};
 use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
@@ -21,7 +22,7 @@ use motile_particle::init::random_nonoverlapping;
 use motile_particle::units::{DIAMETER, ROD_LENGTH};
 use motile_particle::{ContactParams, LocalDrag, Mobility, RodSet, Stepper};
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 /// Configuration of a particle run (`config.toml`), every field with its default.
@@ -55,6 +56,11 @@ pub struct ParticleRunConfig {
     pub snapshot_interval: f64,
     /// Time between checkpoints, 1/beta. Default 0.5.
     pub checkpoint_interval: f64,
+    /// Also checkpoint when this much wall-clock time has passed since the last one, seconds.
+    /// Default 900; allowed (0, 1e7].
+    pub checkpoint_wall_seconds: f64,
+    /// Regular checkpoints kept (older ones are deleted). Default 3; allowed [1, 1000].
+    pub checkpoints_kept: usize,
     /// Write a VTK PolyData file (.vtp) with each snapshot, and a .pvd index. Default true.
     pub vtk: bool,
     /// Contact solver settings.
@@ -75,6 +81,8 @@ impl Default for ParticleRunConfig {
             diagnostic_interval: 0.02,
             snapshot_interval: 0.2,
             checkpoint_interval: 0.5,
+            checkpoint_wall_seconds: 900.0,
+            checkpoints_kept: 3,
             vtk: true,
             contact: ContactParams::default(),
         }
@@ -122,6 +130,22 @@ impl ParticleRunConfig {
             range(name, v, self.dt, 1e9, false, "1/beta, at least dt")?;
         }
         range(
+            "checkpoint_wall_seconds",
+            self.checkpoint_wall_seconds,
+            0.0,
+            1e7,
+            true,
+            "seconds of wall-clock time",
+        )?;
+        range(
+            "checkpoints_kept",
+            self.checkpoints_kept as f64,
+            1.0,
+            1000.0,
+            false,
+            "files",
+        )?;
+        range(
             "contact.margin",
             self.contact.margin,
             0.0,
@@ -158,6 +182,15 @@ impl ParticleRunConfig {
                 "hydrodynamics = \"{}\" is not available: allowed \"none\" (\"dipole\" and \"sbt\" are not implemented yet)",
                 self.hydrodynamics
             ));
+        }
+        if let Some(n) = self.rods {
+            let nu = n as f64 / self.box_length.powi(3);
+            if n == 0 || nu > 6.0 {
+                return Err(format!(
+                    "rods = {n} in a box of L/l = {} gives nu = N l^3/L^3 = {nu}, outside the allowed range (0, 6]",
+                    self.box_length
+                ));
+            }
         }
         if self.contact.margin < 2.5 * self.dt {
             return Err(format!(
@@ -244,6 +277,18 @@ pub fn load_configuration(path: &Path, box_length: f64) -> anyhow::Result<RodSet
     if x.is_empty() {
         bail!("{}: no rods", path.display());
     }
+    // Centres are wrapped into the box, but one far outside it means the file was written for
+    // another box size.
+    if let Some(i) = x
+        .iter()
+        .position(|c| c.iter().any(|&v| v < -l || v >= 2.0 * l))
+    {
+        bail!(
+            "{}: rod {i} at {:?} lies more than a box length outside the box [0, {l})^3: was the file written for another box_length?",
+            path.display(),
+            x[i]
+        );
+    }
     let wrapped: Vec<[f64; 3]> = x
         .iter()
         .map(|c| {
@@ -323,7 +368,7 @@ fn write_checkpoint(
         path: path.into(),
         message: e.to_string(),
     })?;
-    write_atomic(path, &bytes)
+    checkpoint::write_verified(path, &bytes)
 }
 
 fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, WarmStart, u64)> {
@@ -392,11 +437,6 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, WarmStart, u64)> {
     Ok((rods, warm, step))
 }
 
-/// Latest checkpoint of a run, if any.
-pub fn latest_checkpoint(run: &RunDir) -> Option<PathBuf> {
-    checkpoint_paths(&run.path().join("checkpoints")).pop()
-}
-
 /// Columns of a particle run's `timeseries.csv`.
 pub const COLUMNS: [&str; 9] = [
     "t [1/beta]",
@@ -461,9 +501,15 @@ pub fn run_particle(
 pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary> {
     let run = RunDir::open(out)?;
     let cfg: ParticleRunConfig = read_run_config(out, ParticleRunConfig::validate)?;
-    let ckpt = latest_checkpoint(&run)
-        .ok_or_else(|| anyhow::anyhow!("{}: no checkpoint to resume from", out.display()))?;
-    let (rods, warm, step) = read_checkpoint(&ckpt)?;
+    let (ckpt, (rods, warm, step), warnings) =
+        checkpoint::load_newest(&checkpoint::newest_first(&out.join("checkpoints")), |p| {
+            read_checkpoint(p)
+        })
+        .with_context(|| format!("resuming {}", out.display()))?;
+    for w in &warnings {
+        eprintln!("motile: warning: {w}");
+        run.log(&format!("warning: {w}"))?;
+    }
     let t = step as f64 * cfg.dt;
     let mut ts =
         TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
@@ -519,6 +565,7 @@ fn drive(
         )?;
     }
     let t_start = Instant::now();
+    let mut last_ckpt = Instant::now();
     let mut t_window = Instant::now();
     let mut steps_in_window = 0u64;
     for step in start + 1..=total {
@@ -576,16 +623,28 @@ fn drive(
             };
             write_snapshot(cfg, run, &rods, step, Some(kin), &mut pvd)?;
         }
-        if step % ckpt == 0 || step == total {
+        let stop = checkpoint::stop_requested();
+        if step % ckpt == 0
+            || step == total
+            || stop.is_some()
+            || last_ckpt.elapsed().as_secs_f64() >= cfg.checkpoint_wall_seconds
+        {
             let dir = run.path().join("checkpoints");
-            write_checkpoint(
-                &dir.join(format!("ckpt_{step:09}.h5")),
-                &rods,
-                stepper.warm_start(),
-                step,
-                t,
-            )?;
-            prune_checkpoints(&dir, 2);
+            let path = dir.join(format!("ckpt_{step:09}.h5"));
+            write_checkpoint(&path, &rods, stepper.warm_start(), step, t)?;
+            checkpoint::prune(&dir, cfg.checkpoints_kept);
+            last_ckpt = Instant::now();
+            if let Some(signal) = stop {
+                bar.abandon();
+                run.log(&format!("stopped by signal {signal} at step {step}"))?;
+                return Err(checkpoint::Interrupted {
+                    signal,
+                    at: format!("step {step} (t = {t:.4})"),
+                    checkpoint: path,
+                    run_dir: run.path().to_path_buf(),
+                }
+                .into());
+            }
         }
         bar.set_position(step);
     }
@@ -598,13 +657,6 @@ fn drive(
         seconds,
         rods,
     })
-}
-
-fn prune_checkpoints(dir: &Path, keep: usize) {
-    let v = checkpoint_paths(dir);
-    for old in &v[..v.len().saturating_sub(keep)] {
-        let _ = std::fs::remove_file(old);
-    }
 }
 
 fn write_snapshot(

@@ -162,11 +162,39 @@ pub fn parse_run_config<C: serde::de::DeserializeOwned>(
     let mut table: toml::Table =
         toml::from_str(text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     table.remove("motile");
-    let cfg: C = table
-        .try_into()
-        .map_err(|e: toml::de::Error| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
+    let cfg: C = table.try_into().map_err(|e: toml::de::Error| {
+        anyhow::anyhow!("{}: {}", path.display(), with_suggestion(e.message()))
+    })?;
     validate(&cfg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(cfg)
+}
+
+/// Rewrite serde's "unknown field `x`, expected one of `a`, `b`" as a message that names the
+/// closest valid key (edit distance), e.g. "unknown key `zetta`; did you mean `zeta`?".
+fn with_suggestion(message: &str) -> String {
+    let Some(rest) = message.strip_prefix("unknown field `") else {
+        return message.to_string();
+    };
+    let Some((key, expected)) = rest.split_once('`') else {
+        return message.to_string();
+    };
+    let valid: Vec<&str> = expected
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|v| !v.is_empty())
+        .collect();
+    let best = valid
+        .iter()
+        .map(|v| (strsim::damerau_levenshtein(key, v), *v))
+        .min();
+    let list = valid.join(", ");
+    match best {
+        Some((d, v)) if d <= key.len().max(3) / 2 + 1 => {
+            format!("unknown key `{key}`; did you mean `{v}`? (valid keys: {list})")
+        }
+        _ => format!("unknown key `{key}` (valid keys: {list})"),
+    }
 }
 
 /// Read and parse the `config.toml` of the run directory `out`.
@@ -186,8 +214,10 @@ pub fn checkpoint_paths(dir: &Path) -> Vec<PathBuf> {
         .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
         .unwrap_or_default();
     v.retain(|p| {
-        p.file_name()
-            .is_some_and(|n| n.to_string_lossy().starts_with("ckpt_"))
+        p.file_name().is_some_and(|n| {
+            let n = n.to_string_lossy();
+            n.starts_with("ckpt_") && n.ends_with(".h5")
+        })
     });
     v.sort();
     v

@@ -1,0 +1,155 @@
+//! Verified checkpoint files, their retention, and the signals that ask a run to stop.
+//!
+//! A checkpoint `ckpt_STEP.h5` is written atomically, then its sidecar `ckpt_STEP.h5.crc32`
+//! (the file's length and CRC-32, also atomic). Resume takes the newest checkpoint whose
+//! sidecar matches; one without a sidecar (killed between the two writes), truncated or with
+//! a flipped bit is skipped with a warning and the previous one used. The `.h5` files stay
+//! plain HDF5 for h5py.
+
+use crate::io::{IoError, fs_err, write_atomic};
+use crate::rundir::checkpoint_paths;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, OnceLock};
+
+fn sidecar(path: &Path) -> PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(".crc32");
+    PathBuf::from(s)
+}
+
+/// Write checkpoint `bytes` to `path`, then its checksum sidecar.
+pub fn write_verified(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
+    write_atomic(path, bytes)?;
+    let line = format!("{} {:08x}\n", bytes.len(), crc32fast::hash(bytes));
+    write_atomic(&sidecar(path), line.as_bytes())
+}
+
+/// Check a checkpoint against its sidecar; the error says what is wrong.
+pub fn verify(path: &Path) -> Result<(), IoError> {
+    let content = |message: String| IoError::Content {
+        path: path.to_path_buf(),
+        message,
+    };
+    let side = sidecar(path);
+    let line = std::fs::read_to_string(&side).map_err(|_| {
+        content(format!(
+            "no checksum file {} (the write was interrupted)",
+            side.display()
+        ))
+    })?;
+    let mut it = line.split_whitespace();
+    let (len, crc) = match (
+        it.next().and_then(|v| v.parse::<usize>().ok()),
+        it.next().and_then(|v| u32::from_str_radix(v, 16).ok()),
+    ) {
+        (Some(l), Some(c)) => (l, c),
+        _ => {
+            return Err(content(format!(
+                "unreadable checksum file {}",
+                side.display()
+            )));
+        }
+    };
+    let bytes = std::fs::read(path).map_err(fs_err(path))?;
+    if bytes.len() != len {
+        return Err(content(format!(
+            "truncated or extended: {} bytes, the checksum file says {len}",
+            bytes.len()
+        )));
+    }
+    let got = crc32fast::hash(&bytes);
+    if got != crc {
+        return Err(content(format!(
+            "checksum mismatch (CRC-32 {got:08x}, expected {crc:08x}): the file is damaged"
+        )));
+    }
+    Ok(())
+}
+
+/// Keep the newest `keep` regular checkpoints of `dir` (and their sidecars).
+pub fn prune(dir: &Path, keep: usize) {
+    let v = checkpoint_paths(dir);
+    for old in &v[..v.len().saturating_sub(keep)] {
+        let _ = std::fs::remove_file(old);
+        let _ = std::fs::remove_file(sidecar(old));
+    }
+}
+
+/// Remove a checkpoint and its sidecar (missing files are fine).
+pub fn remove(path: &Path) {
+    let _ = std::fs::remove_file(path);
+    let _ = std::fs::remove_file(sidecar(path));
+}
+
+/// Load the newest loadable checkpoint among `candidates` (newest first): each is verified,
+/// then read by `read`; a damaged one is reported in the returned warnings and the next tried.
+pub fn load_newest<T>(
+    candidates: &[PathBuf],
+    mut read: impl FnMut(&Path) -> anyhow::Result<T>,
+) -> anyhow::Result<(PathBuf, T, Vec<String>)> {
+    let mut warnings = Vec::new();
+    for p in candidates {
+        match verify(p)
+            .map_err(anyhow::Error::from)
+            .and_then(|()| read(p))
+        {
+            Ok(v) => return Ok((p.clone(), v, warnings)),
+            Err(e) => warnings.push(format!("skipping checkpoint {}: {e:#}", p.display())),
+        }
+    }
+    if candidates.is_empty() {
+        anyhow::bail!("no checkpoint to resume from");
+    }
+    anyhow::bail!("no usable checkpoint: {}", warnings.join("; "))
+}
+
+/// Regular checkpoints of a run directory's `checkpoints/`, newest first.
+pub fn newest_first(dir: &Path) -> Vec<PathBuf> {
+    let mut v = checkpoint_paths(dir);
+    v.reverse();
+    v
+}
+
+static SIGNAL: OnceLock<Arc<AtomicUsize>> = OnceLock::new();
+
+/// SIGINT and SIGTERM set a flag (instead of killing the process) that running loops poll
+/// through [`stop_requested`]; they then write a checkpoint and return [`Interrupted`]. A second
+/// signal while the first is being handled exits at once (status 130).
+pub fn install_signal_handlers() -> std::io::Result<()> {
+    let which = SIGNAL.get_or_init(|| Arc::new(AtomicUsize::new(0)));
+    let seen = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register_conditional_shutdown(sig, 130, Arc::clone(&seen))?;
+        signal_hook::flag::register(sig, Arc::clone(&seen))?;
+        signal_hook::flag::register_usize(sig, Arc::clone(which), sig as usize)?;
+    }
+    Ok(())
+}
+
+/// The signal that asked the run to stop, if any.
+pub fn stop_requested() -> Option<i32> {
+    SIGNAL
+        .get()
+        .map(|f| f.load(Ordering::Relaxed))
+        .filter(|&s| s != 0)
+        .map(|s| s as i32)
+}
+
+/// A run stopped by a signal after writing a checkpoint.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "stopped by signal {signal} at {at}; checkpoint written to {}. Continue with `motile resume {}`",
+    checkpoint.display(),
+    run_dir.display()
+)]
+pub struct Interrupted {
+    /// The signal number.
+    pub signal: i32,
+    /// Where the run was ("step 120 (t = 0.24)").
+    pub at: String,
+    /// The checkpoint written.
+    pub checkpoint: PathBuf,
+    /// The run directory.
+    pub run_dir: PathBuf,
+}
