@@ -77,6 +77,11 @@ pub struct MeanFieldRunConfig {
     pub checkpoint_wall_seconds: f64,
     /// Regular checkpoints kept (older ones are deleted). Default 3; allowed [1, 1000].
     pub checkpoints_kept: usize,
+    /// Retries of a step whose update produced non-finite values, each with half the previous
+    /// step size, before the run stops (a fixed point that does not converge is not retried:
+    /// it is solved at the state before the step, which a smaller step does not change).
+    /// Default 2; allowed [0, 20].
+    pub step_retries: usize,
     /// Stop when the smallest eigenvalue of Q/tr Q falls below this (realizability lost: the
     /// flow is under-resolved). Default -0.1; allowed [-1000, 0] (-1000: never stop).
     pub realizability_limit: f64,
@@ -108,6 +113,7 @@ impl Default for MeanFieldRunConfig {
             checkpoint_wall_seconds: 900.0,
             checkpoints_kept: 3,
             realizability_limit: -0.1,
+            step_retries: 2,
         }
     }
 }
@@ -208,6 +214,14 @@ impl MeanFieldRunConfig {
             1e7,
             true,
             "seconds of wall-clock time",
+        )?;
+        chk(
+            "step_retries",
+            self.step_retries as f64,
+            0.0,
+            20.0,
+            false,
+            "retries",
         )?;
         chk(
             "realizability_limit",
@@ -672,6 +686,12 @@ pub fn run_meanfield(
 /// Continue a mean-field run from its newest checkpoint.
 pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldSummary> {
     let run = RunDir::open(out)?;
+    let stale = run.remove_stale_temporaries();
+    if stale > 0 {
+        run.log(&format!(
+            "removed {stale} temporary files of an interrupted write"
+        ))?;
+    }
     let cfg: MeanFieldRunConfig = read_run_config(out, MeanFieldRunConfig::validate)?;
     let grid = SpectralGrid::new(cfg.grid);
     // The state saved before a failed step (the config may have been edited since, e.g. a
@@ -791,12 +811,30 @@ fn drive(
         let k = (remaining / clock.dt).ceil().max(1.0);
         let this_dt = if k <= 2.0 { remaining / k } else { clock.dt };
         rhs.with_entropy = at_diag;
-        let report = match stepper.step(&rhs, this_dt) {
-            Ok(r) => r,
-            Err(e) => {
-                // A failed step commits nothing: the stepper holds the state before it.
-                bar.abandon();
-                return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, this_dt));
+        // A failed step commits nothing (the stepper holds the state before it): retry it
+        // with half the step, at most `step_retries` times, then give up.
+        let mut this_dt = this_dt;
+        let mut retries = 0;
+        let report = loop {
+            match stepper.step(&rhs, this_dt) {
+                Ok(r) => break r,
+                // Only where a smaller step is the remedy: values that blew up in the update.
+                // The fixed point is solved at the state before the step, so a smaller step
+                // cannot change its outcome.
+                Err(e @ MeanFieldError::NonFinite(_)) if retries < cfg.step_retries => {
+                    retries += 1;
+                    run.log(&format!(
+                        "step {} at t = {t} with dt = {this_dt:e} failed ({e}); retry {retries} of {} with dt = {:e}",
+                        clock.steps + 1,
+                        cfg.step_retries,
+                        0.5 * this_dt
+                    ))?;
+                    this_dt *= 0.5;
+                }
+                Err(e) => {
+                    bar.abandon();
+                    return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, this_dt));
+                }
             }
         };
         clock.steps += 1;

@@ -463,6 +463,10 @@ pub struct RunSummary {
     pub rods: RodSet,
 }
 
+/// Name (in `checkpoints/`) of the state saved right before a failed step; it exists only
+/// until the next regular checkpoint, and `resume` prefers it.
+pub const LAST_GOOD: &str = "last_good.h5";
+
 /// Start a new particle run in `out`.
 pub fn run_particle(
     cfg: &ParticleRunConfig,
@@ -500,12 +504,22 @@ pub fn run_particle(
 /// Continue a run from its newest checkpoint.
 pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary> {
     let run = RunDir::open(out)?;
+    let stale = run.remove_stale_temporaries();
+    if stale > 0 {
+        run.log(&format!(
+            "removed {stale} temporary files of an interrupted write"
+        ))?;
+    }
     let cfg: ParticleRunConfig = read_run_config(out, ParticleRunConfig::validate)?;
+    // The state saved before a failed step, else the newest regular checkpoint.
+    let dir = out.join("checkpoints");
+    let mut candidates = checkpoint::newest_first(&dir);
+    if dir.join(LAST_GOOD).is_file() {
+        candidates.insert(0, dir.join(LAST_GOOD));
+    }
     let (ckpt, (rods, warm, step), warnings) =
-        checkpoint::load_newest(&checkpoint::newest_first(&out.join("checkpoints")), |p| {
-            read_checkpoint(p)
-        })
-        .with_context(|| format!("resuming {}", out.display()))?;
+        checkpoint::load_newest(&candidates, read_checkpoint)
+            .with_context(|| format!("resuming {}", out.display()))?;
     for w in &warnings {
         eprintln!("motile: warning: {w}");
         run.log(&format!("warning: {w}"))?;
@@ -574,7 +588,7 @@ fn drive(
         let report = match stepper.step(&mut rods, cfg.dt) {
             Ok(r) => r,
             Err(e) => {
-                let saved = run.path().join("checkpoints").join("last_good.h5");
+                let saved = run.path().join("checkpoints").join(LAST_GOOD);
                 write_checkpoint(
                     &saved,
                     &before,
@@ -585,9 +599,11 @@ fn drive(
                 run.log(&format!("step {step} failed: {e}"))?;
                 bar.abandon();
                 bail!(
-                    "step {step} (t = {:.4}) failed: {e}. The state before it is saved in {}",
+                    "step {step} (t = {:.4}) failed: {e}. The state before it is saved in {}; `motile resume {}` continues from it (after editing {} if a setting caused the failure)",
                     step as f64 * cfg.dt,
-                    saved.display()
+                    saved.display(),
+                    run.path().display(),
+                    run.path().join("config.toml").display()
                 );
             }
         };
@@ -633,6 +649,7 @@ fn drive(
             let path = dir.join(format!("ckpt_{step:09}.h5"));
             write_checkpoint(&path, &rods, stepper.warm_start(), step, t)?;
             checkpoint::prune(&dir, cfg.checkpoints_kept);
+            checkpoint::remove(&dir.join(LAST_GOOD));
             last_ckpt = Instant::now();
             if let Some(signal) = stop {
                 bar.abandon();

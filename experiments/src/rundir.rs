@@ -84,6 +84,30 @@ impl RunDir {
         })
     }
 
+    /// Delete temporary files a killed writer left behind (`.NAME.PID.tmp`, never a final
+    /// file name) in the run directory and its subdirectories; returns how many. Only for a
+    /// run no process is writing to (resume).
+    pub fn remove_stale_temporaries(&self) -> usize {
+        fn walk(dir: &Path, n: &mut usize) {
+            let Ok(rd) = fs::read_dir(dir) else { return };
+            for e in rd.flatten() {
+                let p = e.path();
+                let name = e.file_name().to_string_lossy().into_owned();
+                if p.is_dir() {
+                    walk(&p, n);
+                } else if name.starts_with('.')
+                    && name.ends_with(".tmp")
+                    && fs::remove_file(&p).is_ok()
+                {
+                    *n += 1;
+                }
+            }
+        }
+        let mut n = 0;
+        walk(&self.root, &mut n);
+        n
+    }
+
     /// The directory.
     pub fn path(&self) -> &Path {
         &self.root
