@@ -104,6 +104,38 @@ pub fn load_newest<T>(
     anyhow::bail!("no usable checkpoint: {}", warnings.join("; "))
 }
 
+/// Name (in `checkpoints/`) of the state saved right before a failed step; it exists only
+/// until the next regular checkpoint, and resume prefers it.
+pub const LAST_GOOD: &str = "last_good.h5";
+
+/// What resume does first, for either model: delete temporaries of interrupted writes, then
+/// load the state to continue from: `last_good.h5` if there is one (the config may have been
+/// edited since, e.g. a larger iteration cap), else the newest intact regular checkpoint.
+/// Skipped (damaged) checkpoints are printed as warnings and logged.
+pub fn load_for_resume<T>(
+    run: &crate::rundir::RunDir,
+    read: impl FnMut(&Path) -> anyhow::Result<T>,
+) -> anyhow::Result<(PathBuf, T)> {
+    let stale = run.remove_stale_temporaries();
+    if stale > 0 {
+        run.log(&format!(
+            "removed {stale} temporary files of an interrupted write"
+        ))?;
+    }
+    let dir = run.path().join("checkpoints");
+    let mut candidates = newest_first(&dir);
+    if dir.join(LAST_GOOD).is_file() {
+        candidates.insert(0, dir.join(LAST_GOOD));
+    }
+    let (path, value, warnings) = load_newest(&candidates, read)
+        .map_err(|e| e.context(format!("resuming {}", run.path().display())))?;
+    for w in &warnings {
+        eprintln!("motile: warning: {w}");
+        run.log(&format!("warning: {w}"))?;
+    }
+    Ok((path, value))
+}
+
 /// Regular checkpoints of a run directory's `checkpoints/`, newest first.
 pub fn newest_first(dir: &Path) -> Vec<PathBuf> {
     let mut v = checkpoint_paths(dir);

@@ -6,7 +6,7 @@
 //! variable-step SBDF2). Output times are reached by spreading the last one or two steps before
 //! them evenly, never by a tiny clipped step followed by a large ratio.
 
-use crate::checkpoint;
+use crate::checkpoint::{self, LAST_GOOD};
 use crate::io::write_atomic;
 use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
 use crate::snapshot::{FieldSnapshot, Snapshot, read_snapshot};
@@ -643,10 +643,6 @@ fn save_failure(
     )
 }
 
-/// Name (in `checkpoints/`) of the state saved right before a failed step; it exists only
-/// until the next regular checkpoint, and `resume` prefers it.
-pub const LAST_GOOD: &str = "last_good.h5";
-
 /// Run the mean-field model into `out`.
 pub fn run_meanfield(
     cfg: &MeanFieldRunConfig,
@@ -686,33 +682,15 @@ pub fn run_meanfield(
 /// Continue a mean-field run from its newest checkpoint.
 pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldSummary> {
     let run = RunDir::open(out)?;
-    let stale = run.remove_stale_temporaries();
-    if stale > 0 {
-        run.log(&format!(
-            "removed {stale} temporary files of an interrupted write"
-        ))?;
-    }
     let cfg: MeanFieldRunConfig = read_run_config(out, MeanFieldRunConfig::validate)?;
     let grid = SpectralGrid::new(cfg.grid);
-    // The state saved before a failed step (the config may have been edited since, e.g. a
-    // larger iteration cap), else the newest regular checkpoint.
-    let dir = out.join("checkpoints");
-    let mut candidates = checkpoint::newest_first(&dir);
-    if dir.join(LAST_GOOD).is_file() {
-        candidates.insert(0, dir.join(LAST_GOOD));
-    }
     // Placeholder state (isotropic); the checkpoint overwrites it.
     let iso: [Vec<f64>; 6] = std::array::from_fn(|c| {
         vec![if SYM[c].0 == SYM[c].1 { 1.0 / 3.0 } else { 0.0 }; grid.len()]
     });
     let mut stepper = MeanFieldStepper::new(&grid, &iso, SBDF2);
-    let (ckpt, clock, warnings) =
-        checkpoint::load_newest(&candidates, |p| read_checkpoint(p, &mut stepper, cfg.grid))
-            .with_context(|| format!("resuming {}", out.display()))?;
-    for w in &warnings {
-        eprintln!("motile: warning: {w}");
-        run.log(&format!("warning: {w}"))?;
-    }
+    let (ckpt, clock) =
+        checkpoint::load_for_resume(&run, |p| read_checkpoint(p, &mut stepper, cfg.grid))?;
     let mut ts =
         TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
     ts.rows

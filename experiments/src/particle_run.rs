@@ -7,7 +7,7 @@
 //! from one continues the trajectory bit for bit. On a failed step the state before it is saved
 //! as `checkpoints/last_good.h5` and the error names it.
 
-use crate::checkpoint;
+use crate::checkpoint::{self, LAST_GOOD};
 use crate::io::IoError;
 use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
 use crate::snapshot::{Kinematics, ParticleSnapshot, Snapshot, read_snapshot};
@@ -463,10 +463,6 @@ pub struct RunSummary {
     pub rods: RodSet,
 }
 
-/// Name (in `checkpoints/`) of the state saved right before a failed step; it exists only
-/// until the next regular checkpoint, and `resume` prefers it.
-pub const LAST_GOOD: &str = "last_good.h5";
-
 /// Start a new particle run in `out`.
 pub fn run_particle(
     cfg: &ParticleRunConfig,
@@ -504,26 +500,8 @@ pub fn run_particle(
 /// Continue a run from its newest checkpoint.
 pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary> {
     let run = RunDir::open(out)?;
-    let stale = run.remove_stale_temporaries();
-    if stale > 0 {
-        run.log(&format!(
-            "removed {stale} temporary files of an interrupted write"
-        ))?;
-    }
     let cfg: ParticleRunConfig = read_run_config(out, ParticleRunConfig::validate)?;
-    // The state saved before a failed step, else the newest regular checkpoint.
-    let dir = out.join("checkpoints");
-    let mut candidates = checkpoint::newest_first(&dir);
-    if dir.join(LAST_GOOD).is_file() {
-        candidates.insert(0, dir.join(LAST_GOOD));
-    }
-    let (ckpt, (rods, warm, step), warnings) =
-        checkpoint::load_newest(&candidates, read_checkpoint)
-            .with_context(|| format!("resuming {}", out.display()))?;
-    for w in &warnings {
-        eprintln!("motile: warning: {w}");
-        run.log(&format!("warning: {w}"))?;
-    }
+    let (ckpt, (rods, warm, step)) = checkpoint::load_for_resume(&run, read_checkpoint)?;
     let t = step as f64 * cfg.dt;
     let mut ts =
         TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
