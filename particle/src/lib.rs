@@ -9,10 +9,14 @@
 
 pub mod cells;
 pub mod contact;
+pub mod ewald;
 pub mod geometry;
 pub mod init;
 pub mod mobility;
+pub mod periodic;
 pub mod rods;
+pub mod rpy_reference;
+pub mod spectral_ewald;
 pub mod step;
 pub mod units;
 

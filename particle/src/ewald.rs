@@ -1,0 +1,341 @@
+//! Kernels of the periodic Stokes sums (MODEL.md §1, §2) and their Ewald split.
+//!
+//! The Rotne-Prager-Yamakawa tensor of two spheres of radius `a` (mu = 1 throughout; divide
+//! by the viscosity at the call site):
+//!
+//! ```text
+//! r >= 2a:  M(r) = (1/(8 pi)) [ (I + rr/r^2)/r + (2a^2/3)(I - 3rr/r^2)/r^3 ]   ("far" form)
+//! r <  2a:  M(r) = (1/(6 pi a)) [ (1 - 9r/(32a)) I + (3r/(32a)) rr/r^2 ]        (overlap form)
+//! ```
+//!
+//! The far form has the Fourier transform `(1 - a^2k^2/6)^2 (I - kk/k^2)/k^2`. Hasimoto's
+//! splitting multiplies it by `phi(k) = (1 + k^2/(4 xi^2)) exp(-k^2/(4 xi^2))` for the smooth
+//! Fourier part `M_F`, leaving the short-ranged real-space part `M_R = M_far - M_F`; since
+//! `1 - phi(k) = O(k^4)`, `M_R` has zero mean and the periodic sum `sum_images M_R + (1/V)
+//! sum_{k != 0} M^_F(k) e^{ik.r}` is the zero-mean-flow periodic RPY sum for every `xi`.
+//! Pairs closer than `2a` add the compact correction `M_overlap - M_far`.
+//!
+//! Both parts are written `A(r) I + B(r) rr/r^2`. The closed forms come from
+//! `bench/derive_ewald_kernels.py` (sympy) and are checked in the tests against quadrature of
+//! the Fourier integral. The Stokeslet (`a = 0`) real part and its radial derivatives drive
+//! the point-stresslet sums of the dipole model.
+
+use crate::geometry::{Vec3, dot};
+use std::f64::consts::PI;
+
+/// `pi^(3/2)`.
+const PI_3_2: f64 = 5.568_327_996_831_708;
+
+/// `A I + B rr/r^2` applied to `f`, with `rh` the unit vector.
+#[inline]
+pub fn apply_radial(a: f64, b: f64, rh: Vec3, f: Vec3) -> Vec3 {
+    let s = b * dot(rh, f);
+    [
+        a * f[0] + s * rh[0],
+        a * f[1] + s * rh[1],
+        a * f[2] + s * rh[2],
+    ]
+}
+
+/// Far form of the RPY tensor, `(A, B)`.
+#[inline]
+pub fn rpy_far(r: f64, a: f64) -> (f64, f64) {
+    let (r3, a2) = (r * r * r, a * a);
+    (
+        (1.0 / r + 2.0 * a2 / (3.0 * r3)) / (8.0 * PI),
+        (1.0 / r - 2.0 * a2 / r3) / (8.0 * PI),
+    )
+}
+
+/// Overlap form of the RPY tensor (`r < 2a`), `(A, B)`.
+#[inline]
+pub fn rpy_overlap(r: f64, a: f64) -> (f64, f64) {
+    let c = 1.0 / (6.0 * PI * a);
+    (c * (1.0 - 9.0 * r / (32.0 * a)), c * 3.0 * r / (32.0 * a))
+}
+
+/// The RPY tensor in free space, far or overlap form as `r` asks; `(A, B)`.
+#[inline]
+pub fn rpy(r: f64, a: f64) -> (f64, f64) {
+    if r >= 2.0 * a {
+        rpy_far(r, a)
+    } else {
+        rpy_overlap(r, a)
+    }
+}
+
+/// Correction `M_overlap - M_far` for `r < 2a` (zero beyond).
+#[inline]
+pub fn rpy_overlap_correction(r: f64, a: f64) -> (f64, f64) {
+    if r >= 2.0 * a {
+        return (0.0, 0.0);
+    }
+    let (ao, bo) = rpy_overlap(r, a);
+    let (af, bf) = rpy_far(r, a);
+    (ao - af, bo - bf)
+}
+
+/// Hasimoto's screening `phi(k)` times the RPY factor `(1 - a^2k^2/6)^2`, over `k^2`, with the
+/// projection left to the caller: the Fourier multiplier of `M_F` is `this * (I - kk/k^2)`.
+#[inline]
+pub fn rpy_fourier_scalar(k2: f64, xi: f64, a: f64) -> f64 {
+    let x = k2 / (4.0 * xi * xi);
+    let g = 1.0 - a * a * k2 / 6.0;
+    (1.0 + x) * (-x).exp() * g * g / k2
+}
+
+/// Real-space part `M_R = M_far - M_F` of the split RPY tensor, `(A, B)`.
+#[inline]
+pub fn rpy_real(r: f64, xi: f64, a: f64) -> (f64, f64) {
+    let (a2, r2, x2) = (a * a, r * r, xi * xi);
+    let ec = libm::erfc(xi * r);
+    let e = (-x2 * r2).exp();
+    let x4 = x2 * x2;
+    let (a4x4, x6, x8) = (a2 * a2 * x4, x4 * x2, x4 * x4);
+    let a4 = a2 * a2;
+    let poly_a = -4.0 * a4 * r2 * r2 * x8 + 22.0 * a4 * r2 * x6 - 14.0 * a4x4 - 12.0 * a2 * r2 * x4
+        + 24.0 * a2 * x2
+        - 9.0;
+    let poly_b =
+        4.0 * a4 * r2 * r2 * x8 - 18.0 * a4 * r2 * x6 + 12.0 * a2 * r2 * x4 - 12.0 * a2 * x2 + 9.0;
+    let g = xi * e / PI_3_2;
+    let c = ec / (PI * r * r2);
+    (
+        c * (r2 / 8.0 + a2 / 12.0) + g * (a2 / (6.0 * r2) + poly_a / 36.0),
+        c * (r2 / 8.0 - a2 / 4.0) + g * (-a2 / (2.0 * r2) + poly_b / 36.0),
+    )
+}
+
+/// Fourier part `M_F` in free space (smooth), `(A, B)`; at `r = 0` its limit `A_F(0) I`.
+#[inline]
+pub fn rpy_fourier_free(r: f64, xi: f64, a: f64) -> (f64, f64) {
+    if r == 0.0 {
+        let (a2, x2) = (a * a, xi * xi);
+        return (
+            xi * (7.0 * a2 * a2 * x2 * x2 - 10.0 * a2 * x2 + 9.0) / (18.0 * PI_3_2),
+            0.0,
+        );
+    }
+    let (af, bf) = rpy_far(r, a);
+    let (ar, br) = rpy_real(r, xi, a);
+    (af - ar, bf - br)
+}
+
+/// The Stokeslet's real-space part `A I + C x x` (not normalised `x`) and radial derivatives:
+/// `[A, A', A'', C, C', C'']` at distance `r`.
+#[inline]
+pub fn stokeslet_real_derivatives(r: f64, xi: f64) -> [f64; 6] {
+    let (r2, x2) = (r * r, xi * xi);
+    let ec = libm::erfc(xi * r) / PI;
+    let g = xi * (-x2 * r2).exp() / PI_3_2;
+    let (r3, r4) = (r2 * r, r2 * r2);
+    [
+        ec / (8.0 * r) - g / 4.0,
+        g * x2 * r / 2.0 - g / (4.0 * r) - ec / (8.0 * r2),
+        g * x2 * (1.0 - r2 * x2) + g / (2.0 * r2) + ec / (4.0 * r3),
+        g / (4.0 * r2) + ec / (8.0 * r3),
+        -g * x2 / (2.0 * r) - 3.0 * g / (4.0 * r3) - 3.0 * ec / (8.0 * r4),
+        g * (x2 * x2 + 2.0 * x2 / r2 + 3.0 / r4) + 3.0 * ec / (2.0 * r4 * r),
+    ]
+}
+
+/// Velocity and velocity gradient at offset `x` (target minus source) of a point stresslet
+/// `sigma p p` with Stokeslet kernel `A I + C x x` given by its radial derivatives `d`
+/// (`[A, A', A'', C, C', C'']`): `u_i = -sigma p_k p_j d_k G_ij`,
+/// `grad[i][l] = d u_i / d x_l`.
+#[inline]
+pub fn stresslet_from_derivatives(
+    x: Vec3,
+    r: f64,
+    p: Vec3,
+    sigma: f64,
+    d: &[f64; 6],
+) -> (Vec3, [Vec3; 3]) {
+    let [_a, a1r, a2r, c, c1r, c2r] = *d;
+    let q = dot(p, x);
+    let a1 = a1r / r;
+    let c1 = c1r / r;
+    let a1p = (a2r - a1) / r;
+    let c1p = (c2r - c1) / r;
+    let vp = (a1 + c) * q;
+    let vx = c1 * q * q + c;
+    let u = [0, 1, 2].map(|i| -sigma * (vp * p[i] + vx * x[i]));
+    let ap = (a1p + c1r) * q / r;
+    let bx = (c1p * q * q + c1r) / r;
+    let mut grad = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for l in 0..3 {
+            let v = p[i] * (ap * x[l] + (a1 + c) * p[l])
+                + x[i] * (bx * x[l] + 2.0 * c1 * q * p[l])
+                + if i == l { vx } else { 0.0 };
+            grad[i][l] = -sigma * v;
+        }
+    }
+    (u, grad)
+}
+
+/// Free-space Stokeslet `(I + xx/r^2)/(8 pi r)` as `[A, A', A'', C, C', C'']`.
+#[inline]
+pub fn stokeslet_free_derivatives(r: f64) -> [f64; 6] {
+    let c = 1.0 / (8.0 * PI);
+    let (r2, r3) = (r * r, r * r * r);
+    [
+        c / r,
+        -c / r2,
+        2.0 * c / r3,
+        c / r3,
+        -3.0 * c / (r3 * r),
+        12.0 * c / (r3 * r2),
+    ]
+}
+
+/// Velocity gradient of a stresslet's Fourier part at its own centre (free space), the term a
+/// rod's own stresslet contributes through the Fourier sum and that is removed:
+/// `sigma sqrt(pi) xi^3/(2 pi^2) (pp - I/3)`; its velocity there is zero by symmetry.
+#[inline]
+pub fn stresslet_fourier_self_gradient(p: Vec3, sigma: f64, xi: f64) -> [Vec3; 3] {
+    let c = sigma * PI.sqrt() * xi * xi * xi / (2.0 * PI * PI);
+    let mut g = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for l in 0..3 {
+            g[i][l] = c * (p[i] * p[l] - if i == l { 1.0 / 3.0 } else { 0.0 });
+        }
+    }
+    g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::scale;
+    use motile_analysis::quadrature::gauss_legendre;
+
+    /// `M_F` by quadrature of its Fourier integral:
+    /// `A = (1/2pi^2) int k^2 h (j0 - j1/x) dk`, `B = (1/2pi^2) int k^2 h j2 dk`, `x = kr`.
+    fn fourier_by_quadrature(r: f64, xi: f64, a: f64) -> (f64, f64) {
+        let (nodes, weights) = gauss_legendre(40);
+        let kmax = 2.0 * xi * 8.0;
+        let panels = 400;
+        let h = kmax / panels as f64;
+        let (mut sa, mut sb) = (0.0, 0.0);
+        for p in 0..panels {
+            for (t, w) in nodes.iter().zip(&weights) {
+                let k = h * (p as f64 + 0.5 * (t + 1.0));
+                let x = k * r;
+                let (j0m, j2) = if x < 5e-2 {
+                    let x2 = x * x;
+                    let x4 = x2 * x2;
+                    (
+                        2.0 / 3.0 - 2.0 * x2 / 15.0 + x4 / 140.0 - x4 * x2 / 5670.0,
+                        x2 / 15.0 - x4 / 210.0 + x4 * x2 / 7560.0,
+                    )
+                } else {
+                    let (s, c) = x.sin_cos();
+                    let j0 = s / x;
+                    let j1 = s / (x * x) - c / x;
+                    let j2 = (3.0 / (x * x) - 1.0) * s / x - 3.0 * c / (x * x);
+                    (j0 - j1 / x, j2)
+                };
+                let kh = rpy_fourier_scalar(k * k, xi, a) * k * k;
+                sa += 0.5 * h * w * kh * j0m;
+                sb += 0.5 * h * w * kh * j2;
+            }
+        }
+        (sa / (2.0 * PI * PI), sb / (2.0 * PI * PI))
+    }
+
+    #[test]
+    fn fourier_part_closed_form_matches_quadrature() {
+        let mut worst: f64 = 0.0;
+        for &(xi, a) in &[(1.3, 0.2), (0.7, 0.0866), (3.0, 0.0866), (2.0, 0.0)] {
+            for &r in &[0.0, 0.05, 0.17, 0.5, 1.0, 2.5] {
+                let (aq, bq) = fourier_by_quadrature(r, xi, a);
+                let (ac, bc) = rpy_fourier_free(r, xi, a);
+                let scale = aq.abs().max(1e-3);
+                let err = ((aq - ac).abs()).max((bq - bc).abs()) / scale;
+                worst = worst.max(err);
+                assert!(
+                    err < 1e-10,
+                    "xi {xi} a {a} r {r}: closed ({ac}, {bc}) quadrature ({aq}, {bq}), rel err {err:e}"
+                );
+            }
+        }
+        assert!(worst < 1e-10, "worst {worst:e}");
+    }
+
+    #[test]
+    fn stokeslet_real_part_is_the_zero_radius_rpy_real_part_and_derivatives_agree() {
+        let xi = 1.7;
+        for &r in &[0.1, 0.4, 1.0, 2.0] {
+            let d = stokeslet_real_derivatives(r, xi);
+            let (ar, br) = rpy_real(r, xi, 0.0);
+            assert!((d[0] - ar).abs() < 1e-14 && (d[3] * r * r - br).abs() < 1e-14);
+            // Finite differences of A and C.
+            let h = 1e-5;
+            let dp = stokeslet_real_derivatives(r + h, xi);
+            let dm = stokeslet_real_derivatives(r - h, xi);
+            for (k, name) in [(0, "A"), (3, "C")] {
+                let d1 = (dp[k] - dm[k]) / (2.0 * h);
+                let d2 = (dp[k + 1] - dm[k + 1]) / (2.0 * h);
+                let e1 = (d1 - d[k + 1]).abs() / d[k + 1].abs().max(1e-3);
+                let e2 = (d2 - d[k + 2]).abs() / d[k + 2].abs().max(1e-3);
+                assert!(
+                    e1 < 1e-7 && e2 < 1e-7,
+                    "{name} at r {r}: errors {e1:e} {e2:e}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn stresslet_gradient_matches_finite_differences() {
+        let d = stokeslet_free_derivatives;
+        let p = {
+            let v = [0.3, -0.5, 0.8];
+            let n = dot(v, v).sqrt();
+            scale(1.0 / n, v)
+        };
+        let x = [0.7, 0.2, -0.4];
+        let r = dot(x, x).sqrt();
+        let (_, g) = stresslet_from_derivatives(x, r, p, 1.3, &d(r));
+        let h = 1e-6;
+        for l in 0..3 {
+            let mut xp = x;
+            let mut xm = x;
+            xp[l] += h;
+            xm[l] -= h;
+            let (up, _) =
+                stresslet_from_derivatives(xp, dot(xp, xp).sqrt(), p, 1.3, &d(dot(xp, xp).sqrt()));
+            let (um, _) =
+                stresslet_from_derivatives(xm, dot(xm, xm).sqrt(), p, 1.3, &d(dot(xm, xm).sqrt()));
+            for i in 0..3 {
+                let fd = (up[i] - um[i]) / (2.0 * h);
+                assert!(
+                    (fd - g[i][l]).abs() < 1e-7,
+                    "grad[{i}][{l}] {} vs fd {fd}",
+                    g[i][l]
+                );
+            }
+        }
+        // Against the two-force definition: +f p at +eps p/2, -f p at -eps p/2, sigma = f eps.
+        let eps = 1e-4;
+        let st = |y: Vec3| {
+            let r = dot(y, y).sqrt();
+            let [a, _, _, c, _, _] = d(r);
+            let s = c * dot(y, p);
+            [0, 1, 2].map(|i| a * p[i] + s * y[i])
+        };
+        let f = 1.3 / eps;
+        let up = st(crate::geometry::axpy(x, -eps / 2.0, p));
+        let um = st(crate::geometry::axpy(x, eps / 2.0, p));
+        let (u, _) = stresslet_from_derivatives(x, r, p, 1.3, &d(r));
+        for i in 0..3 {
+            let two = f * (up[i] - um[i]);
+            assert!(
+                (two - u[i]).abs() < 1e-6,
+                "u[{i}] {} vs force pair {two}",
+                u[i]
+            );
+        }
+    }
+}
