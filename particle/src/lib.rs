@@ -9,13 +9,16 @@
 
 pub mod cells;
 pub mod contact;
+pub mod dipole;
 pub mod ewald;
 pub mod geometry;
+pub mod gmres;
 pub mod init;
 pub mod mobility;
 pub mod periodic;
 pub mod rods;
 pub mod rpy_reference;
+pub mod slender;
 pub mod spectral_ewald;
 pub mod step;
 pub mod units;

@@ -16,6 +16,7 @@ use crate::geometry::{Vec3, axpy, dot, scale, sub};
 use crate::rods::RodSet;
 use crate::units::{ROD_LENGTH, SWIM_SPEED, eta};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 /// Velocities of all rods.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -36,14 +37,93 @@ impl RodVelocities {
     }
 }
 
+/// What the hydrodynamic part of a step did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct HydroReport {
+    /// GMRES iterations of the free (swimming) solve; 0 for models without GMRES.
+    pub gmres_iterations: usize,
+    /// Its final relative residual.
+    pub gmres_residual: f64,
+    /// GMRES iterations of the solve for the contact forces' flows (0 if none).
+    pub contact_gmres_iterations: usize,
+    /// Its final relative residual.
+    pub contact_gmres_residual: f64,
+    /// Seconds in the periodic sums (all products of the step).
+    pub seconds_sums: f64,
+    /// Number of periodic sums (mobility products) in the step.
+    pub sums: usize,
+}
+
+/// The force density of the last solve, for output and the velocity spectrum.
+#[derive(Clone, Copy, Debug)]
+pub struct ForceDensity<'a> {
+    /// Quadrature nodes `s_j` along a rod.
+    pub s: &'a [f64],
+    /// Quadrature weights `w_j`.
+    pub w: &'a [f64],
+    /// `f_n(s_j)` for rod n, node j at index `n * s.len() + j` (free plus contact solve).
+    pub f: &'a [Vec3],
+}
+
+/// Failures of a hydrodynamic solve.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MobilityError {
+    /// GMRES on (P4) failed.
+    #[error("slender-body GMRES ({stage} solve): {source}")]
+    Gmres {
+        /// `"free"` or `"contact"`.
+        stage: &'static str,
+        /// What GMRES reported.
+        source: crate::gmres::GmresError<crate::periodic::SumError>,
+    },
+    /// A periodic sum failed.
+    #[error(transparent)]
+    Sum(#[from] crate::periodic::SumError),
+}
+
 /// The pluggable mobility of the particle step.
 pub trait Mobility: Send + Sync + std::fmt::Debug {
-    /// Name as in the config (`"none"`, later `"dipole"`, `"sbt"`).
+    /// Name as in the config (`"none"`, `"dipole"`, `"sbt"`).
     fn name(&self) -> &'static str;
     /// Velocities without contact forces, written into `out`.
-    fn free_velocities(&mut self, rods: &RodSet, p: &[Vec3], out: &mut RodVelocities);
-    /// Local response `(v, w)` of a rod with axis `p` to force `f` and torque `t`.
+    fn free_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError>;
+    /// Local response `(v, w)` of a rod with axis `p` to force `f` and torque `t`: the block
+    /// diagonal mobility the contact solver uses.
     fn local(&self, p: Vec3, f: Vec3, t: Vec3) -> (Vec3, Vec3);
+    /// Velocities caused by contact forces and torques `ft` (caller's numbering), added to
+    /// `out`. The default is the local response alone.
+    fn add_contact_velocities(
+        &mut self,
+        _rods: &RodSet,
+        p: &[Vec3],
+        ft: &[(Vec3, Vec3)],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        out.v
+            .par_iter_mut()
+            .zip(out.w.par_iter_mut())
+            .zip(ft)
+            .zip(p)
+            .for_each(|(((v, w), (f, t)), p)| {
+                let (dv, dw) = self.local(*p, *f, *t);
+                *v = axpy(*v, 1.0, dv);
+                *w = axpy(*w, 1.0, dw);
+            });
+        Ok(())
+    }
+    /// What the last step's hydrodynamics did.
+    fn report(&self) -> HydroReport {
+        HydroReport::default()
+    }
+    /// The force density of the last step, for models that have one.
+    fn force_density(&self) -> Option<ForceDensity<'_>> {
+        None
+    }
 }
 
 /// Free swimming with local slender-body drag (`hydrodynamics = "none"`).
@@ -67,12 +147,18 @@ impl Mobility for LocalDrag {
         "none"
     }
 
-    fn free_velocities(&mut self, _rods: &RodSet, p: &[Vec3], out: &mut RodVelocities) {
+    fn free_velocities(
+        &mut self,
+        _rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
         out.v
             .par_iter_mut()
             .zip(p)
             .for_each(|(v, p)| *v = scale(SWIM_SPEED, *p));
         out.w.par_iter_mut().for_each(|w| *w = [0.0; 3]);
+        Ok(())
     }
 
     #[inline]

@@ -41,7 +41,7 @@ pub struct StressletField {
 }
 
 /// A periodic Stokes summation with zero mean flow.
-pub trait PeriodicStokes: Send + std::fmt::Debug {
+pub trait PeriodicStokes: Send + Sync + std::fmt::Debug {
     /// RPY mobility product: `u_i = sum_j sum_images M_RPY(y_i - y_j) f_j`, own group's direct
     /// terms excluded. `points` and `forces` have the same length, a multiple of the group.
     fn rpy(

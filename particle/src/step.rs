@@ -34,6 +34,8 @@ pub struct StepReport {
     pub net_contact_force: Vec3,
     /// Seconds in neighbour search, constraint assembly, free velocities, contact solve, update.
     pub seconds: [f64; 5],
+    /// What the hydrodynamics did (GMRES iterations and residuals, sums).
+    pub hydro: crate::mobility::HydroReport,
 }
 
 /// Step failures.
@@ -56,6 +58,9 @@ pub enum StepError {
         /// Tolerance.
         tolerance: f64,
     },
+    /// The hydrodynamic solve failed.
+    #[error(transparent)]
+    Hydrodynamics(#[from] crate::mobility::MobilityError),
     /// A velocity or position became NaN or infinite.
     #[error("rod {0} has a non-finite velocity or position")]
     NonFinite(usize),
@@ -160,6 +165,11 @@ impl Stepper {
         &self.contact_force
     }
 
+    /// The mobility (for its report and force density).
+    pub fn mobility(&self) -> &dyn Mobility {
+        self.mobility.as_ref()
+    }
+
     /// The mobility's name.
     pub fn mobility_name(&self) -> &'static str {
         self.mobility.name()
@@ -191,7 +201,7 @@ impl Stepper {
             self.velocities = RodVelocities::zeros(n);
         }
         self.mobility
-            .free_velocities(rods, &p, &mut self.velocities);
+            .free_velocities(rods, &p, &mut self.velocities)?;
         let fv: Vec<Vec3> = order
             .par_iter()
             .map(|&i| self.velocities.v[i as usize])
@@ -246,18 +256,10 @@ impl Stepper {
                 ft[order[k] as usize] = f;
             }
         }
-        let mob = self.mobility.as_ref();
-        self.velocities
-            .v
-            .par_iter_mut()
-            .zip(self.velocities.w.par_iter_mut())
-            .zip(&ft)
-            .zip(&p)
-            .for_each(|(((v, w), (f, t)), p)| {
-                let (dv, dw) = mob.local(*p, *f, *t);
-                *v = axpy(*v, 1.0, dv);
-                *w = axpy(*w, 1.0, dw);
-            });
+        if lambda.iter().any(|l| *l > 0.0) {
+            self.mobility
+                .add_contact_velocities(rods, &p, &ft, &mut self.velocities)?;
+        }
         self.contact_force = ft.iter().map(|(f, _)| *f).collect();
         let net_contact_force =
             [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| self.contact_force[r][d]));
@@ -315,6 +317,7 @@ impl Stepper {
             polar_order: norm(mp),
             net_contact_force,
             seconds,
+            hydro: self.mobility.report(),
         })
     }
 }

@@ -1,0 +1,83 @@
+//! The far-field (dipole) mobility (`hydrodynamics = "dipole"`, MODEL.md §2): each rod is a
+//! point stresslet `sigma_0 p p`, `sigma_0 = U l^2/(8 eta)`, at its centre; it swims at `U p`
+//! plus the periodic flow of all the others (its own singular term excluded) and turns with
+//! Jeffery's rule `pdot = (I - pp)(grad u) p`. No GMRES: one stresslet sum per step.
+//!
+//! Contacts act through the local mobility of (P2)-(P3) only: the flows of the contact forces
+//! themselves (force pairs, far field of order `lambda b / r^2`) are not carried in this model,
+//! unlike the slender-body one. Measured consequences belong to the model comparison.
+
+use crate::geometry::{Vec3, cross, dot};
+use crate::mobility::{HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities};
+use crate::periodic::PeriodicStokes;
+use crate::rods::RodSet;
+use crate::units::{ROD_LENGTH, SWIM_SPEED, eta};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Stresslet strength of one rod, `U l^2/(8 eta)`.
+pub fn stresslet_strength() -> f64 {
+    SWIM_SPEED * ROD_LENGTH * ROD_LENGTH / (8.0 * eta())
+}
+
+/// The dipole mobility; owns the periodic sum.
+#[derive(Debug)]
+pub struct Dipole {
+    sum: Box<dyn PeriodicStokes>,
+    local: LocalDrag,
+    report: HydroReport,
+}
+
+impl Dipole {
+    /// A dipole mobility on the given periodic sum.
+    pub fn new(sum: Box<dyn PeriodicStokes>) -> Self {
+        Self {
+            sum,
+            local: LocalDrag::default(),
+            report: HydroReport::default(),
+        }
+    }
+}
+
+impl Mobility for Dipole {
+    fn name(&self) -> &'static str {
+        "dipole"
+    }
+
+    fn free_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        let sigma = vec![stresslet_strength(); rods.len()];
+        let t = Instant::now();
+        let field = self.sum.stresslets(rods.box_length, &rods.x, p, &sigma)?;
+        self.report = HydroReport {
+            seconds_sums: t.elapsed().as_secs_f64(),
+            sums: 1,
+            ..HydroReport::default()
+        };
+        out.v
+            .par_iter_mut()
+            .zip(out.w.par_iter_mut())
+            .zip(field.u.par_iter().zip(&field.grad))
+            .zip(p)
+            .for_each(|(((v, w), (u, g)), pn)| {
+                *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + u[d]);
+                let gp = [0, 1, 2].map(|i| dot(g[i], *pn));
+                let c = dot(*pn, gp);
+                let pdot = [0, 1, 2].map(|d| gp[d] - c * pn[d]);
+                *w = cross(*pn, pdot);
+            });
+        Ok(())
+    }
+
+    fn local(&self, p: Vec3, f: Vec3, t: Vec3) -> (Vec3, Vec3) {
+        self.local.local(p, f, t)
+    }
+
+    fn report(&self) -> HydroReport {
+        self.report.clone()
+    }
+}

@@ -1,0 +1,378 @@
+//! The slender-body mobility (`hydrodynamics = "sbt"`, MODEL.md §1): the second-kind equation
+//! (P4) for the force densities, solved by GMRES with the periodic RPY sum applied
+//! matrix-free, then the rigid-body velocities (P2)-(P3).
+//!
+//! Quadrature: Gauss-Legendre on each half rod (`M/2` nodes per half, `M` even, default 4),
+//! which respects the jump of the slip at `s = 0`: the discrete rod carries exactly the
+//! stresslet `U l^2/(8 eta)` (MODEL.md's caution; a Chebyshev rule over the whole rod would be
+//! 11% too strong at M = 4) and integrates `s^2` exactly, so the discrete (P4) keeps the
+//! identities behind it: zero net force and torque without contacts, for any flow.
+//!
+//! Rod n's own direct terms are excluded from `u_n` (the point-group exclusion of
+//! [`crate::periodic`]); all periodic images, its own included, are in.
+//!
+//! Contacts (MODEL.md §3), the splitting: the contact solver works with the local mobility of
+//! (P2)-(P3). Once it has the forces `F_n` and torques `T_n`, a second GMRES solve of (P4)
+//! with only the contact terms on the right-hand side gives the velocities they cause through
+//! the full hydrodynamics (their own local response plus the flows they induce on every other
+//! rod), and these are added to the free velocities. (P4) is linear, so the sum is the solution
+//! with both right-hand sides; only the complementarity problem sees the local approximation,
+//! which the post-step overlap check covers. Both solves start from the previous step's
+//! solution.
+
+use crate::geometry::{Vec3, cross, dot};
+use crate::gmres::{GmresInfo, GmresParams, LinOp, gmres};
+use crate::mobility::{
+    ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
+};
+use crate::periodic::{PeriodicStokes, RpyGeometry, SumError};
+use crate::rods::RodSet;
+use crate::units::{DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
+use motile_analysis::quadrature::gauss_legendre;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Settings of the slender-body model.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlenderParams {
+    /// Quadrature nodes per rod, even (Gauss-Legendre on each half). Default 4.
+    pub quadrature_points: usize,
+    /// RPY radius `a`. Default `(sqrt 3 / 2)(b / 2)`.
+    pub rpy_radius: f64,
+    /// GMRES settings (relative tolerance default 1e-6).
+    pub gmres: GmresParams,
+}
+
+impl Default for SlenderParams {
+    fn default() -> Self {
+        Self {
+            quadrature_points: 4,
+            rpy_radius: default_rpy_radius(),
+            gmres: GmresParams::default(),
+        }
+    }
+}
+
+/// `a = (sqrt 3 / 2)(b / 2)`.
+pub fn default_rpy_radius() -> f64 {
+    3f64.sqrt() / 2.0 * DIAMETER / 2.0
+}
+
+/// Nodes and weights of Gauss-Legendre on each half of `[-l/2, l/2]`, `m` nodes in all.
+pub fn half_rod_rule(m: usize, l: f64) -> (Vec<f64>, Vec<f64>) {
+    assert!(
+        m >= 2 && m.is_multiple_of(2),
+        "quadrature points must be even and >= 2"
+    );
+    let (x, w) = gauss_legendre(m / 2);
+    let h = l / 4.0;
+    let mut s = Vec::with_capacity(m);
+    let mut ws = Vec::with_capacity(m);
+    for centre in [-h, h] {
+        for (xi, wi) in x.iter().zip(&w) {
+            s.push(centre + h * xi);
+            ws.push(h * wi);
+        }
+    }
+    (s, ws)
+}
+
+/// The slender-body mobility; owns the periodic sum, the quadrature and the warm starts.
+#[derive(Debug)]
+pub struct SlenderBody {
+    /// Settings.
+    pub params: SlenderParams,
+    sum: Box<dyn PeriodicStokes>,
+    s: Vec<f64>,
+    w: Vec<f64>,
+    warm_free: Vec<f64>,
+    warm_contact: Vec<f64>,
+    density: Vec<Vec3>,
+    report: HydroReport,
+    local: LocalDrag,
+}
+
+/// The operator of (P4) on the force densities of all rods (flattened `[rod][node][xyz]`).
+struct P4<'a> {
+    sum: &'a mut dyn PeriodicStokes,
+    geometry: RpyGeometry,
+    points: &'a [Vec3],
+    p: &'a [Vec3],
+    s: &'a [f64],
+    w: &'a [f64],
+    seconds: f64,
+    sums: usize,
+}
+
+impl P4<'_> {
+    /// `u` at every node from the force density `f` (flattened).
+    fn flow(&mut self, f: &[f64]) -> Result<Vec<Vec3>, SumError> {
+        let m = self.s.len();
+        let forces: Vec<Vec3> = f
+            .par_chunks_exact(3)
+            .enumerate()
+            .map(|(k, c)| {
+                let wk = self.w[k % m];
+                [c[0] * wk, c[1] * wk, c[2] * wk]
+            })
+            .collect();
+        let t = Instant::now();
+        let u = self.sum.rpy(&self.geometry, self.points, &forces);
+        self.seconds += t.elapsed().as_secs_f64();
+        self.sums += 1;
+        u
+    }
+}
+
+/// `[u]_l` and `[s u]_l` of one rod's node values.
+fn moments(u: &[Vec3], s: &[f64], w: &[f64]) -> (Vec3, Vec3) {
+    let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
+    for ((uj, sj), wj) in u.iter().zip(s).zip(w) {
+        for d in 0..3 {
+            a[d] += wj * uj[d];
+            b[d] += wj * sj * uj[d];
+        }
+    }
+    (a, b)
+}
+
+impl LinOp for P4<'_> {
+    type Error = SumError;
+
+    fn dim(&self) -> usize {
+        3 * self.points.len()
+    }
+
+    fn apply(&mut self, x: &[f64], out: &mut [f64]) -> Result<(), SumError> {
+        let u = self.flow(x)?;
+        let m = self.s.len();
+        let (s, w, p) = (self.s, self.w, self.p);
+        let e = eta();
+        let l = ROD_LENGTH;
+        out.par_chunks_exact_mut(3 * m)
+            .zip(x.par_chunks_exact(3 * m))
+            .zip(u.par_chunks_exact(m))
+            .enumerate()
+            .for_each(|(n, ((o, f), un))| {
+                let pn = p[n];
+                let (ubar, su) = moments(un, s, w);
+                let half = |v: Vec3| {
+                    let c = 0.5 * dot(pn, v);
+                    [v[0] - c * pn[0], v[1] - c * pn[1], v[2] - c * pn[2]]
+                };
+                let perp = |v: Vec3| {
+                    let c = dot(pn, v);
+                    [v[0] - c * pn[0], v[1] - c * pn[1], v[2] - c * pn[2]]
+                };
+                let hb = half(ubar);
+                let ps = perp(su);
+                for j in 0..m {
+                    let hj = half(un[j]);
+                    let c = 12.0 * s[j] / (e * l * l * l);
+                    for d in 0..3 {
+                        o[3 * j + d] = f[3 * j + d] + hj[d] / e - hb[d] / (e * l) - c * ps[d];
+                    }
+                }
+            });
+        Ok(())
+    }
+}
+
+impl SlenderBody {
+    /// A slender-body mobility on the given periodic sum.
+    pub fn new(params: SlenderParams, sum: Box<dyn PeriodicStokes>) -> Self {
+        let (s, w) = half_rod_rule(params.quadrature_points, ROD_LENGTH);
+        Self {
+            params,
+            sum,
+            s,
+            w,
+            warm_free: Vec::new(),
+            warm_contact: Vec::new(),
+            density: Vec::new(),
+            report: HydroReport::default(),
+            local: LocalDrag::default(),
+        }
+    }
+
+    /// Quadrature nodes along a rod.
+    pub fn nodes(&self) -> (&[f64], &[f64]) {
+        (&self.s, &self.w)
+    }
+
+    /// Node positions `x_n + s_j p_n`.
+    pub fn node_positions(&self, rods: &RodSet, p: &[Vec3]) -> Vec<Vec3> {
+        let m = self.s.len();
+        (0..rods.len() * m)
+            .into_par_iter()
+            .map(|k| {
+                let (n, j) = (k / m, k % m);
+                [0, 1, 2].map(|d| rods.x[n][d] + self.s[j] * p[n][d])
+            })
+            .collect()
+    }
+
+    /// Solve (P4) with right-hand side `rhs` from the warm start `x`; returns the GMRES info and
+    /// the flow at the nodes for the solution.
+    fn solve(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        rhs: &[f64],
+        x: &mut Vec<f64>,
+        stage: &'static str,
+    ) -> Result<(GmresInfo, Vec<Vec3>), MobilityError> {
+        let points = self.node_positions(rods, p);
+        if x.len() != rhs.len() {
+            *x = rhs.to_vec();
+        }
+        let mut op = P4 {
+            sum: self.sum.as_mut(),
+            geometry: RpyGeometry {
+                box_length: rods.box_length,
+                radius: self.params.rpy_radius,
+                group: self.s.len(),
+            },
+            points: &points,
+            p,
+            s: &self.s,
+            w: &self.w,
+            seconds: 0.0,
+            sums: 0,
+        };
+        let info = gmres(&mut op, rhs, x, &self.params.gmres)
+            .map_err(|source| MobilityError::Gmres { stage, source })?;
+        let u = op.flow(x)?;
+        self.report.seconds_sums += op.seconds;
+        self.report.sums += op.sums;
+        Ok((info, u))
+    }
+
+    /// Rigid-body velocities (P2)-(P3) from the flow at the nodes, without the swimming and
+    /// contact terms: `v = [u]_l / l`, `w = p x (12/l^3)(I - pp)[s u]_l`.
+    fn flow_velocities(&self, p: &[Vec3], u: &[Vec3]) -> Vec<(Vec3, Vec3)> {
+        let m = self.s.len();
+        let l = ROD_LENGTH;
+        u.par_chunks_exact(m)
+            .zip(p)
+            .map(|(un, pn)| {
+                let (ubar, su) = moments(un, &self.s, &self.w);
+                let c = dot(*pn, su);
+                let pdot = [0, 1, 2].map(|d| 12.0 / (l * l * l) * (su[d] - c * pn[d]));
+                (ubar.map(|v| v / l), cross(*pn, pdot))
+            })
+            .collect()
+    }
+}
+
+impl Mobility for SlenderBody {
+    fn name(&self) -> &'static str {
+        "sbt"
+    }
+
+    fn free_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        self.report = HydroReport::default();
+        let m = self.s.len();
+        let c = SWIM_SPEED / (2.0 * eta());
+        let rhs: Vec<f64> = (0..rods.len() * m * 3)
+            .into_par_iter()
+            .map(|k| {
+                let (n, j, d) = (k / (3 * m), (k / 3) % m, k % 3);
+                c * self.s[j].signum() * p[n][d]
+            })
+            .collect();
+        let mut x = std::mem::take(&mut self.warm_free);
+        let result = self.solve(rods, p, &rhs, &mut x, "free");
+        self.warm_free = x;
+        let (info, u) = result?;
+        self.report.gmres_iterations = info.iterations;
+        self.report.gmres_residual = info.final_residual;
+        let vw = self.flow_velocities(p, &u);
+        out.v
+            .par_iter_mut()
+            .zip(out.w.par_iter_mut())
+            .zip(vw)
+            .zip(p)
+            .for_each(|(((v, w), (dv, dw)), pn)| {
+                *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + dv[d]);
+                *w = dw;
+            });
+        self.density = self
+            .warm_free
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
+        Ok(())
+    }
+
+    fn local(&self, p: Vec3, f: Vec3, t: Vec3) -> (Vec3, Vec3) {
+        self.local.local(p, f, t)
+    }
+
+    fn add_contact_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        ft: &[(Vec3, Vec3)],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        let m = self.s.len();
+        let l = ROD_LENGTH;
+        let rhs: Vec<f64> = (0..rods.len() * m * 3)
+            .into_par_iter()
+            .map(|k| {
+                let (n, j, d) = (k / (3 * m), (k / 3) % m, k % 3);
+                let (f, t) = ft[n];
+                let txp = cross(t, p[n]);
+                f[d] / l + 12.0 * self.s[j] / (l * l * l) * txp[d]
+            })
+            .collect();
+        let mut x = std::mem::take(&mut self.warm_contact);
+        let result = self.solve(rods, p, &rhs, &mut x, "contact");
+        self.warm_contact = x;
+        let (info, u) = result?;
+        self.report.contact_gmres_iterations = info.iterations;
+        self.report.contact_gmres_residual = info.final_residual;
+        let vw = self.flow_velocities(p, &u);
+        out.v
+            .par_iter_mut()
+            .zip(out.w.par_iter_mut())
+            .zip(vw)
+            .zip(ft)
+            .zip(p)
+            .for_each(|((((v, w), (dv, dw)), (f, t)), pn)| {
+                let (lv, lw) = self.local.local(*pn, *f, *t);
+                for d in 0..3 {
+                    v[d] += dv[d] + lv[d];
+                    w[d] += dw[d] + lw[d];
+                }
+            });
+        for (dst, c) in self
+            .density
+            .iter_mut()
+            .zip(self.warm_contact.chunks_exact(3))
+        {
+            for d in 0..3 {
+                dst[d] += c[d];
+            }
+        }
+        Ok(())
+    }
+
+    fn report(&self) -> HydroReport {
+        self.report.clone()
+    }
+
+    fn force_density(&self) -> Option<ForceDensity<'_>> {
+        Some(ForceDensity {
+            s: &self.s,
+            w: &self.w,
+            f: &self.density,
+        })
+    }
+}
