@@ -38,3 +38,6 @@ for name, f in [("A", A_S), ("C", C_S)]:
 # Taylor check of the free Fourier part near 0 (for small-r evaluation).
 print("A_F series:", sp.series(A_F, r, 0, 3))
 print("B_F series:", sp.series(B_F, r, 0, 3))
+# Series of the smooth Fourier part for the table's first nodes: A_F and B_F / r^2 to r^6.
+print("A_F series6:", sp.collect(sp.expand(sp.series(A_F, r, 0, 8).removeO()), r))
+print("B_F/r^2 series6:", sp.collect(sp.expand(sp.series(B_F / r**2, r, 0, 8).removeO()), r))

@@ -10,16 +10,21 @@
 use crate::checkpoint::{self, LAST_GOOD};
 use crate::io::IoError;
 use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
-use crate::snapshot::{Kinematics, ParticleSnapshot, Snapshot, read_snapshot};
+use crate::snapshot::{Kinematics, ParticleSnapshot, PointForces, Snapshot, read_snapshot};
 use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, File, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
+use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
 use motile_particle::cells::CellList;
 use motile_particle::contact::WarmStart;
+use motile_particle::dipole::Dipole;
 use motile_particle::geometry::{axpy, quat_from_axis, segment_distance};
+use motile_particle::gmres::GmresParams;
 use motile_particle::init::random_nonoverlapping;
-use motile_particle::units::{DIAMETER, ROD_LENGTH};
+use motile_particle::slender::{SlenderBody, SlenderParams};
+use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::units::{DIAMETER, ROD_LENGTH, SWIM_SPEED, VISCOSITY};
 use motile_particle::{ContactParams, LocalDrag, Mobility, RodSet, Stepper};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -44,9 +49,13 @@ pub struct ParticleRunConfig {
     pub t_end: f64,
     /// Random seed of the initial configuration. Default 1.
     pub seed: u64,
-    /// Hydrodynamic coupling: "none" (free swimming with local drag). "dipole" and "sbt" come
-    /// with the hydrodynamics issue.
+    /// Hydrodynamic coupling: "none" (free swimming with local drag, no flow), "dipole" (point
+    /// stresslets moved by the periodic flow, MODEL §2: one fast sum per step) or "sbt"
+    /// (slender-body theory, MODEL §1: a GMRES solve per step, several fast sums each).
+    /// Default "none".
     pub hydrodynamics: String,
+    /// Settings of the hydrodynamic models.
+    pub hydro: HydroConfig,
     /// "random", or a file: a particle snapshot (.h5) or a text table with one rod per line,
     /// `x y z px py pz`.
     pub initial: String,
@@ -77,6 +86,7 @@ impl Default for ParticleRunConfig {
             t_end: 2.0,
             seed: 1,
             hydrodynamics: "none".into(),
+            hydro: HydroConfig::default(),
             initial: "random".into(),
             diagnostic_interval: 0.02,
             snapshot_interval: 0.2,
@@ -86,6 +96,90 @@ impl Default for ParticleRunConfig {
             vtk: true,
             contact: ContactParams::default(),
         }
+    }
+}
+
+/// Settings of the hydrodynamic models (`[hydro]`).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct HydroConfig {
+    /// Relative tolerance of the periodic RPY / stresslet sums (spectral Ewald). Default 1e-4;
+    /// allowed [1e-12, 1e-1]. Smaller costs more real-space pairs and Fourier modes.
+    pub sum_tolerance: f64,
+    /// Quadrature nodes per rod for "sbt", even (Gauss-Legendre on each half rod). Default 4;
+    /// allowed 2..=64. Cost grows linearly; error falls fast (see BENCHMARKS.md).
+    pub quadrature_points: usize,
+    /// GMRES relative residual tolerance for "sbt". Default 1e-5; allowed [1e-14, 1e-1].
+    pub gmres_tolerance: f64,
+    /// GMRES iteration cap; a solve that reaches it stops the run. Default 100; allowed
+    /// [1, 10000].
+    pub gmres_max_iterations: usize,
+    /// GMRES restart length. Default 40; allowed [1, 1000].
+    pub gmres_restart: usize,
+    /// RPY radius a (rod lengths). Default (sqrt 3/2)(b/2) = 0.0866; allowed (0, 0.5].
+    pub rpy_radius: f64,
+}
+
+impl Default for HydroConfig {
+    fn default() -> Self {
+        Self {
+            sum_tolerance: 1e-4,
+            quadrature_points: 4,
+            gmres_tolerance: 1e-5,
+            gmres_max_iterations: 100,
+            gmres_restart: 40,
+            rpy_radius: motile_particle::slender::default_rpy_radius(),
+        }
+    }
+}
+
+impl HydroConfig {
+    fn validate(&self) -> Result<(), String> {
+        range(
+            "hydro.sum_tolerance",
+            self.sum_tolerance,
+            1e-12,
+            1e-1,
+            false,
+            "relative",
+        )?;
+        range(
+            "hydro.gmres_tolerance",
+            self.gmres_tolerance,
+            1e-14,
+            1e-1,
+            false,
+            "relative",
+        )?;
+        range(
+            "hydro.rpy_radius",
+            self.rpy_radius,
+            0.0,
+            0.5,
+            true,
+            "rod lengths",
+        )?;
+        let q = self.quadrature_points;
+        if !(2..=64).contains(&q) || q % 2 == 1 {
+            return Err(format!(
+                "hydro.quadrature_points = {q} must be even and in [2, 64] (nodes per rod)"
+            ));
+        }
+        for (name, v, hi) in [
+            (
+                "hydro.gmres_max_iterations",
+                self.gmres_max_iterations,
+                10_000,
+            ),
+            ("hydro.gmres_restart", self.gmres_restart, 1000),
+        ] {
+            if !(1..=hi).contains(&v) {
+                return Err(format!(
+                    "{name} = {v} is outside the allowed range [1, {hi}] (iterations)"
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -177,12 +271,13 @@ impl ParticleRunConfig {
             true,
             "rod lengths",
         )?;
-        if self.hydrodynamics != "none" {
+        if !["none", "dipole", "sbt"].contains(&self.hydrodynamics.as_str()) {
             return Err(format!(
-                "hydrodynamics = \"{}\" is not available: allowed \"none\" (\"dipole\" and \"sbt\" are not implemented yet)",
+                "hydrodynamics = \"{}\" is not one of \"none\", \"dipole\", \"sbt\"",
                 self.hydrodynamics
             ));
         }
+        self.hydro.validate()?;
         if let Some(n) = self.rods {
             let nu = n as f64 / self.box_length.powi(3);
             if n == 0 || nu > 6.0 {
@@ -219,10 +314,26 @@ pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig
     parse_run_config(text, path, ParticleRunConfig::validate)
 }
 
-/// The mobility named by `hydrodynamics` (validated: only "none" exists so far).
-fn mobility(cfg: &ParticleRunConfig) -> Box<dyn Mobility> {
-    debug_assert_eq!(cfg.hydrodynamics, "none");
-    Box::new(LocalDrag::default())
+/// The mobility named by `hydrodynamics` (validated).
+fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
+    let h = &cfg.hydro;
+    let sum = || SpectralEwald::new(h.sum_tolerance).map(Box::new);
+    Ok(match cfg.hydrodynamics.as_str() {
+        "dipole" => Box::new(Dipole::new(sum()?)),
+        "sbt" => Box::new(SlenderBody::new(
+            SlenderParams {
+                quadrature_points: h.quadrature_points,
+                rpy_radius: h.rpy_radius,
+                gmres: GmresParams {
+                    tol: h.gmres_tolerance,
+                    restart: h.gmres_restart,
+                    max_iterations: h.gmres_max_iterations,
+                },
+            },
+            sum()?,
+        )),
+        _ => Box::new(LocalDrag::default()),
+    })
 }
 
 /// Load an initial configuration from a snapshot (.h5) or a text table, validated.
@@ -438,7 +549,7 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, WarmStart, u64)> {
 }
 
 /// Columns of a particle run's `timeseries.csv`.
-pub const COLUMNS: [&str; 9] = [
+pub const COLUMNS: [&str; 12] = [
     "t [1/beta]",
     "steps_per_second [1/s]",
     "constraints [1]",
@@ -448,6 +559,9 @@ pub const COLUMNS: [&str; 9] = [
     "max_overlap [l]",
     "mean_speed [beta l]",
     "polar_order [1]",
+    "gmres_iterations [1]",
+    "gmres_residual [1]",
+    "velocity_norm [beta L]",
 ];
 
 /// What a run did.
@@ -522,7 +636,7 @@ fn drive(
     mut ts: TimeSeries,
     progress: bool,
 ) -> anyhow::Result<RunSummary> {
-    let mut stepper = Stepper::new(mobility(cfg), cfg.contact.clone());
+    let mut stepper = Stepper::new(mobility(cfg)?, cfg.contact.clone());
     stepper.set_warm_start(warm);
     let total = cfg.total_steps();
     let (diag, snap, ckpt) = (
@@ -545,7 +659,7 @@ fn drive(
         .collect();
     if start == 0 {
         pvd.clear();
-        write_snapshot(cfg, run, &rods, 0, None, &mut pvd)?;
+        write_snapshot(cfg, run, &rods, 0, None, None, &mut pvd)?;
         write_checkpoint(
             &run.path()
                 .join("checkpoints")
@@ -602,6 +716,9 @@ fn drive(
                 report.max_overlap,
                 report.mean_speed,
                 report.polar_order,
+                report.hydro.gmres_iterations as f64,
+                report.hydro.gmres_residual,
+                velocity_norm(&stepper, &before)?,
             ]);
             ts.write(&run.path().join("timeseries.csv"))?;
             bar.set_message(format!(
@@ -615,7 +732,11 @@ fn drive(
                 angular_velocities: stepper.velocities().w.clone(),
                 contact_forces: stepper.contact_forces().to_vec(),
             };
-            write_snapshot(cfg, run, &rods, step, Some(kin), &mut pvd)?;
+            let forces = stepper.mobility().force_density().map(|fd| {
+                let (points, forces) = fd.point_forces(&before, &before.orientations());
+                PointForces { points, forces }
+            });
+            write_snapshot(cfg, run, &rods, step, Some(kin), forces, &mut pvd)?;
         }
         let stop = checkpoint::stop_requested();
         if step % ckpt == 0
@@ -654,12 +775,26 @@ fn drive(
     })
 }
 
+/// `||u||_2 / (beta L)` of the step's force density (MODEL §5, §6: the velocity spectrum on
+/// `floor(L/2)` modes per dimension, doublet neglected); 0 for models without flow.
+fn velocity_norm(stepper: &Stepper, at: &RodSet) -> anyhow::Result<f64> {
+    let Some(fd) = stepper.mobility().force_density() else {
+        return Ok(0.0);
+    };
+    let (points, forces) = fd.point_forces(at, &at.orientations());
+    let l = at.box_length;
+    let modes = CorrelationOptions::default().modes_for(l);
+    let spectrum = velocity_spectrum(&points, &forces, l, VISCOSITY, modes, 1e-6)?;
+    Ok(spectrum.l2_norm() / (SWIM_SPEED / ROD_LENGTH * l))
+}
+
 fn write_snapshot(
     cfg: &ParticleRunConfig,
     run: &RunDir,
     rods: &RodSet,
     step: u64,
     kin: Option<Kinematics>,
+    forces: Option<PointForces>,
     pvd: &mut Vec<(f64, String)>,
 ) -> anyhow::Result<()> {
     let k = (step / cfg.every(cfg.snapshot_interval)) as usize;
@@ -680,7 +815,7 @@ fn write_snapshot(
         positions: rods.x.clone(),
         orientations: p.clone(),
         image_counts: rods.image.clone(),
-        forces: None,
+        forces,
         kinematics: kin,
     };
     snap.write(&run.snapshot_path(k))?;

@@ -3,12 +3,18 @@
 //! plus the periodic flow of all the others (its own singular term excluded) and turns with
 //! Jeffery's rule `pdot = (I - pp)(grad u) p`. No GMRES: one stresslet sum per step.
 //!
+//! For output (snapshots, the velocity spectrum) each rod's stresslet is written as the force
+//! density of an isolated rod, `(U/(2 eta)) sign(s) p` at the 4-point half-rod Gauss rule,
+//! which carries exactly the same stresslet.
+//!
 //! Contacts act through the local mobility of (P2)-(P3) only: the flows of the contact forces
 //! themselves (force pairs, far field of order `lambda b / r^2`) are not carried in this model,
 //! unlike the slender-body one. Measured consequences belong to the model comparison.
 
 use crate::geometry::{Vec3, cross, dot};
-use crate::mobility::{HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities};
+use crate::mobility::{
+    ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
+};
 use crate::periodic::PeriodicStokes;
 use crate::rods::RodSet;
 use crate::units::{ROD_LENGTH, SWIM_SPEED, eta};
@@ -26,15 +32,22 @@ pub struct Dipole {
     sum: Box<dyn PeriodicStokes>,
     local: LocalDrag,
     report: HydroReport,
+    s: Vec<f64>,
+    w: Vec<f64>,
+    density: Vec<Vec3>,
 }
 
 impl Dipole {
     /// A dipole mobility on the given periodic sum.
     pub fn new(sum: Box<dyn PeriodicStokes>) -> Self {
+        let (s, w) = crate::slender::half_rod_rule(4, ROD_LENGTH);
         Self {
             sum,
             local: LocalDrag::default(),
             report: HydroReport::default(),
+            s,
+            w,
+            density: Vec::new(),
         }
     }
 }
@@ -70,6 +83,11 @@ impl Mobility for Dipole {
                 let pdot = [0, 1, 2].map(|d| gp[d] - c * pn[d]);
                 *w = cross(*pn, pdot);
             });
+        let c = SWIM_SPEED / (2.0 * eta());
+        self.density = p
+            .iter()
+            .flat_map(|pn| self.s.iter().map(move |sj| pn.map(|v| c * sj.signum() * v)))
+            .collect();
         Ok(())
     }
 
@@ -79,5 +97,13 @@ impl Mobility for Dipole {
 
     fn report(&self) -> HydroReport {
         self.report.clone()
+    }
+
+    fn force_density(&self) -> Option<ForceDensity<'_>> {
+        Some(ForceDensity {
+            s: &self.s,
+            w: &self.w,
+            f: &self.density,
+        })
     }
 }

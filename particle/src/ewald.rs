@@ -264,6 +264,35 @@ mod tests {
     }
 
     #[test]
+    fn real_space_table_matches_the_closed_form() {
+        for &(xi, a, rc) in &[(1.1, 0.0866, 2.8), (2.0, 0.0, 2.2), (0.8, 0.0866, 5.5)] {
+            let t = RealSpaceTable::new(rc, xi, a);
+            let mut worst: f64 = 0.0;
+            for k in 1..5000 {
+                let r = rc * k as f64 / 5000.0;
+                let (ae, be) = rpy_real(r, xi, a);
+                let (at, bt) = t.eval(r);
+                let (far_a, _) = rpy_far(r, a);
+                worst = worst.max((ae - at).abs().max((be - bt).abs()) / far_a);
+            }
+            assert!(
+                worst < 1e-10,
+                "xi {xi} a {a}: worst error relative to the kernel {worst:e}"
+            );
+            // The series agrees with the closed form where both are accurate.
+            let r = 0.05 / xi;
+            let (s_a, s_b) = rpy_fourier_free_series(r, xi, a);
+            let (c_a, c_b) = rpy_fourier_free(r, xi, a);
+            assert!(
+                (s_a - c_a).abs() < 1e-10 * c_a.abs()
+                    && (s_b * r * r - c_b).abs() < 1e-9 * c_a.abs(),
+                "series ({s_a}, {}) vs closed ({c_a}, {c_b})",
+                s_b * r * r
+            );
+        }
+    }
+
+    #[test]
     fn stokeslet_real_part_is_the_zero_radius_rpy_real_part_and_derivatives_agree() {
         let xi = 1.7;
         for &r in &[0.1, 0.4, 1.0, 2.0] {
@@ -337,5 +366,94 @@ mod tests {
                 u[i]
             );
         }
+    }
+}
+
+/// Taylor series of the free Fourier part near `r = 0`: `(A_F, B_F / r^2)` to `r^6`
+/// (from `bench/derive_ewald_kernels.py`); relative error below 1e-12 for `xi r < 0.05`.
+pub fn rpy_fourier_free_series(r: f64, xi: f64, a: f64) -> (f64, f64) {
+    let (a2, x2, r2) = (a * a, xi * xi, r * r);
+    let a4 = a2 * a2;
+    let z2 = x2 * r2;
+    let c = xi / PI_3_2;
+    let aa = [
+        0.5 + 7.0 * a4 * x2 * x2 / 18.0 - 5.0 * a2 * x2 / 9.0,
+        -a4 * x2 * x2 * x2 + 14.0 * a2 * x2 * x2 / 15.0 - x2 / 3.0,
+        11.0 * a4 * x2.powi(4) / 12.0 - 9.0 * a2 * x2.powi(3) / 14.0 + 3.0 * x2 * x2 / 20.0,
+        -13.0 * a4 * x2.powi(5) / 27.0 + 22.0 * a2 * x2.powi(4) / 81.0 - x2.powi(3) / 21.0,
+    ];
+    let bb = [
+        a4 * x2.powi(3) / 2.0 - 7.0 * a2 * x2 * x2 / 15.0 + x2 / 6.0,
+        -11.0 * a4 * x2.powi(4) / 18.0 + 3.0 * a2 * x2.powi(3) / 7.0 - x2 * x2 / 10.0,
+        13.0 * a4 * x2.powi(5) / 36.0 - 11.0 * a2 * x2.powi(4) / 54.0 + x2.powi(3) / 28.0,
+        -5.0 * a4 * x2.powi(6) / 36.0 + 13.0 * a2 * x2.powi(5) / 198.0 - x2.powi(4) / 108.0,
+    ];
+    let _ = z2;
+    let horner = |k: &[f64; 4]| k[0] + r2 * (k[1] + r2 * (k[2] + r2 * k[3]));
+    (c * horner(&aa), c * horner(&bb))
+}
+
+/// The real-space RPY part `(A_R, B_R) = M_far - M_F` for fast pair sums: the smooth Fourier
+/// part `(A_F, B_F / r^2)` tabulated on `[0, r_c]` at 4096 uniform intervals (Taylor series
+/// for `xi r < 0.05`, closed form beyond) with cubic Lagrange interpolation, the far form
+/// evaluated exactly. No erfc or exp per pair.
+#[derive(Clone, Debug)]
+pub struct RealSpaceTable {
+    inv_h: f64,
+    n: usize,
+    a: f64,
+    /// `[A_F, B_F / r^2]` at the nodes `r = k h`, `k = 0..=n`.
+    g: Vec<[f64; 2]>,
+}
+
+impl RealSpaceTable {
+    /// Table of the split RPY tensor with parameters `xi`, `a` up to `cutoff`.
+    pub fn new(cutoff: f64, xi: f64, a: f64) -> Self {
+        let n = 4096;
+        let h = cutoff / n as f64;
+        let g = (0..=n)
+            .map(|k| {
+                let r = k as f64 * h;
+                if xi * r < 0.05 {
+                    let (af, bf) = rpy_fourier_free_series(r, xi, a);
+                    [af, bf]
+                } else {
+                    let (af, bf) = rpy_fourier_free(r, xi, a);
+                    [af, bf / (r * r)]
+                }
+            })
+            .collect();
+        Self {
+            inv_h: 1.0 / h,
+            n,
+            a,
+            g,
+        }
+    }
+
+    /// `(A_R, B_R)` at `0 < r <= cutoff`.
+    #[inline]
+    pub fn eval(&self, r: f64) -> (f64, f64) {
+        let x = r * self.inv_h;
+        let i = (x as usize).saturating_sub(1).min(self.n - 3);
+        let t = x - i as f64;
+        let (t1, t2, t3) = (t - 1.0, t - 2.0, t - 3.0);
+        let w = [
+            -t1 * t2 * t3 / 6.0,
+            t * t2 * t3 / 2.0,
+            -t * t1 * t3 / 2.0,
+            t * t1 * t2 / 6.0,
+        ];
+        let g = &self.g[i..i + 4];
+        let af = w[0] * g[0][0] + w[1] * g[1][0] + w[2] * g[2][0] + w[3] * g[3][0];
+        let bf = w[0] * g[0][1] + w[1] * g[1][1] + w[2] * g[2][1] + w[3] * g[3][1];
+        let (inv, r2) = (1.0 / r, r * r);
+        let inv3 = inv * inv * inv;
+        let a2 = self.a * self.a;
+        let c = 1.0 / (8.0 * PI);
+        (
+            c * (inv + 2.0 * a2 / 3.0 * inv3) - af,
+            c * (inv - 2.0 * a2 * inv3) - bf * r2,
+        )
     }
 }

@@ -65,6 +65,24 @@ pub struct ForceDensity<'a> {
     pub f: &'a [Vec3],
 }
 
+impl ForceDensity<'_> {
+    /// Node positions `x_n + s_j p_n` (of the configuration `rods`, `p` its orientations) and
+    /// the weighted forces `f_n(s_j) w_j` there: the point forces of the velocity spectrum.
+    pub fn point_forces(&self, rods: &RodSet, p: &[Vec3]) -> (Vec<Vec3>, Vec<Vec3>) {
+        let m = self.s.len();
+        let n = self.f.len().min(rods.len() * m);
+        (0..n)
+            .map(|k| {
+                let (r, j) = (k / m, k % m);
+                (
+                    [0, 1, 2].map(|d| rods.x[r][d] + self.s[j] * p[r][d]),
+                    self.f[k].map(|c| c * self.w[j]),
+                )
+            })
+            .unzip()
+    }
+}
+
 /// Failures of a hydrodynamic solve.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MobilityError {

@@ -106,8 +106,8 @@ fn bad_configs_name_the_field_and_the_range() {
             "volume_fraction = 9 is outside the allowed range (0, 6]",
         ),
         (
-            "hydrodynamics = \"sbt\"",
-            "hydrodynamics = \"sbt\" is not available",
+            "hydrodynamics = \"stokesian\"",
+            "hydrodynamics = \"stokesian\" is not one of \"none\", \"dipole\", \"sbt\"",
         ),
         ("dtt = 0.1", "unknown key `dtt`; did you mean `dt`?"),
         (

@@ -1,0 +1,40 @@
+//! Time the stages of one spectral Ewald RPY product: `cargo run --release -p motile-particle
+//! --example sum_profile -- [points] [tol] [density]`.
+
+use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::spectral_ewald::SpectralEwald;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::time::Instant;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let n: usize = args.get(1).map_or(100_000, |s| s.parse().unwrap());
+    let tol: f64 = args.get(2).map_or(1e-4, |s| s.parse().unwrap());
+    let density: f64 = args.get(3).map_or(2.5, |s| s.parse().unwrap());
+    let l = (n as f64 / density).cbrt();
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let y: Vec<[f64; 3]> = (0..n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..l)))
+        .collect();
+    let f: Vec<[f64; 3]> = (0..n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+        .collect();
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: 0.0866,
+        group: 1,
+    };
+    let mut s = SpectralEwald::new(tol).unwrap();
+    for rep in 0..3 {
+        let t = Instant::now();
+        let u = s.rpy(&geo, &y, &f).unwrap();
+        println!(
+            "rep {rep}: {:.4} s total; {:?}; {:?}; u0 {:?}",
+            t.elapsed().as_secs_f64(),
+            s.last_timing(),
+            s.last_params().unwrap(),
+            u[0]
+        );
+    }
+}
