@@ -156,37 +156,85 @@ impl SpectralEwald {
         Ok(p)
     }
 
-    /// Multiply each mode by `g(k, |k|^2, mode values)`; `k = 0` and the unpaired `-K/2`
-    /// modes are set to zero.
+    /// The Fourier multiplication on packed spectra. The `I` input fields are real and come
+    /// packed two to a complex transform (`C_q = F_2q + i F_2q+1`); their spectra are unpacked
+    /// with Hermitian symmetry, `F_2q(k) = (C_q(k) + conj C_q(-k))/2`,
+    /// `F_2q+1(k) = (C_q(k) - conj C_q(-k))/(2i)`. The `O` output fields are real too and are
+    /// packed the same way, so type 2 returns two of them as the real and imaginary parts.
+    /// `k = 0` and the unpaired `-K/2` modes are set to zero.
     fn multiply<const I: usize, const O: usize>(
         &self,
         l: f64,
         modes: usize,
-        input: &[Vec<Complex64>],
+        packed: &[Vec<Complex64>],
         g: impl Fn(Vec3, f64, [Complex64; I]) -> [Complex64; O] + Sync,
     ) -> Vec<Vec<Complex64>> {
         let m = modes;
         let s = 2.0 * PI / l;
         let total = m * m * m;
-        let vals: Vec<[Complex64; O]> = (0..total)
+        let half_i = Complex64::new(0.0, -0.5);
+        let vals: Vec<Vec<Complex64>> = (0..total)
             .into_par_iter()
             .map(|idx| {
                 let i = [idx % m, (idx / m) % m, idx / (m * m)];
+                let zero = vec![Complex64::default(); O.div_ceil(2)];
                 if i.contains(&0) {
-                    return [Complex64::default(); O];
+                    return zero;
                 }
                 let k = i.map(|c| mode_of(c, m) as f64 * s);
                 let k2 = dot(k, k);
                 if k2 == 0.0 {
-                    return [Complex64::default(); O];
+                    return zero;
                 }
-                g(k, k2, std::array::from_fn(|c| input[c][idx]))
+                let mirror = (m - i[0]) + m * ((m - i[1]) + m * (m - i[2]));
+                let f: [Complex64; I] = std::array::from_fn(|c| {
+                    let (a, b) = (packed[c / 2][idx], packed[c / 2][mirror].conj());
+                    if c % 2 == 0 {
+                        0.5 * (a + b)
+                    } else {
+                        half_i * (a - b)
+                    }
+                });
+                let o = g(k, k2, f);
+                (0..O.div_ceil(2))
+                    .map(|q| {
+                        let im = if 2 * q + 1 < O {
+                            o[2 * q + 1]
+                        } else {
+                            Complex64::default()
+                        };
+                        o[2 * q] + Complex64::i() * im
+                    })
+                    .collect()
             })
             .collect();
-        (0..O)
+        (0..O.div_ceil(2))
             .map(|c| vals.iter().map(|v| v[c]).collect())
             .collect()
     }
+}
+
+/// Real fields packed two to a complex vector (`a + i b`).
+fn pack(fields: &[Vec<f64>]) -> Vec<Vec<Complex64>> {
+    fields
+        .chunks(2)
+        .map(|c| match c {
+            [a, b] => a
+                .par_iter()
+                .zip(b)
+                .map(|(x, y)| Complex64::new(*x, *y))
+                .collect(),
+            [a] => a.par_iter().map(|x| Complex64::new(*x, 0.0)).collect(),
+            _ => unreachable!("chunks of two"),
+        })
+        .collect()
+}
+
+/// Real field `c` out of packed type-2 results.
+#[inline]
+fn unpacked(out: &[Vec<Complex64>], c: usize, t: usize) -> f64 {
+    let v = out[c / 2][t];
+    if c % 2 == 0 { v.re } else { v.im }
 }
 
 /// Points sorted into cells of side at least half the cutoff (a 5^3 stencil then covers the
@@ -198,10 +246,12 @@ struct PointCells {
     start: Vec<usize>,
     members: Vec<u32>,
     sorted: Vec<Vec3>,
+    /// Group of each point, in cell order.
+    group: Vec<u32>,
 }
 
 impl PointCells {
-    fn build(y: &[Vec3], l: f64, cutoff: f64) -> Self {
+    fn build(y: &[Vec3], l: f64, cutoff: f64, group: usize) -> Self {
         let n = ((2.0 * l / cutoff).floor() as usize).max(1);
         let cell_of: Vec<u32> = y
             .par_iter()
@@ -227,23 +277,42 @@ impl PointCells {
             members[next[k as usize]] = i as u32;
             next[k as usize] += 1;
         }
-        let sorted = members.par_iter().map(|&i| y[i as usize]).collect();
+        // Wrapped into [0, L) so that a neighbour cell's periodic shift is one vector per cell.
+        let sorted = members
+            .par_iter()
+            .map(|&i| {
+                y[i as usize].map(|c| {
+                    let f = c - l * (c / l).floor();
+                    if f >= l { 0.0 } else { f }
+                })
+            })
+            .collect();
+        let group = members
+            .iter()
+            .map(|&i| (i as usize / group) as u32)
+            .collect();
         Self {
             n,
             l,
             start,
             members,
             sorted,
+            group,
         }
     }
 
-    /// For each target `t`, `f(acc, t, j, r, |r|)` over every `j` with the minimum-image
-    /// `r = y_t - y_j`, `0 < |r| < cutoff`, in an order fixed by the cells; results in the
-    /// targets' own order.
+    /// Values in cell order (`members()[k]`'s value at `k`), for streaming in [`Self::gather`].
+    fn sorted_values<T: Copy + Send + Sync>(&self, v: &[T]) -> Vec<T> {
+        self.members.par_iter().map(|&i| v[i as usize]).collect()
+    }
+
+    /// For each target, `f(acc, same_group, k, r, |r|)` over every point `k` (cell order, see
+    /// [`Self::sorted_values`]) with the minimum-image `r = y_t - y_k`, `0 < |r| < cutoff`, in
+    /// an order fixed by the cells; results in the targets' own order.
     fn gather<A: Send + Default + Clone>(
         &self,
         cutoff: f64,
-        f: impl Fn(&mut A, usize, usize, Vec3, f64) + Sync,
+        f: impl Fn(&mut A, bool, usize, Vec3, f64) + Sync,
     ) -> Vec<A> {
         let c2 = cutoff * cutoff;
         let n = self.n as i64;
@@ -257,25 +326,36 @@ impl PointCells {
                 if range.is_empty() {
                     return out;
                 }
-                let visit_cell = |cell: usize, out: &mut [A]| {
+                let visit_cell = |cell: usize, shift: Vec3, out: &mut [A]| {
                     let (s0, s1) = (self.start[cell], self.start[cell + 1]);
                     for (k, acc) in out.iter_mut().enumerate() {
                         let tk = range.start + k;
                         let yt = self.sorted[tk];
-                        let t = self.members[tk] as usize;
+                        let yt = [yt[0] - shift[0], yt[1] - shift[1], yt[2] - shift[2]];
+                        let gt = self.group[tk];
                         for jk in s0..s1 {
                             let yj = self.sorted[jk];
-                            let r = min_image([yt[0] - yj[0], yt[1] - yj[1], yt[2] - yj[2]], l);
+                            let r = [yt[0] - yj[0], yt[1] - yj[1], yt[2] - yj[2]];
                             let r2 = dot(r, r);
                             if r2 < c2 && r2 > 0.0 {
-                                f(acc, t, self.members[jk] as usize, r, r2.sqrt());
+                                f(acc, self.group[jk] == gt, jk, r, r2.sqrt());
                             }
                         }
                     }
                 };
                 if all {
-                    for cell in 0..self.n * self.n * self.n {
-                        visit_cell(cell, &mut out);
+                    // Few cells: every point, minimum image per pair.
+                    for (k, acc) in out.iter_mut().enumerate() {
+                        let tk = range.start + k;
+                        let yt = self.sorted[tk];
+                        let gt = self.group[tk];
+                        for (jk, yj) in self.sorted.iter().enumerate() {
+                            let r = min_image([yt[0] - yj[0], yt[1] - yj[1], yt[2] - yj[2]], l);
+                            let r2 = dot(r, r);
+                            if r2 < c2 && r2 > 0.0 {
+                                f(acc, self.group[jk] == gt, jk, r, r2.sqrt());
+                            }
+                        }
                     }
                 } else {
                     let c = c as i64;
@@ -283,11 +363,21 @@ impl PointCells {
                     for dz in -2..=2 {
                         for dy in -2..=2 {
                             for dx in -2..=2 {
-                                let cell = (((cz + dz).rem_euclid(n) * n + (cy + dy).rem_euclid(n))
-                                    * n
-                                    + (cx + dx).rem_euclid(n))
+                                let (ux, uy, uz) = (cx + dx, cy + dy, cz + dz);
+                                let cell = ((uz.rem_euclid(n) * n + uy.rem_euclid(n)) * n
+                                    + ux.rem_euclid(n))
                                     as usize;
-                                visit_cell(cell, &mut out);
+                                // The image of the neighbour cell next to this one.
+                                let shift = [ux, uy, uz].map(|u| {
+                                    if u < 0 {
+                                        -l
+                                    } else if u >= n {
+                                        l
+                                    } else {
+                                        0.0
+                                    }
+                                });
+                                visit_cell(cell, shift, &mut out);
                             }
                         }
                     }
@@ -301,10 +391,6 @@ impl PointCells {
         }
         result
     }
-}
-
-fn to_complex(v: &[Vec3], d: usize) -> Vec<Complex64> {
-    v.par_iter().map(|x| Complex64::new(x[d], 0.0)).collect()
 }
 
 impl PeriodicStokes for SpectralEwald {
@@ -321,11 +407,12 @@ impl PeriodicStokes for SpectralEwald {
         let xi = p.xi;
         let t1 = Instant::now();
         // Real space: every neighbour outside the own group, plus the overlap correction.
-        let cells = PointCells::build(points, l, p.cutoff);
+        let cells = PointCells::build(points, l, p.cutoff, g);
         let table = RealSpaceTable::new(p.cutoff, xi, a);
         let two_a = 2.0 * a;
-        let mut u = cells.gather(p.cutoff, |acc: &mut Vec3, t, j, r, rn| {
-            if t / g == j / g {
+        let sorted_forces = cells.sorted_values(forces);
+        let mut u = cells.gather(p.cutoff, |acc: &mut Vec3, same, j, r, rn| {
+            if same {
                 return;
             }
             let rh = r.map(|c| c / rn);
@@ -335,7 +422,7 @@ impl PeriodicStokes for SpectralEwald {
                 ar += ac;
                 br += bc;
             }
-            let v = apply_radial(ar, br, rh, forces[j]);
+            let v = apply_radial(ar, br, rh, sorted_forces[j]);
             for d in 0..3 {
                 acc[d] += v[d];
             }
@@ -343,21 +430,25 @@ impl PeriodicStokes for SpectralEwald {
         // Fourier space.
         let t2 = Instant::now();
         let plan = self.plan.as_ref().expect("prepared");
-        let f: Vec<Vec<Complex64>> = (0..3).map(|d| to_complex(forces, d)).collect();
-        let fhat = plan.type1(&[&f[0], &f[1], &f[2]])?;
+        let f = pack(
+            &(0..3)
+                .map(|d| forces.iter().map(|v| v[d]).collect())
+                .collect::<Vec<_>>(),
+        );
+        let fhat = plan.type1(&[&f[0], &f[1]])?;
         let vol = l * l * l;
         let uhat = self.multiply::<3, 3>(l, p.modes, &fhat, |k, k2, f| {
             let s = rpy_fourier_scalar(k2, xi, a) / vol;
             let kf = (f[0] * k[0] + f[1] * k[1] + f[2] * k[2]) / k2;
             [0, 1, 2].map(|d| (f[d] - kf * k[d]) * s)
         });
-        let uf = plan.type2(&[&uhat[0], &uhat[1], &uhat[2]])?;
+        let uf = plan.type2(&[&uhat[0], &uhat[1]])?;
         let t3 = Instant::now();
         // Own group's direct Fourier-part terms come out (the point itself included).
         u.par_iter_mut().enumerate().for_each(|(t, ut)| {
             let base = (t / g) * g;
             for d in 0..3 {
-                ut[d] += uf[d][t].re;
+                ut[d] += unpacked(&uf, d, t);
             }
             for j in base..base + g {
                 let r = min_image(
@@ -406,28 +497,29 @@ impl PeriodicStokes for SpectralEwald {
         }
         let prm = self.prepare(x.len(), l, x)?;
         let xi = prm.xi;
-        let cells = PointCells::build(x, l, prm.cutoff);
-        let real = cells.gather(prm.cutoff, |acc: &mut (Vec3, [Vec3; 3]), _t, j, r, rn| {
-            let dv = stokeslet_real_derivatives(rn, xi);
-            let (du, dg) = stresslet_from_derivatives(r, rn, p[j], sigma[j], &dv);
-            for i in 0..3 {
-                acc.0[i] += du[i];
-                for m in 0..3 {
-                    acc.1[i][m] += dg[i][m];
+        let cells = PointCells::build(x, l, prm.cutoff, 1);
+        let (ps, ss) = (cells.sorted_values(p), cells.sorted_values(sigma));
+        let real = cells.gather(
+            prm.cutoff,
+            |acc: &mut (Vec3, [Vec3; 3]), _same, j, r, rn| {
+                let dv = stokeslet_real_derivatives(rn, xi);
+                let (du, dg) = stresslet_from_derivatives(r, rn, ps[j], ss[j], &dv);
+                for i in 0..3 {
+                    acc.0[i] += du[i];
+                    for m in 0..3 {
+                        acc.1[i][m] += dg[i][m];
+                    }
                 }
-            }
-        });
+            },
+        );
         let plan = self.plan.as_ref().expect("prepared");
         let comp = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
-        let s: Vec<Vec<Complex64>> = comp
-            .iter()
-            .map(|&(i, j)| {
-                (0..x.len())
-                    .into_par_iter()
-                    .map(|n| Complex64::new(sigma[n] * p[n][i] * p[n][j], 0.0))
-                    .collect()
-            })
-            .collect();
+        let s = pack(
+            &comp
+                .iter()
+                .map(|&(i, j)| (0..x.len()).map(|n| sigma[n] * p[n][i] * p[n][j]).collect())
+                .collect::<Vec<_>>(),
+        );
         let refs: Vec<&[Complex64]> = s.iter().map(|v| v.as_slice()).collect();
         let shat = plan.type1(&refs)?;
         let vol = l * l * l;
@@ -465,9 +557,10 @@ impl PeriodicStokes for SpectralEwald {
             .map(|(t, (mut u, mut g))| {
                 let own = stresslet_fourier_self_gradient(p[t], sigma[t], xi);
                 for i in 0..3 {
-                    u[i] = (u[i] + back[i][t].re) / VISCOSITY;
+                    u[i] = (u[i] + unpacked(&back, i, t)) / VISCOSITY;
                     for m in 0..3 {
-                        g[i][m] = (g[i][m] + back[3 + 3 * i + m][t].re - own[i][m]) / VISCOSITY;
+                        g[i][m] =
+                            (g[i][m] + unpacked(&back, 3 + 3 * i + m, t) - own[i][m]) / VISCOSITY;
                     }
                 }
                 (u, g)
