@@ -1,5 +1,5 @@
 //! Time the stages of one spectral Ewald RPY product: `cargo run --release -p motile-particle
-//! --example sum_profile -- [points] [tol] [density]`.
+//! --example sum_profile -- [points] [tol] [density] [stresslets]`.
 
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::spectral_ewald::SpectralEwald;
@@ -20,6 +20,28 @@ fn main() {
     let f: Vec<[f64; 3]> = (0..n)
         .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
         .collect();
+    if args.get(4).is_some_and(|a| a == "stresslets") {
+        let p: Vec<[f64; 3]> = f
+            .iter()
+            .map(|v| {
+                let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                v.map(|c| c / n)
+            })
+            .collect();
+        let sigma = vec![0.85; n];
+        let mut s = SpectralEwald::new(tol).unwrap();
+        for rep in 0..3 {
+            let t = Instant::now();
+            s.stresslets(l, &y, &p, &sigma).unwrap();
+            println!(
+                "stresslets rep {rep}: {:.4} s; {:?}; {:?}",
+                t.elapsed().as_secs_f64(),
+                s.last_timing(),
+                s.last_params().unwrap()
+            );
+        }
+        return;
+    }
     let geo = RpyGeometry {
         box_length: l,
         radius: 0.0866,
