@@ -249,7 +249,8 @@ impl NufftPlan {
 
     /// Padding (in grid points) on each side of the padded buffers.
     fn pad(&self) -> usize {
-        self.kernel.width
+        // A kernel row starts at ceil(g - w/2) >= -w/2 and ends at most w/2 + 1 past the grid.
+        self.kernel.width.div_ceil(2) + 1
     }
 
     /// Spread all strength vectors onto fine grids (one per vector).

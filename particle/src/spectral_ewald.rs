@@ -188,43 +188,45 @@ impl SpectralEwald {
         let s = 2.0 * PI / l;
         let total = m * m * m;
         let half_i = Complex64::new(0.0, -0.5);
-        let vals: Vec<Vec<Complex64>> = (0..total)
+        // At most 12 real outputs, 6 packed; fixed-size rows, no allocation per mode.
+        let np = O.div_ceil(2);
+        assert!(np <= 6, "at most 12 output fields");
+        let vals: Vec<[Complex64; 6]> = (0..total)
             .into_par_iter()
             .map(|idx| {
                 let i = [idx % m, (idx / m) % m, idx / (m * m)];
-                let zero = vec![Complex64::default(); O.div_ceil(2)];
+                let mut row = [Complex64::default(); 6];
                 if i.contains(&0) {
-                    return zero;
+                    return row;
                 }
                 let k = i.map(|c| mode_of(c, m) as f64 * s);
                 let k2 = dot(k, k);
                 if k2 == 0.0 {
-                    return zero;
+                    return row;
                 }
                 let mirror = (m - i[0]) + m * ((m - i[1]) + m * (m - i[2]));
                 let f: [Complex64; I] = std::array::from_fn(|c| {
                     let (a, b) = (packed[c / 2][idx], packed[c / 2][mirror].conj());
-                    if c % 2 == 0 {
+                    if c.is_multiple_of(2) {
                         0.5 * (a + b)
                     } else {
                         half_i * (a - b)
                     }
                 });
                 let o = g(k, k2, f);
-                (0..O.div_ceil(2))
-                    .map(|q| {
-                        let im = if 2 * q + 1 < O {
-                            o[2 * q + 1]
-                        } else {
-                            Complex64::default()
-                        };
-                        o[2 * q] + Complex64::i() * im
-                    })
-                    .collect()
+                for (q, r) in row.iter_mut().enumerate().take(np) {
+                    let im = if 2 * q + 1 < O {
+                        o[2 * q + 1]
+                    } else {
+                        Complex64::default()
+                    };
+                    *r = o[2 * q] + Complex64::i() * im;
+                }
+                row
             })
             .collect();
-        (0..O.div_ceil(2))
-            .map(|c| vals.iter().map(|v| v[c]).collect())
+        (0..np)
+            .map(|c| vals.par_iter().map(|v| v[c]).collect())
             .collect()
     }
 }
@@ -249,7 +251,7 @@ fn pack(fields: &[Vec<f64>]) -> Vec<Vec<Complex64>> {
 #[inline]
 fn unpacked(out: &[Vec<Complex64>], c: usize, t: usize) -> f64 {
     let v = out[c / 2][t];
-    if c % 2 == 0 { v.re } else { v.im }
+    if c.is_multiple_of(2) { v.re } else { v.im }
 }
 
 /// Points sorted into cells of side at least half the cutoff (a 5^3 stencil then covers the
