@@ -441,6 +441,7 @@ fn write_checkpoint(
     path: &Path,
     rods: &RodSet,
     warm: &[((u32, u32), f64)],
+    hydro: &[f64],
     step: u64,
     time: f64,
 ) -> Result<(), IoError> {
@@ -475,6 +476,10 @@ fn write_checkpoint(
     b.create_dataset("warm_lambda")
         .with_f64_data(&lambda)
         .with_shape(&[warm.len() as u64]);
+    // The hydrodynamic solver's warm start (slender-body force densities), possibly empty.
+    b.create_dataset("gmres_warm_start")
+        .with_f64_data(hydro)
+        .with_shape(&[hydro.len() as u64]);
     let bytes = b.finish().map_err(|e| IoError::Hdf5 {
         path: path.into(),
         message: e.to_string(),
@@ -482,7 +487,11 @@ fn write_checkpoint(
     checkpoint::write_verified(path, &bytes)
 }
 
-fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, WarmStart, u64)> {
+/// What a checkpoint restores besides the rods: contact multipliers and the hydrodynamic warm
+/// start.
+type Restart = (WarmStart, Vec<f64>);
+
+fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64)> {
     let f = File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     let attrs = f
         .root()
@@ -545,7 +554,15 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, WarmStart, u64)> {
         .zip(lambda)
         .map(|(p, l)| ((p[0] as u32, p[1] as u32), l))
         .collect();
-    Ok((rods, warm, step))
+    // Absent in checkpoints of runs without hydrodynamics written before it existed.
+    let hydro = f
+        .dataset("gmres_warm_start")
+        .ok()
+        .map(|d| d.read_f64())
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("{}: dataset 'gmres_warm_start': {e}", path.display()))?
+        .unwrap_or_default();
+    Ok((rods, (warm, hydro), step))
 }
 
 /// Columns of a particle run's `timeseries.csv`.
@@ -604,7 +621,7 @@ pub fn run_particle(
         cfg,
         &run,
         rods,
-        Vec::new(),
+        (Vec::new(), Vec::new()),
         0,
         TimeSeries::new(&COLUMNS),
         progress,
@@ -631,13 +648,14 @@ fn drive(
     cfg: &ParticleRunConfig,
     run: &RunDir,
     mut rods: RodSet,
-    warm: WarmStart,
+    (warm, hydro_warm): Restart,
     start: u64,
     mut ts: TimeSeries,
     progress: bool,
 ) -> anyhow::Result<RunSummary> {
     let mut stepper = Stepper::new(mobility(cfg)?, cfg.contact.clone());
     stepper.set_warm_start(warm);
+    stepper.mobility_mut().set_warm_state(hydro_warm);
     let total = cfg.total_steps();
     let (diag, snap, ckpt) = (
         cfg.every(cfg.diagnostic_interval),
@@ -666,6 +684,7 @@ fn drive(
                 .join(format!("ckpt_{:09}.h5", 0)),
             &rods,
             &[],
+            &[],
             0,
             0.0,
         )?;
@@ -677,6 +696,7 @@ fn drive(
     for step in start + 1..=total {
         let before = rods.clone();
         let warm_before = stepper.warm_start().to_vec();
+        let hydro_before = stepper.mobility().warm_state();
         let report = match stepper.step(&mut rods, cfg.dt) {
             Ok(r) => r,
             Err(e) => {
@@ -685,6 +705,7 @@ fn drive(
                     &saved,
                     &before,
                     &warm_before,
+                    &hydro_before,
                     step - 1,
                     (step - 1) as f64 * cfg.dt,
                 )?;
@@ -746,7 +767,14 @@ fn drive(
         {
             let dir = run.path().join("checkpoints");
             let path = dir.join(format!("ckpt_{step:09}.h5"));
-            write_checkpoint(&path, &rods, stepper.warm_start(), step, t)?;
+            write_checkpoint(
+                &path,
+                &rods,
+                stepper.warm_start(),
+                &stepper.mobility().warm_state(),
+                step,
+                t,
+            )?;
             checkpoint::prune(&dir, cfg.checkpoints_kept);
             checkpoint::remove(&dir.join(LAST_GOOD));
             last_ckpt = Instant::now();

@@ -30,9 +30,17 @@ fn main() {
     std::fs::create_dir_all(&out).unwrap();
     let l = (n as f64 / density).cbrt();
     let mut rng = ChaCha8Rng::seed_from_u64(42);
-    let y: Vec<[f64; 3]> = (0..n).map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..l))).collect();
-    let f: Vec<[f64; 3]> = (0..n).map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0))).collect();
-    let geo = RpyGeometry { box_length: l, radius: 0.0866, group: 1 };
+    let y: Vec<[f64; 3]> = (0..n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..l)))
+        .collect();
+    let f: Vec<[f64; 3]> = (0..n)
+        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+        .collect();
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: 0.0866,
+        group: 1,
+    };
     let mut s = SpectralEwald::new(tol).unwrap();
     let mut times = Vec::new();
     let mut u = Vec::new();
@@ -52,8 +60,18 @@ fn main() {
     write_f64(&out.join("u.f64"), &u);
     let json = format!(
         "{{\"n\": {n}, \"tol\": {tol:e}, \"box_length\": {l}, \"radius\": 0.0866, \"xi\": {}, \"cutoff\": {}, \"modes\": {}, \"nufft_tol\": {:e}, \"median_s\": {}, \"real_s\": {}, \"fourier_s\": {}, \"threads\": {}}}",
-        p.xi, p.cutoff, p.modes, p.nufft_tol, sorted[reps / 2], stages[k].real, stages[k].fourier + stages[k].setup + stages[k].corrections, rayon::current_num_threads()
+        p.xi,
+        p.cutoff,
+        p.modes,
+        p.nufft_tol,
+        sorted[reps / 2],
+        stages[k].real,
+        stages[k].fourier + stages[k].setup + stages[k].corrections,
+        rayon::current_num_threads()
     );
-    std::fs::File::create(out.join("params.json")).unwrap().write_all(json.as_bytes()).unwrap();
+    std::fs::File::create(out.join("params.json"))
+        .unwrap()
+        .write_all(json.as_bytes())
+        .unwrap();
     println!("{json}");
 }

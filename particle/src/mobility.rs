@@ -142,6 +142,13 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     fn force_density(&self) -> Option<ForceDensity<'_>> {
         None
     }
+    /// State that the next step starts from (the GMRES warm start), for checkpoints: a run
+    /// resumed with it continues bit for bit. Empty for models without such state.
+    fn warm_state(&self) -> Vec<f64> {
+        Vec::new()
+    }
+    /// Restore what [`Self::warm_state`] returned.
+    fn set_warm_state(&mut self, _state: Vec<f64>) {}
 }
 
 /// Free swimming with local slender-body drag (`hydrodynamics = "none"`).

@@ -87,7 +87,6 @@ pub struct SlenderBody {
     s: Vec<f64>,
     w: Vec<f64>,
     warm_free: Vec<f64>,
-    warm_contact: Vec<f64>,
     density: Vec<Vec3>,
     report: HydroReport,
     local: LocalDrag,
@@ -199,7 +198,6 @@ impl SlenderBody {
             s,
             w,
             warm_free: Vec::new(),
-            warm_contact: Vec::new(),
             density: Vec::new(),
             report: HydroReport::default(),
             local: LocalDrag::default(),
@@ -364,7 +362,6 @@ impl Mobility for SlenderBody {
             .min(0.5)
             .max(self.params.gmres.tol);
         let result = self.solve(rods, p, &rhs, &mut x, "contact", tol);
-        self.warm_contact = x;
         let (info, u) = result?;
         self.report.contact_gmres_iterations = info.iterations;
         self.report.contact_gmres_residual = info.final_residual;
@@ -382,11 +379,7 @@ impl Mobility for SlenderBody {
                     w[d] += dw[d] + lw[d];
                 }
             });
-        for (dst, c) in self
-            .density
-            .iter_mut()
-            .zip(self.warm_contact.chunks_exact(3))
-        {
+        for (dst, c) in self.density.iter_mut().zip(x.chunks_exact(3)) {
             for d in 0..3 {
                 dst[d] += c[d];
             }
@@ -396,6 +389,14 @@ impl Mobility for SlenderBody {
 
     fn report(&self) -> HydroReport {
         self.report.clone()
+    }
+
+    fn warm_state(&self) -> Vec<f64> {
+        self.warm_free.clone()
+    }
+
+    fn set_warm_state(&mut self, state: Vec<f64>) {
+        self.warm_free = state;
     }
 
     fn force_density(&self) -> Option<ForceDensity<'_>> {

@@ -170,6 +170,11 @@ impl Stepper {
         self.mobility.as_ref()
     }
 
+    /// The mobility, mutable (to restore its warm state from a checkpoint).
+    pub fn mobility_mut(&mut self) -> &mut dyn Mobility {
+        self.mobility.as_mut()
+    }
+
     /// The mobility's name.
     pub fn mobility_name(&self) -> &'static str {
         self.mobility.name()

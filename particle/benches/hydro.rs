@@ -1,0 +1,87 @@
+//! Criterion benchmarks of the hydrodynamics (issue 5), 2 threads:
+//! - `rpy_product/{N}/{tol}`: one spectral Ewald RPY mobility product (velocity from forces at
+//!   the same N random points, 2.5 points per unit volume as rods' nodes at nu = 0.625);
+//! - `sbt_step`: a full slender-body step (GMRES, contacts, contact flows) at nu = 0.625,
+//!   L/l = 25 (9 766 rods), sum tolerance 1e-4;
+//! - `dipole_step`: a full dipole-model step at nu = 0.625, L/l = 50 (78 125 rods).
+//!
+//! Select with a filter, e.g. `cargo bench -p motile-particle --bench hydro -- rpy_product/100000`.
+//! The stage split comes from `--example hydro_step` and `--example sum_profile`; the peer
+//! comparison from `bench/spectral_ewald_vs_finufft.py`.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use motile_particle::dipole::Dipole;
+use motile_particle::init::random_nonoverlapping;
+use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::slender::{SlenderBody, SlenderParams};
+use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::{ContactParams, Mobility, Stepper};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::time::Duration;
+
+fn bench(c: &mut Criterion) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let mut group = c.benchmark_group("rpy_product");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(5));
+    for n in [1_000usize, 10_000, 100_000, 1_000_000] {
+        let l = (n as f64 / 2.5).cbrt();
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let y: Vec<[f64; 3]> = (0..n)
+            .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..l)))
+            .collect();
+        let f: Vec<[f64; 3]> = (0..n)
+            .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
+            .collect();
+        let geo = RpyGeometry {
+            box_length: l,
+            radius: 0.0866,
+            group: 1,
+        };
+        for tol in [1e-3, 1e-6] {
+            let mut sum = SpectralEwald::new(tol).unwrap();
+            group.bench_function(format!("{n}/{tol:e}"), |b| {
+                b.iter(|| pool.install(|| sum.rpy(&geo, &y, &f).unwrap()))
+            });
+        }
+    }
+    group.finish();
+
+    let mut group = c.benchmark_group("hydro_step");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(20));
+    let cases: [(&str, f64, fn() -> Box<dyn Mobility>); 2] = [
+        ("sbt_nu0.625_L25", 25.0, || {
+            Box::new(SlenderBody::new(
+                SlenderParams::default(),
+                Box::new(SpectralEwald::new(1e-4).unwrap()),
+            ))
+        }),
+        ("dipole_nu0.625_L50", 50.0, || {
+            Box::new(Dipole::new(Box::new(SpectralEwald::new(1e-4).unwrap())))
+        }),
+    ];
+    for (name, l, make) in cases {
+        let n = (0.625 * l * l * l) as usize;
+        let mut rods = random_nonoverlapping(n, l, 1, 1_000_000).unwrap();
+        let mut warm = Stepper::new(make(), ContactParams::default());
+        for _ in 0..3 {
+            pool.install(|| warm.step(&mut rods, 0.002).unwrap());
+        }
+        // Consecutive steps of one evolving run, so the GMRES warm start is always one step
+        // old, as in a simulation.
+        group.bench_function(name, |b| {
+            b.iter(|| pool.install(|| warm.step(&mut rods, 0.002).unwrap()))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
