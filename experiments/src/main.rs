@@ -66,7 +66,7 @@ enum Command {
     },
     /// The main job: a small dilute particle run (OUT/particle), a small mean-field run
     /// (OUT/meanfield), both analysed, and free swimmers checked against exact values
-    /// (OUT/free_swimmers). Comparing the two models on flows needs particle hydrodynamics.
+    /// (OUT/free_swimmers). The particle part runs without hydrodynamics to stay short; the comparison figures are issue 6.
     Demo {
         /// Output run directory.
         #[arg(long, default_value = "runs/demo")]
@@ -95,7 +95,8 @@ struct RunArgs {
 
 #[derive(Subcommand, Debug)]
 enum ParticleAction {
-    /// Run the particle model (rods, contacts, hydrodynamics = "none") into a run directory.
+    /// Run the particle model (rods, contacts, hydrodynamics "none", "dipole" or "sbt") into a
+    /// run directory.
     Run(RunArgs),
 }
 

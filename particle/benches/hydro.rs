@@ -20,6 +20,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::time::Duration;
 
+/// A named step case: box side and how to build its mobility.
+type Case = (&'static str, f64, fn() -> Box<dyn Mobility>);
+
 fn bench(c: &mut Criterion) {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
@@ -56,7 +59,7 @@ fn bench(c: &mut Criterion) {
     group
         .sample_size(10)
         .measurement_time(Duration::from_secs(20));
-    let cases: [(&str, f64, fn() -> Box<dyn Mobility>); 2] = [
+    let cases: [Case; 2] = [
         ("sbt_nu0.625_L25", 25.0, || {
             Box::new(SlenderBody::new(
                 SlenderParams::default(),
