@@ -40,14 +40,10 @@ impl RodVelocities {
 /// What the hydrodynamic part of a step did.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct HydroReport {
-    /// GMRES iterations of the free (swimming) solve; 0 for models without GMRES.
+    /// GMRES iterations of the step's solve; 0 for models without GMRES.
     pub gmres_iterations: usize,
     /// Its final relative residual.
     pub gmres_residual: f64,
-    /// GMRES iterations of the solve for the contact forces' flows (0 if none).
-    pub contact_gmres_iterations: usize,
-    /// Its final relative residual.
-    pub contact_gmres_residual: f64,
     /// Seconds in the periodic sums (all products of the step).
     pub seconds_sums: f64,
     /// Number of periodic sums (mobility products) in the step.
@@ -113,9 +109,20 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     /// Local response `(v, w)` of a rod with axis `p` to force `f` and torque `t`: the block
     /// diagonal mobility the contact solver uses.
     fn local(&self, p: Vec3, f: Vec3, t: Vec3) -> (Vec3, Vec3);
-    /// Velocities caused by contact forces and torques `ft` (caller's numbering), added to
-    /// `out`. The default is the local response alone.
-    fn add_contact_velocities(
+    /// The velocities the contact solver plans with, written into `out`. The default is the
+    /// free velocities; the slender-body model reuses the previous step's flow here and solves
+    /// once in [`Self::final_velocities`].
+    fn predicted_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        self.free_velocities(rods, p, out)
+    }
+    /// The step's velocities given the contact forces and torques `ft` (caller's numbering);
+    /// `out` holds the prediction on entry. The default adds the local response to `ft`.
+    fn final_velocities(
         &mut self,
         _rods: &RodSet,
         p: &[Vec3],

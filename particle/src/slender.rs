@@ -11,15 +11,16 @@
 //! Rod n's own direct terms are excluded from `u_n` (the point-group exclusion of
 //! [`crate::periodic`]); all periodic images, its own included, are in.
 //!
-//! Contacts (MODEL.md §3), the splitting: the contact solver works with the local mobility of
-//! (P2)-(P3). Once it has the forces `F_n` and torques `T_n`, a second GMRES solve of (P4)
-//! with only the contact terms on the right-hand side gives the velocities they cause through
-//! the full hydrodynamics (their own local response plus the flows they induce on every other
-//! rod), and these are added to the free velocities. (P4) is linear, so the sum is the solution
-//! with both right-hand sides; only the complementarity problem sees the local approximation,
-//! which the post-step overlap check covers. The free solve starts from the previous step's
-//! solution, the contact solve from the local (isolated-rod) answer. The contact solve's residual is measured against the free right-hand side's norm
-//! (the scale of the whole solution), not its own, which is often tiny.
+//! Contacts (MODEL.md §3), the splitting: the contact solver plans with the local mobility of
+//! (P2)-(P3) applied to predicted velocities, namely swimming plus the previous step's flow
+//! velocities (an exact free solve on the first step). Once it has the contact forces `F_n` and
+//! torques `T_n`, one GMRES solve of (P4) with swimming and contact terms together gives the
+//! step's velocities: the contact forces act through the full hydrodynamics (their local
+//! response and the flows they induce on every other rod). Only the complementarity problem
+//! sees the approximations (local mobility, one-step-old flow); the post-step overlap check
+//! covers them. The solve starts from the previous step's solution, which already carries the
+//! persistent contact forces; one solve per step instead of a free and a contact solve halved
+//! the step's cost (BENCHMARKS.md).
 
 use crate::geometry::{Vec3, cross, dot};
 use crate::gmres::{GmresInfo, GmresParams, LinOp, gmres};
@@ -90,7 +91,10 @@ pub struct SlenderBody {
     density: Vec<Vec3>,
     report: HydroReport,
     local: LocalDrag,
-    free_rhs_norm: f64,
+    /// Flow velocities `([u]_l / l, w)` of the last solve: the next step's prediction.
+    flow: Vec<(Vec3, Vec3)>,
+    /// Whether this step's prediction was an exact free solve.
+    predicted_exactly: bool,
 }
 
 /// The operator of (P4) on the force densities of all rods (flattened `[rod][node][xyz]`).
@@ -201,7 +205,8 @@ impl SlenderBody {
             density: Vec::new(),
             report: HydroReport::default(),
             local: LocalDrag::default(),
-            free_rhs_norm: 0.0,
+            flow: Vec::new(),
+            predicted_exactly: false,
         }
     }
 
@@ -281,6 +286,72 @@ impl SlenderBody {
     }
 }
 
+impl SlenderBody {
+    /// Right-hand side of (P4): swimming, plus the contact terms if `ft` is given.
+    fn rhs(&self, p: &[Vec3], ft: Option<&[(Vec3, Vec3)]>) -> Vec<f64> {
+        let m = self.s.len();
+        let l = ROD_LENGTH;
+        let c = SWIM_SPEED / (2.0 * eta());
+        (0..p.len() * m * 3)
+            .into_par_iter()
+            .map(|k| {
+                let (n, j, d) = (k / (3 * m), (k / 3) % m, k % 3);
+                let swim = c * self.s[j].signum() * p[n][d];
+                match ft {
+                    Some(ft) => {
+                        let (f, t) = ft[n];
+                        let txp = cross(t, p[n]);
+                        swim + f[d] / l + 12.0 * self.s[j] / (l * l * l) * txp[d]
+                    }
+                    None => swim,
+                }
+            })
+            .collect()
+    }
+
+    /// Solve (P4) (warm-started from the previous solution) and write the velocities (P2)-(P3)
+    /// into `out`; remembers the flow part for the next step's prediction.
+    fn solve_and_move(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        ft: Option<&[(Vec3, Vec3)]>,
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        let rhs = self.rhs(p, ft);
+        let mut x = std::mem::take(&mut self.warm_free);
+        let tol = self.params.gmres.tol;
+        let stage = if ft.is_some() { "contact" } else { "free" };
+        let result = self.solve(rods, p, &rhs, &mut x, stage, tol);
+        self.warm_free = x;
+        let (info, u) = result?;
+        self.report.gmres_iterations = info.iterations;
+        self.report.gmres_residual = info.final_residual;
+        self.flow = self.flow_velocities(p, &u);
+        let local = &self.local;
+        out.v
+            .par_iter_mut()
+            .zip(out.w.par_iter_mut())
+            .zip(&self.flow)
+            .zip(p)
+            .enumerate()
+            .for_each(|(n, (((v, w), (dv, dw)), pn))| {
+                let (lv, lw) = match ft {
+                    Some(ft) => local.local(*pn, ft[n].0, ft[n].1),
+                    None => ([0.0; 3], [0.0; 3]),
+                };
+                *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + dv[d] + lv[d]);
+                *w = [0, 1, 2].map(|d| dw[d] + lw[d]);
+            });
+        self.density = self
+            .warm_free
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
+        Ok(())
+    }
+}
+
 impl Mobility for SlenderBody {
     fn name(&self) -> &'static str {
         "sbt"
@@ -293,110 +364,80 @@ impl Mobility for SlenderBody {
         out: &mut RodVelocities,
     ) -> Result<(), MobilityError> {
         self.report = HydroReport::default();
-        let m = self.s.len();
-        let c = SWIM_SPEED / (2.0 * eta());
-        let rhs: Vec<f64> = (0..rods.len() * m * 3)
-            .into_par_iter()
-            .map(|k| {
-                let (n, j, d) = (k / (3 * m), (k / 3) % m, k % 3);
-                c * self.s[j].signum() * p[n][d]
-            })
-            .collect();
-        let mut x = std::mem::take(&mut self.warm_free);
-        self.free_rhs_norm = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let tol = self.params.gmres.tol;
-        let result = self.solve(rods, p, &rhs, &mut x, "free", tol);
-        self.warm_free = x;
-        let (info, u) = result?;
-        self.report.gmres_iterations = info.iterations;
-        self.report.gmres_residual = info.final_residual;
-        let vw = self.flow_velocities(p, &u);
+        self.solve_and_move(rods, p, None, out)
+    }
+
+    /// The previous step's flow velocities plus swimming (no solve), or an exact free solve on
+    /// the first step.
+    fn predicted_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        self.report = HydroReport::default();
+        if self.flow.len() != rods.len() {
+            self.predicted_exactly = true;
+            return self.solve_and_move(rods, p, None, out);
+        }
+        self.predicted_exactly = false;
         out.v
             .par_iter_mut()
             .zip(out.w.par_iter_mut())
-            .zip(vw)
+            .zip(&self.flow)
             .zip(p)
             .for_each(|(((v, w), (dv, dw)), pn)| {
                 *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + dv[d]);
-                *w = dw;
+                *w = *dw;
             });
-        self.density = self
-            .warm_free
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect();
         Ok(())
     }
 
-    fn local(&self, p: Vec3, f: Vec3, t: Vec3) -> (Vec3, Vec3) {
-        self.local.local(p, f, t)
-    }
-
-    fn add_contact_velocities(
+    /// One solve of (P4) with swimming and contact terms together, unless the prediction was
+    /// already the exact free solution and there are no contact forces.
+    fn final_velocities(
         &mut self,
         rods: &RodSet,
         p: &[Vec3],
         ft: &[(Vec3, Vec3)],
         out: &mut RodVelocities,
     ) -> Result<(), MobilityError> {
-        let m = self.s.len();
-        let l = ROD_LENGTH;
-        let rhs: Vec<f64> = (0..rods.len() * m * 3)
-            .into_par_iter()
-            .map(|k| {
-                let (n, j, d) = (k / (3 * m), (k / 3) % m, k % 3);
-                let (f, t) = ft[n];
-                let txp = cross(t, p[n]);
-                f[d] / l + 12.0 * self.s[j] / (l * l * l) * txp[d]
-            })
-            .collect();
-        // Start from the local answer (no interactions): the contact set changes from step to
-        // step, so the previous step's solution is a worse start than this one.
-        let mut x = rhs.clone();
-        // The contact solve is judged against the free right-hand side: the error it may leave
-        // is the tolerance times the swimming forcing, the scale of the total solution. Its own
-        // right-hand side is often tiny (a few touching rods), where a relative criterion
-        // would ask for digits nobody sees.
-        let bc = rhs.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let tol = (self.params.gmres.tol * self.free_rhs_norm / bc.max(f64::MIN_POSITIVE))
-            .min(0.5)
-            .max(self.params.gmres.tol);
-        let result = self.solve(rods, p, &rhs, &mut x, "contact", tol);
-        let (info, u) = result?;
-        self.report.contact_gmres_iterations = info.iterations;
-        self.report.contact_gmres_residual = info.final_residual;
-        let vw = self.flow_velocities(p, &u);
-        out.v
-            .par_iter_mut()
-            .zip(out.w.par_iter_mut())
-            .zip(vw)
-            .zip(ft)
-            .zip(p)
-            .for_each(|((((v, w), (dv, dw)), (f, t)), pn)| {
-                let (lv, lw) = self.local.local(*pn, *f, *t);
-                for d in 0..3 {
-                    v[d] += dv[d] + lv[d];
-                    w[d] += dw[d] + lw[d];
-                }
-            });
-        for (dst, c) in self.density.iter_mut().zip(x.chunks_exact(3)) {
-            for d in 0..3 {
-                dst[d] += c[d];
-            }
+        let any = ft.iter().any(|(f, t)| f.iter().chain(t).any(|c| *c != 0.0));
+        if self.predicted_exactly && !any {
+            return Ok(());
         }
-        Ok(())
+        self.solve_and_move(rods, p, Some(ft), out)
+    }
+
+    fn local(&self, p: Vec3, f: Vec3, t: Vec3) -> (Vec3, Vec3) {
+        self.local.local(p, f, t)
     }
 
     fn report(&self) -> HydroReport {
         self.report.clone()
     }
 
+    /// The last solution of (P4) followed by the last flow velocities (v, w per rod): both
+    /// shape the next step (warm start and prediction).
     fn warm_state(&self) -> Vec<f64> {
-        self.warm_free.clone()
+        let mut s = self.warm_free.clone();
+        for (v, w) in &self.flow {
+            s.extend_from_slice(v);
+            s.extend_from_slice(w);
+        }
+        s
     }
 
     fn set_warm_state(&mut self, state: Vec<f64>) {
-        self.warm_free = state;
+        // len = n (3 M + 6) for n rods.
+        let per_rod = 3 * self.s.len() + 6;
+        let n = state.len() / per_rod;
+        let split = 3 * self.s.len() * n;
+        self.flow = state[split..]
+            .chunks_exact(6)
+            .map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]]))
+            .collect();
+        self.warm_free = state[..split].to_vec();
     }
 
     fn force_density(&self) -> Option<ForceDensity<'_>> {

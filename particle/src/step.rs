@@ -1,10 +1,12 @@
 //! One time step of the particle model (MODEL.md §1, §3):
 //!
 //! 1. neighbour search (cell list) and one constraint per pair closer than `b + margin`;
-//! 2. free velocities from the [`Mobility`] (swimming, later hydrodynamics);
-//! 3. contact multipliers from the complementarity problem ([`ContactSolver`]);
-//! 4. velocities `V = V_free + M D lambda`; explicit Euler for centres (wrapped, image counters
-//!    kept) and `q <- theta(dt w) q` for orientations;
+//! 2. predicted velocities from the [`Mobility`] (swimming and, with hydrodynamics, the flow);
+//! 3. contact multipliers from the complementarity problem ([`ContactSolver`]) with the local
+//!    mobility;
+//! 4. the step's velocities from the mobility given the contact forces (prediction plus local
+//!    response, or a hydrodynamic solve with both); explicit Euler for centres (wrapped, image
+//!    counters kept) and `q <- theta(dt w) q` for orientations;
 //! 5. the true (nonlinear) largest overlap among the constrained pairs after the move.
 
 use crate::cells::CellList;
@@ -206,7 +208,7 @@ impl Stepper {
             self.velocities = RodVelocities::zeros(n);
         }
         self.mobility
-            .free_velocities(rods, &p, &mut self.velocities)?;
+            .predicted_velocities(rods, &p, &mut self.velocities)?;
         let fv: Vec<Vec3> = order
             .par_iter()
             .map(|&i| self.velocities.v[i as usize])
@@ -261,10 +263,8 @@ impl Stepper {
                 ft[order[k] as usize] = f;
             }
         }
-        if lambda.iter().any(|l| *l > 0.0) {
-            self.mobility
-                .add_contact_velocities(rods, &p, &ft, &mut self.velocities)?;
-        }
+        self.mobility
+            .final_velocities(rods, &p, &ft, &mut self.velocities)?;
         self.contact_force = ft.iter().map(|(f, _)| *f).collect();
         let net_contact_force =
             [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| self.contact_force[r][d]));
