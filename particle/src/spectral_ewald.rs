@@ -28,12 +28,13 @@ use std::f64::consts::PI;
 use std::time::Instant;
 
 /// Cost of one real-space pair visit relative to one grid point of one FFT pass (calibrated
-/// at 1e5 points, tolerance 1e-4: the minimum of the measured total lies between 1.5 and 8).
-const PAIR_COST: f64 = 3.0;
+/// at 1e5 points, tolerance 1e-4, with the NUFFT keeping its buffers: the measured total is
+/// flat between 6 and 12).
+const PAIR_COST: f64 = 8.0;
 
 /// The same for a stresslet pair (velocity and gradient from a table) against its
 /// Fourier side (9 transforms instead of 4); calibrated at 78 125 centres, tolerance 1e-4.
-const STRESSLET_PAIR_COST: f64 = 2.0;
+const STRESSLET_PAIR_COST: f64 = 8.0;
 
 /// The resolved parameters of one spectral Ewald sum.
 #[derive(Clone, Copy, Debug, PartialEq)]
