@@ -79,8 +79,17 @@ fn bench(c: &mut Criterion) {
         }
         // Consecutive steps of one evolving run, so the GMRES warm start is always one step
         // old, as in a simulation.
+        // A step that fails (the dipole model can exceed the overlap tolerance after a few
+        // dozen steps at dt = 0.002, see BENCHMARKS.md) restarts from the relaxed state.
+        let start = rods.clone();
         group.bench_function(name, |b| {
-            b.iter(|| pool.install(|| warm.step(&mut rods, 0.002).unwrap()))
+            b.iter(|| {
+                pool.install(|| {
+                    if warm.step(&mut rods, 0.002).is_err() {
+                        rods = start.clone();
+                    }
+                })
+            })
         });
     }
     group.finish();
