@@ -390,6 +390,24 @@ mod tests {
     }
 }
 
+/// Cubic Lagrange interpolation on a uniform table of `n` intervals at position `x` (in
+/// intervals): the first of the 4 nodes used and their weights.
+#[inline]
+fn lagrange4(x: f64, n: usize) -> (usize, [f64; 4]) {
+    let i = (x as usize).saturating_sub(1).min(n - 3);
+    let t = x - i as f64;
+    let (t1, t2, t3) = (t - 1.0, t - 2.0, t - 3.0);
+    (
+        i,
+        [
+            -t1 * t2 * t3 / 6.0,
+            t * t2 * t3 / 2.0,
+            -t * t1 * t3 / 2.0,
+            t * t1 * t2 / 6.0,
+        ],
+    )
+}
+
 /// Taylor series of the free Fourier part near `r = 0`: `(A_F, B_F / r^2)` to `r^6`
 /// (from `bench/derive_ewald_kernels.py`); relative error below 1e-12 for `xi r < 0.05`.
 pub fn rpy_fourier_free_series(r: f64, xi: f64, a: f64) -> (f64, f64) {
@@ -455,16 +473,7 @@ impl RealSpaceTable {
     /// `(A_R, B_R)` at `0 < r <= cutoff`.
     #[inline]
     pub fn eval(&self, r: f64) -> (f64, f64) {
-        let x = r * self.inv_h;
-        let i = (x as usize).saturating_sub(1).min(self.n - 3);
-        let t = x - i as f64;
-        let (t1, t2, t3) = (t - 1.0, t - 2.0, t - 3.0);
-        let w = [
-            -t1 * t2 * t3 / 6.0,
-            t * t2 * t3 / 2.0,
-            -t * t1 * t3 / 2.0,
-            t * t1 * t2 / 6.0,
-        ];
+        let (i, w) = lagrange4(r * self.inv_h, self.n);
         let g = &self.g[i..i + 4];
         let af = w[0] * g[0][0] + w[1] * g[1][0] + w[2] * g[2][0] + w[3] * g[3][0];
         let bf = w[0] * g[0][1] + w[1] * g[1][1] + w[2] * g[2][1] + w[3] * g[3][1];
@@ -532,16 +541,7 @@ impl StressletTable {
             d[0] = 0.0;
             return d;
         }
-        let x = r * self.inv_h;
-        let i = (x as usize).saturating_sub(1).min(self.n - 3);
-        let t = x - i as f64;
-        let (t1, t2, t3) = (t - 1.0, t - 2.0, t - 3.0);
-        let w = [
-            -t1 * t2 * t3 / 6.0,
-            t * t2 * t3 / 2.0,
-            -t * t1 * t3 / 2.0,
-            t * t1 * t2 / 6.0,
-        ];
+        let (i, w) = lagrange4(r * self.inv_h, self.n);
         let g = &self.g[i..i + 4];
         let f = stokeslet_free_derivatives(r);
         let mut out = [0.0; 6];

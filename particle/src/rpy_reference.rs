@@ -117,7 +117,7 @@ impl EwaldReference {
         let rc = REAL_REACH / xi;
         let modes = Modes::new(l, xi);
         // S^(k) = sum_n sigma_n p_n p_n exp(-i k.x_n), stored as 3x3 (row major, 9 entries).
-        let shat = modes.structure_factor9(x, |n| {
+        let shat = modes.structure_factor(x, |n| {
             let mut s = [Complex64::default(); 9];
             for i in 0..3 {
                 for j in 0..3 {
@@ -149,7 +149,7 @@ impl EwaldReference {
                     });
                 }
                 // Fourier: F^ = -i k.S^, u^ = phi (I - kk/k^2) F^/k^2, grad u^ = i k u^.
-                let sum = modes.sum_at12(y, |k, k2, e| {
+                let sum = modes.sum_at(y, |k, k2, e| {
                     let s = rpy_fourier_scalar(k2, xi, 0.0) / vol;
                     let sh = &shat[e];
                     let f: [Complex64; 3] = [0, 1, 2].map(|i| {
@@ -295,20 +295,21 @@ impl Modes {
         ph[0][i[0]] * ph[1][i[1]] * ph[2][i[2]]
     }
 
-    fn structure_factor(
+    /// `sum_j f(j) exp(-i k.y_j)` for every mode, `C` components at once.
+    fn structure_factor<const C: usize>(
         &self,
         y: &[Vec3],
-        f: impl Fn(usize) -> [Complex64; 3] + Sync,
-    ) -> Vec<[Complex64; 3]> {
+        f: impl Fn(usize) -> [Complex64; C] + Sync,
+    ) -> Vec<[Complex64; C]> {
         let ph: Vec<_> = y.par_iter().map(|y| self.phases(*y)).collect();
         self.list
             .par_iter()
             .map(|&m| {
-                let mut acc = [Complex64::default(); 3];
+                let mut acc = [Complex64::default(); C];
                 for (j, p) in ph.iter().enumerate() {
                     let e = self.phase(p, m);
                     let v = f(j);
-                    for d in 0..3 {
+                    for d in 0..C {
                         acc[d] += v[d] * e;
                     }
                 }
@@ -317,51 +318,19 @@ impl Modes {
             .collect()
     }
 
-    fn structure_factor9(
+    /// `Re sum_k g(k) exp(+i k.y)`, `C` components.
+    fn sum_at<const C: usize>(
         &self,
-        y: &[Vec3],
-        f: impl Fn(usize) -> [Complex64; 9] + Sync,
-    ) -> Vec<[Complex64; 9]> {
-        let ph: Vec<_> = y.par_iter().map(|y| self.phases(*y)).collect();
-        self.list
-            .par_iter()
-            .map(|&m| {
-                let mut acc = [Complex64::default(); 9];
-                for (j, p) in ph.iter().enumerate() {
-                    let e = self.phase(p, m);
-                    let v = f(j);
-                    for d in 0..9 {
-                        acc[d] += v[d] * e;
-                    }
-                }
-                acc
-            })
-            .collect()
-    }
-
-    /// `Re sum_k g(k) exp(+i k.y)` for a 3-vector `g`.
-    fn sum_at(&self, y: Vec3, g: impl Fn(Vec3, f64, usize) -> [Complex64; 3]) -> Vec3 {
+        y: Vec3,
+        g: impl Fn(Vec3, f64, usize) -> [Complex64; C],
+    ) -> [f64; C] {
         let ph = self.phases(y);
-        let mut acc = [0.0; 3];
+        let mut acc = [0.0; C];
         for (e, &m) in self.list.iter().enumerate() {
             let (k, k2) = self.k(m);
             let v = g(k, k2, e);
             let p = self.phase(&ph, m).conj();
-            for d in 0..3 {
-                acc[d] += (v[d] * p).re;
-            }
-        }
-        acc
-    }
-
-    fn sum_at12(&self, y: Vec3, g: impl Fn(Vec3, f64, usize) -> [Complex64; 12]) -> [f64; 12] {
-        let ph = self.phases(y);
-        let mut acc = [0.0; 12];
-        for (e, &m) in self.list.iter().enumerate() {
-            let (k, k2) = self.k(m);
-            let v = g(k, k2, e);
-            let p = self.phase(&ph, m).conj();
-            for d in 0..12 {
+            for d in 0..C {
                 acc[d] += (v[d] * p).re;
             }
         }
