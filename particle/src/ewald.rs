@@ -153,15 +153,16 @@ pub fn stresslet_from_derivatives(
 ) -> (Vec3, [Vec3; 3]) {
     let [_a, a1r, a2r, c, c1r, c2r] = *d;
     let q = dot(p, x);
-    let a1 = a1r / r;
-    let c1 = c1r / r;
-    let a1p = (a2r - a1) / r;
-    let c1p = (c2r - c1) / r;
+    let inv = 1.0 / r;
+    let a1 = a1r * inv;
+    let c1 = c1r * inv;
+    let a1p = (a2r - a1) * inv;
+    let c1p = (c2r - c1) * inv;
     let vp = (a1 + c) * q;
     let vx = c1 * q * q + c;
     let u = [0, 1, 2].map(|i| -sigma * (vp * p[i] + vx * x[i]));
-    let ap = (a1p + c1r) * q / r;
-    let bx = (c1p * q * q + c1r) / r;
+    let ap = (a1p + c1r) * q * inv;
+    let bx = (c1p * q * q + c1r) * inv;
     let mut grad = [[0.0; 3]; 3];
     for i in 0..3 {
         for l in 0..3 {
@@ -178,14 +179,16 @@ pub fn stresslet_from_derivatives(
 #[inline]
 pub fn stokeslet_free_derivatives(r: f64) -> [f64; 6] {
     let c = 1.0 / (8.0 * PI);
-    let (r2, r3) = (r * r, r * r * r);
+    let i1 = 1.0 / r;
+    let i2 = i1 * i1;
+    let i3 = i2 * i1;
     [
-        c / r,
-        -c / r2,
-        2.0 * c / r3,
-        c / r3,
-        -3.0 * c / (r3 * r),
-        12.0 * c / (r3 * r2),
+        c * i1,
+        -c * i2,
+        2.0 * c * i3,
+        c * i3,
+        -3.0 * c * i3 * i1,
+        12.0 * c * i3 * i2,
     ]
 }
 
@@ -397,13 +400,14 @@ fn lagrange4(x: f64, n: usize) -> (usize, [f64; 4]) {
     let i = (x as usize).saturating_sub(1).min(n - 3);
     let t = x - i as f64;
     let (t1, t2, t3) = (t - 1.0, t - 2.0, t - 3.0);
+    const SIXTH: f64 = 1.0 / 6.0;
     (
         i,
         [
-            -t1 * t2 * t3 / 6.0,
-            t * t2 * t3 / 2.0,
-            -t * t1 * t3 / 2.0,
-            t * t1 * t2 / 6.0,
+            -t1 * t2 * t3 * SIXTH,
+            t * t2 * t3 * 0.5,
+            -t * t1 * t3 * 0.5,
+            t * t1 * t2 * SIXTH,
         ],
     )
 }
@@ -440,7 +444,10 @@ pub fn rpy_fourier_free_series(r: f64, xi: f64, a: f64) -> (f64, f64) {
 pub struct RealSpaceTable {
     inv_h: f64,
     n: usize,
-    a: f64,
+    /// `1/(8 pi)`, `(2a^2/3)/(8 pi)`, `2a^2/(8 pi)`: the far form's coefficients.
+    c: f64,
+    ca: f64,
+    cb: f64,
     /// `[A_F, B_F / r^2]` at the nodes `r = k h`, `k = 0..=n`.
     g: Vec<[f64; 2]>,
 }
@@ -462,10 +469,13 @@ impl RealSpaceTable {
                 }
             })
             .collect();
+        let c = 1.0 / (8.0 * PI);
         Self {
             inv_h: 1.0 / h,
             n,
-            a,
+            c,
+            ca: c * 2.0 * a * a / 3.0,
+            cb: c * 2.0 * a * a,
             g,
         }
     }
@@ -473,17 +483,20 @@ impl RealSpaceTable {
     /// `(A_R, B_R)` at `0 < r <= cutoff`.
     #[inline]
     pub fn eval(&self, r: f64) -> (f64, f64) {
+        self.eval_inv(r, 1.0 / r)
+    }
+
+    /// [`Self::eval`] given `1/r` too (the pair loops have it: one division per pair).
+    #[inline]
+    pub fn eval_inv(&self, r: f64, inv: f64) -> (f64, f64) {
         let (i, w) = lagrange4(r * self.inv_h, self.n);
         let g = &self.g[i..i + 4];
         let af = w[0] * g[0][0] + w[1] * g[1][0] + w[2] * g[2][0] + w[3] * g[3][0];
         let bf = w[0] * g[0][1] + w[1] * g[1][1] + w[2] * g[2][1] + w[3] * g[3][1];
-        let (inv, r2) = (1.0 / r, r * r);
         let inv3 = inv * inv * inv;
-        let a2 = self.a * self.a;
-        let c = 1.0 / (8.0 * PI);
         (
-            c * (inv + 2.0 * a2 / 3.0 * inv3) - af,
-            c * (inv - 2.0 * a2 * inv3) - bf * r2,
+            self.c * inv + self.ca * inv3 - af,
+            self.c * inv - self.cb * inv3 - bf * r * r,
         )
     }
 }

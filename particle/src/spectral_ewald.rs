@@ -433,8 +433,9 @@ impl PeriodicStokes for SpectralEwald {
             if same {
                 return;
             }
-            let rh = r.map(|c| c / rn);
-            let (mut ar, mut br) = table.eval(rn);
+            let inv = 1.0 / rn;
+            let rh = r.map(|c| c * inv);
+            let (mut ar, mut br) = table.eval_inv(rn, inv);
             if rn < two_a {
                 let (ac, bc) = rpy_overlap_correction(rn, a);
                 ar += ac;
