@@ -232,7 +232,20 @@ pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisRepo
         });
     }
     // Time series of scalars.
-    let names: Vec<String> = per[0].correlations.iter().map(|(n, _)| n.clone()).collect();
+    // Fields may be missing from some snapshots (the initial one of a hydrodynamic run has no
+    // force density, so no velocity): the columns are those of the richest snapshot, and a
+    // snapshot without a field gets NaN there.
+    let names: Vec<String> = per
+        .iter()
+        .max_by_key(|a| a.correlations.len())
+        .map(|a| a.correlations.iter().map(|(n, _)| n.clone()).collect())
+        .unwrap_or_default();
+    let find = |a: &SnapshotAnalysis, name: &str| -> Option<RadialCorrelation> {
+        a.correlations
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, c)| c.clone())
+    };
     let unit_t = if kind == "particle" {
         "1/beta"
     } else {
@@ -261,9 +274,14 @@ pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisRepo
     let mut ts = TimeSeries::new(&col_refs);
     for a in &per {
         let mut row = vec![a.time];
-        for (_, c) in &a.correlations {
-            row.push(c.at_zero().max(0.0).sqrt());
-            row.push(correlation_length(&c.r, &c.value).unwrap_or(f64::NAN));
+        for n in &names {
+            match find(a, n) {
+                Some(c) => {
+                    row.push(c.at_zero().max(0.0).sqrt());
+                    row.push(correlation_length(&c.r, &c.value).unwrap_or(f64::NAN));
+                }
+                None => row.extend([f64::NAN, f64::NAN]),
+            }
         }
         if kind == "particle" {
             row.push(a.msd.unwrap_or(f64::NAN));
@@ -280,25 +298,26 @@ pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisRepo
             per.last().map_or(f64::NAN, |a| a.time)
         ));
     }
+    // Time averages over the window's snapshots that have the field.
     let mean = names
         .iter()
-        .enumerate()
-        .map(|(i, n)| {
-            let base = &window[0].correlations[i].1;
+        .filter_map(|n| {
+            let have: Vec<RadialCorrelation> = window.iter().filter_map(|a| find(a, n)).collect();
+            let base = have.first()?;
             let mut value = vec![0.0; base.value.len()];
-            for a in &window {
-                for (v, x) in value.iter_mut().zip(&a.correlations[i].1.value) {
-                    *v += x / window.len() as f64;
+            for c in &have {
+                for (v, x) in value.iter_mut().zip(&c.value) {
+                    *v += x / have.len() as f64;
                 }
             }
-            (
+            Some((
                 n.clone(),
                 RadialCorrelation {
                     r: base.r.clone(),
                     value,
                     count: base.count.clone(),
                 },
-            )
+            ))
         })
         .collect();
     let window_count = window.len();
@@ -363,7 +382,7 @@ pub fn write_report(
     b.create_dataset("time")
         .with_f64_data(&times)
         .with_shape(&[times.len() as u64]);
-    for (i, (n, mean)) in report.mean.iter().enumerate() {
+    for (n, mean) in report.mean.iter() {
         let nr = mean.r.len() as u64;
         b.create_dataset(&format!("r_{n}"))
             .with_f64_data(&mean.r)
@@ -371,10 +390,14 @@ pub fn write_report(
         b.create_dataset(&format!("corr_mean_{n}"))
             .with_f64_data(&mean.value)
             .with_shape(&[nr]);
+        // Per snapshot; NaN rows where a snapshot lacks the field (see `analyze`).
         let all: Vec<f64> = report
             .snapshots
             .iter()
-            .flat_map(|s| s.correlations[i].1.value.iter().copied())
+            .flat_map(|s| match s.correlations.iter().find(|(m, _)| m == n) {
+                Some((_, c)) if c.value.len() == mean.value.len() => c.value.clone(),
+                _ => vec![f64::NAN; mean.value.len()],
+            })
             .collect();
         b.create_dataset(&format!("corr_{n}"))
             .with_f64_data(&all)
