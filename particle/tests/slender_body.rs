@@ -155,6 +155,13 @@ fn gmres_needs_fewer_than_twenty_iterations_at_nu_0625_and_5() {
             "nu = {nu}: {} iterations",
             rep.gmres_iterations
         );
+        // Pinned (deterministic for these seeds and any thread count): a change here means the
+        // operator, the sums or GMRES changed behaviour; update the pin only knowingly.
+        let pinned = if nu < 1.0 { 5 } else { 7 };
+        assert_eq!(
+            rep.gmres_iterations, pinned,
+            "nu = {nu}: GMRES iterations changed"
+        );
         assert!(rep.gmres_residual <= 1e-6);
         // Warm start from the previous solution at the same configuration: at most one iteration.
         free(&mut mob, &r);
