@@ -5,6 +5,7 @@
 
 pub mod analyze;
 pub mod checkpoint;
+pub mod compare;
 pub mod demo;
 pub mod io;
 pub mod meanfield_run;

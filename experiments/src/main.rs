@@ -3,6 +3,7 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use motile_experiments::analyze::{AnalyzeOptions, analyze_run};
+use motile_experiments::compare;
 use motile_experiments::demo::{DemoConfig, write_demo_run};
 use motile_experiments::meanfield_run;
 use motile_experiments::particle_run::{
@@ -28,6 +29,16 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Compare particle and mean-field runs in one unit system (MODEL.md section 5): velocity
+    /// norm against time (PNG, SVG, CSV) and a table of its time averages.
+    Compare {
+        /// Run directories (particle runs need hydrodynamics "dipole" or "sbt").
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Compute correlation functions, norms and trajectory statistics of a run's snapshots;
     /// writes <RUN_DIR>/analysis/ (CSV, HDF5, PNG, SVG).
     Analyze {
@@ -66,7 +77,7 @@ enum Command {
     },
     /// The main job: a small dilute particle run (OUT/particle), a small mean-field run
     /// (OUT/meanfield), both analysed, and free swimmers checked against exact values
-    /// (OUT/free_swimmers). The particle part runs slender-body hydrodynamics at 320 rods; the comparison figures are issue 6.
+    /// (OUT/free_swimmers). The particle part runs slender-body hydrodynamics at 320 rods; OUT/compare has both velocity norms on one chart.
     Demo {
         /// Output run directory.
         #[arg(long, default_value = "runs/demo")]
@@ -141,6 +152,11 @@ fn load_options(config: &Option<PathBuf>) -> anyhow::Result<AnalyzeOptions> {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Compare { runs, out } => {
+            let report = compare::compare(&runs, &out)?;
+            println!("wrote {}\n{}", out.display(), report.table);
+            Ok(())
+        }
         Command::Analyze {
             run_dir,
             config,
@@ -311,6 +327,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 mrun.display()
             );
             analyze_run(&mrun, &AnalyzeOptions::default())?;
+            // Part 3: both on one chart, in mean-field units (MODEL.md section 5).
+            let cmp = out.join("compare");
+            let report = compare::compare(&[prun.clone(), mrun.clone()], &cmp)?;
+            println!(
+                "comparison (velocity norm against time, mean-field units) -> {}\n{}",
+                cmp.display(),
+                report.table
+            );
             let out = out.join("free_swimmers");
             let mut cfg = DemoConfig::default();
             cfg.box_length = box_length.unwrap_or(cfg.box_length);

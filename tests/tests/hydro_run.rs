@@ -121,3 +121,55 @@ fn analyze_handles_a_hydrodynamic_run_whose_first_snapshot_has_no_flow() {
         t_an[1]
     );
 }
+
+#[test]
+fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
+    use motile_experiments::compare::{compare, particle_to_meanfield};
+    use motile_experiments::meanfield_run::{MeanFieldRunConfig, run_meanfield};
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("p");
+    let m = dir.path().join("m");
+    run_particle(&small("sbt"), &p, false).unwrap();
+    let mcfg = MeanFieldRunConfig {
+        grid: 8,
+        mode_max: 2,
+        t_end: 2.0,
+        dt_max: 0.05,
+        diagnostic_interval: 0.5,
+        snapshot_interval: 1.0,
+        ..Default::default()
+    };
+    run_meanfield(&mcfg, &m, false).unwrap();
+    let out = dir.path().join("cmp");
+    let report = compare(&[p.clone(), m.clone()], &out).unwrap();
+    for f in [
+        "velocity_norm.png",
+        "velocity_norm.svg",
+        "velocity_norm.csv",
+        "summary.csv",
+        "summary.md",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    // The particle curve is the run's own time series through MODEL.md section 5.
+    let ts = TimeSeries::read(&p.join("timeseries.csv")).unwrap();
+    let (t, u) = (column(&ts, "t"), column(&ts, "velocity_norm"));
+    let nu = (0.625f64 * 216.0).round() / 216.0;
+    let c = &report.curves[0];
+    for k in 0..t.len() {
+        let (tm, um) = particle_to_meanfield(t[k], u[k], nu);
+        assert!(
+            (c.t[k] - tm).abs() < 1e-12 && (c.u[k] - um).abs() < 1e-12,
+            "row {k}"
+        );
+    }
+    // The mean-field curve is unchanged.
+    let mts = TimeSeries::read(&m.join("timeseries.csv")).unwrap();
+    assert_eq!(report.curves[1].u, column(&mts, "u_l2"));
+    assert_eq!(report.table.lines().count(), 4, "{}", report.table);
+    // A particle run without flow is refused with a reason.
+    let none = dir.path().join("none");
+    run_particle(&small("none"), &none, false).unwrap();
+    let err = format!("{:#}", compare(&[none], &out).unwrap_err());
+    assert!(err.contains("no flow to compare"), "{err}");
+}
