@@ -1,11 +1,13 @@
 //! `motile compare RUN... --out DIR` (MODEL.md §5): particle and mean-field runs on one chart in
-//! the mean-field unit system. So far the velocity norm against time and the table of its time
-//! averages (issue 6 lists the rest: correlation functions, slices, growth rates).
+//! the mean-field unit system. So far the velocity norm against time, the table of its time
+//! averages, and the time-averaged velocity autocorrelation `Corr[u](r)` against `r/L`
+//! (issue 6 lists the rest: slices, order-parameter correlations, growth rates).
 //!
 //! Conversions (MODEL.md §5): particle time `t_mf = t_p nu / (8 eta mu)`, particle velocity
 //! (reported normalised by `beta L`) `u_mf = (u_p / (beta L)) 8 eta mu / nu`; mean-field runs are
 //! already in those units.
 
+use crate::analyze::{AnalyzeOptions, analyze};
 use crate::io::write_atomic;
 use crate::meanfield_run::MeanFieldRunConfig;
 use crate::particle_run::ParticleRunConfig;
@@ -95,17 +97,67 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
     }
 }
 
+/// A run's time-averaged velocity autocorrelation in mean-field units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CorrCurve {
+    /// Legend label, with the averaging window.
+    pub label: String,
+    /// `r / L`.
+    pub r: Vec<f64>,
+    /// `Corr[u](r)`, `(L |sigma_a| / mu)^2`.
+    pub value: Vec<f64>,
+}
+
+/// `Corr[u](r)` of a run averaged over its snapshots with `t >= t_start` (the run's own time
+/// unit), converted to mean-field units; `None` if the run's snapshots carry no flow.
+pub fn corr_curve(run: &Path, label: &str, t_start: f64) -> anyhow::Result<Option<CorrCurve>> {
+    let dir = RunDir::open(run)?;
+    let snaps = dir.snapshots()?;
+    let opts = AnalyzeOptions {
+        t_start,
+        ..AnalyzeOptions::default()
+    };
+    let report = analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
+    let Some((_, c)) = report.mean.iter().find(|(n, _)| n == "u") else {
+        return Ok(None);
+    };
+    let particle = dir.header()?.model == "particle";
+    let unit = if particle { "1/beta" } else { "mu/|sigma_a|" };
+    let (r_scale, v_scale) = if particle {
+        let cfg: ParticleRunConfig = read_run_config(run, ParticleRunConfig::validate)?;
+        let l = cfg.box_length;
+        let n = cfg
+            .rods
+            .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
+        let s = 8.0 * eta() * VISCOSITY / (n as f64 / (l * l * l));
+        (1.0 / l, s * s)
+    } else {
+        (1.0, 1.0)
+    };
+    Ok(Some(CorrCurve {
+        label: format!(
+            "{label}, {} snapshot(s) from t = {t_start:.3} [{unit}]",
+            report.window_count
+        ),
+        r: c.r.iter().map(|r| r * r_scale).collect(),
+        value: c.value.iter().map(|v| v * v_scale).collect(),
+    }))
+}
+
 /// What `compare` wrote.
 #[derive(Clone, Debug)]
 pub struct CompareReport {
     /// The curves.
     pub curves: Vec<NormCurve>,
+    /// Time-averaged velocity autocorrelations (runs whose snapshots carry a flow).
+    pub correlations: Vec<CorrCurve>,
     /// Markdown table of the time averages.
     pub table: String,
 }
 
-/// Compare `runs` and write `velocity_norm.{png,svg,csv}` and `summary.{csv,md}` into `out`.
-/// Time averages are over the second half of each run (a stated window; the table says which).
+/// Compare `runs` and write `velocity_norm.{png,svg,csv}`, `summary.{csv,md}` and
+/// `velocity_correlation.{png,svg,csv}` into `out`. Time averages are over the second half of
+/// each run (a stated window; the table and the legend say which).
 pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     if runs.is_empty() {
         bail!("compare: give at least one run directory");
@@ -164,7 +216,43 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
                 .collect(),
         },
     )?;
-    Ok(CompareReport { curves, table: md })
+    // Corr[u](r), averaged over the snapshots of each run's second half (in its own time unit).
+    let mut correlations = Vec::new();
+    for (run, c) in runs.iter().zip(&curves) {
+        let ts = TimeSeries::read(&run.join("timeseries.csv"))?;
+        let t_own = column(&ts, "t [", &run.join("timeseries.csv"))?;
+        let t_half = 0.5 * t_own.last().copied().unwrap_or(0.0);
+        if let Some(cc) = corr_curve(run, &c.label, t_half)? {
+            correlations.push(cc);
+        }
+    }
+    let mut ccsv = String::from("label,r/L,Corr[u] [(L |sigma_a|/mu)^2]\n");
+    for c in &correlations {
+        for (r, v) in c.r.iter().zip(&c.value) {
+            writeln!(ccsv, "\"{}\",{r:e},{v:e}", c.label).expect("string");
+        }
+    }
+    write_atomic(&out.join("velocity_correlation.csv"), ccsv.as_bytes())?;
+    line_chart(
+        &out.join("velocity_correlation"),
+        &Chart {
+            title: "Time-averaged velocity autocorrelation, mean-field units",
+            x_label: "r / L",
+            y_label: "Corr[u](r) [(L |sigma_a|/mu)^2]",
+            series: correlations
+                .iter()
+                .map(|c| Series {
+                    label: c.label.clone(),
+                    points: c.r.iter().copied().zip(c.value.iter().copied()).collect(),
+                })
+                .collect(),
+        },
+    )?;
+    Ok(CompareReport {
+        curves,
+        correlations,
+        table: md,
+    })
 }
 
 #[cfg(test)]

@@ -167,6 +167,23 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
     let mts = TimeSeries::read(&m.join("timeseries.csv")).unwrap();
     assert_eq!(report.curves[1].u, column(&mts, "u_l2"));
     assert_eq!(report.table.lines().count(), 4, "{}", report.table);
+    // Corr[u](0) of the particle run is the mean square of its velocity norm over the window's
+    // snapshots (t_p = 0.02 and 0.04), in the same units.
+    assert_eq!(report.correlations.len(), 2);
+    let corr0 = report.correlations[0].value[0];
+    let sq: Vec<f64> = [0.02, 0.04]
+        .iter()
+        .map(|tp| {
+            let k = t.iter().position(|t| (t - tp).abs() < 1e-9).unwrap();
+            c.u[k] * c.u[k]
+        })
+        .collect();
+    let expect = 0.5 * (sq[0] + sq[1]);
+    assert!(
+        (corr0 - expect).abs() < 1e-6 * expect,
+        "Corr[u](0) {corr0} vs {expect}"
+    );
+    assert!(out.join("velocity_correlation.png").exists());
     // A particle run without flow is refused with a reason.
     let none = dir.path().join("none");
     run_particle(&small("none"), &none, false).unwrap();
