@@ -14,7 +14,7 @@ use crate::particle_run::ParticleRunConfig;
 use crate::plot::{Chart, Series, line_chart};
 use crate::rundir::{RunDir, TimeSeries, read_run_config};
 use anyhow::{Context, bail};
-use motile_analysis::stats::window_average;
+use motile_analysis::stats::{GrowthFit, fit_growth_rate, window_average};
 use motile_particle::units::{VISCOSITY, eta};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -144,6 +144,16 @@ pub fn corr_curve(run: &Path, label: &str, t_start: f64) -> anyhow::Result<Optio
     }))
 }
 
+/// The growth rate of `||u||_2` in a run's growth phase: from its first sample to the first time
+/// the norm reaches a quarter of its maximum (before nonlinear saturation); `None` if that leaves
+/// fewer than 3 samples (no growth phase, e.g. a particle run starting at its noise level).
+pub fn growth_fit(c: &NormCurve) -> Option<GrowthFit> {
+    let max = c.u.iter().copied().fold(0.0, f64::max);
+    let t0 = *c.t.first()?;
+    let k = c.u.iter().position(|u| *u >= 0.25 * max)?;
+    fit_growth_rate(&c.t, &c.u, t0, c.t[k])
+}
+
 /// What `compare` wrote.
 #[derive(Clone, Debug)]
 pub struct CompareReport {
@@ -175,22 +185,36 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     }
     write_atomic(&out.join("velocity_norm.csv"), csv.as_bytes())?;
     let mut md = String::from(
-        "| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples |\n|---|---|---|---|---|\n",
+        "| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth window (t) | growth rate (mean-field units) | standard error |\n|---|---|---|---|---|---|---|---|\n",
     );
-    let mut scsv = String::from("run,label,t0,t1,mean_u_l2,std_error,samples\n");
+    let mut scsv = String::from(
+        "run,label,t0,t1,mean_u_l2,std_error,samples,growth_t0,growth_t1,growth_rate,growth_rate_std_error\n",
+    );
     for c in &curves {
         let t1 = c.t.last().copied().unwrap_or(0.0);
         let t0 = 0.5 * t1;
         let w = window_average(&c.t, &c.u, t0, t1);
+        let g = growth_fit(c);
+        let (gw, gr, ge) = match g {
+            Some(g) => (
+                format!("[{:.3}, {:.3}]", g.t0, g.t1),
+                format!("{:.5}", g.rate),
+                format!("{:.1e}", g.std_error),
+            ),
+            None => ("no growth phase".into(), "-".into(), "-".into()),
+        };
         writeln!(
             md,
-            "| {} | [{t0:.3}, {t1:.3}] | {:.4e} | {:.1e} | {} |",
+            "| {} | [{t0:.3}, {t1:.3}] | {:.4e} | {:.1e} | {} | {gw} | {gr} | {ge} |",
             c.label, w.mean, w.std_error, w.samples
         )
         .expect("string");
+        let (g0, g1, grate, gerr) = g.map_or((f64::NAN, f64::NAN, f64::NAN, f64::NAN), |g| {
+            (g.t0, g.t1, g.rate, g.std_error)
+        });
         writeln!(
             scsv,
-            "{},\"{}\",{t0:e},{t1:e},{:e},{:e},{}",
+            "{},\"{}\",{t0:e},{t1:e},{:e},{:e},{},{g0:e},{g1:e},{grate:e},{gerr:e}",
             c.run.display(),
             c.label,
             w.mean,

@@ -190,3 +190,45 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
     let err = format!("{:#}", compare(&[none], &out).unwrap_err());
     assert!(err.contains("no flow to compare"), "{err}");
 }
+
+#[test]
+fn compare_fits_the_mean_field_growth_rate_of_the_dominant_mode() {
+    // A plane wave of Q_xy with wavevector m = (1, 0, 0) on the unit cube grows at
+    // gamma = (1/5)/(1 + zeta/15) - D k^2, k = 2 pi |m| (MODEL.md section 4), independent of
+    // k apart from diffusion; ||u||_2 grows at the same rate.
+    use motile_experiments::compare::{compare, growth_fit};
+    use motile_experiments::meanfield_run::{MeanFieldRunConfig, run_meanfield};
+    let dir = tempfile::tempdir().unwrap();
+    let m = dir.path().join("m");
+    let cfg = MeanFieldRunConfig {
+        grid: 8,
+        initial: "plane_wave".into(),
+        wavevector: [1, 0, 0],
+        amplitude: 1e-6,
+        diffusion: 2e-3,
+        t_end: 20.0,
+        dt_max: 0.02,
+        diagnostic_interval: 0.5,
+        snapshot_interval: 10.0,
+        ..Default::default()
+    };
+    run_meanfield(&cfg, &m, false).unwrap();
+    let report = compare(&[m], &dir.path().join("cmp")).unwrap();
+    let fit = growth_fit(&report.curves[0]).expect("a growth phase");
+    let k2 = (2.0 * std::f64::consts::PI).powi(2);
+    let expected = 0.2 / (1.0 + cfg.zeta / 15.0) - cfg.diffusion * k2;
+    let rel = (fit.rate - expected).abs() / expected;
+    eprintln!(
+        "growth: fitted {:.6} +- {:.1e} over [{}, {}], expected {expected:.6}, rel {rel:.1e}",
+        fit.rate, fit.std_error, fit.t0, fit.t1
+    );
+    assert!(
+        rel < 1e-3,
+        "fitted {:.6} +- {:.1e} over [{}, {}] vs (1/5)/(1 + zeta/15) - D k^2 = {expected:.6}: rel {rel:e}",
+        fit.rate,
+        fit.std_error,
+        fit.t0,
+        fit.t1
+    );
+    assert!(report.table.contains("growth"), "{}", report.table);
+}
