@@ -97,6 +97,20 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
     }
 }
 
+/// Mean squared displacement and orientation autocorrelation of a particle run against time
+/// (particle units: the rods' own clock is the natural one for trajectories).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrajectoryCurve {
+    /// Legend label.
+    pub label: String,
+    /// Snapshot times, 1/beta.
+    pub t: Vec<f64>,
+    /// `<|x(t) - x(0)|^2>`, l^2.
+    pub msd: Vec<f64>,
+    /// `<p(t) . p(0)>`.
+    pub orientation: Vec<f64>,
+}
+
 /// A run's time-averaged velocity autocorrelation in mean-field units.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CorrCurve {
@@ -111,6 +125,15 @@ pub struct CorrCurve {
 /// `Corr[u](r)` of a run averaged over its snapshots with `t >= t_start` (the run's own time
 /// unit), converted to mean-field units; `None` if the run's snapshots carry no flow.
 pub fn corr_curve(run: &Path, label: &str, t_start: f64) -> anyhow::Result<Option<CorrCurve>> {
+    Ok(analyse(run, label, t_start)?.0)
+}
+
+/// The run's Corr[u] (as [`corr_curve`]) and, for particle runs, its trajectory statistics.
+fn analyse(
+    run: &Path,
+    label: &str,
+    t_start: f64,
+) -> anyhow::Result<(Option<CorrCurve>, Option<TrajectoryCurve>)> {
     let dir = RunDir::open(run)?;
     let snaps = dir.snapshots()?;
     let opts = AnalyzeOptions {
@@ -118,8 +141,22 @@ pub fn corr_curve(run: &Path, label: &str, t_start: f64) -> anyhow::Result<Optio
         ..AnalyzeOptions::default()
     };
     let report = analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
+    let traj = (report.kind == "particle").then(|| TrajectoryCurve {
+        label: label.into(),
+        t: report.snapshots.iter().map(|s| s.time).collect(),
+        msd: report
+            .snapshots
+            .iter()
+            .map(|s| s.msd.unwrap_or(f64::NAN))
+            .collect(),
+        orientation: report
+            .snapshots
+            .iter()
+            .map(|s| s.orientation.unwrap_or(f64::NAN))
+            .collect(),
+    });
     let Some((_, c)) = report.mean.iter().find(|(n, _)| n == "u") else {
-        return Ok(None);
+        return Ok((None, traj));
     };
     let particle = dir.header()?.model == "particle";
     let unit = if particle { "1/beta" } else { "mu/|sigma_a|" };
@@ -134,14 +171,15 @@ pub fn corr_curve(run: &Path, label: &str, t_start: f64) -> anyhow::Result<Optio
     } else {
         (1.0, 1.0)
     };
-    Ok(Some(CorrCurve {
+    let corr = CorrCurve {
         label: format!(
             "{label}, {} snapshot(s) from t = {t_start:.3} [{unit}]",
             report.window_count
         ),
         r: c.r.iter().map(|r| r * r_scale).collect(),
         value: c.value.iter().map(|v| v * v_scale).collect(),
-    }))
+    };
+    Ok((Some(corr), traj))
 }
 
 /// The growth rate of `||u||_2` in a run's growth phase: from its first sample to the first time
@@ -161,12 +199,15 @@ pub struct CompareReport {
     pub curves: Vec<NormCurve>,
     /// Time-averaged velocity autocorrelations (runs whose snapshots carry a flow).
     pub correlations: Vec<CorrCurve>,
+    /// Trajectory statistics of the particle runs.
+    pub trajectories: Vec<TrajectoryCurve>,
     /// Markdown table of the time averages.
     pub table: String,
 }
 
-/// Compare `runs` and write `velocity_norm.{png,svg,csv}`, `summary.{csv,md}` and
-/// `velocity_correlation.{png,svg,csv}` into `out`. Time averages are over the second half of
+/// Compare `runs` and write `velocity_norm.{png,svg,csv}`, `summary.{csv,md}`,
+/// `velocity_correlation.{png,svg,csv}` and, for particle runs, `msd.{png,svg}`,
+/// `orientation.{png,svg}` and `trajectories.csv` into `out`. Time averages are over the second half of
 /// each run (a stated window; the table and the legend say which).
 pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     if runs.is_empty() {
@@ -242,12 +283,66 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     )?;
     // Corr[u](r), averaged over the snapshots of each run's second half (in its own time unit).
     let mut correlations = Vec::new();
+    let mut trajectories = Vec::new();
     for (run, c) in runs.iter().zip(&curves) {
         let ts = TimeSeries::read(&run.join("timeseries.csv"))?;
         let t_own = column(&ts, "t [", &run.join("timeseries.csv"))?;
         let t_half = 0.5 * t_own.last().copied().unwrap_or(0.0);
-        if let Some(cc) = corr_curve(run, &c.label, t_half)? {
-            correlations.push(cc);
+        let (cc, tr) = analyse(run, &c.label, t_half)?;
+        correlations.extend(cc);
+        trajectories.extend(tr);
+    }
+    if !trajectories.is_empty() {
+        let mut tcsv = String::from("label,t [1/beta],msd [l^2],orientation_autocorrelation [1]\n");
+        for tr in &trajectories {
+            for k in 0..tr.t.len() {
+                writeln!(
+                    tcsv,
+                    "\"{}\",{:e},{:e},{:e}",
+                    tr.label, tr.t[k], tr.msd[k], tr.orientation[k]
+                )
+                .expect("string");
+            }
+        }
+        write_atomic(&out.join("trajectories.csv"), tcsv.as_bytes())?;
+        for (stem, title, y_label, pick) in [
+            (
+                "msd",
+                "Mean squared displacement of the rods",
+                "<|x(t) - x(0)|^2> [l^2]",
+                0,
+            ),
+            (
+                "orientation",
+                "Orientation autocorrelation of the rods",
+                "<p(t) . p(0)> [1]",
+                1,
+            ),
+        ] {
+            line_chart(
+                &out.join(stem),
+                &Chart {
+                    title,
+                    x_label: "t [1/beta]",
+                    y_label,
+                    series: trajectories
+                        .iter()
+                        .map(|tr| Series {
+                            label: tr.label.clone(),
+                            points: tr
+                                .t
+                                .iter()
+                                .copied()
+                                .zip(
+                                    if pick == 0 { &tr.msd } else { &tr.orientation }
+                                        .iter()
+                                        .copied(),
+                                )
+                                .collect(),
+                        })
+                        .collect(),
+                },
+            )?;
         }
     }
     let mut ccsv = String::from("label,r/L,Corr[u] [(L |sigma_a|/mu)^2]\n");
@@ -275,6 +370,7 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     Ok(CompareReport {
         curves,
         correlations,
+        trajectories,
         table: md,
     })
 }

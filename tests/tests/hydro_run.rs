@@ -184,6 +184,16 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
         "Corr[u](0) {corr0} vs {expect}"
     );
     assert!(out.join("velocity_correlation.png").exists());
+    // Trajectories: at these early times the rods swim ballistically, MSD ~ (U t)^2 up to the
+    // flow's few-percent speed changes; orientations barely move.
+    let tr = &report.trajectories[0];
+    for k in 1..tr.t.len() {
+        let ballistic = tr.t[k] * tr.t[k];
+        let dev = (tr.msd[k] - ballistic).abs() / ballistic;
+        assert!(dev < 0.2, "MSD {} vs (U t)^2 = {ballistic} at t = {}", tr.msd[k], tr.t[k]);
+        assert!(tr.orientation[k] > 0.99, "orientation {}", tr.orientation[k]);
+    }
+    assert!(out.join("msd.png").exists() && out.join("orientation.svg").exists());
     // A particle run without flow is refused with a reason.
     let none = dir.path().join("none");
     run_particle(&small("none"), &none, false).unwrap();
