@@ -125,15 +125,20 @@ pub struct CorrCurve {
 /// `Corr[u](r)` of a run averaged over its snapshots with `t >= t_start` (the run's own time
 /// unit), converted to mean-field units; `None` if the run's snapshots carry no flow.
 pub fn corr_curve(run: &Path, label: &str, t_start: f64) -> anyhow::Result<Option<CorrCurve>> {
-    Ok(analyse(run, label, t_start)?.0)
+    Ok(analyse(run, label, t_start)?.corr_u)
 }
 
-/// The run's Corr[u] (as [`corr_curve`]) and, for particle runs, its trajectory statistics.
-fn analyse(
-    run: &Path,
-    label: &str,
-    t_start: f64,
-) -> anyhow::Result<(Option<CorrCurve>, Option<TrajectoryCurve>)> {
+/// What the in-memory analysis of one run gives the comparison.
+struct RunAnalysis {
+    corr_u: Option<CorrCurve>,
+    traj: Option<TrajectoryCurve>,
+    /// `Corr[c], Corr[n], Corr[Q]` normalised by their value at 0, against `r / L`.
+    order: Vec<(String, Vec<(f64, f64)>)>,
+}
+
+/// The run's Corr[u] (as [`corr_curve`]), its order-parameter correlations and, for particle
+/// runs, its trajectory statistics.
+fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis> {
     let dir = RunDir::open(run)?;
     let snaps = dir.snapshots()?;
     let opts = AnalyzeOptions {
@@ -155,9 +160,6 @@ fn analyse(
             .map(|s| s.orientation.unwrap_or(f64::NAN))
             .collect(),
     });
-    let Some((_, c)) = report.mean.iter().find(|(n, _)| n == "u") else {
-        return Ok((None, traj));
-    };
     let particle = dir.header()?.model == "particle";
     let unit = if particle { "1/beta" } else { "mu/|sigma_a|" };
     let (r_scale, v_scale) = if particle {
@@ -171,15 +173,38 @@ fn analyse(
     } else {
         (1.0, 1.0)
     };
-    let corr = CorrCurve {
-        label: format!(
-            "{label}, {} snapshot(s) from t = {t_start:.3} [{unit}]",
-            report.window_count
-        ),
-        r: c.r.iter().map(|r| r * r_scale).collect(),
-        value: c.value.iter().map(|v| v * v_scale).collect(),
-    };
-    Ok((Some(corr), traj))
+    let order = report
+        .mean
+        .iter()
+        .filter(|(n, c)| n != "u" && c.at_zero() > 0.0)
+        .map(|(n, c)| {
+            let c0 = c.at_zero();
+            (
+                n.clone(),
+                c.r.iter()
+                    .zip(&c.value)
+                    .map(|(r, v)| (r * r_scale, v / c0))
+                    .collect(),
+            )
+        })
+        .collect();
+    let corr_u = report
+        .mean
+        .iter()
+        .find(|(n, _)| n == "u")
+        .map(|(_, c)| CorrCurve {
+            label: format!(
+                "{label}, {} snapshot(s) from t = {t_start:.3} [{unit}]",
+                report.window_count
+            ),
+            r: c.r.iter().map(|r| r * r_scale).collect(),
+            value: c.value.iter().map(|v| v * v_scale).collect(),
+        });
+    Ok(RunAnalysis {
+        corr_u,
+        traj,
+        order,
+    })
 }
 
 /// The growth rate of `||u||_2` in a run's growth phase: from its first sample to the first time
@@ -284,13 +309,41 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     // Corr[u](r), averaged over the snapshots of each run's second half (in its own time unit).
     let mut correlations = Vec::new();
     let mut trajectories = Vec::new();
+    let mut order: Vec<(String, Vec<Series>)> = Vec::new();
     for (run, c) in runs.iter().zip(&curves) {
         let ts = TimeSeries::read(&run.join("timeseries.csv"))?;
         let t_own = column(&ts, "t [", &run.join("timeseries.csv"))?;
         let t_half = 0.5 * t_own.last().copied().unwrap_or(0.0);
-        let (cc, tr) = analyse(run, &c.label, t_half)?;
-        correlations.extend(cc);
-        trajectories.extend(tr);
+        let a = analyse(run, &c.label, t_half)?;
+        correlations.extend(a.corr_u);
+        trajectories.extend(a.traj);
+        for (name, points) in a.order {
+            match order.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, series)) => series.push(Series {
+                    label: c.label.clone(),
+                    points,
+                }),
+                None => order.push((
+                    name,
+                    vec![Series {
+                        label: c.label.clone(),
+                        points,
+                    }],
+                )),
+            }
+        }
+    }
+    // Order-parameter correlations, one chart per field, shapes compared (normalised at 0).
+    for (name, series) in &order {
+        line_chart(
+            &out.join(format!("correlation_{name}")),
+            &Chart {
+                title: &format!("Corr[{name}](r) / Corr[{name}](0), second half of each run"),
+                x_label: "r / L",
+                y_label: &format!("Corr[{name}](r) / Corr[{name}](0)"),
+                series: series.clone(),
+            },
+        )?;
     }
     if !trajectories.is_empty() {
         let mut tcsv = String::from("label,t [1/beta],msd [l^2],orientation_autocorrelation [1]\n");

@@ -190,10 +190,22 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
     for k in 1..tr.t.len() {
         let ballistic = tr.t[k] * tr.t[k];
         let dev = (tr.msd[k] - ballistic).abs() / ballistic;
-        assert!(dev < 0.2, "MSD {} vs (U t)^2 = {ballistic} at t = {}", tr.msd[k], tr.t[k]);
-        assert!(tr.orientation[k] > 0.99, "orientation {}", tr.orientation[k]);
+        assert!(
+            dev < 0.2,
+            "MSD {} vs (U t)^2 = {ballistic} at t = {}",
+            tr.msd[k],
+            tr.t[k]
+        );
+        assert!(
+            tr.orientation[k] > 0.99,
+            "orientation {}",
+            tr.orientation[k]
+        );
     }
     assert!(out.join("msd.png").exists() && out.join("orientation.svg").exists());
+    for f in ["c", "n", "Q"] {
+        assert!(out.join(format!("correlation_{f}.png")).exists(), "Corr[{f}] chart missing");
+    }
     // A particle run without flow is refused with a reason.
     let none = dir.path().join("none");
     run_particle(&small("none"), &none, false).unwrap();
