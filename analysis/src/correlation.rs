@@ -96,6 +96,20 @@ pub struct Spectrum {
 }
 
 impl Spectrum {
+    /// Component `c` on the `modes^3` grid `x = L j / modes` (x fastest): the real part of
+    /// `sum_k Phi~(k) exp(i k.x)`.
+    pub fn to_grid(&self, c: usize) -> Vec<f64> {
+        let n = self.modes;
+        let mut g = vec![Complex64::default(); n * n * n];
+        for (idx, v) in self.components[c].iter().enumerate() {
+            let m = [idx % n, (idx / n) % n, idx / (n * n)]
+                .map(|i| mode_of(i, n).rem_euclid(n as i64) as usize);
+            g[(m[2] * n + m[1]) * n + m[0]] = *v;
+        }
+        Fft3::new([n; 3]).process(&mut g, Direction::Inverse);
+        g.iter().map(|z| z.re).collect()
+    }
+
     /// `sum_components weight |Phi~(k)|^2`, per mode.
     pub fn power(&self) -> Vec<f64> {
         let n = self.modes.pow(3);

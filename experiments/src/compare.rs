@@ -11,9 +11,11 @@ use crate::analyze::{AnalyzeOptions, analyze};
 use crate::io::write_atomic;
 use crate::meanfield_run::MeanFieldRunConfig;
 use crate::particle_run::ParticleRunConfig;
-use crate::plot::{Chart, Series, line_chart};
+use crate::plot::{Chart, Panel, Series, heatmaps, line_chart};
 use crate::rundir::{RunDir, TimeSeries, read_run_config};
+use crate::snapshot::{Snapshot, read_snapshot};
 use anyhow::{Context, bail};
+use motile_analysis::correlation::velocity_spectrum;
 use motile_analysis::stats::{GrowthFit, fit_growth_rate, window_average};
 use motile_particle::units::{VISCOSITY, eta};
 use std::fmt::Write as _;
@@ -207,6 +209,39 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
     })
 }
 
+/// The velocity magnitude on the plane z = 0 of a run's last snapshot, in mean-field units:
+/// `(n, values)` with `values[y n + x]`. Particle runs: the velocity field of the snapshot's
+/// force density on `min(2 L/l, 64)` modes per side (MODEL.md §6, doublet neglected); mean-field
+/// runs: the snapshot's grid. `None` if the last snapshot has no flow.
+pub fn velocity_slice(run: &Path) -> anyhow::Result<Option<(usize, Vec<f64>, f64)>> {
+    let dir = RunDir::open(run)?;
+    let snaps = dir.snapshot_paths()?;
+    let Some(last) = snaps.last() else {
+        return Ok(None);
+    };
+    let (n, grid, time): (usize, [Vec<f64>; 3], f64) = match read_snapshot(last)? {
+        Snapshot::Particle(p) => {
+            let Some(f) = p.forces else {
+                return Ok(None);
+            };
+            let l = p.box_length;
+            let nu = p.positions.len() as f64 / (l * l * l);
+            let modes = ((2.0 * l) as usize).clamp(8, 64) & !1;
+            let spec = velocity_spectrum(&f.points, &f.forces, l, VISCOSITY, modes, 1e-6)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", last.display()))?;
+            // u / (beta L) to mean-field units.
+            let s = 8.0 * eta() * VISCOSITY / nu / l;
+            let g = [0, 1, 2].map(|c| spec.to_grid(c).into_iter().map(|v| v * s).collect());
+            (modes, g, particle_to_meanfield(p.time, 0.0, nu).0)
+        }
+        Snapshot::Field(f) => (f.grid, f.u.clone(), f.time),
+    };
+    let slice = (0..n * n)
+        .map(|k| (0..3).map(|c| grid[c][k].powi(2)).sum::<f64>().sqrt())
+        .collect();
+    Ok(Some((n, slice, time)))
+}
+
 /// The growth rate of `||u||_2` in a run's growth phase: from its first sample to the first time
 /// the norm reaches a quarter of its maximum (before nonlinear saturation); `None` if that leaves
 /// fewer than 3 samples (no growth phase, e.g. a particle run starting at its noise level).
@@ -332,6 +367,25 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
                 )),
             }
         }
+    }
+    // Velocity magnitude on z = 0 at each run's last snapshot, side by side, one colour scale.
+    let mut panels = Vec::new();
+    for (run, c) in runs.iter().zip(&curves) {
+        if let Some((n, values, t)) = velocity_slice(run)? {
+            panels.push(Panel {
+                label: format!("{} at t = {t:.3}", c.label),
+                n,
+                values,
+            });
+        }
+    }
+    if !panels.is_empty() {
+        heatmaps(
+            &out.join("velocity_slice"),
+            "|u| on the plane z = 0, last snapshot, mean-field units",
+            "|u| [L |sigma_a|/mu]",
+            &panels,
+        )?;
     }
     // Order-parameter correlations, one chart per field, shapes compared (normalised at 0).
     for (name, series) in &order {

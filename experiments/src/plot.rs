@@ -125,3 +125,127 @@ pub fn line_chart(stem: &Path, chart: &Chart) -> Result<(), crate::io::IoError> 
     .map_err(|m| err(&png, m))?;
     crate::io::write_atomic(&stem.with_extension("svg"), svg.as_bytes())
 }
+
+/// One panel of a row of heat maps: a square `n x n` field, row `y`, column `x`
+/// (`values[y * n + x]`), drawn with `y` upwards.
+#[derive(Clone, Debug)]
+pub struct Panel {
+    /// Panel caption.
+    pub label: String,
+    /// Points per side.
+    pub n: usize,
+    /// Values, x fastest.
+    pub values: Vec<f64>,
+}
+
+/// Blue-to-yellow colour map on `t` in [0, 1] (perceptually ordered, readable in grey).
+fn colormap(t: f64) -> RGBColor {
+    let t = t.clamp(0.0, 1.0);
+    let stops = [
+        (68.0, 1.0, 84.0),
+        (59.0, 82.0, 139.0),
+        (33.0, 145.0, 140.0),
+        (94.0, 201.0, 98.0),
+        (253.0, 231.0, 37.0),
+    ];
+    let x = t * (stops.len() - 1) as f64;
+    let i = (x as usize).min(stops.len() - 2);
+    let f = x - i as f64;
+    let (a, b) = (stops[i], stops[i + 1]);
+    let mix = |p: f64, q: f64| (p + f * (q - p)).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+fn draw_panels<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    scale_label: &str,
+    panels: &[Panel],
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (lo, hi) = panels
+        .iter()
+        .flat_map(|p| p.values.iter().copied())
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    let root = root
+        .titled(
+            &format!("{title} (colour: {scale_label}, from {lo:.3e} to {hi:.3e})"),
+            ("sans-serif", 18),
+        )
+        .map_err(|e| e.to_string())?;
+    let areas = root.split_evenly((1, panels.len().max(1)));
+    for (area, p) in areas.iter().zip(panels) {
+        let n = p.n as f64;
+        let mut c = ChartBuilder::on(area)
+            .caption(&p.label, ("sans-serif", 15))
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(45)
+            .build_cartesian_2d(0.0..1.0, 0.0..1.0)
+            .map_err(|e| e.to_string())?;
+        c.configure_mesh()
+            .disable_mesh()
+            .x_desc("x / L")
+            .y_desc("y / L")
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        c.draw_series((0..p.n * p.n).map(|k| {
+            let (x, y) = ((k % p.n) as f64, (k / p.n) as f64);
+            let color = colormap((p.values[k] - lo) / span);
+            Rectangle::new(
+                [(x / n, y / n), ((x + 1.0) / n, (y + 1.0) / n)],
+                color.filled(),
+            )
+        }))
+        .map_err(|e| e.to_string())?;
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
+/// Draw a row of heat maps with one shared colour scale to `<stem>.png` and `<stem>.svg`.
+pub fn heatmaps(
+    stem: &Path,
+    title: &str,
+    scale_label: &str,
+    panels: &[Panel],
+) -> Result<(), crate::io::IoError> {
+    let err = |p: &Path, m: String| crate::io::IoError::Content {
+        path: p.to_path_buf(),
+        message: format!("drawing heat maps: {m}"),
+    };
+    let dir = stem.parent().unwrap_or(Path::new("."));
+    let name = stem
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let size = (450 * panels.len().max(1) as u32, 500);
+    let png = stem.with_extension("png");
+    let tmp = dir.join(format!(".{name}.render.png"));
+    draw_panels(
+        BitMapBackend::new(&tmp, size).into_drawing_area(),
+        title,
+        scale_label,
+        panels,
+    )
+    .map_err(|m| err(&png, m))?;
+    let bytes = std::fs::read(&tmp).map_err(crate::io::fs_err(&tmp))?;
+    let _ = std::fs::remove_file(&tmp);
+    crate::io::write_atomic(&png, &bytes)?;
+    let mut svg = String::new();
+    draw_panels(
+        SVGBackend::with_string(&mut svg, size).into_drawing_area(),
+        title,
+        scale_label,
+        panels,
+    )
+    .map_err(|m| err(&png, m))?;
+    crate::io::write_atomic(&stem.with_extension("svg"), svg.as_bytes())
+}

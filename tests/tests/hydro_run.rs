@@ -203,8 +203,12 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
         );
     }
     assert!(out.join("msd.png").exists() && out.join("orientation.svg").exists());
+    assert!(out.join("velocity_slice.png").exists() && out.join("velocity_slice.svg").exists());
     for f in ["c", "n", "Q"] {
-        assert!(out.join(format!("correlation_{f}.png")).exists(), "Corr[{f}] chart missing");
+        assert!(
+            out.join(format!("correlation_{f}.png")).exists(),
+            "Corr[{f}] chart missing"
+        );
     }
     // A particle run without flow is refused with a reason.
     let none = dir.path().join("none");
