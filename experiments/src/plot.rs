@@ -96,34 +96,37 @@ where
     root.present().map_err(|e| e.to_string())
 }
 
-/// Draw `chart` to `<stem>.png` and `<stem>.svg` (each written atomically).
-pub fn line_chart(stem: &Path, chart: &Chart) -> Result<(), crate::io::IoError> {
-    let err = |p: &Path, m: String| crate::io::IoError::Content {
-        path: p.to_path_buf(),
-        message: format!("drawing chart: {m}"),
+/// Render one figure twice, to `<stem>.png` and `<stem>.svg`, each written atomically (the PNG
+/// through a hidden temporary file, since the bitmap backend writes to a path).
+fn render(
+    stem: &Path,
+    size: (u32, u32),
+    png: impl FnOnce(DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
+    svg: impl FnOnce(DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
+) -> Result<(), crate::io::IoError> {
+    let png_path = stem.with_extension("png");
+    let err = |m: String| crate::io::IoError::Content {
+        path: png_path.clone(),
+        message: format!("drawing figure: {m}"),
     };
     let dir = stem.parent().unwrap_or(Path::new("."));
     let name = stem
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let png = stem.with_extension("png");
     let tmp = dir.join(format!(".{name}.render.png"));
-    draw(
-        BitMapBackend::new(&tmp, (900, 600)).into_drawing_area(),
-        chart,
-    )
-    .map_err(|m| err(&png, m))?;
+    png(BitMapBackend::new(&tmp, size).into_drawing_area()).map_err(err)?;
     let bytes = std::fs::read(&tmp).map_err(crate::io::fs_err(&tmp))?;
     let _ = std::fs::remove_file(&tmp);
-    crate::io::write_atomic(&png, &bytes)?;
-    let mut svg = String::new();
-    draw(
-        SVGBackend::with_string(&mut svg, (900, 600)).into_drawing_area(),
-        chart,
-    )
-    .map_err(|m| err(&png, m))?;
-    crate::io::write_atomic(&stem.with_extension("svg"), svg.as_bytes())
+    crate::io::write_atomic(&png_path, &bytes)?;
+    let mut text = String::new();
+    svg(SVGBackend::with_string(&mut text, size).into_drawing_area()).map_err(err)?;
+    crate::io::write_atomic(&stem.with_extension("svg"), text.as_bytes())
+}
+
+/// Draw `chart` to `<stem>.png` and `<stem>.svg` (each written atomically).
+pub fn line_chart(stem: &Path, chart: &Chart) -> Result<(), crate::io::IoError> {
+    render(stem, (900, 600), |a| draw(a, chart), |a| draw(a, chart))
 }
 
 /// One panel of a row of heat maps: a square `n x n` field, row `y`, column `x`
@@ -217,35 +220,11 @@ pub fn heatmaps(
     scale_label: &str,
     panels: &[Panel],
 ) -> Result<(), crate::io::IoError> {
-    let err = |p: &Path, m: String| crate::io::IoError::Content {
-        path: p.to_path_buf(),
-        message: format!("drawing heat maps: {m}"),
-    };
-    let dir = stem.parent().unwrap_or(Path::new("."));
-    let name = stem
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
     let size = (450 * panels.len().max(1) as u32, 500);
-    let png = stem.with_extension("png");
-    let tmp = dir.join(format!(".{name}.render.png"));
-    draw_panels(
-        BitMapBackend::new(&tmp, size).into_drawing_area(),
-        title,
-        scale_label,
-        panels,
+    render(
+        stem,
+        size,
+        |a| draw_panels(a, title, scale_label, panels),
+        |a| draw_panels(a, title, scale_label, panels),
     )
-    .map_err(|m| err(&png, m))?;
-    let bytes = std::fs::read(&tmp).map_err(crate::io::fs_err(&tmp))?;
-    let _ = std::fs::remove_file(&tmp);
-    crate::io::write_atomic(&png, &bytes)?;
-    let mut svg = String::new();
-    draw_panels(
-        SVGBackend::with_string(&mut svg, size).into_drawing_area(),
-        title,
-        scale_label,
-        panels,
-    )
-    .map_err(|m| err(&png, m))?;
-    crate::io::write_atomic(&stem.with_extension("svg"), svg.as_bytes())
 }
