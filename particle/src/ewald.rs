@@ -21,6 +21,7 @@
 //! the point-stresslet sums of the dipole model.
 
 use crate::geometry::{Vec3, dot};
+use num_complex::Complex64;
 use std::f64::consts::PI;
 
 /// `pi^(3/2)`.
@@ -82,6 +83,46 @@ pub fn rpy_fourier_scalar(k2: f64, xi: f64, a: f64) -> f64 {
     let x = k2 / (4.0 * xi * xi);
     let g = 1.0 - a * a * k2 / 6.0;
     (1.0 + x) * (-x).exp() * g * g / k2
+}
+
+/// The Fourier part of the split RPY sum at one mode: `u^ = s(k) (I - kk/k^2) f^ / vol`, with
+/// `s` from [`rpy_fourier_scalar`] (mu = 1).
+#[inline]
+pub fn rpy_fourier_mode(
+    k: Vec3,
+    k2: f64,
+    xi: f64,
+    a: f64,
+    vol: f64,
+    f: [Complex64; 3],
+) -> [Complex64; 3] {
+    let s = rpy_fourier_scalar(k2, xi, a) / vol;
+    let kf = (f[0] * k[0] + f[1] * k[1] + f[2] * k[2]) / k2;
+    [0, 1, 2].map(|d| (f[d] - kf * k[d]) * s)
+}
+
+/// The Fourier part of the split stresslet sum at one mode, from the stresslet spectrum
+/// `S^(i, j)` (symmetric): force density `F^ = -i k . S^`, velocity `u^` as for a point force
+/// (`a = 0`), gradient `i k_l u^_i`. Returns `[u^_0..2, grad^_00, grad^_01, ..., grad^_22]`.
+#[inline]
+pub fn stresslet_fourier_mode(
+    k: Vec3,
+    k2: f64,
+    xi: f64,
+    vol: f64,
+    s: impl Fn(usize, usize) -> Complex64,
+) -> [Complex64; 12] {
+    let f: [Complex64; 3] =
+        [0, 1, 2].map(|i| -Complex64::i() * (s(i, 0) * k[0] + s(i, 1) * k[1] + s(i, 2) * k[2]));
+    let uh = rpy_fourier_mode(k, k2, xi, 0.0, vol, f);
+    let mut o = [Complex64::default(); 12];
+    for i in 0..3 {
+        o[i] = uh[i];
+        for m in 0..3 {
+            o[3 + 3 * i + m] = Complex64::i() * k[m] * uh[i];
+        }
+    }
+    o
 }
 
 /// Real-space part `M_R = M_far - M_F` of the split RPY tensor, `(A, B)`.

@@ -85,7 +85,7 @@ pub enum MobilityError {
     /// GMRES on (P4) failed.
     #[error("slender-body GMRES ({stage} solve): {source}")]
     Gmres {
-        /// `"free"` or `"contact"`.
+        /// `"free"` (swimming only) or `"swimming + contact"`.
         stage: &'static str,
         /// What GMRES reported.
         source: crate::gmres::GmresError<crate::periodic::SumError>,

@@ -10,8 +10,9 @@
 //! follow [`crate::ewald`].
 
 use crate::ewald::{
-    apply_radial, rpy_fourier_free, rpy_fourier_scalar, rpy_overlap_correction, rpy_real,
-    stokeslet_real_derivatives, stresslet_fourier_self_gradient, stresslet_from_derivatives,
+    apply_radial, rpy_fourier_free, rpy_fourier_mode, rpy_overlap_correction, rpy_real,
+    stokeslet_real_derivatives, stresslet_fourier_mode, stresslet_fourier_self_gradient,
+    stresslet_from_derivatives,
 };
 use crate::geometry::{Vec3, dot, sub};
 use crate::periodic::{PeriodicStokes, RpyGeometry, StressletField, SumError, check_rpy};
@@ -79,12 +80,7 @@ impl EwaldReference {
                     });
                 }
                 // Fourier space.
-                let uf = modes.sum_at(y, |k, k2, e| {
-                    let s = rpy_fourier_scalar(k2, xi, a) / vol;
-                    let f = fhat[e];
-                    let kf = (0..3).map(|d| f[d] * k[d]).sum::<Complex64>() / k2;
-                    [0, 1, 2].map(|d| (f[d] - kf * k[d]) * s)
-                });
+                let uf = modes.sum_at(y, |k, k2, e| rpy_fourier_mode(k, k2, xi, a, vol, fhat[e]));
                 add(&mut u, uf);
                 // Remove the own group's direct Fourier-part terms (itself included).
                 for j in (t / g) * g..(t / g + 1) * g {
@@ -150,21 +146,8 @@ impl EwaldReference {
                 }
                 // Fourier: F^ = -i k.S^, u^ = phi (I - kk/k^2) F^/k^2, grad u^ = i k u^.
                 let sum = modes.sum_at(y, |k, k2, e| {
-                    let s = rpy_fourier_scalar(k2, xi, 0.0) / vol;
                     let sh = &shat[e];
-                    let f: [Complex64; 3] = [0, 1, 2].map(|i| {
-                        -Complex64::i() * (0..3).map(|j| sh[3 * i + j] * k[j]).sum::<Complex64>()
-                    });
-                    let kf = (0..3).map(|d| f[d] * k[d]).sum::<Complex64>() / k2;
-                    let uh: [Complex64; 3] = [0, 1, 2].map(|d| (f[d] - kf * k[d]) * s);
-                    let mut out = [Complex64::default(); 12];
-                    for i in 0..3 {
-                        out[i] = uh[i];
-                        for l in 0..3 {
-                            out[3 + 3 * i + l] = Complex64::i() * k[l] * uh[i];
-                        }
-                    }
-                    out
+                    stresslet_fourier_mode(k, k2, xi, vol, |i, j| sh[3 * i + j])
                 });
                 for i in 0..3 {
                     u[i] += sum[i];

@@ -236,7 +236,6 @@ impl SlenderBody {
         rhs: &[f64],
         x: &mut Vec<f64>,
         stage: &'static str,
-        tol: f64,
     ) -> Result<(GmresInfo, Vec<Vec3>), MobilityError> {
         let points = self.node_positions(rods, p);
         if x.len() != rhs.len() {
@@ -257,11 +256,7 @@ impl SlenderBody {
             sums: 0,
             cache: None,
         };
-        let params = GmresParams {
-            tol,
-            ..self.params.gmres
-        };
-        let info = gmres(&mut op, rhs, x, &params)
+        let info = gmres(&mut op, rhs, x, &self.params.gmres)
             .map_err(|source| MobilityError::Gmres { stage, source })?;
         let u = op.flow(x)?;
         self.report.seconds_sums += op.seconds;
@@ -320,9 +315,12 @@ impl SlenderBody {
     ) -> Result<(), MobilityError> {
         let rhs = self.rhs(p, ft);
         let mut x = std::mem::take(&mut self.warm_free);
-        let tol = self.params.gmres.tol;
-        let stage = if ft.is_some() { "contact" } else { "free" };
-        let result = self.solve(rods, p, &rhs, &mut x, stage, tol);
+        let stage = if ft.is_some() {
+            "swimming + contact"
+        } else {
+            "free"
+        };
+        let result = self.solve(rods, p, &rhs, &mut x, stage);
         self.warm_free = x;
         let (info, u) = result?;
         self.report.gmres_iterations = info.iterations;

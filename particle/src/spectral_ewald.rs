@@ -15,8 +15,9 @@
 //! bit-identical for any rayon pool size.
 
 use crate::ewald::{
-    RealSpaceTable, StressletTable, apply_radial, rpy_fourier_free, rpy_fourier_scalar,
-    rpy_overlap_correction, stresslet_fourier_self_gradient, stresslet_from_derivatives,
+    RealSpaceTable, StressletTable, apply_radial, rpy_fourier_free, rpy_fourier_mode,
+    rpy_overlap_correction, stresslet_fourier_mode, stresslet_fourier_self_gradient,
+    stresslet_from_derivatives,
 };
 use crate::geometry::{Vec3, dot, min_image};
 use crate::periodic::{PeriodicStokes, RpyGeometry, StressletField, SumError, check_rpy};
@@ -457,9 +458,7 @@ impl PeriodicStokes for SpectralEwald {
         let fhat = plan.type1(&[&f[0], &f[1]])?;
         let vol = l * l * l;
         let uhat = self.multiply::<3, 3>(l, p.modes, &fhat, |k, k2, f| {
-            let s = rpy_fourier_scalar(k2, xi, a) / vol;
-            let kf = (f[0] * k[0] + f[1] * k[1] + f[2] * k[2]) / k2;
-            [0, 1, 2].map(|d| (f[d] - kf * k[d]) * s)
+            rpy_fourier_mode(k, k2, xi, a, vol, f)
         });
         let uf = plan.type2(&[&uhat[0], &uhat[1]])?;
         let t3 = Instant::now();
@@ -558,19 +557,7 @@ impl PeriodicStokes for SpectralEwald {
                 };
                 sh[c]
             };
-            let scl = rpy_fourier_scalar(k2, xi, 0.0) / vol;
-            let f: [Complex64; 3] = [0, 1, 2]
-                .map(|i| -Complex64::i() * (sm(i, 0) * k[0] + sm(i, 1) * k[1] + sm(i, 2) * k[2]));
-            let kf = (f[0] * k[0] + f[1] * k[1] + f[2] * k[2]) / k2;
-            let uh: [Complex64; 3] = [0, 1, 2].map(|d| (f[d] - kf * k[d]) * scl);
-            let mut o = [Complex64::default(); 12];
-            for i in 0..3 {
-                o[i] = uh[i];
-                for m in 0..3 {
-                    o[3 + 3 * i + m] = Complex64::i() * k[m] * uh[i];
-                }
-            }
-            o
+            stresslet_fourier_mode(k, k2, xi, vol, sm)
         });
         let refs: Vec<&[Complex64]> = out.iter().map(|v| v.as_slice()).collect();
         let back = plan.type2(&refs)?;
