@@ -13,7 +13,7 @@ use crate::meanfield_run::MeanFieldRunConfig;
 use crate::particle_run::ParticleRunConfig;
 use crate::plot::{Chart, Panel, Series, heatmaps, line_chart};
 use crate::rundir::{RunDir, TimeSeries, read_run_config};
-use crate::snapshot::{Snapshot, read_snapshot};
+use crate::snapshot::Snapshot;
 use anyhow::{Context, bail};
 use motile_analysis::correlation::velocity_spectrum;
 use motile_analysis::stats::{GrowthFit, fit_growth_rate, window_average};
@@ -32,6 +32,8 @@ pub struct NormCurve {
     pub t: Vec<f64>,
     /// `||u||_2`, `L |sigma_a| / mu`.
     pub u: Vec<f64>,
+    /// The run's last time in its own unit (1/beta or mu/|sigma_a|).
+    pub t_end_own: f64,
 }
 
 /// Particle time and normalised velocity to mean-field units at volume fraction `nu`.
@@ -71,6 +73,7 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
             let nu = n as f64 / (l * l * l);
             let t = column(&ts, "t [", &ts_path)?;
             let u = column(&ts, "velocity_norm", &ts_path)?;
+            let t_end_own = t.last().copied().unwrap_or(0.0);
             let (t, u) = t
                 .iter()
                 .zip(&u)
@@ -81,17 +84,20 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 run: run.into(),
                 t,
                 u,
+                t_end_own,
             })
         }
         "meanfield" => {
             let cfg: MeanFieldRunConfig = read_run_config(run, MeanFieldRunConfig::validate)?;
+            let t = column(&ts, "t [", &ts_path)?;
             Ok(NormCurve {
                 label: format!(
                     "mean field {}^3, zeta = {}, D = {}",
                     cfg.grid, cfg.zeta, cfg.diffusion
                 ),
                 run: run.into(),
-                t: column(&ts, "t [", &ts_path)?,
+                t_end_own: t.last().copied().unwrap_or(0.0),
+                t,
                 u: column(&ts, "u_l2", &ts_path)?,
             })
         }
@@ -124,22 +130,20 @@ pub struct CorrCurve {
     pub value: Vec<f64>,
 }
 
-/// `Corr[u](r)` of a run averaged over its snapshots with `t >= t_start` (the run's own time
-/// unit), converted to mean-field units; `None` if the run's snapshots carry no flow.
-pub fn corr_curve(run: &Path, label: &str, t_start: f64) -> anyhow::Result<Option<CorrCurve>> {
-    Ok(analyse(run, label, t_start)?.corr_u)
-}
-
 /// What the in-memory analysis of one run gives the comparison.
 struct RunAnalysis {
+    /// `Corr[u](r)` averaged over the snapshots with `t >= t_start`, mean-field units; `None`
+    /// if the snapshots carry no flow.
     corr_u: Option<CorrCurve>,
+    /// The velocity slice of the last snapshot (see [`velocity_slice`]).
+    slice: Option<(usize, Vec<f64>, f64)>,
     traj: Option<TrajectoryCurve>,
     /// `Corr[c], Corr[n], Corr[Q]` normalised by their value at 0, against `r / L`.
     order: Vec<(String, Vec<(f64, f64)>)>,
 }
 
-/// The run's Corr[u] (as [`corr_curve`]), its order-parameter correlations and, for particle
-/// runs, its trajectory statistics.
+/// One run's snapshots, read once: its Corr[u], order-parameter correlations, velocity slice
+/// and, for particle runs, trajectory statistics.
 fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis> {
     let dir = RunDir::open(run)?;
     let snaps = dir.snapshots()?;
@@ -148,6 +152,12 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
         ..AnalyzeOptions::default()
     };
     let report = analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
+    let slice = match snaps.last() {
+        Some(last) => {
+            velocity_slice(last).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?
+        }
+        None => None,
+    };
     let traj = (report.kind == "particle").then(|| TrajectoryCurve {
         label: label.into(),
         t: report.snapshots.iter().map(|s| s.time).collect(),
@@ -204,31 +214,28 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
         });
     Ok(RunAnalysis {
         corr_u,
+        slice,
         traj,
         order,
     })
 }
 
-/// The velocity magnitude on the plane z = 0 of a run's last snapshot, in mean-field units:
+/// The velocity magnitude on the plane z = 0 of a snapshot, in mean-field units:
 /// `(n, values)` with `values[y n + x]`. Particle runs: the velocity field of the snapshot's
 /// force density on `min(2 L/l, 64)` modes per side (MODEL.md §6, doublet neglected); mean-field
-/// runs: the snapshot's grid. `None` if the last snapshot has no flow.
-pub fn velocity_slice(run: &Path) -> anyhow::Result<Option<(usize, Vec<f64>, f64)>> {
-    let dir = RunDir::open(run)?;
-    let snaps = dir.snapshot_paths()?;
-    let Some(last) = snaps.last() else {
-        return Ok(None);
-    };
-    let (n, grid, time): (usize, [Vec<f64>; 3], f64) = match read_snapshot(last)? {
+/// runs: the snapshot's grid. `None` if the snapshot has no flow.
+pub fn velocity_slice(
+    snap: &Snapshot,
+) -> Result<Option<(usize, Vec<f64>, f64)>, motile_analysis::nufft::NufftError> {
+    let (n, grid, time): (usize, [Vec<f64>; 3], f64) = match snap {
         Snapshot::Particle(p) => {
-            let Some(f) = p.forces else {
+            let Some(f) = &p.forces else {
                 return Ok(None);
             };
             let l = p.box_length;
             let nu = p.positions.len() as f64 / (l * l * l);
             let modes = ((2.0 * l) as usize).clamp(8, 64) & !1;
-            let spec = velocity_spectrum(&f.points, &f.forces, l, VISCOSITY, modes, 1e-6)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", last.display()))?;
+            let spec = velocity_spectrum(&f.points, &f.forces, l, VISCOSITY, modes, 1e-6)?;
             // u / (beta L) to mean-field units.
             let s = 8.0 * eta() * VISCOSITY / nu / l;
             let g = [0, 1, 2].map(|c| spec.to_grid(c).into_iter().map(|v| v * s).collect());
@@ -341,16 +348,22 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
                 .collect(),
         },
     )?;
-    // Corr[u](r), averaged over the snapshots of each run's second half (in its own time unit).
+    // Each run's snapshots analysed once: Corr[u] and order-parameter correlations over its second
+    // half (in its own time unit), the last snapshot's velocity slice, trajectories.
     let mut correlations = Vec::new();
     let mut trajectories = Vec::new();
     let mut order: Vec<(String, Vec<Series>)> = Vec::new();
+    let mut panels = Vec::new();
     for (run, c) in runs.iter().zip(&curves) {
-        let ts = TimeSeries::read(&run.join("timeseries.csv"))?;
-        let t_own = column(&ts, "t [", &run.join("timeseries.csv"))?;
-        let t_half = 0.5 * t_own.last().copied().unwrap_or(0.0);
-        let a = analyse(run, &c.label, t_half)?;
+        let a = analyse(run, &c.label, 0.5 * c.t_end_own)?;
         correlations.extend(a.corr_u);
+        if let Some((n, values, t)) = a.slice {
+            panels.push(Panel {
+                label: format!("{} at t = {t:.3}", c.label),
+                n,
+                values,
+            });
+        }
         trajectories.extend(a.traj);
         for (name, points) in a.order {
             match order.iter_mut().find(|(n, _)| *n == name) {
@@ -369,16 +382,6 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         }
     }
     // Velocity magnitude on z = 0 at each run's last snapshot, side by side, one colour scale.
-    let mut panels = Vec::new();
-    for (run, c) in runs.iter().zip(&curves) {
-        if let Some((n, values, t)) = velocity_slice(run)? {
-            panels.push(Panel {
-                label: format!("{} at t = {t:.3}", c.label),
-                n,
-                values,
-            });
-        }
-    }
     if !panels.is_empty() {
         heatmaps(
             &out.join("velocity_slice"),
