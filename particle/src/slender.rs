@@ -210,11 +210,6 @@ impl SlenderBody {
         }
     }
 
-    /// Quadrature nodes along a rod.
-    pub fn nodes(&self) -> (&[f64], &[f64]) {
-        (&self.s, &self.w)
-    }
-
     /// Node positions `x_n + s_j p_n`.
     pub fn node_positions(&self, rods: &RodSet, p: &[Vec3]) -> Vec<Vec3> {
         let m = self.s.len();
