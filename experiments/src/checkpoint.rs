@@ -185,3 +185,75 @@ pub struct Interrupted {
     /// The run directory.
     pub run_dir: PathBuf,
 }
+
+/// An HDF5 checkpoint opened for reading; every error names the file and the item.
+#[derive(Debug)]
+pub struct H5Reader<'a> {
+    path: &'a Path,
+    file: hdf5_pure::File,
+    attrs: std::collections::HashMap<String, hdf5_pure::AttrValue>,
+}
+
+impl<'a> H5Reader<'a> {
+    /// Open `path` and read its root attributes.
+    pub fn open(path: &'a Path) -> anyhow::Result<Self> {
+        let file =
+            hdf5_pure::File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let attrs = file
+            .root()
+            .attrs()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Ok(Self { path, file, attrs })
+    }
+
+    fn bad_attr(&self, name: &str) -> anyhow::Error {
+        anyhow::anyhow!(
+            "{}: attribute '{name}' missing or of type {:?}",
+            self.path.display(),
+            self.attrs.get(name)
+        )
+    }
+
+    /// A floating-point root attribute.
+    pub fn attr_f64(&self, name: &str) -> anyhow::Result<f64> {
+        match self.attrs.get(name) {
+            Some(hdf5_pure::AttrValue::F64(v)) => Ok(*v),
+            _ => Err(self.bad_attr(name)),
+        }
+    }
+
+    /// A non-negative integer root attribute (stored as u64 or i64).
+    pub fn attr_u64(&self, name: &str) -> anyhow::Result<u64> {
+        match self.attrs.get(name) {
+            Some(hdf5_pure::AttrValue::U64(v)) => Ok(*v),
+            Some(hdf5_pure::AttrValue::I64(v)) if *v >= 0 => Ok(*v as u64),
+            _ => Err(self.bad_attr(name)),
+        }
+    }
+
+    /// A floating-point dataset, flattened.
+    pub fn f64s(&self, name: &str) -> anyhow::Result<Vec<f64>> {
+        self.file
+            .dataset(name)
+            .and_then(|d| d.read_f64())
+            .map_err(|e| anyhow::anyhow!("{}: dataset '{name}': {e}", self.path.display()))
+    }
+
+    /// An integer dataset, flattened.
+    pub fn i64s(&self, name: &str) -> anyhow::Result<Vec<i64>> {
+        self.file
+            .dataset(name)
+            .and_then(|d| d.read_i64())
+            .map_err(|e| anyhow::anyhow!("{}: dataset '{name}': {e}", self.path.display()))
+    }
+
+    /// Whether a dataset exists.
+    pub fn has(&self, name: &str) -> bool {
+        self.file.dataset(name).is_ok()
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        self.path
+    }
+}

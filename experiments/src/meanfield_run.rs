@@ -11,7 +11,7 @@ use crate::io::write_atomic;
 use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
 use crate::snapshot::{FieldSnapshot, Snapshot, read_snapshot};
 use anyhow::{Context, bail};
-use hdf5_pure::{AttrValue, File, FileBuilder};
+use hdf5_pure::{AttrValue, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::solver::{
@@ -557,37 +557,22 @@ fn write_checkpoint(
 }
 
 fn read_checkpoint(path: &Path, stepper: &mut MeanFieldStepper, n: usize) -> anyhow::Result<Clock> {
-    let f = File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let attrs = f
-        .root()
-        .attrs()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let t = match attrs.get("time") {
-        Some(AttrValue::F64(t)) => *t,
-        other => bail!(
-            "{}: attribute 'time' missing or of type {other:?}",
-            path.display()
-        ),
-    };
-    let read = |name: &str| {
-        f.dataset(name)
-            .and_then(|d| d.read_f64())
-            .map_err(|e| anyhow::anyhow!("{}: dataset '{name}': {e}", path.display()))
-    };
+    let f = checkpoint::H5Reader::open(path)?;
+    let t = f.attr_f64("time")?;
     let n3 = (n / 2 + 1) * n * n;
-    let q = read("q_hat")?;
-    let u = read("u_hat")?;
+    let q = f.f64s("q_hat")?;
+    let u = f.f64s("u_hat")?;
     if q.len() != 12 * n3 || u.len() != 6 * n3 {
         bail!(
             "{}: checkpoint is for another grid size (expected {n}^3)",
             path.display()
         );
     }
-    let history = if f.dataset("prev_dt").is_ok() {
+    let history = if f.has("prev_dt") {
         Some(History {
-            q_hat: complex_unflat::<6>(&read("prev_q_hat")?, n3),
-            nonlinear: complex_unflat::<6>(&read("prev_nonlinear")?, n3),
-            dt: read("prev_dt")?[0],
+            q_hat: complex_unflat::<6>(&f.f64s("prev_q_hat")?, n3),
+            nonlinear: complex_unflat::<6>(&f.f64s("prev_nonlinear")?, n3),
+            dt: f.f64s("prev_dt")?[0],
         })
     } else {
         None
@@ -598,7 +583,7 @@ fn read_checkpoint(path: &Path, stepper: &mut MeanFieldStepper, n: usize) -> any
         history,
         complex_unflat::<3>(&u, n3),
     );
-    Ok(Clock::from_slice(&read("clock")?))
+    Ok(Clock::from_slice(&f.f64s("clock")?))
 }
 
 /// Write a numbered checkpoint and keep only the newest two.

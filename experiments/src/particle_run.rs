@@ -13,7 +13,7 @@ use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
 use crate::snapshot::{Kinematics, ParticleSnapshot, PointForces, Snapshot, read_snapshot};
 use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
-use hdf5_pure::{AttrValue, File, FileBuilder};
+use hdf5_pure::{AttrValue, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
 use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
 use motile_particle::cells::CellList;
@@ -492,37 +492,13 @@ fn write_checkpoint(
 type Restart = (WarmStart, Vec<f64>);
 
 fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64)> {
-    let f = File::open(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let attrs = f
-        .root()
-        .attrs()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let step = match attrs.get("step") {
-        Some(AttrValue::U64(s)) => *s,
-        Some(AttrValue::I64(s)) => *s as u64,
-        other => bail!(
-            "{}: attribute 'step' missing or of type {other:?}",
-            path.display()
-        ),
-    };
-    let box_length = match attrs.get("box_length") {
-        Some(AttrValue::F64(l)) => *l,
-        other => bail!(
-            "{}: attribute 'box_length' missing or of type {other:?}",
-            path.display()
-        ),
-    };
-    let read = |name: &str| {
-        f.dataset(name)
-            .and_then(|d| d.read_f64())
-            .map_err(|e| anyhow::anyhow!("{}: dataset '{name}': {e}", path.display()))
-    };
+    let f = checkpoint::H5Reader::open(path)?;
+    let step = f.attr_u64("step")?;
+    let box_length = f.attr_f64("box_length")?;
+    let read = |name: &str| f.f64s(name);
     let x = read("positions")?;
     let q = read("quaternions")?;
-    let im = f
-        .dataset("image_counts")
-        .and_then(|d| d.read_i64())
-        .map_err(|e| anyhow::anyhow!("{}: dataset 'image_counts': {e}", path.display()))?;
+    let im = f.i64s("image_counts")?;
     let n = x.len() / 3;
     if q.len() != 4 * n || im.len() != 3 * n {
         bail!(
@@ -538,10 +514,7 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64)> {
             .collect(),
         image: im.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
     };
-    let pairs = f
-        .dataset("warm_pairs")
-        .and_then(|d| d.read_i64())
-        .map_err(|e| anyhow::anyhow!("{}: dataset 'warm_pairs': {e}", path.display()))?;
+    let pairs = f.i64s("warm_pairs")?;
     let lambda = read("warm_lambda")?;
     if pairs.len() != 2 * lambda.len() {
         bail!(
@@ -555,13 +528,11 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64)> {
         .map(|(p, l)| ((p[0] as u32, p[1] as u32), l))
         .collect();
     // Absent in checkpoints of runs without hydrodynamics written before it existed.
-    let hydro = f
-        .dataset("gmres_warm_start")
-        .ok()
-        .map(|d| d.read_f64())
-        .transpose()
-        .map_err(|e| anyhow::anyhow!("{}: dataset 'gmres_warm_start': {e}", path.display()))?
-        .unwrap_or_default();
+    let hydro = if f.has("gmres_warm_start") {
+        f.f64s("gmres_warm_start")?
+    } else {
+        Vec::new()
+    };
     Ok((rods, (warm, hydro), step))
 }
 
