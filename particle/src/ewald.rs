@@ -162,6 +162,20 @@ pub fn rpy_fourier_free(r: f64, xi: f64, a: f64) -> (f64, f64) {
     (af - ar, bf - br)
 }
 
+/// `M_F(r) f`: the free Fourier part applied to `f` at offset `r` (the point itself at `r = 0`),
+/// the own-group term the periodic sums remove.
+#[inline]
+pub fn rpy_fourier_free_apply(r: Vec3, f: Vec3, xi: f64, a: f64) -> Vec3 {
+    let rn = dot(r, r).sqrt();
+    let rh = if rn > 0.0 {
+        r.map(|c| c / rn)
+    } else {
+        [0.0; 3]
+    };
+    let (af, bf) = rpy_fourier_free(rn, xi, a);
+    apply_radial(af, bf, rh, f)
+}
+
 /// The Stokeslet's real-space part `A I + C x x` (not normalised `x`) and radial derivatives:
 /// `[A, A', A'', C, C', C'']` at distance `r`.
 #[inline]

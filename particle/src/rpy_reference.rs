@@ -10,7 +10,7 @@
 //! follow [`crate::ewald`].
 
 use crate::ewald::{
-    apply_radial, rpy_fourier_free, rpy_fourier_mode, rpy_overlap_correction, rpy_real,
+    apply_radial, rpy_fourier_free_apply, rpy_fourier_mode, rpy_overlap_correction, rpy_real,
     stokeslet_real_derivatives, stresslet_fourier_mode, stresslet_fourier_self_gradient,
     stresslet_from_derivatives,
 };
@@ -84,15 +84,8 @@ impl EwaldReference {
                 add(&mut u, uf);
                 // Remove the own group's direct Fourier-part terms (itself included).
                 for j in (t / g) * g..(t / g + 1) * g {
-                    let r = sub(y, points[j]);
-                    let rn = dot(r, r).sqrt();
-                    let rh = if rn > 0.0 {
-                        r.map(|c| c / rn)
-                    } else {
-                        [0.0; 3]
-                    };
-                    let (af, bf) = rpy_fourier_free(rn, xi, a);
-                    add(&mut u, apply_radial(-af, -bf, rh, forces[j]));
+                    let v = rpy_fourier_free_apply(sub(y, points[j]), forces[j], xi, a);
+                    add(&mut u, v.map(|c| -c));
                 }
                 u.map(|c| c / VISCOSITY)
             })

@@ -15,7 +15,7 @@
 //! bit-identical for any rayon pool size.
 
 use crate::ewald::{
-    RealSpaceTable, StressletTable, apply_radial, rpy_fourier_free, rpy_fourier_mode,
+    RealSpaceTable, StressletTable, apply_radial, rpy_fourier_free_apply, rpy_fourier_mode,
     rpy_overlap_correction, stresslet_fourier_mode, stresslet_fourier_self_gradient,
     stresslet_from_derivatives,
 };
@@ -477,14 +477,7 @@ impl PeriodicStokes for SpectralEwald {
                     ],
                     l,
                 );
-                let rn = dot(r, r).sqrt();
-                let rh = if rn > 0.0 {
-                    r.map(|c| c / rn)
-                } else {
-                    [0.0; 3]
-                };
-                let (af, bf) = rpy_fourier_free(rn, xi, a);
-                let v = apply_radial(af, bf, rh, forces[j]);
+                let v = rpy_fourier_free_apply(r, forces[j], xi, a);
                 for d in 0..3 {
                     ut[d] -= v[d];
                 }
