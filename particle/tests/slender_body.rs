@@ -291,6 +291,11 @@ fn head_on_rods_stop_at_contact_with_hydrodynamics() {
     }
     let v = s.velocities();
     let gap = r.x[1][0] - r.x[0][0] - 1.2;
+    eprintln!(
+        "head-on: residual speeds {:.2e} {:.2e}, tip gap {gap:.2e}",
+        norm(v.v[0]),
+        norm(v.v[1])
+    );
     assert!(gap.abs() < 5e-3, "gap between the rod tips {gap:e}");
     for k in 0..2 {
         assert!(norm(v.v[k]) < 1e-4, "rod {k} still moves: {:?}", v.v[k]);
