@@ -491,9 +491,10 @@ fn write_checkpoint(
 /// start.
 type Restart = (WarmStart, Vec<f64>);
 
-fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64)> {
+fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64, f64)> {
     let f = checkpoint::H5Reader::open(path)?;
     let step = f.attr_u64("step")?;
+    let time = f.attr_f64("time")?;
     let box_length = f.attr_f64("box_length")?;
     let read = |name: &str| f.f64s(name);
     let x = read("positions")?;
@@ -533,11 +534,11 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64)> {
     } else {
         Vec::new()
     };
-    Ok((rods, (warm, hydro), step))
+    Ok((rods, (warm, hydro), step, time))
 }
 
 /// Columns of a particle run's `timeseries.csv`.
-pub const COLUMNS: [&str; 12] = [
+pub const COLUMNS: [&str; 16] = [
     "t [1/beta]",
     "steps_per_second [1/s]",
     "constraints [1]",
@@ -550,6 +551,10 @@ pub const COLUMNS: [&str; 12] = [
     "gmres_iterations [1]",
     "gmres_residual [1]",
     "velocity_norm [beta L]",
+    "max_speed [beta l]",
+    "max_rotation_rate [beta]",
+    "contact_corrections [1]",
+    "projections [1]",
 ];
 
 /// What a run did.
@@ -603,10 +608,37 @@ pub fn run_particle(
 pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary> {
     let run = RunDir::open(out)?;
     let cfg: ParticleRunConfig = read_run_config(out, ParticleRunConfig::validate)?;
-    let (ckpt, (rods, warm, step)) = checkpoint::load_for_resume(&run, read_checkpoint)?;
-    let t = step as f64 * cfg.dt;
+    let (ckpt, (rods, warm, saved_step, time)) =
+        checkpoint::load_for_resume(&run, read_checkpoint)?;
+    // Steps count in units of the config's dt; a dt edited before resuming (the usual answer to
+    // a failed step) rebases the counter so the run continues from the checkpoint's time.
+    let step = (time / cfg.dt).round();
+    if (step * cfg.dt - time).abs() > 1e-9 * time.max(1.0) {
+        bail!(
+            "{}: the checkpoint's time t = {time} is not a whole number of steps of dt = {} (config.toml); choose a dt that divides it (for example {})",
+            ckpt.display(),
+            cfg.dt,
+            time / (time / cfg.dt).ceil()
+        );
+    }
+    let step = step as u64;
+    if step != saved_step {
+        run.log(&format!(
+            "dt changed to {}: step counter rebased from {saved_step} to {step} (t = {time})",
+            cfg.dt
+        ))?;
+    }
+    let t = time;
     let mut ts =
         TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
+    if ts.columns != COLUMNS {
+        bail!(
+            "{}: its columns ({}) are not the ones this version writes ({}); move it aside to resume (the time series then restarts at the checkpoint)",
+            out.join("timeseries.csv").display(),
+            ts.columns.join(", "),
+            COLUMNS.join(", ")
+        );
+    }
     ts.rows.retain(|r| r[0] <= t + 0.5 * cfg.dt);
     run.log(&format!(
         "resuming from {} at step {step} (t = {t})",
@@ -711,6 +743,10 @@ fn drive(
                 report.hydro.gmres_iterations as f64,
                 report.hydro.gmres_residual,
                 velocity_norm(&stepper, &before)?,
+                report.max_speed,
+                report.max_rotation_rate,
+                report.correction_active as f64,
+                report.projections as f64,
             ]);
             ts.write(&run.path().join("timeseries.csv"))?;
             bar.set_message(format!(

@@ -90,6 +90,49 @@ print("pvd entries", len(pvd.findall("Collection/DataSet")))
 }
 
 #[test]
+fn resume_with_a_smaller_dt_continues_from_the_checkpoint_time() {
+    // The answer to a failed step is often "halve dt and resume": the step counter must be
+    // rebased, or the run would restart its clock at step * new dt.
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a");
+    run_particle(&small(), &a, false).unwrap();
+    // Drop the last checkpoint (t = 0.2): resume from t = 0.1 with dt 0.001 to t_end = 0.3.
+    std::fs::remove_file(a.join("checkpoints/ckpt_000000100.h5")).unwrap();
+    let cfg_path = a.join("config.toml");
+    let text = std::fs::read_to_string(&cfg_path).unwrap();
+    let text = text
+        .replace("dt = 0.002", "dt = 0.001")
+        .replace("t_end = 0.2", "t_end = 0.3");
+    assert!(
+        text.contains("dt = 0.001") && text.contains("t_end = 0.3"),
+        "{text}"
+    );
+    std::fs::write(&cfg_path, text).unwrap();
+    let resumed = resume_particle(&a, false).unwrap();
+    assert_eq!(resumed.steps, 200, "0.1 to 0.3 at dt = 0.001");
+    assert_eq!(resumed.final_step, 300);
+    let ts = motile_experiments::rundir::TimeSeries::read(&a.join("timeseries.csv")).unwrap();
+    let t = ts.column("t [1/beta]").unwrap();
+    let gaps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    assert!(
+        gaps.iter().all(|g| (g - 0.02).abs() < 1e-9) && (t.last().unwrap() - 0.3).abs() < 1e-9,
+        "time series should run on evenly to t = 0.3: {t:?}"
+    );
+    // A dt that does not divide the checkpoint's time is refused, naming both.
+    // (Resume from t = 0.2, the checkpoint at step 200 of dt = 0.001.)
+    std::fs::remove_file(a.join("checkpoints/ckpt_000000300.h5")).unwrap();
+    let text = std::fs::read_to_string(&cfg_path)
+        .unwrap()
+        .replace("dt = 0.001", "dt = 0.003");
+    std::fs::write(&cfg_path, text).unwrap();
+    let err = format!("{:#}", resume_particle(&a, false).unwrap_err());
+    assert!(
+        err.contains("not a whole number of steps of dt = 0.003"),
+        "{err}"
+    );
+}
+
+#[test]
 fn bad_configs_name_the_field_and_the_range() {
     let p = Path::new("case.toml");
     let cases = [
