@@ -12,5 +12,6 @@ pub mod meanfield_run;
 pub mod particle_run;
 pub mod plot;
 pub mod rundir;
+pub mod scene;
 pub mod snapshot;
 pub mod vtk;

@@ -6,10 +6,9 @@ use motile_experiments::analyze::{AnalyzeOptions, analyze_run};
 use motile_experiments::compare;
 use motile_experiments::demo::{DemoConfig, write_demo_run};
 use motile_experiments::meanfield_run;
-use motile_experiments::particle_run::{
-    ParticleRunConfig, parse_config, resume_particle, run_particle,
-};
+use motile_experiments::particle_run::{parse_config, resume_particle, run_particle};
 use motile_experiments::rundir::{RunDir, TimeSeries};
+use motile_experiments::scene;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -70,6 +69,25 @@ enum Command {
         #[command(subcommand)]
         action: MeanfieldAction,
     },
+    /// Run a scene: a named, versioned set of particle and mean-field runs
+    /// (`motile scenes` lists the built-in ones; or give a scene file), each analysed, all
+    /// compared in OUT/compare, a summary in OUT/scene.md. Running it again resumes what is
+    /// unfinished and skips what is done.
+    Run {
+        /// Built-in scene name (demo, dilute, concentrated, meanfield) or a scene file.
+        scene: String,
+        /// Output directory [default: runs/<scene name>].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Only these runs of the scene (repeatable).
+        #[arg(long)]
+        only: Vec<String>,
+        /// Print the scene's resolved runs and exit.
+        #[arg(long)]
+        dry_run: bool,
+    },
+    /// List the built-in scenes.
+    Scenes,
     /// Continue a stopped or killed run from its newest checkpoint, bit for bit.
     Resume {
         /// Run directory.
@@ -234,6 +252,50 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::Scenes => {
+            for (name, text) in scene::BUILTIN {
+                let s = scene::parse_scene(text, name)?;
+                println!("{name} (version {}): {}", s.info.version, s.info.cost);
+                for (run, cfg) in &s.runs {
+                    println!("    {run}: {}", cfg.describe());
+                }
+            }
+            Ok(())
+        }
+        Command::Run {
+            scene,
+            out,
+            only,
+            dry_run,
+        } => {
+            let s = scene::load_scene(&scene)?;
+            let out = out.unwrap_or_else(|| PathBuf::from("runs").join(&s.info.name));
+            if dry_run {
+                println!(
+                    "scene {} (version {}) -> {}\n{}\nmodel level: {}\ncost: {}",
+                    s.info.name,
+                    s.info.version,
+                    out.display(),
+                    s.info.description.trim(),
+                    s.info.level.trim(),
+                    s.info.cost
+                );
+                for (run, cfg) in &s.runs {
+                    println!("  {run}: {}", cfg.describe());
+                }
+                return Ok(());
+            }
+            let report = scene::run_scene(
+                &s,
+                &out,
+                &only,
+                std::io::IsTerminal::is_terminal(&std::io::stderr()),
+                &mut |line| println!("{line}"),
+            )?;
+            println!("{}", report.markdown);
+            println!("wrote {}", out.join("scene.md").display());
+            Ok(())
+        }
         Command::Resume { run_dir } => {
             let model = RunDir::open(&run_dir)?.header()?.model;
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
@@ -265,76 +327,31 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             box_length,
             seed,
         } => {
-            // Part 1: the particle model with slender-body hydrodynamics on a small dilute case
-            // (320 rods, L/l = 8, about 10 s), analysed: its flow (||u||_2 from the force
-            // density) is what the mean-field model predicts in the limit.
-            let pcfg = ParticleRunConfig {
-                box_length: 8.0,
-                dt: 0.004,
-                t_end: 1.0,
-                hydrodynamics: "sbt".into(),
-                snapshot_interval: 0.25,
-                ..ParticleRunConfig::default()
-            };
-            let prun = out.join("particle");
-            let s = run_particle(
-                &pcfg,
-                &prun,
+            // Parts 1-3: the demo scene (experiments/scenes/demo.toml): a small dilute particle
+            // run with slender-body hydrodynamics and a small mean-field run at the paper's zeta,
+            // both analysed and compared in mean-field units (MODEL.md section 5).
+            let s = scene::load_scene("demo")?;
+            let report = scene::run_scene(
+                &s,
+                &out,
+                &[],
                 std::io::IsTerminal::is_terminal(&std::io::stderr()),
+                &mut |line| println!("{line}"),
             )?;
-            println!(
-                "particle run: {} rods, {} steps in {:.1} s -> {}",
-                s.rods.len(),
-                s.steps,
-                s.seconds,
-                prun.display()
-            );
-            let report = analyze_run(&prun, &AnalyzeOptions::default())?;
-            print_table(&report.timeseries);
-            // Part 2: the mean-field model, the paper's zeta, small grid: growth, saturation and the
-            // bound ||u||_2 <= sqrt(1/(24 pi^2)) that holds once tr Q = 1.
-            let mcfg = meanfield_run::MeanFieldRunConfig {
-                grid: 16,
-                // D = 2e-3 keeps Q realizable at 16^3 (D = 1e-4 needs 64^3: BENCHMARKS.md).
-                diffusion: 2e-3,
-                t_end: 30.0,
-                dt_max: 0.1,
-                amplitude: 0.05,
-                mode_max: 2,
-                diagnostic_interval: 1.0,
-                snapshot_interval: 10.0,
-                checkpoint_interval: 10.0,
-                ..Default::default()
-            };
-            let mrun = out.join("meanfield");
-            let m = meanfield_run::run_meanfield(
-                &mcfg,
-                &mrun,
-                std::io::IsTerminal::is_terminal(&std::io::stderr()),
+            // The mean-field bound ||u||_2 <= sqrt(1/(24 pi^2)), which holds once tr Q = 1.
+            let mts = motile_experiments::rundir::TimeSeries::read(
+                &out.join("meanfield").join("timeseries.csv"),
             )?;
-            let u = m
-                .timeseries
-                .column("u_l2 [L |sigma_a|/mu]")
-                .unwrap_or_default();
+            let u = mts.column("u_l2 [L |sigma_a|/mu]").unwrap_or_default();
             let bound = (1.0 / (24.0 * std::f64::consts::PI.powi(2))).sqrt();
             let peak = u.iter().copied().fold(0.0, f64::max);
             println!(
-                "mean-field run: 16^3 to t = 30 in {:.1} s: ||u||_2 from {:.2e} to {:.3e} (peak {peak:.3e}, bound sqrt(1/(24 pi^2)) = {bound:.4}: {}) -> {}",
-                m.seconds,
+                "mean-field ||u||_2 from {:.2e} to {:.3e} (peak {peak:.3e}, bound sqrt(1/(24 pi^2)) = {bound:.4}: {})",
                 u.first().copied().unwrap_or(f64::NAN),
                 u.last().copied().unwrap_or(f64::NAN),
                 if peak <= bound { "holds" } else { "VIOLATED" },
-                mrun.display()
             );
-            analyze_run(&mrun, &AnalyzeOptions::default())?;
-            // Part 3: both on one chart, in mean-field units (MODEL.md section 5).
-            let cmp = out.join("compare");
-            let report = compare::compare(&[prun.clone(), mrun.clone()], &cmp)?;
-            println!(
-                "comparison (velocity norm against time, mean-field units) -> {}\n{}",
-                cmp.display(),
-                report.table
-            );
+            println!("{}", report.markdown);
             let out = out.join("free_swimmers");
             let mut cfg = DemoConfig::default();
             cfg.box_length = box_length.unwrap_or(cfg.box_length);

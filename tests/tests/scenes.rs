@@ -1,0 +1,131 @@
+//! Scenes (`motile run <scene>`): every built-in scene parses and validates; the demo scene,
+//! shortened, runs end to end and writes the comparison figures; running it again skips what
+//! is done; a run directory with other settings is refused; bad scene files name the problem.
+
+use motile_experiments::scene::{BUILTIN, RunConfig, load_scene, parse_scene, run_scene};
+
+#[test]
+fn every_builtin_scene_parses_and_states_its_level() {
+    for (name, text) in BUILTIN {
+        let s = parse_scene(text, name).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        assert_eq!(s.info.name, name);
+        assert!(
+            s.info.level.len() > 40 && s.info.description.len() > 40 && !s.info.cost.is_empty(),
+            "{name}: says too little about itself"
+        );
+    }
+    let err = format!("{:#}", load_scene("no-such-scene").unwrap_err());
+    assert!(
+        err.contains("demo, dilute, concentrated, meanfield"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_scene_files_name_the_run_and_the_field() {
+    let head =
+        "[scene]\nname = \"x\"\nversion = 1\ndescription = \"d\"\nlevel = \"l\"\ncost = \"c\"\n";
+    let cases = [
+        (
+            "[[run]]\nname = \"a\"\nmodel = \"fluid\"\n",
+            "model = \"fluid\" is not one of",
+        ),
+        (
+            "[[run]]\nname = \"a\"\nmodel = \"particle\"\n[run.config]\nbox_lenght = 8.0\n",
+            "did you mean `box_length`",
+        ),
+        (
+            "[[run]]\nname = \"a\"\nmodel = \"meanfield\"\n[run.config]\ngrid = 3\n",
+            "grid",
+        ),
+        (
+            "[[run]]\nname = \"a/b\"\nmodel = \"particle\"\n",
+            "names a directory",
+        ),
+        ("", "no [[run]] entries"),
+    ];
+    for (body, want) in cases {
+        let text = format!("{head}{body}");
+        let text = if body.is_empty() {
+            format!("run = []\n{head}")
+        } else {
+            text
+        };
+        let err = format!("{:#}", parse_scene(&text, "test.toml").unwrap_err());
+        assert!(err.contains(want), "wanted `{want}` in: {err}");
+        if !body.is_empty() {
+            assert!(err.contains("run 1 (\"a"), "should name the run: {err}");
+        }
+    }
+}
+
+#[test]
+fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
+    let mut s = load_scene("demo").unwrap();
+    for (_, cfg) in &mut s.runs {
+        match cfg {
+            RunConfig::Particle(c) => {
+                c.t_end = 0.4;
+                c.snapshot_interval = 0.2;
+                c.checkpoint_interval = 0.2;
+                c.diagnostic_interval = 0.04;
+            }
+            RunConfig::MeanField(c) => {
+                c.t_end = 4.0;
+                c.snapshot_interval = 2.0;
+                c.checkpoint_interval = 2.0;
+                c.diagnostic_interval = 0.5;
+            }
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let mut lines = Vec::new();
+    let report = run_scene(&s, &out, &[], false, &mut |l| lines.push(l.to_string())).unwrap();
+    assert_eq!(report.runs.len(), 2);
+    assert!(report.runs.iter().all(|r| r.action == "ran" && r.steps > 0));
+    for f in [
+        "scene.md",
+        "scene.toml",
+        "compare/velocity_norm.png",
+        "compare/velocity_norm.svg",
+        "compare/velocity_correlation.png",
+        "compare/summary.md",
+        "compare/summary.csv",
+        "compare/velocity_slice.png",
+        "compare/msd.png",
+        "particle/analysis/analysis.h5",
+        "meanfield/analysis/analysis.h5",
+    ] {
+        assert!(out.join(f).exists(), "missing {f}; wrote {lines:?}");
+    }
+    let table = std::fs::read_to_string(out.join("compare/summary.md")).unwrap();
+    assert!(
+        table.contains("particle L/l = 8") && table.contains("mean field 16^3"),
+        "{table}"
+    );
+    // Again: nothing left to do.
+    let again = run_scene(&s, &out, &[], false, &mut |_| {}).unwrap();
+    assert!(
+        again
+            .runs
+            .iter()
+            .all(|r| r.action == "done already" && r.steps == 0),
+        "{:?}",
+        again.runs
+    );
+    // Other settings in the same place are refused, and the run is left as it was.
+    if let RunConfig::Particle(c) = &mut s.runs[0].1 {
+        c.seed = 2;
+    }
+    let before = std::fs::read(out.join("particle/config.toml")).unwrap();
+    let err = format!(
+        "{:#}",
+        run_scene(&s, &out, &[], false, &mut |_| {}).unwrap_err()
+    );
+    assert!(err.contains("other settings than the scene's"), "{err}");
+    assert_eq!(
+        before,
+        std::fs::read(out.join("particle/config.toml")).unwrap()
+    );
+}
