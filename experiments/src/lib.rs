@@ -14,4 +14,6 @@ pub mod plot;
 pub mod rundir;
 pub mod scene;
 pub mod snapshot;
+pub mod stability;
+pub mod study;
 pub mod vtk;

@@ -6,7 +6,9 @@ use motile_experiments::analyze::{AnalyzeOptions, analyze_run};
 use motile_experiments::compare;
 use motile_experiments::demo::{DemoConfig, write_demo_run};
 use motile_experiments::meanfield_run;
-use motile_experiments::particle_run::{parse_config, resume_particle, run_particle};
+use motile_experiments::particle_run::{
+    ParticleRunConfig, parse_config, resume_particle, run_particle,
+};
 use motile_experiments::rundir::{RunDir, TimeSeries};
 use motile_experiments::scene;
 use std::path::PathBuf;
@@ -88,6 +90,66 @@ enum Command {
     },
     /// List the built-in scenes.
     Scenes,
+    /// Where methods fail: a map of short runs, time step against volume fraction (particle)
+    /// or against resolution (mean-field), each cell the run's outcome (PNG, SVG, CSV, MD in
+    /// OUT).
+    Stability {
+        /// "particle" or "meanfield".
+        model: String,
+        /// Time steps (particle dt, 1/beta; mean-field dt_max), comma-separated
+        /// [default: particle 0.005,0.01,0.02,0.04; mean-field 0.05,0.1,0.2,0.4,0.8].
+        #[arg(long, value_delimiter = ',')]
+        dts: Option<Vec<f64>>,
+        /// Particle: volume fractions [default: 0.625,2,5].
+        #[arg(long, value_delimiter = ',')]
+        fractions: Option<Vec<f64>>,
+        /// Mean-field: grids [default: 8,16,32].
+        #[arg(long, value_delimiter = ',')]
+        grids: Option<Vec<usize>>,
+        /// Particle: box side L/l [default: 6].
+        #[arg(long, default_value_t = 6.0)]
+        box_length: f64,
+        /// Particle: hydrodynamics [default: sbt].
+        #[arg(long, default_value = "sbt")]
+        hydrodynamics: String,
+        /// Mean-field: diffusion D [default: 1e-4, the paper's].
+        #[arg(long, default_value_t = 1e-4)]
+        diffusion: f64,
+        /// Mean-field: CFL number [default: 2, the largest allowed, so dt_max is the step until
+        /// the flow is strong].
+        #[arg(long, default_value_t = 2.0)]
+        cfl: f64,
+        /// End time of each run [default: particle 2, mean-field 60].
+        #[arg(long)]
+        t_end: Option<f64>,
+        /// Output directory.
+        #[arg(long, default_value = "runs/stability")]
+        out: PathBuf,
+    },
+    /// Accuracy against cost: sweep one knob of a scene's run (particle: sum_tolerance,
+    /// quadrature_points, hydrodynamics, dt; mean-field: meanfield_dt, grid, closure_degree),
+    /// measure each setting's error against the most accurate one and its wall time, chart
+    /// them (OUT/study_<knob>.{png,svg,csv,md}) and name the cheapest setting within the
+    /// stated accuracy.
+    Study {
+        /// The knob.
+        knob: String,
+        /// Scene whose run is the base (its first run of the knob's model).
+        #[arg(long, default_value = "demo")]
+        scene: String,
+        /// Values to sweep, comma-separated [default: the knob's list].
+        #[arg(long, value_delimiter = ',')]
+        values: Option<Vec<String>>,
+        /// End time of each run [default: the scene run's].
+        #[arg(long)]
+        t_end: Option<f64>,
+        /// Stated accuracy (relative error) [default: 1e-2].
+        #[arg(long, default_value_t = 1e-2)]
+        accuracy: f64,
+        /// Output directory.
+        #[arg(long, default_value = "runs/study")]
+        out: PathBuf,
+    },
     /// Continue a stopped or killed run from its newest checkpoint, bit for bit.
     Resume {
         /// Run directory.
@@ -249,6 +311,90 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 s.steps,
                 s.seconds,
                 out.display()
+            );
+            Ok(())
+        }
+        Command::Study {
+            knob,
+            scene,
+            values,
+            t_end,
+            accuracy,
+            out,
+        } => {
+            let s = scene::load_scene(&scene)?;
+            let report = motile_experiments::study::study(
+                &s,
+                &knob,
+                values,
+                t_end,
+                accuracy,
+                &out,
+                &mut |line| println!("{line}"),
+            )?;
+            println!("{}", report.markdown);
+            println!("wrote {}", out.join(format!("study_{knob}.png")).display());
+            Ok(())
+        }
+        Command::Stability {
+            model,
+            dts,
+            fractions,
+            grids,
+            box_length,
+            hydrodynamics,
+            diffusion,
+            cfl,
+            t_end,
+            out,
+        } => {
+            use motile_experiments::stability;
+            let mut event = |line: &str| println!("{line}");
+            let md = match model.as_str() {
+                "particle" => {
+                    let base = ParticleRunConfig {
+                        box_length,
+                        hydrodynamics,
+                        t_end: t_end.unwrap_or(2.0),
+                        diagnostic_interval: 0.05,
+                        ..ParticleRunConfig::default()
+                    };
+                    stability::particle_map(
+                        &base,
+                        &dts.unwrap_or(vec![0.005, 0.01, 0.02, 0.04]),
+                        &fractions.unwrap_or(vec![0.625, 2.0, 5.0]),
+                        &out,
+                        &mut event,
+                    )?
+                    .1
+                }
+                "meanfield" => {
+                    let base = meanfield_run::MeanFieldRunConfig {
+                        diffusion,
+                        cfl,
+                        t_end: t_end.unwrap_or(60.0),
+                        mode_max: 2,
+                        step_retries: 0,
+                        diagnostic_interval: 1.0,
+                        ..Default::default()
+                    };
+                    stability::meanfield_map(
+                        &base,
+                        &dts.unwrap_or(vec![0.05, 0.1, 0.2, 0.4, 0.8]),
+                        &grids.unwrap_or(vec![8, 16, 32]),
+                        &out,
+                        &mut event,
+                    )?
+                    .1
+                }
+                other => anyhow::bail!(
+                    "stability: model \"{other}\" is not one of \"particle\", \"meanfield\""
+                ),
+            };
+            println!("{md}");
+            println!(
+                "wrote {}",
+                out.join(format!("stability_{model}.png")).display()
             );
             Ok(())
         }

@@ -570,6 +570,18 @@ pub struct RunSummary {
     pub rods: RodSet,
 }
 
+/// The rods a run starts from: random (seeded) or read from `initial`.
+pub fn initial_rods(cfg: &ParticleRunConfig) -> anyhow::Result<RodSet> {
+    if cfg.initial == "random" {
+        let n = cfg
+            .rods
+            .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
+        Ok(random_nonoverlapping(n, cfg.box_length, cfg.seed, 200_000)?)
+    } else {
+        load_configuration(Path::new(&cfg.initial), cfg.box_length)
+    }
+}
+
 /// Start a new particle run in `out`.
 pub fn run_particle(
     cfg: &ParticleRunConfig,
@@ -577,14 +589,7 @@ pub fn run_particle(
     progress: bool,
 ) -> anyhow::Result<RunSummary> {
     cfg.validate().map_err(|e| anyhow::anyhow!("config: {e}"))?;
-    let rods = if cfg.initial == "random" {
-        let n = cfg
-            .rods
-            .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
-        random_nonoverlapping(n, cfg.box_length, cfg.seed, 200_000)?
-    } else {
-        load_configuration(Path::new(&cfg.initial), cfg.box_length)?
-    };
+    let rods = initial_rods(cfg)?;
     let run = RunDir::create(out, "particle", cfg.seed, cfg)?;
     run.log(&format!(
         "particle run: {} rods, L/l = {}, dt = {}, t_end = {}",

@@ -228,3 +228,223 @@ pub fn heatmaps(
         |a| draw_panels(a, title, scale_label, panels),
     )
 }
+
+fn draw_log<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    labels: &[(f64, f64, String)],
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let positive = |pick: fn(&(f64, f64)) -> f64| {
+        let vals: Vec<f64> = series
+            .iter()
+            .flat_map(|s| s.points.iter().map(pick))
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .collect();
+        let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = vals.iter().copied().fold(0.0, f64::max);
+        if lo.is_finite() && hi > 0.0 {
+            // Half a decade of room on each side (labels sit right of the points).
+            (lo / 3.0, hi * 3.0)
+        } else {
+            (0.1, 10.0)
+        }
+    };
+    let (x0, x1) = positive(|p| p.0);
+    let (y0, y1) = positive(|p| p.1);
+    let mut c = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+        .map_err(|e| e.to_string())?;
+    c.configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .x_labels(12)
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .x_label_formatter(&|v| format!("{v:.3}"))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (i, s) in series.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        c.draw_series(LineSeries::new(
+            s.points.iter().copied(),
+            color.stroke_width(2),
+        ))
+        .map_err(|e| e.to_string())?
+        .label(s.label.clone())
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+        if i == 0 {
+            c.draw_series(
+                s.points
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, y), 5, color.filled())),
+            )
+            .map_err(|e| e.to_string())?;
+        }
+    }
+    c.draw_series(labels.iter().map(|(x, y, t)| {
+        Text::new(
+            t.clone(),
+            (*x * 1.08, *y * 1.1),
+            ("sans-serif", 15).into_font(),
+        )
+    }))
+    .map_err(|e| e.to_string())?;
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 15))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())
+}
+
+/// A log-log chart of `series` (the first drawn with point markers), each point of `labels`
+/// annotated with its text, to `<stem>.png` and `<stem>.svg`.
+pub fn log_chart(
+    stem: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    labels: &[(f64, f64, String)],
+) -> Result<(), crate::io::IoError> {
+    render(
+        stem,
+        (900, 600),
+        |a| draw_log(a, title, x_label, y_label, series, labels),
+        |a| draw_log(a, title, x_label, y_label, series, labels),
+    )
+}
+
+/// A map of categorical outcomes: cell `(column, row, category, text)` on a grid whose columns
+/// and rows are labelled by `x_ticks` and `y_ticks`; `categories` gives each category's legend
+/// name and colour (RGB).
+#[derive(Clone, Debug)]
+pub struct OutcomeMap<'a> {
+    /// Title.
+    pub title: &'a str,
+    /// x-axis label with unit.
+    pub x_label: &'a str,
+    /// y-axis label with unit.
+    pub y_label: &'a str,
+    /// Column labels.
+    pub x_ticks: Vec<String>,
+    /// Row labels (bottom to top).
+    pub y_ticks: Vec<String>,
+    /// `(name, (r, g, b))` of each category.
+    pub categories: Vec<(String, (u8, u8, u8))>,
+    /// `(column, row, category index, text in the cell)`.
+    pub cells: Vec<(usize, usize, usize, String)>,
+}
+
+fn draw_outcomes<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    map: &OutcomeMap,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (nx, ny) = (map.x_ticks.len().max(1), map.y_ticks.len().max(1));
+    let (main, legend) = root.split_horizontally(root.dim_in_pixel().0 as i32 - 220);
+    let xt = map.x_ticks.clone();
+    let yt = map.y_ticks.clone();
+    let mut c = ChartBuilder::on(&main)
+        .caption(map.title, ("sans-serif", 20))
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..nx as f64, 0.0..ny as f64)
+        .map_err(|e| e.to_string())?;
+    c.configure_mesh()
+        .disable_mesh()
+        .x_labels(2 * nx + 1)
+        .y_labels(2 * ny + 1)
+        .x_label_formatter(&move |v| {
+            let k = v - 0.5;
+            if (k - k.round()).abs() < 1e-6 && k >= -1e-6 {
+                xt.get(k.round() as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .y_label_formatter(&move |v| {
+            let k = v - 0.5;
+            if (k - k.round()).abs() < 1e-6 && k >= -1e-6 {
+                yt.get(k.round() as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .x_desc(map.x_label)
+        .y_desc(map.y_label)
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (x, y, k, text) in &map.cells {
+        let (r, g, b) = map
+            .categories
+            .get(*k)
+            .map(|c| c.1)
+            .unwrap_or((128, 128, 128));
+        let (x, y) = (*x as f64, *y as f64);
+        c.draw_series(std::iter::once(Rectangle::new(
+            [(x + 0.03, y + 0.03), (x + 0.97, y + 0.97)],
+            RGBColor(r, g, b).filled(),
+        )))
+        .map_err(|e| e.to_string())?;
+        for (i, line) in text.lines().enumerate() {
+            c.draw_series(std::iter::once(Text::new(
+                line.to_string(),
+                (x + 0.08, y + 0.85 - 0.16 * i as f64),
+                ("sans-serif", 13).into_font(),
+            )))
+            .map_err(|e| e.to_string())?;
+        }
+    }
+    for (i, (name, (r, g, b))) in map.categories.iter().enumerate() {
+        let y = 80 + 30 * i as i32;
+        legend
+            .draw(&Rectangle::new(
+                [(5, y), (25, y + 20)],
+                RGBColor(*r, *g, *b).filled(),
+            ))
+            .map_err(|e| e.to_string())?;
+        legend
+            .draw(&Text::new(
+                name.clone(),
+                (32, y + 3),
+                ("sans-serif", 15).into_font(),
+            ))
+            .map_err(|e| e.to_string())?;
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
+/// Draw an outcome map to `<stem>.png` and `<stem>.svg`.
+pub fn outcome_map(stem: &Path, map: &OutcomeMap) -> Result<(), crate::io::IoError> {
+    let size = (
+        (260 + 150 * map.x_ticks.len().max(1) as u32).max(800),
+        (160 + 110 * map.y_ticks.len().max(1) as u32).max(450),
+    );
+    render(
+        stem,
+        size,
+        |a| draw_outcomes(a, map),
+        |a| draw_outcomes(a, map),
+    )
+}

@@ -1,0 +1,364 @@
+//! `motile stability particle|meanfield`: where methods fail. A grid of short runs, time step
+//! against volume fraction (particle) or against resolution (mean-field); each cell is the
+//! run's outcome, read from the structured error a failing run ends with (overlap beyond
+//! tolerance, contact solver or GMRES not converging, non-finite values; realizability lost,
+//! fixed point not converging), drawn as a map (PNG, SVG) with the CSV behind it.
+
+use crate::io::write_atomic;
+use crate::meanfield_run::{self, MeanFieldRunConfig};
+use crate::particle_run::{self, ParticleRunConfig};
+use crate::plot::{OutcomeMap, outcome_map};
+use crate::rundir::TimeSeries;
+use anyhow::Context;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Outcome categories: legend name and colour.
+pub const CATEGORIES: [(&str, (u8, u8, u8)); 8] = [
+    ("ran to the end", (120, 200, 120)),
+    ("overlap beyond tolerance", (240, 170, 60)),
+    ("contact solver failed", (200, 120, 200)),
+    ("GMRES failed", (120, 160, 230)),
+    ("non-finite (blow-up)", (220, 80, 80)),
+    ("realizability lost", (250, 220, 90)),
+    ("fixed point failed", (150, 110, 90)),
+    ("other error", (170, 170, 170)),
+];
+
+/// The category of a run's result: index into [`CATEGORIES`].
+pub fn classify(result: &Result<(), String>) -> usize {
+    let Err(m) = result else { return 0 };
+    if m.contains("overlap by") {
+        1
+    } else if m.contains("contact solver") {
+        2
+    } else if m.contains("GMRES") {
+        3
+    } else if m.contains("non-finite") || m.contains("not finite") {
+        4
+    } else if m.contains("realizability") {
+        5
+    } else if m.contains("fixed point") {
+        6
+    } else {
+        7
+    }
+}
+
+/// The simulated time a failed run reached, from its message ("step 5 (t = 1.2345) ..." or
+/// "step 5 at t = 1.2345 ...": the first "t = ").
+fn time_reached(message: &str) -> Option<f64> {
+    let rest = message.split("t = ").nth(1)?;
+    rest.split([')', ':', ' '])
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// One cell of a map.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    /// The time step (particle: dt; mean-field: dt_max).
+    pub dt: f64,
+    /// The other axis (volume fraction or grid).
+    pub y: f64,
+    /// Category index into [`CATEGORIES`].
+    pub category: usize,
+    /// Simulated time reached.
+    pub t_reached: f64,
+    /// The error message (empty when the run ended normally).
+    pub message: String,
+    /// Wall seconds.
+    pub seconds: f64,
+    /// A figure of merit for runs that ended (particle: largest overlap in l; mean-field:
+    /// smallest eigenvalue of Q/tr Q).
+    pub merit: f64,
+}
+
+fn column_extreme(ts: &Path, prefix: &str, max: bool) -> f64 {
+    let Ok(ts) = TimeSeries::read(ts) else {
+        return f64::NAN;
+    };
+    let Some(c) = ts.columns.iter().position(|c| c.starts_with(prefix)) else {
+        return f64::NAN;
+    };
+    let vals = ts.rows.iter().map(|r| r[c]);
+    if max {
+        vals.fold(f64::NEG_INFINITY, f64::max)
+    } else {
+        vals.fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Write the map's CSV, PNG and SVG as `out/<stem>.*`.
+#[allow(clippy::too_many_arguments)]
+fn write_map(
+    out: &Path,
+    stem: &str,
+    title: &str,
+    y_name: &str,
+    dts: &[f64],
+    ys: &[f64],
+    cells: &[Cell],
+    merit_name: &str,
+) -> anyhow::Result<String> {
+    let mut csv = format!("dt,{y_name},outcome,t_reached,wall_seconds,{merit_name},message\n");
+    for c in cells {
+        writeln!(
+            csv,
+            "{},{},\"{}\",{},{:.2},{:e},\"{}\"",
+            c.dt,
+            c.y,
+            CATEGORIES[c.category].0,
+            c.t_reached,
+            c.seconds,
+            c.merit,
+            c.message.replace('"', "'")
+        )
+        .expect("string");
+    }
+    write_atomic(&out.join(format!("{stem}.csv")), csv.as_bytes())?;
+    let used: Vec<usize> = (0..CATEGORIES.len())
+        .filter(|k| cells.iter().any(|c| c.category == *k))
+        .collect();
+    let map = OutcomeMap {
+        title,
+        x_label: "time step dt",
+        y_label: y_name,
+        x_ticks: dts.iter().map(|d| format!("{d}")).collect(),
+        y_ticks: ys.iter().map(|y| format!("{y}")).collect(),
+        categories: used
+            .iter()
+            .map(|&k| (CATEGORIES[k].0.to_string(), CATEGORIES[k].1))
+            .collect(),
+        cells: cells
+            .iter()
+            .map(|c| {
+                let xi = dts.iter().position(|d| *d == c.dt).unwrap_or(0);
+                let yi = ys.iter().position(|y| *y == c.y).unwrap_or(0);
+                let k = used.iter().position(|u| *u == c.category).unwrap_or(0);
+                let text = if c.category == 0 {
+                    format!("{merit_name}\n{:.1e}\n{:.0} s", c.merit, c.seconds)
+                } else {
+                    format!("stopped at\nt = {}\n{:.0} s", c.t_reached, c.seconds)
+                };
+                (xi, yi, k, text)
+            })
+            .collect(),
+    };
+    outcome_map(&out.join(stem), &map)?;
+    let mut md = format!(
+        "| dt | {y_name} | outcome | t reached | wall (s) | {merit_name} |\n|---|---|---|---|---|---|\n"
+    );
+    for c in cells {
+        writeln!(
+            md,
+            "| {} | {} | {} | {} | {:.1} | {:.2e} |",
+            c.dt, c.y, CATEGORIES[c.category].0, c.t_reached, c.seconds, c.merit
+        )
+        .expect("string");
+    }
+    write_atomic(&out.join(format!("{stem}.md")), md.as_bytes())?;
+    Ok(md)
+}
+
+/// Particle map: every `dt` against every volume fraction, from `base` (box, hydrodynamics,
+/// t_end, seed), runs in `out/runs/`, map `out/stability_particle.*`.
+pub fn particle_map(
+    base: &ParticleRunConfig,
+    dts: &[f64],
+    fractions: &[f64],
+    out: &Path,
+    event: &mut dyn FnMut(&str),
+) -> anyhow::Result<(Vec<Cell>, String)> {
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let mut cells = Vec::new();
+    for &nu in fractions {
+        for &dt in dts {
+            let mut c = base.clone();
+            c.volume_fraction = nu;
+            c.rods = None;
+            c.dt = dt;
+            c.vtk = false;
+            c.snapshot_interval = c.t_end;
+            c.checkpoint_interval = c.t_end;
+            c.diagnostic_interval = c.diagnostic_interval.max(dt);
+            c.validate()
+                .map_err(|e| anyhow::anyhow!("stability map, dt = {dt}, nu = {nu}: {e}"))?;
+            let dir = out.join("runs").join(format!("particle_nu{nu}_dt{dt}"));
+            if dir.exists() {
+                std::fs::remove_dir_all(&dir)
+                    .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
+            }
+            let t0 = std::time::Instant::now();
+            let result = particle_run::run_particle(&c, &dir, false)
+                .map(|_| ())
+                .map_err(|e| format!("{e:#}"));
+            let seconds = t0.elapsed().as_secs_f64();
+            let category = classify(&result);
+            let message = result.err().unwrap_or_default();
+            let t_reached = if category == 0 {
+                c.t_end
+            } else {
+                time_reached(&message).unwrap_or(f64::NAN)
+            };
+            event(&format!(
+                "nu = {nu}, dt = {dt}: {} (t = {t_reached}, {seconds:.1} s){}",
+                CATEGORIES[category].0,
+                if message.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {message}")
+                }
+            ));
+            cells.push(Cell {
+                dt,
+                y: nu,
+                category,
+                t_reached,
+                message,
+                seconds,
+                merit: column_extreme(&dir.join("timeseries.csv"), "max_overlap", true),
+            });
+        }
+    }
+    let title = format!(
+        "particle ({}), L/l = {}, to t = {} (1/beta)",
+        base.hydrodynamics, base.box_length, base.t_end
+    );
+    let md = write_map(
+        out,
+        "stability_particle",
+        &title,
+        "volume fraction nu",
+        dts,
+        fractions,
+        &cells,
+        "max overlap [l]",
+    )?;
+    Ok((cells, md))
+}
+
+/// Mean-field map: every `dt_max` against every grid, from `base` (zeta, D, t_end, initial
+/// condition; `cfl` and `step_retries` as given there), runs in `out/runs/`, map
+/// `out/stability_meanfield.*`.
+pub fn meanfield_map(
+    base: &MeanFieldRunConfig,
+    dts: &[f64],
+    grids: &[usize],
+    out: &Path,
+    event: &mut dyn FnMut(&str),
+) -> anyhow::Result<(Vec<Cell>, String)> {
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let mut cells = Vec::new();
+    for &n in grids {
+        meanfield_run::closure_tables(base.closure_degree)?;
+        for &dt in dts {
+            let mut c = base.clone();
+            c.grid = n;
+            c.dt_max = dt;
+            c.snapshot_interval = c.t_end;
+            c.checkpoint_interval = c.t_end;
+            c.validate()
+                .map_err(|e| anyhow::anyhow!("stability map, dt = {dt}, grid = {n}: {e}"))?;
+            let dir = out.join("runs").join(format!("meanfield_{n}_dt{dt}"));
+            if dir.exists() {
+                std::fs::remove_dir_all(&dir)
+                    .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
+            }
+            let t0 = std::time::Instant::now();
+            let result = meanfield_run::run_meanfield(&c, &dir, false)
+                .map(|_| ())
+                .map_err(|e| format!("{e:#}"));
+            let seconds = t0.elapsed().as_secs_f64();
+            let category = classify(&result);
+            let message = result.err().unwrap_or_default();
+            let t_reached = if category == 0 {
+                c.t_end
+            } else {
+                time_reached(&message).unwrap_or(f64::NAN)
+            };
+            event(&format!(
+                "grid {n}^3, dt_max = {dt}: {} (t = {t_reached}, {seconds:.1} s){}",
+                CATEGORIES[category].0,
+                if message.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {message}")
+                }
+            ));
+            cells.push(Cell {
+                dt,
+                y: n as f64,
+                category,
+                t_reached,
+                message,
+                seconds,
+                merit: column_extreme(&dir.join("timeseries.csv"), "min_eigenvalue", false),
+            });
+        }
+    }
+    let title = format!(
+        "mean field, zeta = {}, D = {}, cfl = {}, to t = {}",
+        base.zeta, base.diffusion, base.cfl, base.t_end
+    );
+    let ys: Vec<f64> = grids.iter().map(|&n| n as f64).collect();
+    let md = write_map(
+        out,
+        "stability_meanfield",
+        &title,
+        "grid points per side",
+        dts,
+        &ys,
+        &cells,
+        "min eig Q/trQ",
+    )?;
+    Ok((cells, md))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_are_classified_and_their_time_read() {
+        let cases = [
+            (
+                "step 152 (t = 3.0400) failed: rods 229 and 295 overlap by 5.299e-3 l",
+                1,
+                3.04,
+            ),
+            (
+                "step 9 (t = 0.0180) failed: contact solver (BBPGD) did not converge",
+                2,
+                0.018,
+            ),
+            (
+                "step 3 (t = 0.0060) failed: slender-body GMRES (free solve): GMRES did not converge",
+                3,
+                0.006,
+            ),
+            (
+                "step 2 (t = 0.5000) failed: non-finite value in velocity",
+                4,
+                0.5,
+            ),
+            (
+                "Q lost realizability at step 957 (t = 45.6000): the smallest",
+                5,
+                45.6,
+            ),
+            (
+                "mean-field step 12 at t = 1.5000 (dt = 1e-1) failed: Stokes fixed point did not converge: relative",
+                6,
+                1.5,
+            ),
+        ];
+        for (m, k, t) in cases {
+            let r = Err(m.to_string());
+            assert_eq!(classify(&r), k, "{m}");
+            assert_eq!(time_reached(m), Some(t), "{m}");
+        }
+        assert_eq!(classify(&Ok(())), 0);
+    }
+}

@@ -1,0 +1,373 @@
+//! `motile study <knob>`: accuracy against cost. One knob of a scene's run is swept; each
+//! setting runs over the same (short) window, its error is measured against the most accurate
+//! setting, and the chart puts error against wall time and names the cheapest setting that
+//! meets a stated accuracy.
+//!
+//! Errors (each relative, so one stated accuracy reads the same for every knob):
+//! - particle knobs: the RMS difference of the rods' unwrapped end positions from the
+//!   reference run's, divided by the RMS distance the reference rods travelled (end
+//!   orientations are reported too);
+//! - mean-field knobs: the largest difference of the velocity norm `||u||_2(t)` from the
+//!   reference run's over the window, divided by the reference's largest norm.
+
+use crate::io::write_atomic;
+use crate::meanfield_run::{self, MeanFieldRunConfig};
+use crate::particle_run::{self, ParticleRunConfig};
+use crate::plot::{Series, log_chart};
+use crate::scene::{RunConfig, Scene};
+use anyhow::{Context, bail};
+use motile_particle::geometry::{norm, sub};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The knobs `motile study` sweeps: name, model, default values (least to most accurate) and the
+/// reference setting.
+pub const KNOBS: [(&str, &str, &str, &str); 7] = [
+    (
+        "sum_tolerance",
+        "particle",
+        "1e-2,1e-3,1e-4,1e-5,1e-6",
+        "1e-8",
+    ),
+    ("quadrature_points", "particle", "2,4,8", "16"),
+    ("hydrodynamics", "particle", "none,dipole", "sbt"),
+    ("dt", "particle", "0.04,0.02,0.01,0.005", "0.0025"),
+    ("meanfield_dt", "meanfield", "0.4,0.2,0.1,0.05", "0.0125"),
+    ("grid", "meanfield", "8,12,16,24", "32"),
+    ("closure_degree", "meanfield", "10,20,40", "80"),
+];
+
+/// One setting's result.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StudyPoint {
+    /// The knob's value, as given.
+    pub value: String,
+    /// Wall seconds of the run (without analysis).
+    pub seconds: f64,
+    /// Relative error against the reference (0 for the reference).
+    pub error: f64,
+    /// Particle knobs: RMS end-orientation difference `|p - p_ref|`; mean-field: NaN.
+    pub orientation_error: f64,
+    /// Whether this is the reference setting.
+    pub reference: bool,
+    /// The run's failure, if it stopped (its error is then infinite).
+    pub failure: Option<String>,
+}
+
+/// What a study found.
+#[derive(Clone, Debug)]
+pub struct StudyReport {
+    /// Every setting, the reference last.
+    pub points: Vec<StudyPoint>,
+    /// The cheapest setting whose error meets the stated accuracy, if any.
+    pub cheapest: Option<StudyPoint>,
+    /// Markdown summary (also `OUT/study_<knob>.md`).
+    pub markdown: String,
+}
+
+fn knob(name: &str) -> anyhow::Result<(&'static str, &'static str, &'static str, &'static str)> {
+    KNOBS
+        .iter()
+        .copied()
+        .find(|k| k.0 == name)
+        .with_context(|| {
+            let names: Vec<&str> = KNOBS.iter().map(|k| k.0).collect();
+            format!("no knob \"{name}\"; knobs: {}", names.join(", "))
+        })
+}
+
+fn set_particle(c: &mut ParticleRunConfig, knob: &str, v: &str) -> anyhow::Result<()> {
+    let num = || -> anyhow::Result<f64> {
+        v.parse::<f64>()
+            .with_context(|| format!("{knob} = {v}: not a number"))
+    };
+    match knob {
+        "sum_tolerance" => c.hydro.sum_tolerance = num()?,
+        "quadrature_points" => c.hydro.quadrature_points = num()? as usize,
+        "hydrodynamics" => c.hydrodynamics = v.to_string(),
+        "dt" => c.dt = num()?,
+        _ => unreachable!("checked knob"),
+    }
+    c.validate()
+        .map_err(|e| anyhow::anyhow!("study {knob} = {v}: {e}"))
+}
+
+fn set_meanfield(c: &mut MeanFieldRunConfig, knob: &str, v: &str) -> anyhow::Result<()> {
+    let num = || -> anyhow::Result<f64> {
+        v.parse::<f64>()
+            .with_context(|| format!("{knob} = {v}: not a number"))
+    };
+    match knob {
+        "meanfield_dt" => c.dt_max = num()?,
+        "grid" => c.grid = num()? as usize,
+        "closure_degree" => c.closure_degree = num()? as usize,
+        _ => unreachable!("checked knob"),
+    }
+    c.validate()
+        .map_err(|e| anyhow::anyhow!("study {knob} = {v}: {e}"))
+}
+
+/// What one run left to compare.
+enum Outcome {
+    Particle {
+        x: Vec<[f64; 3]>,
+        p: Vec<[f64; 3]>,
+        x0: Vec<[f64; 3]>,
+    },
+    MeanField {
+        t: Vec<f64>,
+        u: Vec<f64>,
+    },
+}
+
+/// Sweep `knob_name` over `values` (default: the knob's list) on the first run of `scene` of the
+/// knob's model, each to `t_end` (default: the run's own), into `out/runs/<knob>_<value>`;
+/// write `out/study_<knob>.{csv,md,png,svg}`. `event` gets a line per run.
+pub fn study(
+    scene: &Scene,
+    knob_name: &str,
+    values: Option<Vec<String>>,
+    t_end: Option<f64>,
+    accuracy: f64,
+    out: &Path,
+    event: &mut dyn FnMut(&str),
+) -> anyhow::Result<StudyReport> {
+    let (name, model, defaults, reference) = knob(knob_name)?;
+    if !(accuracy > 0.0 && accuracy < 1.0) {
+        bail!("--accuracy = {accuracy} is outside the allowed range (0, 1)");
+    }
+    let base = scene
+        .runs
+        .iter()
+        .find(|(_, c)| c.model() == model)
+        .map(|(_, c)| c.clone())
+        .with_context(|| {
+            format!(
+                "scene {} has no {model} run for the knob {name}",
+                scene.info.name
+            )
+        })?;
+    let mut settings: Vec<(String, bool)> = values
+        .unwrap_or_else(|| defaults.split(',').map(String::from).collect())
+        .into_iter()
+        .map(|v| (v, false))
+        .collect();
+    settings.retain(|(v, _)| v != reference);
+    settings.push((reference.to_string(), true));
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let mut results = Vec::new();
+    for (v, is_ref) in &settings {
+        let dir = out.join("runs").join(format!("{name}_{v}"));
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir)
+                .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
+        }
+        // One-time costs stay out of the timing: closure tables are built (and cached) first.
+        if let RunConfig::MeanField(c) = &base {
+            let mut c = c.clone();
+            set_meanfield(&mut c, name, v)?;
+            meanfield_run::closure_tables(c.closure_degree)?;
+        }
+        let t0 = std::time::Instant::now();
+        let outcome: Result<Outcome, anyhow::Error> = match &base {
+            RunConfig::Particle(c) => {
+                let mut c = c.clone();
+                c.t_end = t_end.unwrap_or(c.t_end);
+                c.vtk = false;
+                c.snapshot_interval = c.t_end;
+                c.checkpoint_interval = c.t_end;
+                c.diagnostic_interval = c.diagnostic_interval.max(c.dt);
+                set_particle(&mut c, name, v)?;
+                let x0 = particle_run::initial_rods(&c)?.unwrapped();
+                particle_run::run_particle(&c, &dir, false).map(|s| Outcome::Particle {
+                    x: s.rods.unwrapped(),
+                    p: s.rods.orientations(),
+                    x0,
+                })
+            }
+            RunConfig::MeanField(c) => {
+                let mut c = c.clone();
+                c.t_end = t_end.unwrap_or(c.t_end);
+                c.snapshot_interval = c.t_end;
+                c.checkpoint_interval = c.t_end;
+                set_meanfield(&mut c, name, v)?;
+                meanfield_run::run_meanfield(&c, &dir, false).map(|s| Outcome::MeanField {
+                    t: s.timeseries.column("t [mu/|sigma_a|]").unwrap_or_default(),
+                    u: s.timeseries
+                        .column("u_l2 [L |sigma_a|/mu]")
+                        .unwrap_or_default(),
+                })
+            }
+        };
+        let seconds = t0.elapsed().as_secs_f64();
+        event(&format!(
+            "{name} = {v}{}: {:.1} s{}",
+            if *is_ref { " (reference)" } else { "" },
+            seconds,
+            match &outcome {
+                Ok(_) => String::new(),
+                Err(e) => format!(", stopped: {e:#}"),
+            }
+        ));
+        results.push((v.clone(), *is_ref, seconds, outcome));
+    }
+    let Some((_, _, _, Ok(reference_outcome))) = results.last() else {
+        let why = match results.last() {
+            Some((_, _, _, Err(e))) => format!("{e:#}"),
+            _ => "no runs".into(),
+        };
+        bail!("study {name}: the reference setting {reference} failed: {why}");
+    };
+    let mut points = Vec::new();
+    for (v, is_ref, seconds, outcome) in &results {
+        let (error, orientation_error, failure) = match outcome {
+            Err(e) => (f64::INFINITY, f64::INFINITY, Some(format!("{e:#}"))),
+            Ok(o) => {
+                let (e, ep) = error_against(o, reference_outcome)?;
+                (e, ep, None)
+            }
+        };
+        points.push(StudyPoint {
+            value: v.clone(),
+            seconds: *seconds,
+            error,
+            orientation_error,
+            reference: *is_ref,
+            failure,
+        });
+    }
+    let cheapest = points
+        .iter()
+        .filter(|p| !p.reference && p.error <= accuracy)
+        .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
+        .cloned();
+    // Files.
+    let mut csv = String::from("value,reference,wall_seconds,error,orientation_error,failure\n");
+    for p in &points {
+        writeln!(
+            csv,
+            "{},{},{:.3},{:e},{:e},\"{}\"",
+            p.value,
+            p.reference,
+            p.seconds,
+            p.error,
+            p.orientation_error,
+            p.failure.clone().unwrap_or_default().replace('"', "'")
+        )
+        .expect("string");
+    }
+    write_atomic(&out.join(format!("study_{name}.csv")), csv.as_bytes())?;
+    let what = if model == "particle" {
+        "RMS end-position difference / RMS distance travelled"
+    } else {
+        "max |Delta ||u||_2(t)| / max ||u||_2"
+    };
+    let window = match &base {
+        RunConfig::Particle(c) => format!("t = 0 to {} (1/beta)", t_end.unwrap_or(c.t_end)),
+        RunConfig::MeanField(c) => format!("t = 0 to {} (mu/|sigma_a|)", t_end.unwrap_or(c.t_end)),
+    };
+    let verdict = match &cheapest {
+        Some(p) => format!(
+            "cheapest setting meeting the stated accuracy {accuracy:.0e}: **{name} = {}** (error {:.2e}, {:.1} s)",
+            p.value, p.error, p.seconds
+        ),
+        None => {
+            format!("no setting other than the reference meets the stated accuracy {accuracy:.0e}")
+        }
+    };
+    let mut md = format!(
+        "# Study: {name} ({model}, scene `{}`)\n\nBase: {}. Window {window}. Error: {what}, against the reference {name} = {reference}.\n\n{verdict}\n\n| {name} | wall time (s) | error | orientation error | note |\n|---|---|---|---|---|\n",
+        scene.info.name,
+        base.describe()
+    );
+    for p in &points {
+        writeln!(
+            md,
+            "| {}{} | {:.2} | {:.2e} | {:.2e} | {} |",
+            p.value,
+            if p.reference { " (reference)" } else { "" },
+            p.seconds,
+            p.error,
+            p.orientation_error,
+            p.failure.clone().unwrap_or_default()
+        )
+        .expect("string");
+    }
+    write_atomic(&out.join(format!("study_{name}.md")), md.as_bytes())?;
+    let plotted: Vec<&StudyPoint> = points
+        .iter()
+        .filter(|p| !p.reference && p.error.is_finite() && p.error > 0.0)
+        .collect();
+    let mut series = vec![Series {
+        label: format!("{name} (labels: values)"),
+        points: plotted.iter().map(|p| (p.seconds, p.error)).collect(),
+    }];
+    let (t_lo, t_hi) = plotted
+        .iter()
+        .map(|p| p.seconds)
+        .fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
+    if t_hi > 0.0 {
+        series.push(Series {
+            label: format!("stated accuracy {accuracy:.0e}"),
+            points: vec![(t_lo, accuracy), (t_hi, accuracy)],
+        });
+    }
+    let title = match &cheapest {
+        Some(p) => format!("{name}: cheapest within {accuracy:.0e} is {}", p.value),
+        None => format!("{name}: none within {accuracy:.0e} but the reference"),
+    };
+    let labels: Vec<(f64, f64, String)> = plotted
+        .iter()
+        .map(|p| (p.seconds, p.error, p.value.clone()))
+        .collect();
+    log_chart(
+        &out.join(format!("study_{name}")),
+        &title,
+        &format!("wall time [s] ({} threads)", rayon::current_num_threads()),
+        &format!("error vs {name} = {reference} [1]"),
+        &series,
+        &labels,
+    )?;
+    Ok(StudyReport {
+        points,
+        cheapest,
+        markdown: md,
+    })
+}
+
+fn error_against(o: &Outcome, r: &Outcome) -> anyhow::Result<(f64, f64)> {
+    match (o, r) {
+        (Outcome::Particle { x, p, .. }, Outcome::Particle { x: xr, p: pr, x0 }) => {
+            let n = x.len() as f64;
+            let dx: f64 = x
+                .iter()
+                .zip(xr)
+                .map(|(a, b)| norm(sub(*a, *b)).powi(2))
+                .sum();
+            let travel: f64 = xr
+                .iter()
+                .zip(x0)
+                .map(|(a, b)| norm(sub(*a, *b)).powi(2))
+                .sum();
+            let dp: f64 = p
+                .iter()
+                .zip(pr)
+                .map(|(a, b)| norm(sub(*a, *b)).powi(2))
+                .sum();
+            Ok(((dx / travel.max(1e-300)).sqrt(), (dp / n).sqrt()))
+        }
+        (Outcome::MeanField { t, u }, Outcome::MeanField { t: tr, u: ur }) => {
+            if t.len() != tr.len() || t.iter().zip(tr).any(|(a, b)| (a - b).abs() > 1e-9) {
+                bail!("mean-field diagnostics at different times; cannot compare");
+            }
+            let scale = ur.iter().copied().fold(0.0, f64::max);
+            let worst = u
+                .iter()
+                .zip(ur)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            Ok((worst / scale.max(1e-300), f64::NAN))
+        }
+        _ => unreachable!("same model"),
+    }
+}
