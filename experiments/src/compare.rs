@@ -16,7 +16,7 @@ use crate::rundir::{RunDir, TimeSeries, read_run_config};
 use crate::snapshot::Snapshot;
 use anyhow::{Context, bail};
 use motile_analysis::correlation::velocity_spectrum;
-use motile_analysis::stats::{GrowthFit, fit_growth_rate, window_average};
+use motile_analysis::stats::{GrowthFit, correlation_length, fit_growth_rate, window_average};
 use motile_particle::units::{VISCOSITY, eta};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -140,6 +140,10 @@ struct RunAnalysis {
     traj: Option<TrajectoryCurve>,
     /// `Corr[c], Corr[n], Corr[Q]` normalised by their value at 0, against `r / L`.
     order: Vec<(String, Vec<(f64, f64)>)>,
+    /// Particle runs: `(L/l, nu)`.
+    particle: Option<(f64, f64)>,
+    /// Correlation lengths (first zero of each time-averaged correlation), `r / L`, by field.
+    lengths: Vec<(String, f64)>,
 }
 
 /// One run's snapshots, read once: its Corr[u], order-parameter correlations, velocity slice
@@ -172,19 +176,36 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
             .map(|s| s.orientation.unwrap_or(f64::NAN))
             .collect(),
     });
-    let particle = dir.header()?.model == "particle";
-    let unit = if particle { "1/beta" } else { "mu/|sigma_a|" };
-    let (r_scale, v_scale) = if particle {
+    let is_particle = dir.header()?.model == "particle";
+    let unit = if is_particle {
+        "1/beta"
+    } else {
+        "mu/|sigma_a|"
+    };
+    let mut particle = None;
+    let (r_scale, v_scale) = if is_particle {
         let cfg: ParticleRunConfig = read_run_config(run, ParticleRunConfig::validate)?;
         let l = cfg.box_length;
         let n = cfg
             .rods
             .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
-        let s = 8.0 * eta() * VISCOSITY / (n as f64 / (l * l * l));
+        let nu = n as f64 / (l * l * l);
+        particle = Some((l, nu));
+        let s = 8.0 * eta() * VISCOSITY / nu;
         (1.0 / l, s * s)
     } else {
         (1.0, 1.0)
     };
+    let lengths = report
+        .mean
+        .iter()
+        .map(|(n, c)| {
+            (
+                n.clone(),
+                correlation_length(&c.r, &c.value).map_or(f64::NAN, |z| z * r_scale),
+            )
+        })
+        .collect();
     let order = report
         .mean
         .iter()
@@ -217,6 +238,8 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
         slice,
         traj,
         order,
+        particle,
+        lengths,
     })
 }
 
@@ -354,8 +377,45 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     let mut trajectories = Vec::new();
     let mut order: Vec<(String, Vec<Series>)> = Vec::new();
     let mut panels = Vec::new();
-    for (run, c) in runs.iter().zip(&curves) {
-        let a = analyse(run, &c.label, 0.5 * c.t_end_own)?;
+    let analyses = runs
+        .iter()
+        .zip(&curves)
+        .map(|(run, c)| analyse(run, &c.label, 0.5 * c.t_end_own))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    // Concentrated suspensions (every run a particle run with nu > 1) keep their structure at
+    // the rod scale: their order-parameter correlations are read against r/l (MODEL.md §7).
+    let concentrated = analyses
+        .iter()
+        .all(|a| a.particle.is_some_and(|(_, nu)| nu > 1.0));
+    let mut lcsv = String::from("run,label,field,correlation_length [L],correlation_length [l]\n");
+    let mut lmd = String::from(
+        "\n| run | correlation lengths (first zero of the time-averaged Corr, second half): r/L (r/l for particle runs) |\n|---|---|\n",
+    );
+    for ((run, c), a) in runs.iter().zip(&curves).zip(&analyses) {
+        let mut cells = Vec::new();
+        for (field, z) in &a.lengths {
+            let in_l = a.particle.map_or(f64::NAN, |(l, _)| z * l);
+            writeln!(
+                lcsv,
+                "{},\"{}\",{field},{z:e},{in_l:e}",
+                run.display(),
+                c.label
+            )
+            .expect("string");
+            cells.push(if z.is_nan() {
+                format!("{field}: no zero")
+            } else if a.particle.is_some() {
+                format!("{field}: {z:.3} ({in_l:.2})")
+            } else {
+                format!("{field}: {z:.3}")
+            });
+        }
+        writeln!(lmd, "| {} | {} |", c.label, cells.join("; ")).expect("string");
+    }
+    write_atomic(&out.join("correlation_lengths.csv"), lcsv.as_bytes())?;
+    md.push_str(&lmd);
+    write_atomic(&out.join("summary.md"), md.as_bytes())?;
+    for (c, a) in curves.iter().zip(analyses) {
         correlations.extend(a.corr_u);
         if let Some((n, values, t)) = a.slice {
             panels.push(Panel {
@@ -365,7 +425,12 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
             });
         }
         trajectories.extend(a.traj);
+        let to_l = match (concentrated, a.particle) {
+            (true, Some((l, _))) => l,
+            _ => 1.0,
+        };
         for (name, points) in a.order {
+            let points: Vec<(f64, f64)> = points.into_iter().map(|(r, v)| (r * to_l, v)).collect();
             match order.iter_mut().find(|(n, _)| *n == name) {
                 Some((_, series)) => series.push(Series {
                     label: c.label.clone(),
@@ -396,7 +461,7 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
             &out.join(format!("correlation_{name}")),
             &Chart {
                 title: &format!("Corr[{name}](r) / Corr[{name}](0), second half of each run"),
-                x_label: "r / L",
+                x_label: if concentrated { "r / l" } else { "r / L" },
                 y_label: &format!("Corr[{name}](r) / Corr[{name}](0)"),
                 series: series.clone(),
             },

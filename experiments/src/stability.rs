@@ -49,10 +49,7 @@ pub fn classify(result: &Result<(), String>) -> usize {
 /// "step 5 at t = 1.2345 ...": the first "t = ").
 fn time_reached(message: &str) -> Option<f64> {
     let rest = message.split("t = ").nth(1)?;
-    rest.split([')', ':', ' '])
-        .next()?
-        .parse()
-        .ok()
+    rest.split([')', ':', ' ']).next()?.parse().ok()
 }
 
 /// One cell of a map.

@@ -166,7 +166,23 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
     // The mean-field curve is unchanged.
     let mts = TimeSeries::read(&m.join("timeseries.csv")).unwrap();
     assert_eq!(report.curves[1].u, column(&mts, "u_l2"));
-    assert_eq!(report.table.lines().count(), 4, "{}", report.table);
+    let averages = report.table.split("\n\n").next().unwrap();
+    assert_eq!(averages.lines().count(), 4, "{}", report.table);
+    // Correlation lengths: the first zero of each run's time-averaged Corr[u], as charted.
+    let lengths = std::fs::read_to_string(out.join("correlation_lengths.csv")).unwrap();
+    for (k, run) in [&p, &m].iter().enumerate() {
+        let c = &report.correlations[k];
+        let want = motile_analysis::stats::correlation_length(&c.r, &c.value);
+        let row = lengths
+            .lines()
+            .find(|l| l.starts_with(&format!("{},", run.display())) && l.contains(",u,"))
+            .unwrap_or_else(|| panic!("no Corr[u] length for {}: {lengths}", run.display()));
+        let got: f64 = row.rsplit(',').nth(1).unwrap().parse().unwrap();
+        match want {
+            Some(z) => assert!((got - z).abs() < 1e-12, "{row}: want {z}"),
+            None => assert!(got.is_nan(), "{row}: no zero expected"),
+        }
+    }
     // Corr[u](0) of the particle run is the mean square of its velocity norm over the window's
     // snapshots (t_p = 0.02 and 0.04), in the same units.
     assert_eq!(report.correlations.len(), 2);
@@ -210,6 +226,19 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
             "Corr[{f}] chart missing"
         );
     }
+    // Concentrated runs (every run a particle run with nu > 1): order-parameter correlations
+    // against r/l, as MODEL.md section 7 reads them.
+    let dense = dir.path().join("dense");
+    let mut cfg = small("sbt");
+    cfg.box_length = 3.0;
+    cfg.volume_fraction = 5.0;
+    run_particle(&cfg, &dense, false).unwrap();
+    let cmp2 = dir.path().join("cmp2");
+    compare(&[dense], &cmp2).unwrap();
+    let svg = std::fs::read_to_string(cmp2.join("correlation_c.svg")).unwrap();
+    assert!(svg.contains("r / l"), "concentrated: r/l axis expected");
+    let svg = std::fs::read_to_string(out.join("correlation_c.svg")).unwrap();
+    assert!(svg.contains("r / L"), "dilute: r/L axis expected");
     // A particle run without flow is refused with a reason.
     let none = dir.path().join("none");
     run_particle(&small("none"), &none, false).unwrap();
