@@ -168,8 +168,8 @@ pub fn particle_map(
     out: &Path,
     event: &mut dyn FnMut(&str),
 ) -> anyhow::Result<(Vec<Cell>, String)> {
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let mut cells = Vec::new();
+    // Every cell's config is checked before anything is written.
+    let mut configs = Vec::new();
     for &nu in fractions {
         for &dt in dts {
             let mut c = base.clone();
@@ -182,6 +182,13 @@ pub fn particle_map(
             c.diagnostic_interval = c.diagnostic_interval.max(dt);
             c.validate()
                 .map_err(|e| anyhow::anyhow!("stability map, dt = {dt}, nu = {nu}: {e}"))?;
+            configs.push((nu, dt, c));
+        }
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let mut cells = Vec::new();
+    {
+        for (nu, dt, c) in configs {
             let dir = out.join("runs").join(format!("particle_nu{nu}_dt{dt}"));
             if dir.exists() {
                 std::fs::remove_dir_all(&dir)
@@ -246,10 +253,9 @@ pub fn meanfield_map(
     out: &Path,
     event: &mut dyn FnMut(&str),
 ) -> anyhow::Result<(Vec<Cell>, String)> {
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let mut cells = Vec::new();
+    // Every cell's config is checked before anything is written.
+    let mut configs = Vec::new();
     for &n in grids {
-        meanfield_run::closure_tables(base.closure_degree)?;
         for &dt in dts {
             let mut c = base.clone();
             c.grid = n;
@@ -258,6 +264,14 @@ pub fn meanfield_map(
             c.checkpoint_interval = c.t_end;
             c.validate()
                 .map_err(|e| anyhow::anyhow!("stability map, dt = {dt}, grid = {n}: {e}"))?;
+            configs.push((n, dt, c));
+        }
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    meanfield_run::closure_tables(base.closure_degree)?;
+    let mut cells = Vec::new();
+    {
+        for (n, dt, c) in configs {
             let dir = out.join("runs").join(format!("meanfield_{n}_dt{dt}"));
             if dir.exists() {
                 std::fs::remove_dir_all(&dir)

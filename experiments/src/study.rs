@@ -154,6 +154,13 @@ pub fn study(
         .collect();
     settings.retain(|(v, _)| v != reference);
     settings.push((reference.to_string(), true));
+    // Every setting is checked before anything is written.
+    for (v, _) in &settings {
+        match &base {
+            RunConfig::Particle(c) => set_particle(&mut c.clone(), name, v)?,
+            RunConfig::MeanField(c) => set_meanfield(&mut c.clone(), name, v)?,
+        }
+    }
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let mut results = Vec::new();
     for (v, is_ref) in &settings {
