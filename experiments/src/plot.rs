@@ -229,6 +229,25 @@ pub fn heatmaps(
     )
 }
 
+/// Tick text on a log axis: only 1, 2 and 5 times a power of ten are labelled (others get
+/// an empty string, so labels never crowd), in the shortest plain form.
+fn log_tick(v: &f64) -> String {
+    if !(*v > 0.0) {
+        return String::new();
+    }
+    let e = v.log10().floor();
+    let m = v / 10f64.powf(e);
+    if ![1.0, 2.0, 5.0].iter().any(|k| (m - k).abs() < 0.02 * k) {
+        return String::new();
+    }
+    let r = m.round() * 10f64.powf(e);
+    if (1e-3..1e5).contains(&r) {
+        format!("{}", (r * 1e6).round() / 1e6)
+    } else {
+        format!("{r:.0e}")
+    }
+}
+
 fn draw_log<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     title: &str,
@@ -272,7 +291,7 @@ where
         .axis_desc_style(("sans-serif", 17))
         .x_labels(12)
         .y_label_formatter(&|v| format!("{v:.0e}"))
-        .x_label_formatter(&|v| format!("{v:.3}"))
+        .x_label_formatter(&log_tick)
         .draw()
         .map_err(|e| e.to_string())?;
     for (i, s) in series.iter().enumerate() {
@@ -447,4 +466,22 @@ pub fn outcome_map(stem: &Path, map: &OutcomeMap) -> Result<(), crate::io::IoErr
         |a| draw_outcomes(a, map),
         |a| draw_outcomes(a, map),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::log_tick;
+
+    #[test]
+    fn log_ticks_label_only_one_two_five() {
+        let got: Vec<String> = [1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 20.0, 0.05, 0.3, 2e-6, 5e5]
+            .iter()
+            .map(log_tick)
+            .collect();
+        assert_eq!(
+            got,
+            ["1", "2", "", "5", "", "10", "20", "0.05", "", "2e-6", "5e5"],
+            "{got:?}"
+        );
+    }
 }

@@ -330,7 +330,10 @@ pub fn study(
     log_chart(
         &out.join(format!("study_{name}")),
         &title,
-        &format!("wall time [s] ({} threads)", rayon::current_num_threads()),
+        &format!(
+            "wall time [s] ({} worker thread(s))",
+            rayon::current_num_threads()
+        ),
         &format!("error vs {name} = {reference} [1]"),
         &series,
         &labels,

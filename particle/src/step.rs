@@ -96,8 +96,33 @@ pub struct Stepper {
     warm: crate::contact::WarmStart,
 }
 
+/// The local mobility without rotation: the projection moves rods by translation only.
+#[derive(Debug)]
+struct TranslationOnly<'a>(&'a dyn Mobility);
+
+impl Mobility for TranslationOnly<'_> {
+    fn name(&self) -> &'static str {
+        "translation-only"
+    }
+
+    fn free_velocities(
+        &mut self,
+        _rods: &RodSet,
+        _p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), crate::mobility::MobilityError> {
+        out.v.iter_mut().for_each(|v| *v = [0.0; 3]);
+        out.w.iter_mut().for_each(|w| *w = [0.0; 3]);
+        Ok(())
+    }
+
+    fn local(&self, p: Vec3, f: Vec3, _t: Vec3) -> (Vec3, Vec3) {
+        (self.0.local(p, f, [0.0; 3]).0, [0.0; 3])
+    }
+}
+
 /// Rounds of position projection per step at most.
-const PROJECTIONS: usize = 3;
+const PROJECTIONS: usize = 5;
 
 /// Largest true overlap `b - dist` over the pairs of `cons` (internal indices mapped through
 /// `order` to `rods`), and its pair in the caller's numbering (ties: the smallest pair).
@@ -369,8 +394,13 @@ impl Stepper {
         // Projection: one contact point per pair cannot hold nearly parallel rods that turn (the
         // far ends approach at first order in the angle), and the linearisation misses
         // (dt w)^2 terms. Where the true overlap exceeds half the tolerance, the constraints
-        // are rebuilt at the new positions and a complementarity problem with no free motion
-        // finds the displacements (through the local mobility) that remove it; a few rounds.
+        // are rebuilt at the new positions (every pair within the margin, so pushing one pair
+        // apart cannot push a neighbour into another) and a complementarity problem with no
+        // free motion finds displacements that remove it. The displacements are translations
+        // only (the local translational mobility): the distance between two segments is convex
+        // under translation, so the linearised constraints are conservative and one round
+        // leaves no overlap among these pairs beyond the solver's tolerance; more rounds only
+        // for pairs that come within reach.
         let mut projections = 0;
         while max_overlap > 0.5 * self.contact.overlap_tolerance && projections < PROJECTIONS {
             projections += 1;
@@ -381,16 +411,17 @@ impl Stepper {
                 .par_iter()
                 .filter_map(|c| {
                     let d = min_image(sub(xs[c.j as usize], xs[c.i as usize]), rods.box_length);
-                    constraint(&xs, &ps, c.i, c.j, d, 0.0)
+                    constraint(&xs, &ps, c.i, c.j, d, self.contact.margin)
                 })
                 .collect();
             let zero = vec![[0.0; 3]; n];
+            let translation = TranslationOnly(self.mobility.as_ref());
             let (lambda, _) = self.solver.solve(
                 &again,
                 &ps,
                 &zero,
                 &zero,
-                self.mobility.as_ref(),
+                &translation,
                 dt,
                 &self.contact,
                 &[],
@@ -405,11 +436,9 @@ impl Stepper {
                     continue;
                 }
                 let r = order[k] as usize;
-                let (dv, dw) = self.mobility.local(ps[k], f, t);
+                let (dv, _) = translation.local(ps[k], f, t);
                 rods.translate(r, scale(dt, dv));
-                rods.q[r] = quat_mul(quat_exp(scale(dt, dw)), rods.q[r]);
                 self.velocities.v[r] = axpy(self.velocities.v[r], 1.0, dv);
-                self.velocities.w[r] = axpy(self.velocities.w[r], 1.0, dw);
                 self.contact_force[r] = axpy(self.contact_force[r], 1.0, f);
             }
             (max_overlap, worst) = true_overlap(rods, &cons, order);
