@@ -232,7 +232,7 @@ pub fn heatmaps(
 /// Tick text on a log axis: only 1, 2 and 5 times a power of ten are labelled (others get
 /// an empty string, so labels never crowd), in the shortest plain form.
 fn log_tick(v: &f64) -> String {
-    if !(*v > 0.0) {
+    if v.is_nan() || *v <= 0.0 {
         return String::new();
     }
     let e = v.log10().floor();
