@@ -3,17 +3,19 @@
 //! setting, and the chart puts error against wall time and names the cheapest setting that
 //! meets a stated accuracy.
 //!
-//! Errors (each relative, so one stated accuracy reads the same for every knob):
-//! - particle knobs: the RMS difference of the rods' unwrapped end positions from the
-//!   reference run's, divided by the RMS distance the reference rods travelled (end
-//!   orientations are reported too);
-//! - mean-field knobs: the largest difference of the velocity norm `||u||_2(t)` from the
-//!   reference run's over the window, divided by the reference's largest norm.
+//! The error is the one the project's comparison is about, the same for every knob: the
+//! largest difference of the velocity norm `||u||_2(t)` (particle runs: the time series'
+//! `velocity_norm`, from the force density; mean-field runs: `u_l2`) from the reference run's
+//! over the window, divided by the reference's largest norm. A run without a flow
+//! (`hydrodynamics = "none"`) has error 1. Particle studies also report the RMS difference of
+//! the rods' end positions from the reference's, relative to the RMS distance travelled
+//! (swimming dominates it, so it is the weaker test of the flow).
 
 use crate::io::write_atomic;
 use crate::meanfield_run::{self, MeanFieldRunConfig};
 use crate::particle_run::{self, ParticleRunConfig};
 use crate::plot::{Series, log_chart};
+use crate::rundir::TimeSeries;
 use crate::scene::{RunConfig, Scene};
 use anyhow::{Context, bail};
 use motile_particle::geometry::{norm, sub};
@@ -46,8 +48,9 @@ pub struct StudyPoint {
     pub seconds: f64,
     /// Relative error against the reference (0 for the reference).
     pub error: f64,
-    /// Particle knobs: RMS end-orientation difference `|p - p_ref|`; mean-field: NaN.
-    pub orientation_error: f64,
+    /// Particle knobs: RMS end-position difference over the RMS distance travelled;
+    /// mean-field: NaN.
+    pub position_error: f64,
     /// Whether this is the reference setting.
     pub reference: bool,
     /// The run's failure, if it stopped (its error is then infinite).
@@ -108,16 +111,13 @@ fn set_meanfield(c: &mut MeanFieldRunConfig, knob: &str, v: &str) -> anyhow::Res
 }
 
 /// What one run left to compare.
-enum Outcome {
-    Particle {
-        x: Vec<[f64; 3]>,
-        p: Vec<[f64; 3]>,
-        x0: Vec<[f64; 3]>,
-    },
-    MeanField {
-        t: Vec<f64>,
-        u: Vec<f64>,
-    },
+struct Outcome {
+    /// Diagnostic times.
+    t: Vec<f64>,
+    /// The velocity norm at those times.
+    u: Vec<f64>,
+    /// Particle runs: start and end positions (unwrapped).
+    x: Option<(Vec<[f64; 3]>, Vec<[f64; 3]>)>,
 }
 
 /// Sweep `knob_name` over `values` (default: the knob's list) on the first run of `scene` of the
@@ -154,55 +154,66 @@ pub fn study(
         .collect();
     settings.retain(|(v, _)| v != reference);
     settings.push((reference.to_string(), true));
-    // Every setting is checked before anything is written.
-    for (v, _) in &settings {
-        match &base {
-            RunConfig::Particle(c) => set_particle(&mut c.clone(), name, v)?,
-            RunConfig::MeanField(c) => set_meanfield(&mut c.clone(), name, v)?,
-        }
-    }
+    // Every setting's config is built and checked before anything is written.
+    let planned = settings
+        .into_iter()
+        .map(|(v, is_ref)| {
+            let cfg = match &base {
+                RunConfig::Particle(c) => {
+                    let mut c = c.clone();
+                    c.t_end = t_end.unwrap_or(c.t_end);
+                    c.vtk = false;
+                    c.snapshot_interval = c.t_end;
+                    c.checkpoint_interval = c.t_end;
+                    // Diagnostics every 0.2/beta: a whole number of steps for every dt swept.
+                    c.diagnostic_interval = 0.2f64.min(c.t_end);
+                    set_particle(&mut c, name, &v)?;
+                    RunConfig::Particle(c)
+                }
+                RunConfig::MeanField(c) => {
+                    let mut c = c.clone();
+                    c.t_end = t_end.unwrap_or(c.t_end);
+                    c.snapshot_interval = c.t_end;
+                    c.checkpoint_interval = c.t_end;
+                    set_meanfield(&mut c, name, &v)?;
+                    RunConfig::MeanField(c)
+                }
+            };
+            Ok((v, is_ref, cfg))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let mut results = Vec::new();
-    for (v, is_ref) in &settings {
+    for (v, is_ref, cfg) in &planned {
         let dir = out.join("runs").join(format!("{name}_{v}"));
         if dir.exists() {
             std::fs::remove_dir_all(&dir)
                 .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
         }
         // One-time costs stay out of the timing: closure tables are built (and cached) first.
-        if let RunConfig::MeanField(c) = &base {
-            let mut c = c.clone();
-            set_meanfield(&mut c, name, v)?;
+        if let RunConfig::MeanField(c) = cfg {
             meanfield_run::closure_tables(c.closure_degree)?;
         }
         let t0 = std::time::Instant::now();
-        let outcome: Result<Outcome, anyhow::Error> = match &base {
+        let outcome: Result<Outcome, anyhow::Error> = match cfg {
             RunConfig::Particle(c) => {
-                let mut c = c.clone();
-                c.t_end = t_end.unwrap_or(c.t_end);
-                c.vtk = false;
-                c.snapshot_interval = c.t_end;
-                c.checkpoint_interval = c.t_end;
-                c.diagnostic_interval = c.diagnostic_interval.max(c.dt);
-                set_particle(&mut c, name, v)?;
-                let x0 = particle_run::initial_rods(&c)?.unwrapped();
-                particle_run::run_particle(&c, &dir, false).map(|s| Outcome::Particle {
-                    x: s.rods.unwrapped(),
-                    p: s.rods.orientations(),
-                    x0,
+                let x0 = particle_run::initial_rods(c)?.unwrapped();
+                particle_run::run_particle(c, &dir, false).and_then(|s| {
+                    let ts = TimeSeries::read(&dir.join("timeseries.csv"))?;
+                    Ok(Outcome {
+                        t: ts.column("t [1/beta]").unwrap_or_default(),
+                        u: ts.column("velocity_norm [beta L]").unwrap_or_default(),
+                        x: Some((x0, s.rods.unwrapped())),
+                    })
                 })
             }
             RunConfig::MeanField(c) => {
-                let mut c = c.clone();
-                c.t_end = t_end.unwrap_or(c.t_end);
-                c.snapshot_interval = c.t_end;
-                c.checkpoint_interval = c.t_end;
-                set_meanfield(&mut c, name, v)?;
-                meanfield_run::run_meanfield(&c, &dir, false).map(|s| Outcome::MeanField {
+                meanfield_run::run_meanfield(c, &dir, false).map(|s| Outcome {
                     t: s.timeseries.column("t [mu/|sigma_a|]").unwrap_or_default(),
                     u: s.timeseries
                         .column("u_l2 [L |sigma_a|/mu]")
                         .unwrap_or_default(),
+                    x: None,
                 })
             }
         };
@@ -227,7 +238,7 @@ pub fn study(
     };
     let mut points = Vec::new();
     for (v, is_ref, seconds, outcome) in &results {
-        let (error, orientation_error, failure) = match outcome {
+        let (error, position_error, failure) = match outcome {
             Err(e) => (f64::INFINITY, f64::INFINITY, Some(format!("{e:#}"))),
             Ok(o) => {
                 let (e, ep) = error_against(o, reference_outcome)?;
@@ -238,7 +249,7 @@ pub fn study(
             value: v.clone(),
             seconds: *seconds,
             error,
-            orientation_error,
+            position_error,
             reference: *is_ref,
             failure,
         });
@@ -249,7 +260,7 @@ pub fn study(
         .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
         .cloned();
     // Files.
-    let mut csv = String::from("value,reference,wall_seconds,error,orientation_error,failure\n");
+    let mut csv = String::from("value,reference,wall_seconds,error,position_error,failure\n");
     for p in &points {
         writeln!(
             csv,
@@ -258,17 +269,13 @@ pub fn study(
             p.reference,
             p.seconds,
             p.error,
-            p.orientation_error,
+            p.position_error,
             p.failure.clone().unwrap_or_default().replace('"', "'")
         )
         .expect("string");
     }
     write_atomic(&out.join(format!("study_{name}.csv")), csv.as_bytes())?;
-    let what = if model == "particle" {
-        "RMS end-position difference / RMS distance travelled"
-    } else {
-        "max |Delta ||u||_2(t)| / max ||u||_2"
-    };
+    let what = "max over the window of |Delta ||u||_2(t)| / max ||u||_2";
     let window = match &base {
         RunConfig::Particle(c) => format!("t = 0 to {} (1/beta)", t_end.unwrap_or(c.t_end)),
         RunConfig::MeanField(c) => format!("t = 0 to {} (mu/|sigma_a|)", t_end.unwrap_or(c.t_end)),
@@ -283,7 +290,7 @@ pub fn study(
         }
     };
     let mut md = format!(
-        "# Study: {name} ({model}, scene `{}`)\n\nBase: {}. Window {window}. Error: {what}, against the reference {name} = {reference}.\n\n{verdict}\n\n| {name} | wall time (s) | error | orientation error | note |\n|---|---|---|---|---|\n",
+        "# Study: {name} ({model}, scene `{}`)\n\nBase: {}. Window {window}. Error: {what}, against the reference {name} = {reference}.\n\n{verdict}\n\n| {name} | wall time (s) | error | position error (particle) | note |\n|---|---|---|---|---|\n",
         scene.info.name,
         base.describe()
     );
@@ -295,7 +302,7 @@ pub fn study(
             if p.reference { " (reference)" } else { "" },
             p.seconds,
             p.error,
-            p.orientation_error,
+            p.position_error,
             p.failure.clone().unwrap_or_default()
         )
         .expect("string");
@@ -346,9 +353,23 @@ pub fn study(
 }
 
 fn error_against(o: &Outcome, r: &Outcome) -> anyhow::Result<(f64, f64)> {
-    match (o, r) {
-        (Outcome::Particle { x, p, .. }, Outcome::Particle { x: xr, p: pr, x0 }) => {
-            let n = x.len() as f64;
+    if o.t.len() != r.t.len() || o.t.iter().zip(&r.t).any(|(a, b)| (a - b).abs() > 1e-9) {
+        bail!("diagnostics at different times than the reference's; cannot compare");
+    }
+    let scale =
+        r.u.iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .fold(0.0, f64::max);
+    // A run without a flow (NaN or zero norms where the reference has one) misses all of it.
+    let worst =
+        o.u.iter()
+            .zip(&r.u)
+            .filter(|(_, b)| b.is_finite())
+            .map(|(a, b)| if a.is_finite() { (a - b).abs() } else { *b })
+            .fold(0.0, f64::max);
+    let position = match (&o.x, &r.x) {
+        (Some((_, x)), Some((x0, xr))) => {
             let dx: f64 = x
                 .iter()
                 .zip(xr)
@@ -359,25 +380,9 @@ fn error_against(o: &Outcome, r: &Outcome) -> anyhow::Result<(f64, f64)> {
                 .zip(x0)
                 .map(|(a, b)| norm(sub(*a, *b)).powi(2))
                 .sum();
-            let dp: f64 = p
-                .iter()
-                .zip(pr)
-                .map(|(a, b)| norm(sub(*a, *b)).powi(2))
-                .sum();
-            Ok(((dx / travel.max(1e-300)).sqrt(), (dp / n).sqrt()))
+            (dx / travel.max(1e-300)).sqrt()
         }
-        (Outcome::MeanField { t, u }, Outcome::MeanField { t: tr, u: ur }) => {
-            if t.len() != tr.len() || t.iter().zip(tr).any(|(a, b)| (a - b).abs() > 1e-9) {
-                bail!("mean-field diagnostics at different times; cannot compare");
-            }
-            let scale = ur.iter().copied().fold(0.0, f64::max);
-            let worst = u
-                .iter()
-                .zip(ur)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            Ok((worst / scale.max(1e-300), f64::NAN))
-        }
-        _ => unreachable!("same model"),
-    }
+        _ => f64::NAN,
+    };
+    Ok((worst / scale.max(1e-300), position))
 }

@@ -132,3 +132,59 @@ fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
         std::fs::read(out.join("particle/config.toml")).unwrap()
     );
 }
+
+#[test]
+fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
+    use motile_experiments::study::study;
+    let scene = parse_scene(
+        r#"
+[scene]
+name = "tiny"
+version = 1
+description = "a tiny dilute box for the study test"
+level = "slender-body theory"
+cost = "seconds"
+
+[[run]]
+name = "p"
+model = "particle"
+[run.config]
+box_length = 4.0
+volume_fraction = 0.625
+dt = 0.01
+t_end = 0.4
+hydrodynamics = "sbt"
+"#,
+        "tiny",
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let values = Some(vec!["0.04".to_string(), "0.02".to_string()]);
+    let report = study(&scene, "dt", values, None, 0.5, dir.path(), &mut |_| {}).unwrap();
+    let p = &report.points;
+    assert_eq!(p.len(), 3);
+    assert!(p[2].reference && p[2].value == "0.0025" && p[2].error == 0.0);
+    // Explicit Euler: the error against dt_ref halves with dt, (dt - dt_ref) ratio 0.0375/0.0175.
+    let ratio = p[0].error / p[1].error;
+    assert!(
+        p[1].error > 0.0 && (1.5..3.5).contains(&ratio),
+        "errors {:.3e}, {:.3e}: ratio {ratio:.2}, expected about 2.1",
+        p[0].error,
+        p[1].error
+    );
+    let cheapest = report.cheapest.expect("a setting within 0.5");
+    assert_eq!(cheapest.value, "0.04", "{}", report.markdown);
+    assert!(
+        report
+            .markdown
+            .contains("cheapest setting meeting the stated accuracy")
+    );
+    for f in [
+        "study_dt.csv",
+        "study_dt.md",
+        "study_dt.png",
+        "study_dt.svg",
+    ] {
+        assert!(dir.path().join(f).exists(), "{f} missing");
+    }
+}
