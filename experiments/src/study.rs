@@ -111,13 +111,15 @@ fn set_meanfield(c: &mut MeanFieldRunConfig, knob: &str, v: &str) -> anyhow::Res
 }
 
 /// What one run left to compare.
+type Positions = Vec<[f64; 3]>;
+
 struct Outcome {
     /// Diagnostic times.
     t: Vec<f64>,
     /// The velocity norm at those times.
     u: Vec<f64>,
     /// Particle runs: start and end positions (unwrapped).
-    x: Option<(Vec<[f64; 3]>, Vec<[f64; 3]>)>,
+    x: Option<(Positions, Positions)>,
 }
 
 /// Sweep `knob_name` over `values` (default: the knob's list) on the first run of `scene` of the
