@@ -95,7 +95,8 @@ pub struct GrowthFit {
 }
 
 /// Fit `y = A exp(rate t)` over `t0 <= t <= t1` by least squares on `ln y` (samples with
-/// `y > 0` only); `None` with fewer than 3 samples.
+/// `y > 0` only); `None` with fewer than 3 samples. The standard error allows for correlated
+/// residuals (integrated autocorrelation of the residuals).
 pub fn fit_growth_rate(t: &[f64], y: &[f64], t0: f64, t1: f64) -> Option<GrowthFit> {
     let pts: Vec<(f64, f64)> = t
         .iter()
@@ -114,13 +115,24 @@ pub fn fit_growth_rate(t: &[f64], y: &[f64], t0: f64, t1: f64) -> Option<GrowthF
         return None;
     }
     let rate = pts.iter().map(|p| (p.0 - tm) * (p.1 - ym)).sum::<f64>() / stt;
-    let res: f64 = pts
-        .iter()
-        .map(|p| (p.1 - ym - rate * (p.0 - tm)).powi(2))
-        .sum();
+    let r: Vec<f64> = pts.iter().map(|p| p.1 - ym - rate * (p.0 - tm)).collect();
+    let res: f64 = r.iter().map(|v| v * v).sum();
+    // Residuals of a time series are correlated (a noisy norm sampled faster than it
+    // decorrelates): the least-squares error is scaled by sqrt(tau), tau = 1 + 2 sum rho_k over
+    // the residuals' autocorrelations up to the first that is not positive (at most n/4 lags).
+    let mut tau = 1.0;
+    if res > 0.0 {
+        for k in 1..=n / 4 {
+            let rho = r.iter().zip(&r[k..]).map(|(a, b)| a * b).sum::<f64>() / res;
+            if rho <= 0.0 {
+                break;
+            }
+            tau += 2.0 * rho;
+        }
+    }
     Some(GrowthFit {
         rate,
-        std_error: (res / (n - 2) as f64 / stt).sqrt(),
+        std_error: (tau * res / (n - 2) as f64 / stt).sqrt(),
         samples: n,
         t0,
         t1,
@@ -191,6 +203,44 @@ mod tests {
         let f = fit_growth_rate(&t, &y, 0.0, 10.0).unwrap();
         assert!((f.rate - 0.1942).abs() < 3.0 * f.std_error + 1e-4, "{f:?}");
         assert!(fit_growth_rate(&t[..2], &y[..2], 0.0, 1.0).is_none());
+    }
+
+    #[test]
+    fn growth_fit_error_bar_covers_a_flat_but_correlated_signal() {
+        // ln y = AR(1) noise with rho = 0.9 around a constant: the true rate is 0. Over 400
+        // series, |rate| < 2 standard errors should hold about 95% of the time; the plain
+        // least-squares error (independent residuals) would cover far less.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let t: Vec<f64> = (0..200).map(|k| 0.2 * k as f64).collect();
+        let (mut covered, trials) = (0, 400);
+        for _ in 0..trials {
+            let mut e = 0.0;
+            let y: Vec<f64> = t
+                .iter()
+                .map(|_| {
+                    // Sum of uniforms: close enough to Gaussian for coverage.
+                    let z = (0..12).map(|_| uniform()).sum::<f64>() - 6.0;
+                    e = 0.9 * e + 0.05 * z;
+                    (-5.0 + e).exp()
+                })
+                .collect();
+            let f = fit_growth_rate(&t, &y, 0.0, 40.0).unwrap();
+            if f.rate.abs() < 2.0 * f.std_error {
+                covered += 1;
+            }
+        }
+        let coverage = covered as f64 / trials as f64;
+        eprintln!("2-sigma coverage of the rate 0: {coverage:.3}");
+        assert!(
+            (0.85..=1.0).contains(&coverage),
+            "2-sigma coverage {coverage:.3} (expected about 0.95)"
+        );
     }
 
     #[test]

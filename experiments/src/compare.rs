@@ -273,13 +273,18 @@ pub fn velocity_slice(
 }
 
 /// The growth rate of `||u||_2` in a run's growth phase: from its first sample to the first time
-/// the norm reaches a quarter of its maximum (before nonlinear saturation); `None` if that leaves
-/// fewer than 3 samples (no growth phase, e.g. a particle run starting at its noise level).
-pub fn growth_fit(c: &NormCurve) -> Option<GrowthFit> {
+/// the norm reaches a quarter of its maximum (before nonlinear saturation). When that leaves
+/// fewer than 3 samples (no growth phase: a particle run that starts at its noise level and
+/// stays there), the rate is fitted over the whole run instead, and the flag is false: a rate
+/// consistent with zero then says the run did not grow. `None` with fewer than 3 samples.
+pub fn growth_fit(c: &NormCurve) -> Option<(GrowthFit, bool)> {
     let max = c.u.iter().copied().fold(0.0, f64::max);
     let t0 = *c.t.first()?;
     let k = c.u.iter().position(|u| *u >= 0.25 * max)?;
-    fit_growth_rate(&c.t, &c.u, t0, c.t[k])
+    match fit_growth_rate(&c.t, &c.u, t0, c.t[k]) {
+        Some(g) => Some((g, true)),
+        None => fit_growth_rate(&c.t, &c.u, t0, *c.t.last()?).map(|g| (g, false)),
+    }
 }
 
 /// What `compare` wrote.
@@ -327,12 +332,21 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         let w = window_average(&c.t, &c.u, t0, t1);
         let g = growth_fit(c);
         let (gw, gr, ge) = match g {
-            Some(g) => (
-                format!("[{:.3}, {:.3}]", g.t0, g.t1),
+            Some((g, phase)) => (
+                format!(
+                    "[{:.3}, {:.3}]{}",
+                    g.t0,
+                    g.t1,
+                    if phase {
+                        ""
+                    } else {
+                        " whole run (no growth phase)"
+                    }
+                ),
                 format!("{:.5}", g.rate),
                 format!("{:.1e}", g.std_error),
             ),
-            None => ("no growth phase".into(), "-".into(), "-".into()),
+            None => ("too few samples".into(), "-".into(), "-".into()),
         };
         writeln!(
             md,
@@ -341,7 +355,7 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         )
         .expect("string");
         let (g0, g1, grate, gerr) = g.map_or((f64::NAN, f64::NAN, f64::NAN, f64::NAN), |g| {
-            (g.t0, g.t1, g.rate, g.std_error)
+            (g.0.t0, g.0.t1, g.0.rate, g.0.std_error)
         });
         writeln!(
             scsv,

@@ -269,7 +269,8 @@ fn compare_fits_the_mean_field_growth_rate_of_the_dominant_mode() {
     };
     run_meanfield(&cfg, &m, false).unwrap();
     let report = compare(&[m], &dir.path().join("cmp")).unwrap();
-    let fit = growth_fit(&report.curves[0]).expect("a growth phase");
+    let (fit, phase) = growth_fit(&report.curves[0]).expect("a growth fit");
+    assert!(phase, "the plane wave grows: a growth phase expected");
     let k2 = (2.0 * std::f64::consts::PI).powi(2);
     let expected = 0.2 / (1.0 + cfg.zeta / 15.0) - cfg.diffusion * k2;
     let rel = (fit.rate - expected).abs() / expected;
