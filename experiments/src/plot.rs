@@ -67,7 +67,7 @@ where
         .caption(chart.title, ("sans-serif", 22))
         .margin(15)
         .x_label_area_size(45)
-        .y_label_area_size(70)
+        .y_label_area_size(85)
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| e.to_string())?;
     c.configure_mesh()
@@ -88,12 +88,50 @@ where
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
     }
     c.configure_series_labels()
+        .position(legend_corner(&chart.series, (x0, x1), (y0, y1), |v| v))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font(("sans-serif", 15))
         .draw()
         .map_err(|e| e.to_string())?;
     root.present().map_err(|e| e.to_string())
+}
+
+/// The corner whose box (45% of the width, 12% of the height per legend entry, at least 20%)
+/// holds the fewest points, so the legend covers as little of the curves as it can. `map`
+/// takes data to axis coordinates (identity, or log10 on log axes).
+fn legend_corner(
+    series: &[Series],
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+    map: impl Fn(f64) -> f64,
+) -> SeriesLabelPosition {
+    let (x0, x1, y0, y1) = (map(x0), map(x1), map(y0), map(y1));
+    let h = (0.12 * series.len() as f64).clamp(0.2, 0.6);
+    let corners = [
+        (SeriesLabelPosition::UpperRight, true, true),
+        (SeriesLabelPosition::UpperLeft, false, true),
+        (SeriesLabelPosition::LowerRight, true, false),
+        (SeriesLabelPosition::LowerLeft, false, false),
+    ];
+    let count = |right: bool, upper: bool| {
+        series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|(x, y)| {
+                let fx = (map(*x) - x0) / (x1 - x0);
+                let fy = (map(*y) - y0) / (y1 - y0);
+                let inx = if right { fx >= 0.55 } else { fx <= 0.45 };
+                let iny = if upper { fy >= 1.0 - h } else { fy <= h };
+                inx && iny
+            })
+            .count()
+    };
+    corners
+        .into_iter()
+        .min_by_key(|(_, right, upper)| count(*right, *upper))
+        .map(|c| c.0)
+        .unwrap_or(SeriesLabelPosition::UpperRight)
 }
 
 /// Render one figure twice, to `<stem>.png` and `<stem>.svg`, each written atomically (the PNG
@@ -321,7 +359,9 @@ where
     }))
     .map_err(|e| e.to_string())?;
     c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(legend_corner(series, (x0, x1), (y0, y1), |v| {
+            v.max(1e-300).log10()
+        }))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font(("sans-serif", 15))
@@ -385,7 +425,7 @@ where
         .caption(map.title, ("sans-serif", 20))
         .margin(15)
         .x_label_area_size(50)
-        .y_label_area_size(70)
+        .y_label_area_size(85)
         .build_cartesian_2d(0.0..nx as f64, 0.0..ny as f64)
         .map_err(|e| e.to_string())?;
     c.configure_mesh()
