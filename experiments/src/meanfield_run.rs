@@ -371,10 +371,12 @@ pub fn initial_state(cfg: &MeanFieldRunConfig) -> anyhow::Result<[Vec<f64>; 6]> 
         return Ok(q);
     }
     // Random traceless perturbations: a sum of modes in the band, each with random traceless
-    // symmetric amplitude and phase, normalised so the largest |Q' component| equals amplitude.
+    // symmetric amplitude and phase, normalised so the largest |Q' component| on a fixed 32^3
+    // sampling equals amplitude. The sampling does not depend on the run's grid, so every grid
+    // starts from the same function (resolution studies compare like with like).
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let (lo, hi) = (cfg.mode_min as i64, cfg.mode_max as i64);
-    let mut pert: [Vec<f64>; 6] = std::array::from_fn(|_| vec![0.0; n * n * n]);
+    let mut modes: Vec<([f64; 3], [f64; 6], f64)> = Vec::new();
     for mx in -hi..=hi {
         for my in -hi..=hi {
             for mz in 0..=hi {
@@ -388,26 +390,37 @@ pub fn initial_state(cfg: &MeanFieldRunConfig) -> anyhow::Result<[Vec<f64>; 6]> 
                 a[3] -= tr;
                 a[5] -= tr;
                 let phase: f64 = rng.random_range(0.0..2.0 * PI);
-                for idx in 0..n * n * n {
-                    let x = point(idx);
-                    let s = (2.0 * PI * (mx as f64 * x[0] + my as f64 * x[1] + mz as f64 * x[2])
-                        + phase)
-                        .cos();
-                    for c in 0..6 {
-                        pert[c][idx] += a[c] * s;
-                    }
-                }
+                modes.push(([mx as f64, my as f64, mz as f64], a, phase));
             }
         }
     }
-    let peak = pert
-        .iter()
-        .flatten()
-        .fold(0.0f64, |m, v| m.max(v.abs()))
+    let pert = |x: [f64; 3]| {
+        let mut v = [0.0; 6];
+        for (m, a, phase) in &modes {
+            let s = (2.0 * PI * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2]) + phase).cos();
+            for c in 0..6 {
+                v[c] += a[c] * s;
+            }
+        }
+        v
+    };
+    const SAMPLING: usize = 32;
+    let peak = (0..SAMPLING.pow(3))
+        .map(|idx| {
+            let x = [
+                idx % SAMPLING,
+                (idx / SAMPLING) % SAMPLING,
+                idx / (SAMPLING * SAMPLING),
+            ]
+            .map(|i| i as f64 / SAMPLING as f64);
+            pert(x).iter().fold(0.0f64, |m, v| m.max(v.abs()))
+        })
+        .fold(0.0f64, f64::max)
         .max(1e-300);
-    for c in 0..6 {
-        for idx in 0..n * n * n {
-            q[c][idx] += cfg.amplitude * pert[c][idx] / peak;
+    for idx in 0..n * n * n {
+        let v = pert(point(idx));
+        for c in 0..6 {
+            q[c][idx] += cfg.amplitude * v[c] / peak;
         }
     }
     Ok(q)
