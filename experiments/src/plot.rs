@@ -275,7 +275,7 @@ fn log_tick(v: &f64) -> String {
     }
     let e = v.log10().floor();
     let m = v / 10f64.powf(e);
-    if ![1.0, 2.0, 5.0].iter().any(|k| (m - k).abs() < 0.02 * k) {
+    if ![1.0, 2.0, 5.0].iter().any(|k| (m - k).abs() < 1e-6 * k) {
         return String::new();
     }
     let r = m.round() * 10f64.powf(e);

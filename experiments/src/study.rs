@@ -328,9 +328,15 @@ pub fn study(
             points: vec![(t_lo, accuracy), (t_hi, accuracy)],
         });
     }
+    let ref_seconds = points.last().map_or(f64::NAN, |p| p.seconds);
     let title = match &cheapest {
-        Some(p) => format!("{name}: cheapest within {accuracy:.0e} is {}", p.value),
-        None => format!("{name}: none within {accuracy:.0e} but the reference"),
+        Some(p) => format!(
+            "{name}: cheapest within {accuracy:.0e} is {} (reference {reference}: {ref_seconds:.1} s)",
+            p.value
+        ),
+        None => format!(
+            "{name}: only the reference {reference} ({ref_seconds:.1} s) is within {accuracy:.0e}"
+        ),
     };
     let labels: Vec<(f64, f64, String)> = plotted
         .iter()
