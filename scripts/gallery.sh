@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Copy the README gallery's figures (SVG) from the run directories into docs/gallery/.
+# The runs themselves are made by the commands listed in README.md ("Gallery").
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=docs/gallery
+mkdir -p "$out"
+copy() { # copy SRC NAME: SRC.svg -> docs/gallery/NAME.svg, if the run exists
+  if [ -f "$1.svg" ]; then cp "$1.svg" "$out/$2.svg"; echo "$out/$2.svg"; else echo "skip $1 (not run)"; fi
+}
+copy runs/demo/compare/velocity_norm demo_velocity_norm
+copy runs/demo/compare/velocity_slice demo_velocity_slice
+copy runs/dilute/compare/velocity_norm dilute_velocity_norm
+copy runs/dilute/compare/velocity_correlation dilute_velocity_correlation
+copy runs/dilute/compare/velocity_slice dilute_velocity_slice
+copy runs/concentrated/compare/correlation_Q concentrated_correlation_Q
+copy runs/concentrated/compare/msd concentrated_msd
+copy runs/concentrated/compare/orientation concentrated_orientation
+for k in sum_tolerance quadrature_points hydrodynamics dt meanfield_dt grid closure_degree; do
+  copy runs/study/study_$k study_$k
+done
+copy runs/study_concentrated/study_dt study_dt_concentrated
+copy runs/stability/stability_particle stability_particle
+copy runs/stability/stability_meanfield stability_meanfield_D1e-4
+copy runs/stability_D1e-3/stability_meanfield stability_meanfield_D1e-3
