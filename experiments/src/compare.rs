@@ -151,8 +151,17 @@ struct RunAnalysis {
 fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis> {
     let dir = RunDir::open(run)?;
     let snaps = dir.snapshots()?;
+    // Concentrated particle runs keep their structure at the rod scale: resolve r ~ l/2 there
+    // (2 L/l modes, at most 64) instead of the default L/(2l).
+    let modes = match read_run_config::<ParticleRunConfig>(run, ParticleRunConfig::validate) {
+        Ok(c) if dir.header()?.model == "particle" && c.volume_fraction > 1.0 => {
+            Some(((2.0 * c.box_length).ceil() as usize).clamp(4, 64))
+        }
+        _ => None,
+    };
     let opts = AnalyzeOptions {
         t_start,
+        modes,
         ..AnalyzeOptions::default()
     };
     let report = analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
