@@ -87,6 +87,50 @@ fn column_extreme(ts: &Path, prefix: &str, max: bool) -> f64 {
     }
 }
 
+/// Run one cell into a fresh `dir`: its outcome, the time it reached and its figure of merit
+/// (the extreme of a time-series column: `(prefix, largest?)`).
+fn run_cell(
+    dir: &Path,
+    label: &str,
+    (dt, y, t_end): (f64, f64, f64),
+    (merit_column, largest): (&str, bool),
+    run: impl FnOnce(&Path) -> anyhow::Result<()>,
+    event: &mut dyn FnMut(&str),
+) -> anyhow::Result<Cell> {
+    if dir.exists() {
+        std::fs::remove_dir_all(dir)
+            .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
+    }
+    let t0 = std::time::Instant::now();
+    let result = run(dir).map_err(|e| format!("{e:#}"));
+    let seconds = t0.elapsed().as_secs_f64();
+    let category = classify(&result);
+    let message = result.err().unwrap_or_default();
+    let t_reached = if category == 0 {
+        t_end
+    } else {
+        time_reached(&message).unwrap_or(f64::NAN)
+    };
+    event(&format!(
+        "{label}: {} (t = {t_reached}, {seconds:.1} s){}",
+        CATEGORIES[category].0,
+        if message.is_empty() {
+            String::new()
+        } else {
+            format!(": {message}")
+        }
+    ));
+    Ok(Cell {
+        dt,
+        y,
+        category,
+        t_reached,
+        message,
+        seconds,
+        merit: column_extreme(&dir.join("timeseries.csv"), merit_column, largest),
+    })
+}
+
 /// Write the map's CSV, PNG and SVG as `out/<stem>.*`.
 #[allow(clippy::too_many_arguments)]
 fn write_map(
@@ -137,7 +181,7 @@ fn write_map(
                 let text = if c.category == 0 {
                     format!("{merit_name}\n{:.1e}\n{:.0} s", c.merit, c.seconds)
                 } else {
-                    format!("stopped at\nt = {}\n{:.0} s", c.t_reached, c.seconds)
+                    format!("stopped at\nt = {:.1}\n{:.0} s", c.t_reached, c.seconds)
                 };
                 (xi, yi, k, text)
             })
@@ -187,44 +231,16 @@ pub fn particle_map(
     }
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let mut cells = Vec::new();
-    {
-        for (nu, dt, c) in configs {
-            let dir = out.join("runs").join(format!("particle_nu{nu}_dt{dt}"));
-            if dir.exists() {
-                std::fs::remove_dir_all(&dir)
-                    .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
-            }
-            let t0 = std::time::Instant::now();
-            let result = particle_run::run_particle(&c, &dir, false)
-                .map(|_| ())
-                .map_err(|e| format!("{e:#}"));
-            let seconds = t0.elapsed().as_secs_f64();
-            let category = classify(&result);
-            let message = result.err().unwrap_or_default();
-            let t_reached = if category == 0 {
-                c.t_end
-            } else {
-                time_reached(&message).unwrap_or(f64::NAN)
-            };
-            event(&format!(
-                "nu = {nu}, dt = {dt}: {} (t = {t_reached}, {seconds:.1} s){}",
-                CATEGORIES[category].0,
-                if message.is_empty() {
-                    String::new()
-                } else {
-                    format!(": {message}")
-                }
-            ));
-            cells.push(Cell {
-                dt,
-                y: nu,
-                category,
-                t_reached,
-                message,
-                seconds,
-                merit: column_extreme(&dir.join("timeseries.csv"), "max_overlap", true),
-            });
-        }
+    for (nu, dt, c) in configs {
+        let dir = out.join("runs").join(format!("particle_nu{nu}_dt{dt}"));
+        cells.push(run_cell(
+            &dir,
+            &format!("nu = {nu}, dt = {dt}"),
+            (dt, nu, c.t_end),
+            ("max_overlap", true),
+            |d| particle_run::run_particle(&c, d, false).map(|_| ()),
+            event,
+        )?);
     }
     let title = format!(
         "particle ({}), L/l = {}, to t = {} (1/beta)",
@@ -270,44 +286,16 @@ pub fn meanfield_map(
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     meanfield_run::closure_tables(base.closure_degree)?;
     let mut cells = Vec::new();
-    {
-        for (n, dt, c) in configs {
-            let dir = out.join("runs").join(format!("meanfield_{n}_dt{dt}"));
-            if dir.exists() {
-                std::fs::remove_dir_all(&dir)
-                    .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
-            }
-            let t0 = std::time::Instant::now();
-            let result = meanfield_run::run_meanfield(&c, &dir, false)
-                .map(|_| ())
-                .map_err(|e| format!("{e:#}"));
-            let seconds = t0.elapsed().as_secs_f64();
-            let category = classify(&result);
-            let message = result.err().unwrap_or_default();
-            let t_reached = if category == 0 {
-                c.t_end
-            } else {
-                time_reached(&message).unwrap_or(f64::NAN)
-            };
-            event(&format!(
-                "grid {n}^3, dt_max = {dt}: {} (t = {t_reached}, {seconds:.1} s){}",
-                CATEGORIES[category].0,
-                if message.is_empty() {
-                    String::new()
-                } else {
-                    format!(": {message}")
-                }
-            ));
-            cells.push(Cell {
-                dt,
-                y: n as f64,
-                category,
-                t_reached,
-                message,
-                seconds,
-                merit: column_extreme(&dir.join("timeseries.csv"), "min_eigenvalue", false),
-            });
-        }
+    for (n, dt, c) in configs {
+        let dir = out.join("runs").join(format!("meanfield_{n}_dt{dt}"));
+        cells.push(run_cell(
+            &dir,
+            &format!("grid {n}^3, dt_max = {dt}"),
+            (dt, n as f64, c.t_end),
+            ("min_eigenvalue", false),
+            |d| meanfield_run::run_meanfield(&c, d, false).map(|_| ()),
+            event,
+        )?);
     }
     let title = format!(
         "mean field, zeta = {}, D = {}, cfl = {}, to t = {}",
