@@ -1,18 +1,19 @@
 #!/usr/bin/env bash
-# Copy the README gallery's figures (SVG) from the run directories into docs/gallery/.
+# Copy the README gallery's figures (SVG; heat maps PNG) from the run directories into docs/gallery/.
 # The runs themselves are made by the commands listed in README.md ("Gallery").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=docs/gallery
 mkdir -p "$out"
-copy() { # copy SRC NAME: SRC.svg -> docs/gallery/NAME.svg, if the run exists
-  if [ -f "$1.svg" ]; then cp "$1.svg" "$out/$2.svg"; echo "$out/$2.svg"; else echo "skip $1 (not run)"; fi
+copy() { # copy SRC NAME [EXT]: SRC.EXT -> docs/gallery/NAME.EXT (default svg), if the run exists
+  local ext=${3:-svg}
+  if [ -f "$1.$ext" ]; then cp "$1.$ext" "$out/$2.$ext"; echo "$out/$2.$ext"; else echo "skip $1 (not run)"; fi
 }
 copy runs/demo/compare/velocity_norm demo_velocity_norm
-copy runs/demo/compare/velocity_slice demo_velocity_slice
+copy runs/demo/compare/velocity_slice demo_velocity_slice png  # heat maps: PNG is smaller
 copy runs/dilute/compare/velocity_norm dilute_velocity_norm
 copy runs/dilute/compare/velocity_correlation dilute_velocity_correlation
-copy runs/dilute/compare/velocity_slice dilute_velocity_slice
+copy runs/dilute/compare/velocity_slice dilute_velocity_slice png
 copy runs/concentrated/compare/correlation_Q concentrated_correlation_Q
 copy runs/concentrated/compare/msd concentrated_msd
 copy runs/concentrated/compare/orientation concentrated_orientation
