@@ -153,12 +153,15 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
     let snaps = dir.snapshots()?;
     // Concentrated particle runs keep their structure at the rod scale: resolve r ~ l/2 there
     // (2 L/l modes, at most 64) instead of the default L/(2l).
-    let modes = match read_run_config::<ParticleRunConfig>(run, ParticleRunConfig::validate) {
-        Ok(c) if dir.header()?.model == "particle" && c.volume_fraction > 1.0 => {
-            Some(((2.0 * c.box_length).ceil() as usize).clamp(4, 64))
-        }
-        _ => None,
+    let pcfg: Option<ParticleRunConfig> = if dir.header()?.model == "particle" {
+        Some(read_run_config(run, ParticleRunConfig::validate)?)
+    } else {
+        None
     };
+    let modes = pcfg
+        .as_ref()
+        .filter(|c| c.volume_fraction > 1.0)
+        .map(|c| ((2.0 * c.box_length).ceil() as usize).clamp(4, 64));
     let opts = AnalyzeOptions {
         t_start,
         modes,
@@ -185,15 +188,13 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
             .map(|s| s.orientation.unwrap_or(f64::NAN))
             .collect(),
     });
-    let is_particle = dir.header()?.model == "particle";
-    let unit = if is_particle {
+    let unit = if pcfg.is_some() {
         "1/beta"
     } else {
         "mu/|sigma_a|"
     };
     let mut particle = None;
-    let (r_scale, v_scale) = if is_particle {
-        let cfg: ParticleRunConfig = read_run_config(run, ParticleRunConfig::validate)?;
+    let (r_scale, v_scale) = if let Some(cfg) = &pcfg {
         let l = cfg.box_length;
         let n = cfg
             .rods

@@ -68,6 +68,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
     Ok(())
 }
 
+/// Remove an earlier run at `dir` (a sweep's cell run again), so the next run starts clean.
+pub fn remove_old_run(dir: &Path) -> Result<(), IoError> {
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).map_err(fs_err(dir))?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -97,10 +97,7 @@ fn run_cell(
     run: impl FnOnce(&Path) -> anyhow::Result<()>,
     event: &mut dyn FnMut(&str),
 ) -> anyhow::Result<Cell> {
-    if dir.exists() {
-        std::fs::remove_dir_all(dir)
-            .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
-    }
+    crate::io::remove_old_run(dir)?;
     let t0 = std::time::Instant::now();
     let result = run(dir).map_err(|e| format!("{e:#}"));
     let seconds = t0.elapsed().as_secs_f64();

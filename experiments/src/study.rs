@@ -188,10 +188,7 @@ pub fn study(
     let mut results = Vec::new();
     for (v, is_ref, cfg) in &planned {
         let dir = out.join("runs").join(format!("{name}_{v}"));
-        if dir.exists() {
-            std::fs::remove_dir_all(&dir)
-                .with_context(|| format!("{}: cannot remove the old run", dir.display()))?;
-        }
+        crate::io::remove_old_run(&dir)?;
         // One-time costs stay out of the timing: closure tables are built (and cached) first.
         if let RunConfig::MeanField(c) = cfg {
             meanfield_run::closure_tables(c.closure_degree)?;

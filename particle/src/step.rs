@@ -121,13 +121,22 @@ impl Mobility for TranslationOnly<'_> {
     }
 }
 
+/// `v` in cell order: `v[order[k]]` for each `k`.
+fn gather(order: &[u32], v: &[Vec3]) -> Vec<Vec3> {
+    order.par_iter().map(|&i| v[i as usize]).collect()
+}
+
 /// Rounds of position projection per step at most.
 const PROJECTIONS: usize = 5;
 
 /// Largest true overlap `b - dist` over the pairs of `cons` (internal indices mapped through
-/// `order` to `rods`), and its pair in the caller's numbering (ties: the smallest pair).
-fn true_overlap(rods: &RodSet, cons: &[Constraint], order: &[u32]) -> (f64, (u32, u32)) {
-    let p = rods.orientations();
+/// `order` to `rods`, axes `p`), and its pair in the caller's numbering (ties: the smallest pair).
+fn true_overlap(
+    rods: &RodSet,
+    p: &[Vec3],
+    cons: &[Constraint],
+    order: &[u32],
+) -> (f64, (u32, u32)) {
     cons.par_iter()
         .map(|c| {
             let (i, j) = (order[c.i as usize] as usize, order[c.j as usize] as usize);
@@ -261,8 +270,8 @@ impl Stepper {
         let reach = ROD_LENGTH + DIAMETER + self.contact.margin;
         let cells = CellList::build(&rods.x, rods.box_length, reach);
         let order = cells.order();
-        let xs: Vec<Vec3> = order.par_iter().map(|&i| rods.x[i as usize]).collect();
-        let ps: Vec<Vec3> = order.par_iter().map(|&i| p[i as usize]).collect();
+        let xs = gather(order, &rods.x);
+        let ps = gather(order, &p);
         let sorted = cells.renumbered();
         seconds[0] = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
@@ -275,14 +284,8 @@ impl Stepper {
         }
         self.mobility
             .predicted_velocities(rods, &p, &mut self.velocities)?;
-        let fv: Vec<Vec3> = order
-            .par_iter()
-            .map(|&i| self.velocities.v[i as usize])
-            .collect();
-        let fw: Vec<Vec3> = order
-            .par_iter()
-            .map(|&i| self.velocities.w[i as usize])
-            .collect();
+        let fv = gather(order, &self.velocities.v);
+        let fw = gather(order, &self.velocities.w);
         seconds[2] = t2.elapsed().as_secs_f64();
         let t3 = Instant::now();
         let key = |c: &crate::contact::Constraint| {
@@ -339,14 +342,8 @@ impl Stepper {
         // hydrodynamics the velocities are the planned ones and this finds nothing to do.
         let mut correction_active = 0;
         if !cons.is_empty() {
-            let av: Vec<Vec3> = order
-                .par_iter()
-                .map(|&i| self.velocities.v[i as usize])
-                .collect();
-            let aw: Vec<Vec3> = order
-                .par_iter()
-                .map(|&i| self.velocities.w[i as usize])
-                .collect();
+            let av = gather(order, &self.velocities.v);
+            let aw = gather(order, &self.velocities.w);
             let (dlambda, _) = self.solver.solve(
                 &cons,
                 &ps,
@@ -390,7 +387,9 @@ impl Stepper {
         }
         seconds[4] = t4.elapsed().as_secs_f64();
         // True overlaps after the move, over the constrained pairs (caller's numbering).
-        let (mut max_overlap, mut worst) = true_overlap(rods, &cons, order);
+        // The projection below only translates, so the axes after the rotation update hold.
+        let p_new = rods.orientations();
+        let (mut max_overlap, mut worst) = true_overlap(rods, &p_new, &cons, order);
         // Projection: one contact point per pair cannot hold nearly parallel rods that turn (the
         // far ends approach at first order in the angle), and the linearisation misses
         // (dt w)^2 terms. Where the true overlap exceeds half the tolerance, the constraints
@@ -404,9 +403,8 @@ impl Stepper {
         let mut projections = 0;
         while max_overlap > 0.5 * self.contact.overlap_tolerance && projections < PROJECTIONS {
             projections += 1;
-            let p_new = rods.orientations();
-            let xs: Vec<Vec3> = order.par_iter().map(|&i| rods.x[i as usize]).collect();
-            let ps: Vec<Vec3> = order.par_iter().map(|&i| p_new[i as usize]).collect();
+            let xs = gather(order, &rods.x);
+            let ps = gather(order, &p_new);
             let again: Vec<Constraint> = cons
                 .par_iter()
                 .filter_map(|c| {
@@ -441,7 +439,7 @@ impl Stepper {
                 self.velocities.v[r] = axpy(self.velocities.v[r], 1.0, dv);
                 self.contact_force[r] = axpy(self.contact_force[r], 1.0, f);
             }
-            (max_overlap, worst) = true_overlap(rods, &cons, order);
+            (max_overlap, worst) = true_overlap(rods, &p_new, &cons, order);
         }
         if max_overlap > self.contact.overlap_tolerance {
             return Err(StepError::Overlap {
@@ -459,7 +457,6 @@ impl Stepper {
         let max_rotation_rate = (0..n)
             .map(|r| norm(self.velocities.w[r]))
             .fold(0.0, f64::max);
-        let p_new = rods.orientations();
         let mp = [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| p_new[r][d]) / n.max(1) as f64);
         Ok(StepReport {
             contact,
