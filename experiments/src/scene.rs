@@ -219,16 +219,18 @@ fn existing(dir: &Path, cfg: &RunConfig) -> anyhow::Result<bool> {
     if !dir.join("config.toml").exists() {
         return Ok(false);
     }
-    let same = match cfg {
-        RunConfig::Particle(c) => {
-            &read_run_config::<ParticleRunConfig>(dir, ParticleRunConfig::validate)? == c
-        }
-        RunConfig::MeanField(c) => {
-            &read_run_config::<MeanFieldRunConfig>(dir, MeanFieldRunConfig::validate)? == c
-        }
-    };
+    // The model first: another model's config would not parse as this one's.
     let model = RunDir::open(dir)?.header()?.model;
-    if !same || model != cfg.model() {
+    let same = model == cfg.model()
+        && match cfg {
+            RunConfig::Particle(c) => {
+                &read_run_config::<ParticleRunConfig>(dir, ParticleRunConfig::validate)? == c
+            }
+            RunConfig::MeanField(c) => {
+                &read_run_config::<MeanFieldRunConfig>(dir, MeanFieldRunConfig::validate)? == c
+            }
+        };
+    if !same {
         bail!(
             "{}: holds a {model} run with other settings than the scene's; give another --out or remove it",
             dir.display()

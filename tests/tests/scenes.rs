@@ -131,6 +131,19 @@ fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
         before,
         std::fs::read(out.join("particle/config.toml")).unwrap()
     );
+    // Another model's run under this run's name is refused the same way (not a parse error).
+    s.runs.swap(0, 1);
+    let (a, b) = (s.runs[0].0.clone(), s.runs[1].0.clone());
+    s.runs[0].0 = b;
+    s.runs[1].0 = a;
+    let err = format!(
+        "{:#}",
+        run_scene(&s, &out, &[], false, &mut |_| {}).unwrap_err()
+    );
+    assert!(
+        err.contains("holds a particle run with other settings"),
+        "{err}"
+    );
 }
 
 #[test]
