@@ -140,25 +140,41 @@ impl Fft3 {
                 }
             },
         );
-        // Axis 2: lines of stride n0*n1. Gather (i1, i0-block) columns into a transposed copy,
-        // transform, then scatter back plane by plane.
+        // Axis 2: lines of stride n0*n1. Each task gathers the lines of one (i1, i0-block) into
+        // a local buffer (runs of LINE_BLOCK contiguous values per plane), transforms them and
+        // stores them transposed back into runs in `t`, laid out (i1, block, i2, k); each plane
+        // then copies its runs back. Every access is a contiguous run: scattering single values
+        // with a stride of n2 (an earlier layout) missed the cache and the TLB on every value.
         let p2 = &plans[2];
         let plane_len = n0 * n1;
+        let nb = n0.div_ceil(LINE_BLOCK);
+        let run = n2 * LINE_BLOCK;
         let mut t = std::mem::take(&mut *self.scratch.lock().unwrap_or_else(|e| e.into_inner()));
-        t.resize(data.len(), Complex64::default());
+        t.resize(n1 * nb * run, Complex64::default());
         {
             let src = &*data;
-            // t layout: (i1, i0) column-major blocks, each column a contiguous z-line.
-            t.par_chunks_mut(n2 * n0).enumerate().for_each_init(
-                || vec![Complex64::default(); p2.get_inplace_scratch_len()],
-                |scratch, (i1, cols)| {
+            t.par_chunks_mut(run).enumerate().for_each_init(
+                || {
+                    (
+                        vec![Complex64::default(); run],
+                        vec![Complex64::default(); p2.get_inplace_scratch_len()],
+                    )
+                },
+                |(lines, scratch), (task, out)| {
+                    let (i1, b0) = (task / nb, (task % nb) * LINE_BLOCK);
+                    let w = LINE_BLOCK.min(n0 - b0);
                     for i2 in 0..n2 {
-                        let row = &src[i2 * plane_len + i1 * n0..i2 * plane_len + (i1 + 1) * n0];
-                        for (i0, v) in row.iter().enumerate() {
-                            cols[i0 * n2 + i2] = *v;
+                        let at = i2 * plane_len + i1 * n0 + b0;
+                        for (k, v) in src[at..at + w].iter().enumerate() {
+                            lines[k * n2 + i2] = *v;
                         }
                     }
-                    p2.process_with_scratch(cols, scratch);
+                    p2.process_with_scratch(&mut lines[..w * n2], scratch);
+                    for i2 in 0..n2 {
+                        for k in 0..w {
+                            out[i2 * LINE_BLOCK + k] = lines[k * n2 + i2];
+                        }
+                    }
                 },
             );
         }
@@ -166,10 +182,11 @@ impl Fft3 {
             .enumerate()
             .for_each(|(i2, plane)| {
                 for i1 in 0..n1 {
-                    let cols = &t[i1 * n2 * n0..(i1 + 1) * n2 * n0];
-                    let row = &mut plane[i1 * n0..(i1 + 1) * n0];
-                    for (i0, v) in row.iter_mut().enumerate() {
-                        *v = cols[i0 * n2 + i2];
+                    for blk in 0..nb {
+                        let b0 = blk * LINE_BLOCK;
+                        let w = LINE_BLOCK.min(n0 - b0);
+                        let at = ((i1 * nb + blk) * n2 + i2) * LINE_BLOCK;
+                        plane[i1 * n0 + b0..i1 * n0 + b0 + w].copy_from_slice(&t[at..at + w]);
                     }
                 }
             });

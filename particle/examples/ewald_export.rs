@@ -63,7 +63,7 @@ fn main() {
         p.xi,
         p.cutoff,
         p.modes,
-        p.nufft_tol,
+        (tol / 2.0).max(1e-14),
         sorted[reps / 2],
         stages[k].real,
         stages[k].fourier + stages[k].setup + stages[k].corrections,

@@ -80,9 +80,16 @@ pub fn rpy_overlap_correction(r: f64, a: f64) -> (f64, f64) {
 /// projection left to the caller: the Fourier multiplier of `M_F` is `this * (I - kk/k^2)`.
 #[inline]
 pub fn rpy_fourier_scalar(k2: f64, xi: f64, a: f64) -> f64 {
+    rpy_fourier_scalar_screened(k2, (-k2 / (4.0 * xi * xi)).exp(), xi, a)
+}
+
+/// [`rpy_fourier_scalar`] given the screening exponential `exp(-k^2 / 4 xi^2)` (the fast sums
+/// build it from per-axis factors instead of one exponential per mode).
+#[inline]
+pub fn rpy_fourier_scalar_screened(k2: f64, screen: f64, xi: f64, a: f64) -> f64 {
     let x = k2 / (4.0 * xi * xi);
     let g = 1.0 - a * a * k2 / 6.0;
-    (1.0 + x) * (-x).exp() * g * g / k2
+    (1.0 + x) * screen * g * g / k2
 }
 
 /// The Fourier part of the split RPY sum at one mode: `u^ = s(k) (I - kk/k^2) f^ / vol`, with
@@ -96,7 +103,21 @@ pub fn rpy_fourier_mode(
     vol: f64,
     f: [Complex64; 3],
 ) -> [Complex64; 3] {
-    let s = rpy_fourier_scalar(k2, xi, a) / vol;
+    rpy_fourier_mode_screened(k, k2, (-k2 / (4.0 * xi * xi)).exp(), xi, a, vol, f)
+}
+
+/// [`rpy_fourier_mode`] given the screening exponential `exp(-k^2 / 4 xi^2)`.
+#[inline]
+pub fn rpy_fourier_mode_screened(
+    k: Vec3,
+    k2: f64,
+    screen: f64,
+    xi: f64,
+    a: f64,
+    vol: f64,
+    f: [Complex64; 3],
+) -> [Complex64; 3] {
+    let s = rpy_fourier_scalar_screened(k2, screen, xi, a) / vol;
     let kf = (f[0] * k[0] + f[1] * k[1] + f[2] * k[2]) / k2;
     [0, 1, 2].map(|d| (f[d] - kf * k[d]) * s)
 }
@@ -112,9 +133,22 @@ pub fn stresslet_fourier_mode(
     vol: f64,
     s: impl Fn(usize, usize) -> Complex64,
 ) -> [Complex64; 12] {
+    stresslet_fourier_mode_screened(k, k2, (-k2 / (4.0 * xi * xi)).exp(), xi, vol, s)
+}
+
+/// [`stresslet_fourier_mode`] given the screening exponential `exp(-k^2 / 4 xi^2)`.
+#[inline]
+pub fn stresslet_fourier_mode_screened(
+    k: Vec3,
+    k2: f64,
+    screen: f64,
+    xi: f64,
+    vol: f64,
+    s: impl Fn(usize, usize) -> Complex64,
+) -> [Complex64; 12] {
     let f: [Complex64; 3] =
         [0, 1, 2].map(|i| -Complex64::i() * (s(i, 0) * k[0] + s(i, 1) * k[1] + s(i, 2) * k[2]));
-    let uh = rpy_fourier_mode(k, k2, xi, 0.0, vol, f);
+    let uh = rpy_fourier_mode_screened(k, k2, screen, xi, 0.0, vol, f);
     let mut o = [Complex64::default(); 12];
     for i in 0..3 {
         o[i] = uh[i];
@@ -539,6 +573,22 @@ impl RealSpaceTable {
     #[inline]
     pub fn eval(&self, r: f64) -> (f64, f64) {
         self.eval_inv(r, 1.0 / r)
+    }
+
+    /// `(A_R, B_R / r^2)` given `r` and `1/r`: the pair sums apply `A f + (B / r^2)(r . f) r`
+    /// and need no unit vector.
+    #[inline]
+    pub fn eval_a_b_r2(&self, r: f64, inv: f64) -> (f64, f64) {
+        let (i, w) = lagrange4(r * self.inv_h, self.n);
+        let g = &self.g[i..i + 4];
+        let af = w[0] * g[0][0] + w[1] * g[1][0] + w[2] * g[2][0] + w[3] * g[3][0];
+        let bf = w[0] * g[0][1] + w[1] * g[1][1] + w[2] * g[2][1] + w[3] * g[3][1];
+        let inv2 = inv * inv;
+        let inv3 = inv2 * inv;
+        (
+            self.c * inv + self.ca * inv3 - af,
+            (self.c - self.cb * inv2) * inv3 - bf,
+        )
     }
 
     /// [`Self::eval`] given `1/r` too (the pair loops have it: one division per pair).

@@ -11,6 +11,7 @@ pub mod cells;
 pub mod contact;
 pub mod dipole;
 pub mod ewald;
+pub mod gaussian_grid;
 pub mod geometry;
 pub mod gmres;
 pub mod init;
