@@ -259,6 +259,21 @@ impl RealFft3 {
     /// `output = sum_x input(x) exp(-i k x)` on the half spectrum.
     pub fn forward(&self, input: &[f64], output: &mut [Complex64]) {
         assert_eq!(input.len(), self.real_len(), "RealFft3: real buffer length");
+        let [n0, n1, _] = self.shape;
+        self.forward_rows(
+            |z, y, line| line.copy_from_slice(&input[(z * n1 + y) * n0..(z * n1 + y + 1) * n0]),
+            output,
+        );
+    }
+
+    /// [`Self::forward`] of the real array whose line `(z, y)` (`n0` values along axis 0)
+    /// `row(z, y, line)` writes: lets a caller transform data in its own layout without a
+    /// full copy first.
+    pub fn forward_rows(
+        &self,
+        row: impl Fn(usize, usize, &mut [f64]) + Sync,
+        output: &mut [Complex64],
+    ) {
         assert_eq!(
             output.len(),
             self.complex_len(),
@@ -267,19 +282,16 @@ impl RealFft3 {
         let [n0, n1, _] = self.shape;
         let h = n0 / 2 + 1;
         let r2c = &self.r2c;
-        input
-            .par_chunks(n0 * n1)
-            .zip(output.par_chunks_mut(h * n1))
-            .for_each_init(
-                || (vec![0.0; n0], r2c.make_scratch_vec()),
-                |(line, scratch), (plane_in, plane_out)| {
-                    for (row_in, row_out) in plane_in.chunks(n0).zip(plane_out.chunks_mut(h)) {
-                        line.copy_from_slice(row_in);
-                        r2c.process_with_scratch(line, row_out, scratch)
-                            .expect("RealFft3: buffer lengths are fixed by the plan");
-                    }
-                },
-            );
+        output.par_chunks_mut(h * n1).enumerate().for_each_init(
+            || (vec![0.0; n0], r2c.make_scratch_vec()),
+            |(line, scratch), (z, plane_out)| {
+                for (y, row_out) in plane_out.chunks_mut(h).enumerate() {
+                    row(z, y, line);
+                    r2c.process_with_scratch(line, row_out, scratch)
+                        .expect("RealFft3: buffer lengths are fixed by the plan");
+                }
+            },
+        );
         self.half.process_strided_axes(output, Direction::Forward);
     }
 
@@ -313,6 +325,43 @@ impl RealFft3 {
                             Ok(()) | Err(realfft::FftError::InputValues(..)) => {}
                             Err(e) => panic!("RealFft3: {e}"),
                         }
+                    }
+                },
+            );
+    }
+
+    /// [`Self::inverse`] handing each line `(z, y)` of the result to `put(y, line, plane)`,
+    /// where `plane` is the `z`-th chunk of `plane_len` values of `out`: lets a caller store
+    /// the result in its own layout without a full copy after.
+    pub fn inverse_rows<T: Send>(
+        &self,
+        input: &mut [Complex64],
+        out: &mut [T],
+        plane_len: usize,
+        put: impl Fn(usize, &[f64], &mut [T]) + Sync,
+    ) {
+        assert_eq!(
+            input.len(),
+            self.complex_len(),
+            "RealFft3: complex buffer length"
+        );
+        let [n0, n1, n2] = self.shape;
+        assert_eq!(out.len(), n2 * plane_len, "RealFft3: output planes");
+        self.half.process_strided_axes(input, Direction::Inverse);
+        let h = n0 / 2 + 1;
+        let c2r = &self.c2r;
+        input
+            .par_chunks_mut(h * n1)
+            .zip(out.par_chunks_mut(plane_len))
+            .for_each_init(
+                || (vec![0.0; n0], c2r.make_scratch_vec()),
+                |(line, scratch), (plane_in, plane_out)| {
+                    for (y, row_in) in plane_in.chunks_mut(h).enumerate() {
+                        match c2r.process_with_scratch(row_in, line, scratch) {
+                            Ok(()) | Err(realfft::FftError::InputValues(..)) => {}
+                            Err(e) => panic!("RealFft3: {e}"),
+                        }
+                        put(y, line, plane_out);
                     }
                 },
             );

@@ -95,8 +95,6 @@ pub struct GaussianGrid {
     eta: f64,
     xi: f64,
     fft: RealFft3,
-    spread_buf: Vec<f64>,
-    gather_buf: Vec<f64>,
     pool: Pool,
 }
 
@@ -149,8 +147,6 @@ impl GaussianGrid {
             eta,
             xi,
             fft: RealFft3::new([m; 3]),
-            spread_buf: Vec::new(),
-            gather_buf: Vec::new(),
             pool: Pool::default(),
         }
     }
@@ -260,23 +256,19 @@ impl GaussianGrid {
         }
     }
 
-    /// Spread `NF` real fields (indexed like the points given to [`Self::prepare`]) onto grids
-    /// of `M^3` values (axis 0 fastest).
+    /// Spread `NF` real fields (indexed like the points given to [`Self::prepare`]) onto the
+    /// grid.
     ///
     /// The fields are spread together into one grid with the fields innermost and `P` extra
     /// x points (so a window row is one contiguous run of `P NF` values, and y and z wrap per
     /// row), in two phases: the even slabs in parallel, then the odd ones. Every slab is at
     /// least `P` planes thick, so slabs of one phase never write the same plane; each grid
     /// value receives its contributions in an order fixed by the sort.
-    pub fn spread<const NF: usize>(
-        &mut self,
-        pts: &GridPoints,
-        fields: [&[f64]; NF],
-    ) -> Vec<Vec<f64>> {
+    pub fn spread<const NF: usize>(&mut self, pts: &GridPoints, fields: [&[f64]; NF]) -> Spread {
         let (m, p) = (self.m, self.p);
         let xb = m + p;
         let plane = m * xb * NF;
-        let mut work = std::mem::take(&mut self.spread_buf);
+        let mut work = self.pool.real(1, 0).pop().expect("one buffer");
         work.clear();
         work.resize(m * plane, 0.0);
         let bounds = &pts.slab_bounds;
@@ -322,37 +314,19 @@ impl GaussianGrid {
                 });
             }
         }
-        // Out of the interleaved, x-padded grid into one periodic grid per field.
-        let mut out = self.pool.real(NF, m * m * m);
-        for (c, grid) in out.iter_mut().enumerate() {
-            grid.par_chunks_mut(m * m)
-                .zip(work.par_chunks(plane))
-                .for_each(|(dst, src)| {
-                    for y in 0..m {
-                        let s = &src[y * xb * NF..(y + 1) * xb * NF];
-                        let d = &mut dst[y * m..(y + 1) * m];
-                        for x in 0..m {
-                            d[x] = s[x * NF + c];
-                        }
-                        for x in m..xb {
-                            d[x - m] += s[x * NF + c];
-                        }
-                    }
-                });
-        }
-        self.spread_buf = work;
-        out
+        Spread(Interleaved {
+            m,
+            p,
+            nf: NF,
+            data: work,
+        })
     }
 
-    /// Gather `NF` grids back to the points: `h^3 sum_grid G(x_m) g(y - x_m)` per grid,
+    /// Gather `NF` fields back to the points: `h^3 sum_grid G(x_m) g(y - x_m)` per field,
     /// results in the points' own order.
-    pub fn gather<const NF: usize>(
-        &mut self,
-        pts: &GridPoints,
-        grids: Vec<Vec<f64>>,
-    ) -> [Vec<f64>; NF] {
+    pub fn gather<const NF: usize>(&mut self, pts: &GridPoints, field: Field) -> [Vec<f64>; NF] {
         let (m, p) = (self.m, self.p);
-        let work = self.interleave::<NF>(grids);
+        let work = field.0.check(m, p, NF).data;
         let plane = m * (m + p) * NF;
         let h3 = self.h.powi(3);
         let sorted: Vec<[f64; NF]> = (0..pts.perm.len())
@@ -363,17 +337,17 @@ impl GaussianGrid {
             )
             .map(|acc| acc.map(|v| h3 * v))
             .collect();
-        self.gather_buf = work;
+        self.pool.give_real(vec![work]);
         unsort(pts, &sorted)
     }
 
-    /// Gather three grids and their gradients: `[u_0, u_1, u_2, du_0/dx_0, du_0/dx_1, ...,
+    /// Gather three fields and their gradients: `[u_0, u_1, u_2, du_0/dx_0, du_0/dx_1, ...,
     /// du_2/dx_2]` (`3 + 3 i + m` is `du_i/dx_m`), the gradient from the derivative of the
     /// window (`g_1'(d) = -2 alpha d g_1(d)`), which equals multiplying the spectrum by `i k`
     /// and costs no extra transforms.
-    pub fn gather_gradient(&mut self, pts: &GridPoints, grids: Vec<Vec<f64>>) -> [Vec<f64>; 12] {
+    pub fn gather_gradient(&mut self, pts: &GridPoints, field: Field) -> [Vec<f64>; 12] {
         let (m, p) = (self.m, self.p);
-        let work = self.interleave::<3>(grids);
+        let work = field.0.check(m, p, 3).data;
         let plane = m * (m + p) * 3;
         let h3 = self.h.powi(3);
         let (alpha, h) = (self.alpha, self.h);
@@ -390,32 +364,8 @@ impl GaussianGrid {
             )
             .map(|acc| acc.map(|v| h3 * v))
             .collect();
-        self.gather_buf = work;
+        self.pool.give_real(vec![work]);
         unsort(pts, &sorted)
-    }
-
-    /// The grids interleaved (fields innermost) and x-padded, so a window row is one
-    /// contiguous run; the grids go back to the pool.
-    fn interleave<const NF: usize>(&mut self, grids: Vec<Vec<f64>>) -> Vec<f64> {
-        assert_eq!(grids.len(), NF, "one grid per output field");
-        let (m, p) = (self.m, self.p);
-        let xb = m + p;
-        let plane = m * xb * NF;
-        let mut work = std::mem::take(&mut self.gather_buf);
-        work.resize(m * plane, 0.0);
-        work.par_chunks_mut(plane).enumerate().for_each(|(z, dst)| {
-            for y in 0..m {
-                let d = &mut dst[y * xb * NF..(y + 1) * xb * NF];
-                for (c, g) in grids.iter().enumerate() {
-                    let s = &g[(z * m + y) * m..(z * m + y + 1) * m];
-                    for x in 0..xb {
-                        d[x * NF + c] = s[if x >= m { x - m } else { x }];
-                    }
-                }
-            }
-        });
-        self.pool.give_real(grids);
-        work
     }
 
     /// The Fourier stage between spread and gather: real FFTs of the `I` input grids, at every
@@ -426,17 +376,30 @@ impl GaussianGrid {
     /// `g` must map real fields to real fields (Hermitian in, Hermitian out).
     pub fn convolve<const I: usize, const O: usize>(
         &mut self,
-        grids: Vec<Vec<f64>>,
+        spread: Spread,
         g: impl Fn(Vec3, f64, f64, [Complex64; I]) -> [Complex64; O] + Sync,
-    ) -> Vec<Vec<f64>> {
-        assert_eq!(grids.len(), I, "one grid per input field");
-        let m = self.m;
+    ) -> Field {
+        let (m, p) = (self.m, self.p);
+        let xb = m + p;
+        let input = spread.0.check(m, p, I).data;
         let hlen = self.fft.complex_len();
         let mut spectra = self.pool.complex(I, hlen);
-        for (gr, sp) in grids.iter().zip(spectra.iter_mut()) {
-            self.fft.forward(gr, sp);
+        for (c, sp) in spectra.iter_mut().enumerate() {
+            // Field c out of the interleaved grid, its x padding folded back.
+            self.fft.forward_rows(
+                |z, y, line| {
+                    let row = &input[((z * m + y) * xb) * I..((z * m + y + 1) * xb) * I];
+                    for (x, v) in line.iter_mut().enumerate() {
+                        *v = row[x * I + c];
+                    }
+                    for x in m..xb {
+                        line[x - m] += row[x * I + c];
+                    }
+                },
+                sp,
+            );
         }
-        self.pool.give_real(grids);
+        self.pool.give_real(vec![input]);
         let h0 = m / 2 + 1;
         let scale = 2.0 * PI / self.l;
         let h3 = self.h.powi(3);
@@ -448,42 +411,121 @@ impl GaussianGrid {
                 (k, (-x * k * k).exp(), (self.eta * x * k * k).exp())
             })
             .collect();
-        let mut vals = self.pool.complex(1, O * hlen).pop().expect("one buffer");
-        vals.par_chunks_mut(O * h0)
+        // In place, a row of modes at a time: the outputs overwrite the first O spectra (every
+        // input of a mode is read before its outputs are written).
+        assert!(O <= I, "at most as many outputs as inputs");
+        let mut rows: Vec<Vec<&mut [Complex64]>> = (0..m * m).map(|_| Vec::new()).collect();
+        for spectrum in spectra.iter_mut() {
+            for (row, chunk) in rows.iter_mut().zip(spectrum.chunks_mut(h0)) {
+                row.push(chunk);
+            }
+        }
+        rows.into_par_iter()
             .enumerate()
-            .for_each(|(row, out)| {
+            .for_each(|(row, mut fields)| {
                 let (i1, i2) = (row % m, row / m);
-                for (i0, o) in out.chunks_exact_mut(O).enumerate() {
-                    let idx = row * h0 + i0;
-                    o.fill(Complex64::default());
-                    if i0 == m / 2 || i1 == m / 2 || i2 == m / 2 {
-                        continue;
-                    }
+                for i0 in 0..h0 {
+                    let mut out = [Complex64::default(); O];
                     let (a0, a1, a2) = (axis[i0], axis[i1], axis[i2]);
                     let k = [a0.0, a1.0, a2.0];
                     let k2 = dot(k, k);
-                    if k2 == 0.0 {
-                        continue;
+                    if i0 != m / 2 && i1 != m / 2 && i2 != m / 2 && k2 != 0.0 {
+                        let f: [Complex64; I] = std::array::from_fn(|c| fields[c][i0]);
+                        let w = h3 * a0.2 * a1.2 * a2.2;
+                        out = g(k, k2, a0.1 * a1.1 * a2.1, f).map(|v| v * w);
                     }
-                    let f: [Complex64; I] = std::array::from_fn(|c| spectra[c][idx]);
-                    let w = h3 * a0.2 * a1.2 * a2.2;
-                    for (d, v) in o.iter_mut().zip(g(k, k2, a0.1 * a1.1 * a2.1, f)) {
-                        *d = v * w;
+                    for (c, v) in out.into_iter().enumerate() {
+                        fields[c][i0] = v;
                     }
                 }
             });
-        let mut spec = spectra.pop().expect("at least one input");
-        let mut outs = self.pool.real(O, m * m * m);
-        for (c, out) in outs.iter_mut().enumerate() {
-            spec.par_iter_mut()
-                .enumerate()
-                .for_each(|(idx, v)| *v = vals[idx * O + c]);
-            self.fft.inverse(&mut spec, out);
+        // Back into one interleaved grid, periodically extended along x for the gather.
+        let mut out = self.pool.real(1, 0).pop().expect("one buffer");
+        out.resize(m * m * xb * O, 0.0);
+        for (c, spec) in spectra.iter_mut().take(O).enumerate() {
+            self.fft
+                .inverse_rows(spec, &mut out, m * xb * O, |y, line, plane| {
+                    let row = &mut plane[y * xb * O..(y + 1) * xb * O];
+                    for x in 0..xb {
+                        row[x * O + c] = line[if x >= m { x - m } else { x }];
+                    }
+                });
         }
-        spectra.push(spec);
-        spectra.push(vals);
         self.pool.give_complex(spectra);
-        outs
+        Field(Interleaved {
+            m,
+            p,
+            nf: O,
+            data: out,
+        })
+    }
+}
+
+/// Values of `nf` fields on an `M^3` grid, interleaved (fields innermost) and with `P` extra
+/// points along x, so a window row is one contiguous run: index `((z M + y)(M + P) + x) nf + c`.
+#[derive(Debug, Clone)]
+struct Interleaved {
+    m: usize,
+    p: usize,
+    nf: usize,
+    data: Vec<f64>,
+}
+
+impl Interleaved {
+    fn check(self, m: usize, p: usize, nf: usize) -> Self {
+        assert_eq!(
+            (self.m, self.p, self.nf),
+            (m, p, nf),
+            "grid values of another grid or field count"
+        );
+        self
+    }
+}
+
+/// What [`GaussianGrid::spread`] leaves: the extra x points hold contributions that wrap
+/// around the box (folded back by [`GaussianGrid::convolve`]).
+#[derive(Debug, Clone)]
+pub struct Spread(Interleaved);
+
+impl Spread {
+    /// The fields as plain periodic grids (axis 0 fastest), padding folded back.
+    pub fn to_grids(&self) -> Vec<Vec<f64>> {
+        let Interleaved { m, p, nf, ref data } = self.0;
+        let xb = m + p;
+        (0..nf)
+            .map(|c| {
+                let mut g = vec![0.0; m * m * m];
+                for (r, row) in g.chunks_mut(m).enumerate() {
+                    let src = &data[r * xb * nf..(r + 1) * xb * nf];
+                    for x in 0..xb {
+                        row[x % m] += src[x * nf + c];
+                    }
+                }
+                g
+            })
+            .collect()
+    }
+}
+
+/// What [`GaussianGrid::convolve`] returns for the gather: the extra x points are periodic
+/// copies.
+#[derive(Debug, Clone)]
+pub struct Field(Interleaved);
+
+impl Field {
+    /// Plain periodic grids (axis 0 fastest) of one grid `m^3`, as a field for the gather of a
+    /// grid with support `p`.
+    pub fn from_grids(grids: &[Vec<f64>], m: usize, p: usize) -> Self {
+        let (nf, xb) = (grids.len(), m + p);
+        let mut data = vec![0.0; m * m * xb * nf];
+        for (r, row) in data.chunks_mut(xb * nf).enumerate() {
+            for (c, g) in grids.iter().enumerate() {
+                for x in 0..xb {
+                    row[x * nf + c] = g[r * m + x % m];
+                }
+            }
+        }
+        Self(Interleaved { m, p, nf, data })
     }
 }
 
@@ -791,8 +833,8 @@ mod tests {
                         .collect()
                 })
                 .collect();
-            let spread = grid.spread(&pts, [&f[0], &f[1]]);
-            let gathered: [Vec<f64>; 2] = grid.gather(&pts, g.clone());
+            let spread = grid.spread(&pts, [&f[0], &f[1]]).to_grids();
+            let gathered: [Vec<f64>; 2] = grid.gather(&pts, Field::from_grids(&g, m, p));
             let h3 = (l / m as f64).powi(3);
             for c in 0..2 {
                 let lhs: f64 = gathered[c].iter().zip(&f[c]).map(|(a, b)| a * b).sum();
