@@ -32,13 +32,14 @@ use std::f64::consts::PI;
 use std::time::Instant;
 
 /// Cost of one real-space pair relative to one grid point of the Fourier stage (its six
-/// real FFTs and the multiplication); calibrated at 1e5 points, tolerance 1e-4.
-const PAIR_COST: f64 = 0.36;
+/// real FFTs and the multiplication); calibrated at 1e5 points, tolerance 1e-4, where the
+/// measured total is flat within the machine's noise from 0.09 to 0.2 (grids 100-108).
+const PAIR_COST: f64 = 0.14;
 
 /// The same for a stresslet pair (velocity and gradient from a table) against its Fourier
 /// side (nine transforms instead of six, six fields spread, the gradient gathered);
-/// calibrated at 78 125 centres, tolerance 1e-4.
-const STRESSLET_PAIR_COST: f64 = 0.6;
+/// calibrated at 78 125 centres, tolerance 1e-4 (flat from 0.15 to 0.45: grids 100-120).
+const STRESSLET_PAIR_COST: f64 = 0.3;
 
 /// The resolved parameters of one spectral Ewald sum.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -290,9 +291,6 @@ impl PointCells {
         let c2 = cutoff * cutoff;
         let n = self.n as i64;
         let l = self.l;
-        let side = l / self.n as f64;
-        let inv_side = 1.0 / side;
-        let (xs, ys, zs) = (&self.xs, &self.ys, &self.zs);
         let per_cell: Vec<Vec<A>> = (0..self.n * self.n * self.n)
             .into_par_iter()
             .map_init(Hits::default, |hits, c| {
@@ -320,47 +318,8 @@ impl PointCells {
                 let (cx, cy, cz) = (c % n, (c / n) % n, c / (n * n));
                 for (k, acc) in out.iter_mut().enumerate() {
                     let tk = range.start + k;
-                    let yt = self.sorted[tk];
-                    let gt = self.group[tk];
                     hits.clear();
-                    for dz in -2..=2 {
-                        let uz = cz + dz;
-                        let gz = gap(yt[2], uz as f64 * side, side);
-                        if gz >= cutoff {
-                            continue;
-                        }
-                        let (wz, sz) = wrap(uz, n, l);
-                        for dy in -2..=2 {
-                            let uy = cy + dy;
-                            let gy = gap(yt[1], uy as f64 * side, side);
-                            let g2 = gy * gy + gz * gz;
-                            if g2 >= c2 {
-                                continue;
-                            }
-                            let (wy, sy) = wrap(uy, n, l);
-                            let rx = (c2 - g2).sqrt();
-                            let lo = floor_i64((yt[0] - rx) * inv_side).max(cx - 2);
-                            let hi = floor_i64((yt[0] + rx) * inv_side).min(cx + 2);
-                            let row = (wz * n + wy) * n;
-                            // The run of cells lo..=hi, cut where it wraps around the box.
-                            let mut ux = lo;
-                            while ux <= hi {
-                                let (wx, sx) = wrap(ux, n, l);
-                                let last = if ux < 0 {
-                                    hi.min(-1)
-                                } else if ux < n {
-                                    hi.min(n - 1)
-                                } else {
-                                    hi
-                                };
-                                let a = self.start[(row + wx) as usize];
-                                let b = self.start[(row + wx + last - ux) as usize + 1];
-                                let t = [yt[0] - sx, yt[1] - sy, yt[2] - sz];
-                                hits.push_run(t, gt, a..b, [xs, ys, zs], &self.group, c2);
-                                ux = last + 1;
-                            }
-                        }
-                    }
+                    self.collect_hits(tk, [cx, cy, cz], cutoff, false, hits);
                     f(acc, hits);
                 }
                 out
@@ -369,6 +328,169 @@ impl PointCells {
         let mut result = vec![A::default(); self.members.len()];
         for (k, a) in per_cell.into_iter().flatten().enumerate() {
             result[self.members[k] as usize] = a;
+        }
+        result
+    }
+
+    /// The hits of sorted point `tk` in cell `[cx, cy, cz]` (needs at least 5 cells per
+    /// axis): the 5 x 5 rows of neighbour cells along x, a row skipped when its y-z distance
+    /// exceeds the cutoff, and from the others only the cells the cutoff sphere reaches (one or
+    /// two contiguous runs of points, cells being ordered x fastest). With `half`, only the
+    /// forward half of the stencil: rows with `(dz, dy) > (0, 0)`, and in the target's own
+    /// row the points after it (its own cell included), so each pair is found once.
+    fn collect_hits(
+        &self,
+        tk: usize,
+        [cx, cy, cz]: [i64; 3],
+        cutoff: f64,
+        half: bool,
+        hits: &mut Hits,
+    ) {
+        let c2 = cutoff * cutoff;
+        let n = self.n as i64;
+        let l = self.l;
+        let side = l / self.n as f64;
+        let inv_side = 1.0 / side;
+        let (xs, ys, zs) = (&self.xs, &self.ys, &self.zs);
+        let yt = self.sorted[tk];
+        let gt = self.group[tk];
+        hits.target = tk;
+        for dz in if half { 0..=2 } else { -2..=2 } {
+            let uz = cz + dz;
+            let gz = gap(yt[2], uz as f64 * side, side);
+            if gz >= cutoff {
+                continue;
+            }
+            let (wz, sz) = wrap(uz, n, l);
+            for dy in if half && dz == 0 { 0..=2 } else { -2..=2 } {
+                let uy = cy + dy;
+                let gy = gap(yt[1], uy as f64 * side, side);
+                let g2 = gy * gy + gz * gz;
+                if g2 >= c2 {
+                    continue;
+                }
+                let own_row = half && dz == 0 && dy == 0;
+                let (wy, sy) = wrap(uy, n, l);
+                let rx = (c2 - g2).sqrt();
+                let lo = if own_row {
+                    cx
+                } else {
+                    floor_i64((yt[0] - rx) * inv_side).max(cx - 2)
+                };
+                let hi = floor_i64((yt[0] + rx) * inv_side).min(cx + 2);
+                let row = (wz * n + wy) * n;
+                // The run of cells lo..=hi, cut where it wraps around the box.
+                let mut ux = lo;
+                while ux <= hi {
+                    let (wx, sx) = wrap(ux, n, l);
+                    let last = if ux < 0 {
+                        hi.min(-1)
+                    } else if ux < n {
+                        hi.min(n - 1)
+                    } else {
+                        hi
+                    };
+                    let mut a = self.start[(row + wx) as usize];
+                    if own_row && ux == cx {
+                        a = tk + 1;
+                    }
+                    let b = self.start[(row + wx + last - ux) as usize + 1];
+                    let t = [yt[0] - sx, yt[1] - sy, yt[2] - sz];
+                    hits.push_run(t, gt, a..b, [xs, ys, zs], &self.group, c2);
+                    ux = last + 1;
+                }
+            }
+        }
+    }
+
+    /// Symmetric pair sum (at least 5 cells per axis): every pair of points of different
+    /// groups within the cutoff once: after `prepare(hits)` for a target's hits,
+    /// `pair(hits, h, target, other)` adds hit `h`'s contributions to the target's and the
+    /// other point's accumulators (`hits.index[h]` in cell order, `r = y_target - y_other`);
+    /// a target's own sum is added with `add` when its hits are done. Results in the points'
+    /// own order.
+    ///
+    /// Each target looks at the forward half of its stencil (see [`Self::collect_hits`]), so
+    /// it writes to points up to two cell planes further in z. The z-planes are cut into an
+    /// even number of slabs of at least two planes (a function of the cell grid only); the even
+    /// slabs run in parallel, then the odd ones, each writing only its own planes and the two
+    /// after them (the last slab also the first two planes). Every point then receives its
+    /// contributions in an order fixed by the cells, for any thread count.
+    fn symmetric<A: Send + Default + Clone>(
+        &self,
+        cutoff: f64,
+        prepare: impl Fn(&mut Hits) + Sync,
+        pair: impl Fn(&Hits, usize, &mut A, &mut A) + Sync,
+        add: impl Fn(&mut A, &A) + Sync,
+    ) -> Vec<A> {
+        let n = self.n;
+        assert!(n >= 5, "the symmetric sum needs at least 5 cells per axis");
+        let nn = n * n;
+        let plane_start = |z: usize| self.start[z * nn];
+        let t = 2.max(n.div_ceil(8));
+        let ns = (n / t) & !1;
+        let bounds: Vec<usize> = if ns < 2 {
+            vec![0, n]
+        } else {
+            (0..ns).map(|s| s * t).chain([n]).collect()
+        };
+        let nslab = bounds.len() - 1;
+        let mut acc = vec![A::default(); self.members.len()];
+        let task = |s: usize, main: &mut [A], main_start: usize, wrap: &mut [A]| {
+            let mut hits = Hits::default();
+            for z in bounds[s]..bounds[s + 1] {
+                for c in z * nn..(z + 1) * nn {
+                    let c3 = [(c % n) as i64, ((c / n) % n) as i64, z as i64];
+                    for tk in self.start[c]..self.start[c + 1] {
+                        hits.clear();
+                        self.collect_hits(tk, c3, cutoff, true, &mut hits);
+                        prepare(&mut hits);
+                        let mut own = A::default();
+                        for h in 0..hits.len {
+                            let j = hits.index[h] as usize;
+                            let other = if j >= main_start && j - main_start < main.len() {
+                                &mut main[j - main_start]
+                            } else {
+                                &mut wrap[j]
+                            };
+                            pair(&hits, h, &mut own, other);
+                        }
+                        add(&mut main[tk - main_start], &own);
+                    }
+                }
+            }
+        };
+        if nslab == 1 {
+            task(0, &mut acc, 0, &mut []);
+        } else {
+            for phase in 0..2 {
+                let head_len = if phase == 1 { plane_start(2) } else { 0 };
+                let (mut head, mut rest) = acc.split_at_mut(head_len);
+                let mut offset = head_len;
+                let mut jobs = Vec::new();
+                for s in (phase..nslab).step_by(2) {
+                    let (a, b) = (
+                        plane_start(bounds[s]),
+                        plane_start((bounds[s + 1] + 2).min(n)),
+                    );
+                    let (_, r) = std::mem::take(&mut rest).split_at_mut(a - offset);
+                    let (win, r) = r.split_at_mut(b - a);
+                    rest = r;
+                    offset = b;
+                    let wrap = if s == nslab - 1 {
+                        std::mem::take(&mut head)
+                    } else {
+                        &mut [][..]
+                    };
+                    jobs.push((s, win, a, wrap));
+                }
+                jobs.into_par_iter()
+                    .for_each(|(s, win, a, wrap)| task(s, win, a, wrap));
+            }
+        }
+        let mut result = vec![A::default(); self.members.len()];
+        for (k, v) in acc.into_iter().enumerate() {
+            result[self.members[k] as usize] = v;
         }
         result
     }
@@ -409,6 +531,8 @@ struct Hits {
     z: Vec<f64>,
     index: Vec<u32>,
     len: usize,
+    /// The target (cell order).
+    target: usize,
     /// Scratch for the caller: distances and their inverses.
     dist: Vec<f64>,
     inv: Vec<f64>,
@@ -487,10 +611,9 @@ impl PeriodicStokes for SpectralEwald {
         let cells = PointCells::build(points, l, p.cutoff, g);
         let table = RealSpaceTable::new(p.cutoff, xi, a);
         let sorted_forces = cells.sorted_values(forces);
-        let a2 = a * a;
-        let mut u = cells.gather(p.cutoff, |acc: &mut Vec3, hits| {
-            // A hit adds A f + (B / r^2) (r . f) r. Distances first, in a loop of independent
-            // iterations (square roots and divisions overlap), then the table.
+        // Distances first, in a loop of independent iterations (square roots and divisions
+        // overlap), then the table: `(A, B / r^2)` per hit.
+        let distances = |hits: &mut Hits| {
             let n = hits.len;
             hits.dist.resize(hits.x.len(), 0.0);
             hits.inv.resize(hits.x.len(), 0.0);
@@ -500,23 +623,53 @@ impl PeriodicStokes for SpectralEwald {
                 hits.dist[h] = rn;
                 hits.inv[h] = 1.0 / rn;
             }
-            for h in 0..n {
-                let r = [hits.x[h], hits.y[h], hits.z[h]];
-                let rn = hits.dist[h];
-                let r2 = rn * rn;
-                let (mut ar, mut br2) = table.eval_a_b_r2(rn, hits.inv[h]);
-                if r2 < 4.0 * a2 {
-                    let (ac, bc) = rpy_overlap_correction(rn, a);
-                    ar += ac;
-                    br2 += bc / r2;
-                }
-                let f = sorted_forces[hits.index[h] as usize];
-                let s = br2 * dot(r, f);
-                for d in 0..3 {
-                    acc[d] += ar * f[d] + s * r[d];
-                }
+        };
+        let kernel = |hits: &Hits, h: usize| {
+            let rn = hits.dist[h];
+            let (mut ar, mut br2) = table.eval_a_b_r2(rn, hits.inv[h]);
+            if rn < 2.0 * a {
+                let (ac, bc) = rpy_overlap_correction(rn, a);
+                ar += ac;
+                br2 += bc / (rn * rn);
             }
-        });
+            (ar, br2)
+        };
+        let mut u = if cells.n >= 5 {
+            // Both points of a pair get A f + (B / r^2)(r . f) r of the other's force.
+            let f = &sorted_forces;
+            cells.symmetric(
+                p.cutoff,
+                distances,
+                |hits, h, own: &mut Vec3, other: &mut Vec3| {
+                    let (ar, br2) = kernel(hits, h);
+                    let r = [hits.x[h], hits.y[h], hits.z[h]];
+                    let (fj, ft) = (f[hits.index[h] as usize], f[hits.target]);
+                    let (sj, st) = (br2 * dot(r, fj), br2 * dot(r, ft));
+                    for d in 0..3 {
+                        own[d] += ar * fj[d] + sj * r[d];
+                        other[d] += ar * ft[d] + st * r[d];
+                    }
+                },
+                |a, b| {
+                    for d in 0..3 {
+                        a[d] += b[d];
+                    }
+                },
+            )
+        } else {
+            cells.gather(p.cutoff, |acc: &mut Vec3, hits| {
+                distances(hits);
+                for h in 0..hits.len {
+                    let (ar, br2) = kernel(hits, h);
+                    let r = [hits.x[h], hits.y[h], hits.z[h]];
+                    let f = sorted_forces[hits.index[h] as usize];
+                    let s = br2 * dot(r, f);
+                    for d in 0..3 {
+                        acc[d] += ar * f[d] + s * r[d];
+                    }
+                }
+            })
+        };
         // Fourier space.
         let t2 = Instant::now();
         let grid = self.grid.as_mut().expect("prepared");
@@ -581,19 +734,24 @@ impl PeriodicStokes for SpectralEwald {
         let cells = PointCells::build(x, l, prm.cutoff, 1);
         let (ps, ss) = (cells.sorted_values(p), cells.sorted_values(sigma));
         let table = StressletTable::new(prm.cutoff, xi);
-        let real = cells.gather(prm.cutoff, |acc: &mut (Vec3, [Vec3; 3]), hits| {
+        type Acc = (Vec3, [Vec3; 3]);
+        let add = |acc: &mut Acc, (du, dg): &Acc| {
+            for i in 0..3 {
+                acc.0[i] += du[i];
+                for m in 0..3 {
+                    acc.1[i][m] += dg[i][m];
+                }
+            }
+        };
+        // The full stencil: a symmetric sum would share the table but not the contractions,
+        // which dominate here (measured: no faster).
+        let real = cells.gather(prm.cutoff, |acc: &mut Acc, hits| {
             for h in 0..hits.len {
                 let j = hits.index[h] as usize;
                 let r = [hits.x[h], hits.y[h], hits.z[h]];
                 let rn = dot(r, r).sqrt();
                 let dv = table.eval(rn);
-                let (du, dg) = stresslet_from_derivatives(r, rn, ps[j], ss[j], &dv);
-                for i in 0..3 {
-                    acc.0[i] += du[i];
-                    for m in 0..3 {
-                        acc.1[i][m] += dg[i][m];
-                    }
-                }
+                add(acc, &stresslet_from_derivatives(r, rn, ps[j], ss[j], &dv));
             }
         });
         let t2 = Instant::now();

@@ -235,7 +235,7 @@ fn fast_stresslet_sum_meets_the_requested_tolerance() {
 }
 
 #[test]
-fn fast_sums_are_bit_identical_for_one_and_two_threads() {
+fn fast_sums_are_bit_identical_for_one_two_and_three_threads() {
     let l = 10.0;
     let (y, f) = rods(1500, l, 21);
     let geo = RpyGeometry {
@@ -243,13 +243,30 @@ fn fast_sums_are_bit_identical_for_one_and_two_threads() {
         radius: A_RPY,
         group: 4,
     };
+    let p: Vec<Vec3> = f
+        .iter()
+        .map(|v| {
+            let n = dot(*v, *v).sqrt();
+            v.map(|c| c / n)
+        })
+        .collect();
+    let sigma = vec![0.85; y.len()];
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| SpectralEwald::new(1e-6).unwrap().rpy(&geo, &y, &f).unwrap())
+        pool.install(|| {
+            let u = SpectralEwald::new(1e-6).unwrap().rpy(&geo, &y, &f).unwrap();
+            let s = SpectralEwald::new(1e-6)
+                .unwrap()
+                .stresslets(l, &y, &p, &sigma)
+                .unwrap();
+            (u, s.u, s.grad)
+        })
     };
-    let (a, b) = (run(1), run(2));
-    assert!(a == b, "1 and 2 threads differ");
+    let one = run(1);
+    for threads in [2, 3] {
+        assert!(run(threads) == one, "1 and {threads} threads differ");
+    }
 }
