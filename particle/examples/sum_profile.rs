@@ -1,5 +1,7 @@
 //! Time the stages of one spectral Ewald RPY product: `cargo run --release -p motile-particle
-//! --example sum_profile -- [points] [tol] [density] [stresslets]`.
+//! --example sum_profile -- [points] [tol] [density] [stresslets]`. Medians over `REPS` calls
+//! (default 9) at new points each call, then at the same points; `PAIR_COST` overrides the
+//! cost model's constant.
 
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::spectral_ewald::SpectralEwald;
@@ -65,29 +67,38 @@ fn main() {
         ));
     }
     let reps: usize = std::env::var("REPS").map_or(9, |r| r.parse().unwrap());
-    let mut rows = Vec::new();
-    for _ in 0..reps {
-        let t = Instant::now();
-        s.rpy(&geo, &y, &f).unwrap();
-        let total = t.elapsed().as_secs_f64();
-        let st = s.last_timing();
-        rows.push([total, st.setup, st.real, st.fourier, st.corrections]);
+    // A second configuration, so that alternating calls always see new points (a GMRES
+    // solve repeats products at the same points, which reuse the prepared points).
+    let y2: Vec<[f64; 3]> = y
+        .iter()
+        .map(|p| p.map(|c| (c + 0.37).rem_euclid(l)))
+        .collect();
+    for (label, alternate) in [("new points", true), ("same points", false)] {
+        let mut rows = Vec::new();
+        for rep in 0..reps {
+            let pts = if alternate && rep % 2 == 1 { &y2 } else { &y };
+            let t = Instant::now();
+            s.rpy(&geo, pts, &f).unwrap();
+            let total = t.elapsed().as_secs_f64();
+            let st = s.last_timing();
+            rows.push([total, st.setup, st.real, st.fourier, st.corrections]);
+        }
+        // The first call plans and page-faults its buffers: medians of the rest.
+        let median = |c: usize| {
+            let mut v: Vec<f64> = rows[1..].iter().map(|r| r[c]).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        println!(
+            "rpy N {n} tol {tol:e}, {label}: median of {} calls {:.4} s (setup {:.4}, real {:.4}, fourier {:.4}, corrections {:.4}); first call {:.4} s; {:?}",
+            reps - 1,
+            median(0),
+            median(1),
+            median(2),
+            median(3),
+            median(4),
+            rows[0][0],
+            s.last_params().unwrap()
+        );
     }
-    // The first call plans and page-faults its buffers: medians of the rest.
-    let median = |c: usize| {
-        let mut v: Vec<f64> = rows[1..].iter().map(|r| r[c]).collect();
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    println!(
-        "rpy N {n} tol {tol:e}: median of {} calls {:.4} s (setup {:.4}, real {:.4}, fourier {:.4}, corrections {:.4}); first call {:.4} s; {:?}",
-        reps - 1,
-        median(0),
-        median(1),
-        median(2),
-        median(3),
-        median(4),
-        rows[0][0],
-        s.last_params().unwrap()
-    );
 }

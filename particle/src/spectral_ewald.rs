@@ -109,6 +109,8 @@ pub struct SpectralEwald {
     grid: Option<GaussianGrid>,
     /// Box length of the grid.
     grid_box: f64,
+    /// The last sum's points, prepared (taken out during a sum).
+    prepared: Option<Prepared>,
     last: Option<EwaldParams>,
     timing: SumTiming,
 }
@@ -139,6 +141,7 @@ impl SpectralEwald {
             fixed: None,
             grid: None,
             grid_box: 0.0,
+            prepared: None,
             last: None,
             timing: SumTiming::default(),
         })
@@ -154,16 +157,19 @@ impl SpectralEwald {
         self.last
     }
 
+    /// Parameters, grid, and the points prepared for both parts; a sum at the same points,
+    /// box, group size and parameters as the last one (the products of one GMRES solve)
+    /// reuses the sorted points, their windows and the cell list.
     fn prepare(
         &mut self,
-        n: usize,
         l: f64,
         points: &[Vec3],
+        group: usize,
         pair_cost: f64,
-    ) -> Result<(EwaldParams, GridPoints), SumError> {
+    ) -> Result<Prepared, SumError> {
         let p = self
             .fixed
-            .unwrap_or_else(|| EwaldParams::choose_with(self.tol, n, l, pair_cost));
+            .unwrap_or_else(|| EwaldParams::choose_with(self.tol, points.len(), l, pair_cost));
         if p.cutoff > 0.5 * l * (1.0 + 1e-12) {
             return Err(SumError::Input(format!(
                 "real-space cutoff {} exceeds half the box {}",
@@ -182,19 +188,43 @@ impl SpectralEwald {
             self.grid = Some(GaussianGrid::new(l, p.xi, p.modes, p.support, p.shape));
             self.grid_box = l;
         }
-        let pts = self
+        self.last = Some(p);
+        if let Some(prep) = self.prepared.take()
+            && !rebuild
+            && prep.group == group
+            && prep.points == points
+        {
+            return Ok(prep);
+        }
+        let grid_points = self
             .grid
             .as_ref()
             .expect("grid built above")
             .prepare(points);
-        self.last = Some(p);
-        Ok((p, pts))
+        Ok(Prepared {
+            points: points.to_vec(),
+            group,
+            params: p,
+            grid_points,
+            cells: PointCells::build(points, l, p.cutoff, group),
+        })
     }
+}
+
+/// The points of the last sum, prepared for its parameters.
+#[derive(Debug)]
+struct Prepared {
+    points: Vec<Vec3>,
+    group: usize,
+    params: EwaldParams,
+    grid_points: GridPoints,
+    cells: PointCells,
 }
 
 /// Points sorted into cells of side at least half the cutoff (a 5^3 stencil then covers the
 /// cutoff sphere with 3.7 times its volume, against 6.4 for cells of the full cutoff), with a
 /// cell-ordered copy of the positions so the inner loop streams through memory.
+#[derive(Debug)]
 struct PointCells {
     n: usize,
     l: f64,
@@ -604,11 +634,11 @@ impl PeriodicStokes for SpectralEwald {
         check_rpy(geometry, points, forces)?;
         let (l, a, g) = (geometry.box_length, geometry.radius, geometry.group);
         let t0 = Instant::now();
-        let (p, pts) = self.prepare(points.len(), l, points, PAIR_COST)?;
+        let prep = self.prepare(l, points, g, PAIR_COST)?;
+        let (p, pts, cells) = (prep.params, &prep.grid_points, &prep.cells);
         let xi = p.xi;
         let t1 = Instant::now();
         // Real space: every neighbour outside the own group, plus the overlap correction.
-        let cells = PointCells::build(points, l, p.cutoff, g);
         let table = RealSpaceTable::new(p.cutoff, xi, a);
         let sorted_forces = cells.sorted_values(forces);
         // Distances first, in a loop of independent iterations (square roots and divisions
@@ -676,12 +706,12 @@ impl PeriodicStokes for SpectralEwald {
         let f: Vec<Vec<f64>> = (0..3)
             .map(|d| forces.par_iter().map(|v| v[d]).collect())
             .collect();
-        let spread = grid.spread(&pts, [&f[0], &f[1], &f[2]]);
+        let spread = grid.spread(pts, [&f[0], &f[1], &f[2]]);
         let vol = l * l * l;
         let conv = grid.convolve::<3, 3>(spread, |k, k2, screen, f| {
             rpy_fourier_mode_screened(k, k2, screen, xi, a, vol, f)
         });
-        let uf: [Vec<f64>; 3] = grid.gather(&pts, conv);
+        let uf: [Vec<f64>; 3] = grid.gather(pts, conv);
         let t3 = Instant::now();
         // Own group's direct Fourier-part terms come out (the point itself included).
         u.par_iter_mut().enumerate().for_each(|(t, ut)| {
@@ -705,6 +735,7 @@ impl PeriodicStokes for SpectralEwald {
             }
             *ut = ut.map(|c| c / VISCOSITY);
         });
+        self.prepared = Some(prep);
         self.timing = SumTiming {
             setup: (t1 - t0).as_secs_f64(),
             real: (t2 - t1).as_secs_f64(),
@@ -728,10 +759,10 @@ impl PeriodicStokes for SpectralEwald {
             ));
         }
         let t0 = Instant::now();
-        let (prm, pts) = self.prepare(x.len(), l, x, STRESSLET_PAIR_COST)?;
+        let prep = self.prepare(l, x, 1, STRESSLET_PAIR_COST)?;
+        let (prm, pts, cells) = (prep.params, &prep.grid_points, &prep.cells);
         let xi = prm.xi;
         let t1 = Instant::now();
-        let cells = PointCells::build(x, l, prm.cutoff, 1);
         let (ps, ss) = (cells.sorted_values(p), cells.sorted_values(sigma));
         let table = StressletTable::new(prm.cutoff, xi);
         type Acc = (Vec3, [Vec3; 3]);
@@ -766,7 +797,7 @@ impl PeriodicStokes for SpectralEwald {
                     .collect()
             })
             .collect();
-        let spread = grid.spread(&pts, std::array::from_fn::<_, 6, _>(|c| s[c].as_slice()));
+        let spread = grid.spread(pts, std::array::from_fn::<_, 6, _>(|c| s[c].as_slice()));
         let vol = l * l * l;
         // Velocity only: the gradient comes from the window's derivative in the gather.
         let out = grid.convolve::<6, 3>(spread, |k, k2, screen, sh| {
@@ -787,7 +818,7 @@ impl PeriodicStokes for SpectralEwald {
             });
             rpy_fourier_mode_screened(k, k2, screen, xi, 0.0, vol, f)
         });
-        let back = grid.gather_gradient(&pts, out);
+        let back = grid.gather_gradient(pts, out);
         let t3 = Instant::now();
         let (u, grad): (Vec<Vec3>, Vec<[Vec3; 3]>) = real
             .into_par_iter()
@@ -803,6 +834,7 @@ impl PeriodicStokes for SpectralEwald {
                 (u, g)
             })
             .unzip();
+        self.prepared = Some(prep);
         self.timing = SumTiming {
             setup: (t1 - t0).as_secs_f64(),
             real: (t2 - t1).as_secs_f64(),

@@ -270,3 +270,34 @@ fn fast_sums_are_bit_identical_for_one_two_and_three_threads() {
         assert!(run(threads) == one, "1 and {threads} threads differ");
     }
 }
+
+/// A sum at the points of the previous sum reuses their preparation (sorted points, windows,
+/// cell list); the result must not depend on it: the same as a fresh sum, bit for bit, also
+/// after a sum at other points or with other forces in between.
+#[test]
+fn repeated_sums_at_the_same_points_match_fresh_sums() {
+    let l = 9.0;
+    let (y, f) = rods(800, l, 31);
+    let (y2, f2) = rods(800, l, 32);
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: A_RPY,
+        group: 4,
+    };
+    let fresh = |y: &[Vec3], f: &[Vec3]| SpectralEwald::new(1e-5).unwrap().rpy(&geo, y, f).unwrap();
+    let mut sum = SpectralEwald::new(1e-5).unwrap();
+    let first = sum.rpy(&geo, &y, &f).unwrap();
+    assert!(first == fresh(&y, &f), "first sum");
+    assert!(
+        sum.rpy(&geo, &y, &f2).unwrap() == fresh(&y, &f2),
+        "same points, other forces"
+    );
+    assert!(
+        sum.rpy(&geo, &y2, &f).unwrap() == fresh(&y2, &f),
+        "other points"
+    );
+    assert!(
+        sum.rpy(&geo, &y, &f).unwrap() == first,
+        "back to the first points"
+    );
+}
