@@ -3,11 +3,13 @@
 FINUFFT and numpy, side by side with motile in one run.
 
 For each (points, tolerance) this script runs motile's `ewald_export` example (which writes its
-random points, forces, result, parameters and timings), then computes the same sum in Python
-with the same splitting parameter, cutoff and modes:
-  * Fourier part: FINUFFT type 1 (isign -1) and type 2 (isign +1), upsampfac 2, two real force
-    components packed per complex transform (as motile does), Hermitian unpacking, the
-    Hasimoto/RPY multiplier;
+random points, forces, result, parameters and timings; its timed calls alternate between two
+point sets, so each prepares its points like the peer's calls do), then computes the same sum
+in Python with the same splitting parameter and cutoff:
+  * Fourier part: FINUFFT type 1 (isign -1) and type 2 (isign +1), upsampfac 2, on the modes
+    with |k| <= k_max (motile instead spreads with Gaussians onto a grid of about that many
+    points, no upsampling), two real force components packed per complex transform,
+    Hermitian unpacking, the Hasimoto/RPY multiplier;
   * real space: a numpy cell list (cells of side >= r_c/2, 5^3 stencil, padded cells), the
     real-space kernel from a table of the smooth Fourier part (as motile does), self term.
 It prints the relative L2 difference between the two results (an independent check of motile's

@@ -41,27 +41,45 @@ fn main() {
         radius: 0.0866,
         group: 1,
     };
+    // Timed calls alternate with a shifted copy of the points, so each one prepares its points
+    // as the peer's does (nothing reused from the call before); the result is from `y`.
+    let y2: Vec<[f64; 3]> = y
+        .iter()
+        .map(|p| p.map(|c| (c + 0.37).rem_euclid(l)))
+        .collect();
     let mut s = SpectralEwald::new(tol).unwrap();
     let mut times = Vec::new();
     let mut u = Vec::new();
     let mut stages = Vec::new();
-    for _ in 0..reps {
+    for rep in 0..reps {
+        let pts = if rep % 2 == 0 { &y2 } else { &y };
         let t = Instant::now();
-        u = s.rpy(&geo, &y, &f).unwrap();
+        let v = s.rpy(&geo, pts, &f).unwrap();
         times.push(t.elapsed().as_secs_f64());
         stages.push(s.last_timing());
+        if rep % 2 == 1 {
+            u = v;
+        }
+    }
+    if u.is_empty() {
+        u = s.rpy(&geo, &y, &f).unwrap();
     }
     let mut sorted = times.clone();
     sorted.sort_by(f64::total_cmp);
     let k = times.iter().position(|t| *t == sorted[reps / 2]).unwrap();
     let p = s.last_params().unwrap();
+    // A NUFFT needs only the modes with |k| <= k_max = 2 xi c (motile's grid is oversampled
+    // for its Gaussian window): the peer gets those.
+    let kmax = 2.0 * p.xi * (1.0 / tol).ln().sqrt();
+    let nufft_modes = 2 * (kmax * l / (2.0 * std::f64::consts::PI)).floor() as usize + 2;
     write_f64(&out.join("points.f64"), &y);
     write_f64(&out.join("forces.f64"), &f);
     write_f64(&out.join("u.f64"), &u);
     let json = format!(
-        "{{\"n\": {n}, \"tol\": {tol:e}, \"box_length\": {l}, \"radius\": 0.0866, \"xi\": {}, \"cutoff\": {}, \"modes\": {}, \"nufft_tol\": {:e}, \"median_s\": {}, \"real_s\": {}, \"fourier_s\": {}, \"threads\": {}}}",
+        "{{\"n\": {n}, \"tol\": {tol:e}, \"box_length\": {l}, \"radius\": 0.0866, \"xi\": {}, \"cutoff\": {}, \"modes\": {}, \"grid\": {}, \"nufft_tol\": {:e}, \"median_s\": {}, \"real_s\": {}, \"fourier_s\": {}, \"threads\": {}}}",
         p.xi,
         p.cutoff,
+        nufft_modes,
         p.modes,
         (tol / 2.0).max(1e-14),
         sorted[reps / 2],

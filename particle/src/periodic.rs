@@ -23,12 +23,9 @@ pub struct RpyGeometry {
 /// Errors of the periodic sums.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SumError {
-    /// Input of the wrong shape.
+    /// Input of the wrong shape or not finite.
     #[error("periodic sum: {0}")]
     Input(String),
-    /// The NUFFT refused the input.
-    #[error(transparent)]
-    Nufft(#[from] motile_analysis::nufft::NufftError),
 }
 
 /// The velocity/gradient produced by point stresslets at their centres (the dipole model).

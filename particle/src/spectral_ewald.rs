@@ -196,6 +196,15 @@ impl SpectralEwald {
         {
             return Ok(prep);
         }
+        if let Some(i) = points
+            .par_iter()
+            .position_first(|y| !y.iter().all(|c| c.is_finite()))
+        {
+            return Err(SumError::Input(format!(
+                "point {i} has a non-finite coordinate {:?}",
+                points[i]
+            )));
+        }
         let grid_points = self
             .grid
             .as_ref()

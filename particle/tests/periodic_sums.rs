@@ -301,3 +301,24 @@ fn repeated_sums_at_the_same_points_match_fresh_sums() {
         "back to the first points"
     );
 }
+
+#[test]
+fn a_non_finite_point_is_refused_with_its_index() {
+    let l = 6.0;
+    let (mut y, f) = rods(100, l, 41);
+    y[37][1] = f64::NAN;
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: A_RPY,
+        group: 4,
+    };
+    let err = SpectralEwald::new(1e-4)
+        .unwrap()
+        .rpy(&geo, &y, &f)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("point 37") && err.contains("non-finite"),
+        "{err}"
+    );
+}
