@@ -616,20 +616,34 @@ impl Hits {
         group: &[u32],
         c2: f64,
     ) {
-        self.reserve(run.len());
+        let n = run.len();
+        if n == 0 {
+            return;
+        }
+        self.reserve(n);
         let (px, py, pz) = (&xs[run.clone()], &ys[run.clone()], &zs[run.clone()]);
         let pg = &group[run.clone()];
-        let mut len = self.len;
-        for (i, (((&x, &y), &z), &g)) in px.iter().zip(py).zip(pz).zip(pg).enumerate() {
-            let r = [t[0] - x, t[1] - y, t[2] - z];
+        // Local windows of the hit arrays: the write position `k <= i < n` is clamped to `n - 1`
+        // (a no-op) so the compiler drops the bounds checks.
+        let base = self.len;
+        let (hx, hy, hz) = (
+            &mut self.x[base..base + n],
+            &mut self.y[base..base + n],
+            &mut self.z[base..base + n],
+        );
+        let hi = &mut self.index[base..base + n];
+        let mut k = 0;
+        for i in 0..n {
+            let r = [t[0] - px[i], t[1] - py[i], t[2] - pz[i]];
             let r2 = dot(r, r);
-            self.x[len] = r[0];
-            self.y[len] = r[1];
-            self.z[len] = r[2];
-            self.index[len] = (run.start + i) as u32;
-            len += usize::from((r2 < c2) & (g != gt));
+            let slot = k.min(n - 1);
+            hx[slot] = r[0];
+            hy[slot] = r[1];
+            hz[slot] = r[2];
+            hi[slot] = (run.start + i) as u32;
+            k += usize::from((r2 < c2) & (pg[i] != gt));
         }
-        self.len = len;
+        self.len = base + k;
     }
 }
 
