@@ -177,9 +177,10 @@ impl SpectralEwald {
                 0.5 * l
             )));
         }
-        if p.modes < p.support || p.support < 2 {
+        if p.modes < p.support || p.support < 2 || !p.modes.is_multiple_of(2) {
             return Err(SumError::Input(format!(
-                "Gaussian grid of {} points per axis with support {}",
+                "Gaussian grid of {} points per axis with support {} (needs an even grid of at \
+                 least the support)",
                 p.modes, p.support
             )));
         }
@@ -251,14 +252,15 @@ struct PointCells {
 impl PointCells {
     fn build(y: &[Vec3], l: f64, cutoff: f64, group: usize) -> Self {
         let n = ((2.0 * l / cutoff).floor() as usize).max(1);
+        // The cell comes from the wrapped position itself, so a point and its cell always
+        // agree: a coordinate just below 0 wraps to L by rounding and is stored as 0, and a
+        // cell computed from the unwrapped fraction (1.0 after rounding) put it in the last
+        // cell, about L from its stored position, losing all its real-space pairs.
+        let scale = n as f64 / l;
         let cell_of: Vec<u32> = y
             .par_iter()
             .map(|p| {
-                let idx = p.map(|c| {
-                    let f = c / l;
-                    let f = f - f.floor();
-                    ((f * n as f64) as usize).min(n - 1)
-                });
+                let idx = wrap_position(*p, l).map(|c| ((c * scale) as usize).min(n - 1));
                 ((idx[2] * n + idx[1]) * n + idx[0]) as u32
             })
             .collect();
@@ -278,12 +280,7 @@ impl PointCells {
         // Wrapped into [0, L) so that a neighbour cell's periodic shift is one vector per cell.
         let sorted: Vec<Vec3> = members
             .par_iter()
-            .map(|&i| {
-                y[i as usize].map(|c| {
-                    let f = c - l * (c / l).floor();
-                    if f >= l { 0.0 } else { f }
-                })
-            })
+            .map(|&i| wrap_position(y[i as usize], l))
             .collect();
         let group = members
             .iter()
@@ -533,6 +530,14 @@ impl PointCells {
         }
         result
     }
+}
+
+/// A position wrapped into `[0, L)` (a coordinate that rounds to `L` becomes 0).
+fn wrap_position(y: Vec3, l: f64) -> Vec3 {
+    y.map(|c| {
+        let f = c - l * (c / l).floor();
+        if f >= l { 0.0 } else { f }
+    })
 }
 
 /// `floor(x)` for `|x| < 2^62` without a call (the baseline x86-64 target has no rounding

@@ -6,7 +6,7 @@
 use motile_particle::geometry::{Vec3, dot, sub};
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::rpy_reference::EwaldReference;
-use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::spectral_ewald::{EwaldParams, SpectralEwald};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -320,5 +320,50 @@ fn a_non_finite_point_is_refused_with_its_index() {
     assert!(
         err.contains("point 37") && err.contains("non-finite"),
         "{err}"
+    );
+}
+
+/// A coordinate just below 0 wraps to L by rounding: the point must still keep its real-space
+/// neighbours (it used to be filed in the last cell while stored at 0, about L from its
+/// neighbours, and lost every real-space pair). Moving a point from 0 to -1e-16 may change the
+/// result by round-off only.
+#[test]
+fn a_point_just_below_zero_keeps_its_neighbours() {
+    let l = 10.0;
+    let mut y: Vec<Vec3> = vec![
+        [0.0, 5.0, 5.0],
+        [0.3, 5.0, 5.1],
+        [l - 0.3, 5.1, 5.0],
+        [2.0, 2.0, 2.0],
+        [7.0, 1.0, 3.0],
+        [4.0, 8.0, 6.0],
+    ];
+    let f: Vec<Vec3> = (0..6)
+        .map(|i| [1.0 - 0.3 * i as f64, 0.5, -0.2 * i as f64])
+        .collect();
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: A_RPY,
+        group: 1,
+    };
+    let mut sum = SpectralEwald::new(1e-6).unwrap();
+    // Many cells per axis, so the point's cell matters.
+    sum.fixed = Some(EwaldParams::choose(1e-6, 200_000, l));
+    let at_zero = sum.rpy(&geo, &y, &f).unwrap();
+    y[0][0] = -1e-16;
+    let below = sum.rpy(&geo, &y, &f).unwrap();
+    let scale = at_zero
+        .iter()
+        .flatten()
+        .map(|v| v.abs())
+        .fold(0.0, f64::max);
+    let diff = at_zero
+        .iter()
+        .zip(&below)
+        .flat_map(|(a, b)| (0..3).map(move |d| (a[d] - b[d]).abs()))
+        .fold(0.0, f64::max);
+    assert!(
+        diff <= 1e-12 * scale,
+        "moving a point from 0 to -1e-16 changed the velocities by {diff:e} (scale {scale:e})"
     );
 }
