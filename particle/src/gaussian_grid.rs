@@ -182,6 +182,12 @@ impl GaussianGrid {
     /// Sort `points` by slab and evaluate their windows (fast Gaussian gridding: two
     /// exponentials per axis, the rest by products).
     pub fn prepare(&self, points: &[Vec3]) -> GridPoints {
+        self.prepare_reusing(points, GridPoints::default())
+    }
+
+    /// [`Self::prepare`] writing into the buffers of earlier prepared points (fresh buffers of
+    /// this size were page-faulted anew on every call: most of the preparation's time).
+    pub fn prepare_reusing(&self, points: &[Vec3], old: GridPoints) -> GridPoints {
         let (m, p, h) = (self.m, self.p, self.h);
         let bounds = self.slab_bounds();
         let nslab = bounds.len() - 1;
@@ -217,14 +223,26 @@ impl GaussianGrid {
         }
         let start: Vec<usize> = (0..=nslab).map(|s| count[s * nb * nb * nb]).collect();
         let mut next = count;
-        let mut perm = vec![0u32; points.len()];
+        let GridPoints {
+            mut perm,
+            mut first,
+            mut weights,
+            mut offset,
+            ..
+        } = old;
+        // Every entry is overwritten below.
+        perm.resize(points.len(), 0);
+        first.resize(points.len(), [0; 3]);
+        weights.resize(3 * p * points.len(), 0.0);
+        offset.resize(points.len(), [0.0; 3]);
         for (i, &(_, k)) in per_point.iter().enumerate() {
             perm[next[k]] = i as u32;
             next[k] += 1;
         }
-        let first: Vec<[u32; 3]> = perm.iter().map(|&i| per_point[i as usize].0).collect();
-        let mut weights = vec![0.0; 3 * p * points.len()];
-        let mut offset = vec![[0.0; 3]; points.len()];
+        first
+            .par_iter_mut()
+            .zip(perm.par_iter())
+            .for_each(|(f, &i)| *f = per_point[i as usize].0);
         weights
             .par_chunks_mut(3 * p)
             .zip(offset.par_iter_mut())

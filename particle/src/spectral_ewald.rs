@@ -190,10 +190,9 @@ impl SpectralEwald {
             self.grid_box = l;
         }
         self.last = Some(p);
-        if let Some(prep) = self.prepared.take()
-            && !rebuild
-            && prep.group == group
-            && prep.points == points
+        let mut old = self.prepared.take();
+        if let Some(prep) =
+            old.take_if(|prep| !rebuild && prep.group == group && prep.points == points)
         {
             return Ok(prep);
         }
@@ -206,13 +205,20 @@ impl SpectralEwald {
                 points[i]
             )));
         }
+        // The old preparation's buffers are reused (fresh ones page-fault on every call).
+        let (mut kept, old_grid) = match old {
+            Some(prep) => (prep.points, prep.grid_points),
+            None => (Vec::new(), GridPoints::default()),
+        };
         let grid_points = self
             .grid
             .as_ref()
             .expect("grid built above")
-            .prepare(points);
+            .prepare_reusing(points, old_grid);
+        kept.clear();
+        kept.extend_from_slice(points);
         Ok(Prepared {
-            points: points.to_vec(),
+            points: kept,
             group,
             params: p,
             grid_points,
