@@ -350,7 +350,8 @@ impl PointCells {
                         hits.clear();
                         for (jk, yj) in self.sorted.iter().enumerate() {
                             let r = min_image([yt[0] - yj[0], yt[1] - yj[1], yt[2] - yj[2]], l);
-                            hits.push(r, jk, dot(r, r) < c2 && self.group[jk] != gt);
+                            let r2 = dot(r, r);
+                            hits.push(r, jk, r2 < c2 && r2 > 0.0 && self.group[jk] != gt);
                         }
                         f(acc, hits);
                     }
@@ -615,8 +616,9 @@ impl Hits {
     }
 
     /// Append the points `run` of groups other than `gt` within the cutoff of `t` (shifted
-    /// target), without branches: every candidate is written at `len`, which advances only
-    /// for hits.
+    /// target) and not on it (a coincident point has no defined direction; such pairs were
+    /// always left out), without branches: every candidate is written at `len`, which
+    /// advances only for hits.
     #[inline]
     fn push_run(
         &mut self,
@@ -652,7 +654,7 @@ impl Hits {
             hy[slot] = r[1];
             hz[slot] = r[2];
             hi[slot] = (run.start + i) as u32;
-            k += usize::from((r2 < c2) & (pg[i] != gt));
+            k += usize::from((r2 < c2) & (r2 > 0.0) & (pg[i] != gt));
         }
         self.len = base + k;
     }

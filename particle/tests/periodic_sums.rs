@@ -367,3 +367,24 @@ fn a_point_just_below_zero_keeps_its_neighbours() {
         "moving a point from 0 to -1e-16 changed the velocities by {diff:e} (scale {scale:e})"
     );
 }
+
+/// Two coincident points (different groups) give finite velocities: such a pair has no
+/// direction and is left out of the real-space sum, as it always was.
+#[test]
+fn coincident_points_give_finite_velocities() {
+    let l = 8.0;
+    let (mut y, f) = rods(200, l, 51);
+    y[10] = y[50];
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: A_RPY,
+        group: 1,
+    };
+    let u = SpectralEwald::new(1e-6).unwrap().rpy(&geo, &y, &f).unwrap();
+    assert!(
+        u.iter().flatten().all(|v| v.is_finite()),
+        "non-finite velocities: {:?} {:?}",
+        u[10],
+        u[50]
+    );
+}
