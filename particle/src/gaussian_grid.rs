@@ -19,7 +19,7 @@
 //! independent per point. Results are bit-identical for any rayon pool size.
 
 use crate::geometry::{Vec3, dot};
-use crate::spectral_ewald::floor_i64;
+use crate::spectral_ewald::{floor_i64, wrap_position};
 use motile_analysis::fft3::RealFft3;
 use num_complex::Complex64;
 use rayon::prelude::*;
@@ -201,6 +201,9 @@ impl GaussianGrid {
         let per_point: Vec<([u32; 3], usize)> = points
             .par_iter()
             .map(|y| {
+                // Wrapped first: the grid coordinate of an unwrapped position far outside the
+                // box (1e19 and more) overflows the integer floor.
+                let y = wrap_position(*y, self.l);
                 let first = [0, 1, 2].map(|d| {
                     let t = y[d] / h;
                     let i0 = -floor_i64(p as f64 / 2.0 - t);
@@ -248,7 +251,7 @@ impl GaussianGrid {
             .zip(offset.par_iter_mut())
             .zip(perm.par_iter())
             .for_each(|((w, off), &i)| {
-                let y = points[i as usize];
+                let y = wrap_position(points[i as usize], self.l);
                 for d in 0..3 {
                     let t = y[d] / h;
                     let i0 = -floor_i64(p as f64 / 2.0 - t) as f64;

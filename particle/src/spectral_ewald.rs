@@ -540,7 +540,7 @@ impl PointCells {
 }
 
 /// A position wrapped into `[0, L)` (a coordinate that rounds to `L` becomes 0).
-fn wrap_position(y: Vec3, l: f64) -> Vec3 {
+pub(crate) fn wrap_position(y: Vec3, l: f64) -> Vec3 {
     y.map(|c| {
         let f = c - l * (c / l).floor();
         if f >= l { 0.0 } else { f }

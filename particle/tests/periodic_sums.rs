@@ -388,3 +388,46 @@ fn coincident_points_give_finite_velocities() {
         u[50]
     );
 }
+
+/// Points far outside the box (whole box lengths away, up to 1e19) are their periodic images:
+/// finite velocities, equal to those of the wrapped points up to the round-off of wrapping.
+#[test]
+fn points_far_outside_the_box_are_their_images() {
+    let l = 6.0;
+    let (y, f) = rods(100, l, 61);
+    let wrapped: Vec<Vec3> = y.iter().map(|p| p.map(|c| c.rem_euclid(l))).collect();
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: A_RPY,
+        group: 1,
+    };
+    let base = SpectralEwald::new(1e-6)
+        .unwrap()
+        .rpy(&geo, &wrapped, &f)
+        .unwrap();
+    let scale = base.iter().flatten().map(|v| v.abs()).fold(0.0, f64::max);
+    for shift in [3.0 * l, -1e6 * l] {
+        let mut far = wrapped.clone();
+        far[7][0] += shift;
+        let u = SpectralEwald::new(1e-6)
+            .unwrap()
+            .rpy(&geo, &far, &f)
+            .unwrap();
+        let diff = u
+            .iter()
+            .zip(&base)
+            .flat_map(|(a, b)| (0..3).map(move |d| (a[d] - b[d]).abs()))
+            .fold(0.0, f64::max);
+        assert!(
+            diff <= 1e-8 * scale,
+            "shift {shift:e}: velocities moved by {diff:e}"
+        );
+    }
+    let mut huge = wrapped.clone();
+    huge[7][0] = 1e19;
+    let u = SpectralEwald::new(1e-6)
+        .unwrap()
+        .rpy(&geo, &huge, &f)
+        .unwrap();
+    assert!(u.iter().flatten().all(|v| v.is_finite()), "a point at 1e19");
+}
