@@ -470,7 +470,8 @@ impl PointCells {
         assert!(n >= 5, "the symmetric sum needs at least 5 cells per axis");
         let nn = n * n;
         let plane_start = |z: usize| self.start[z * nn];
-        let t = 2.max(n.div_ceil(8));
+        // Slabs as thin as allowed, so each phase has many to share among threads.
+        let t = 2;
         let ns = (n / t) & !1;
         let bounds: Vec<usize> = if ns < 2 {
             vec![0, n]
