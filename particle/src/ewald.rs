@@ -572,7 +572,8 @@ impl RealSpaceTable {
     /// `(A_R, B_R)` at `0 < r <= cutoff`.
     #[inline]
     pub fn eval(&self, r: f64) -> (f64, f64) {
-        self.eval_inv(r, 1.0 / r)
+        let (a, b_r2) = self.eval_a_b_r2(r, 1.0 / r);
+        (a, b_r2 * r * r)
     }
 
     /// `(A_R, B_R / r^2)` given `r` and `1/r`: the pair sums apply `A f + (B / r^2)(r . f) r`
@@ -588,20 +589,6 @@ impl RealSpaceTable {
         (
             self.c * inv + self.ca * inv3 - af,
             (self.c - self.cb * inv2) * inv3 - bf,
-        )
-    }
-
-    /// [`Self::eval`] given `1/r` too (the pair loops have it: one division per pair).
-    #[inline]
-    pub fn eval_inv(&self, r: f64, inv: f64) -> (f64, f64) {
-        let (i, w) = lagrange4(r * self.inv_h, self.n);
-        let g = &self.g[i..i + 4];
-        let af = w[0] * g[0][0] + w[1] * g[1][0] + w[2] * g[2][0] + w[3] * g[3][0];
-        let bf = w[0] * g[0][1] + w[1] * g[1][1] + w[2] * g[2][1] + w[3] * g[3][1];
-        let inv3 = inv * inv * inv;
-        (
-            self.c * inv + self.ca * inv3 - af,
-            self.c * inv - self.cb * inv3 - bf * r * r,
         )
     }
 }

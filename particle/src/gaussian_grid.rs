@@ -18,8 +18,8 @@
 //! every grid value receives its contributions in an order fixed by the sort. The gather is
 //! independent per point. Results are bit-identical for any rayon pool size.
 
-use crate::geometry::{Vec3, dot};
-use crate::spectral_ewald::{floor_i64, wrap_position};
+use crate::geometry::{Vec3, dot, floor_i64, wrap_position};
+use crate::slabs::{self, phased};
 use motile_analysis::fft3::RealFft3;
 use num_complex::Complex64;
 use rayon::prelude::*;
@@ -166,20 +166,6 @@ impl GaussianGrid {
         self.eta
     }
 
-    /// Slab boundaries in grid planes (a function of the grid only): an even number of slabs,
-    /// each at least `P` planes thick, or one slab. As thin as allowed, so each phase has many
-    /// slabs to share among threads (six slabs gave three per phase: 2:1 on two threads).
-    fn slab_bounds(&self) -> Vec<usize> {
-        let t = self.p;
-        let n = (self.m / t) & !1;
-        if n < 2 {
-            return vec![0, self.m];
-        }
-        let mut b: Vec<usize> = (0..n).map(|s| s * t).collect();
-        b.push(self.m);
-        b
-    }
-
     /// Sort `points` by slab and evaluate their windows (fast Gaussian gridding: two
     /// exponentials per axis, the rest by products).
     pub fn prepare(&self, points: &[Vec3]) -> GridPoints {
@@ -190,7 +176,8 @@ impl GaussianGrid {
     /// this size were page-faulted anew on every call: most of the preparation's time).
     pub fn prepare_reusing(&self, points: &[Vec3], old: GridPoints) -> GridPoints {
         let (m, p, h) = (self.m, self.p, self.h);
-        let bounds = self.slab_bounds();
+        // Slabs at least P planes thick: a footprint reaches P planes.
+        let bounds = slabs::bounds(self.m, self.p);
         let nslab = bounds.len() - 1;
         // e^{-alpha q^2 h^2}, q = 0..P.
         let tail: Vec<f64> = (0..p)
@@ -294,7 +281,6 @@ impl GaussianGrid {
         work.clear();
         work.resize(m * plane, 0.0);
         let bounds = &pts.slab_bounds;
-        let nslab = bounds.len() - 1;
         let spread_slab = |s: usize, main: &mut [f64], main_start: usize, wrap: &mut [f64]| {
             let slab = Slab {
                 points: pts.slab_start[s]..pts.slab_start[s + 1],
@@ -304,38 +290,13 @@ impl GaussianGrid {
             };
             with_support!(p, spread_slab::<NF>(pts, &slab, fields, main, wrap));
         };
-        if nslab == 1 {
-            spread_slab(0, &mut work, 0, &mut []);
-        } else {
-            for phase in 0..2 {
-                // Windows of this phase's slabs, split off in increasing order.
-                let (mut head, mut rest) = if phase == 1 {
-                    let (h, r) = work.split_at_mut(p * plane);
-                    (h, r)
-                } else {
-                    (&mut [][..], &mut work[..])
-                };
-                let mut offset = if phase == 1 { p } else { 0 };
-                let mut jobs = Vec::new();
-                for s in (phase..nslab).step_by(2) {
-                    let end = (bounds[s + 1] + p).min(m);
-                    let skip = bounds[s] - offset;
-                    let (_, r) = std::mem::take(&mut rest).split_at_mut(skip * plane);
-                    let (win, r) = r.split_at_mut((end - bounds[s]) * plane);
-                    rest = r;
-                    offset = end;
-                    let wrap = if s == nslab - 1 {
-                        std::mem::take(&mut head)
-                    } else {
-                        &mut [][..]
-                    };
-                    jobs.push((s, win, wrap));
-                }
-                jobs.into_par_iter().for_each(|(s, win, wrap)| {
-                    spread_slab(s, win, bounds[s], wrap);
-                });
-            }
-        }
+        phased(
+            &mut work,
+            bounds,
+            p,
+            |z| z * plane,
+            |s, win, a, wrap| spread_slab(s, win, a / plane, wrap),
+        );
         Spread(Interleaved {
             m,
             p,

@@ -19,6 +19,7 @@ pub mod mobility;
 pub mod periodic;
 pub mod rods;
 pub mod rpy_reference;
+mod slabs;
 pub mod slender;
 pub mod spectral_ewald;
 pub mod step;

@@ -22,8 +22,9 @@ use crate::ewald::{
     rpy_overlap_correction, stresslet_fourier_self_gradient, stresslet_from_derivatives,
 };
 use crate::gaussian_grid::{GaussianGrid, GridPoints, window_for};
-use crate::geometry::{Vec3, dot, min_image};
+use crate::geometry::{Vec3, dot, floor_i64, min_image, wrap_position};
 use crate::periodic::{PeriodicStokes, RpyGeometry, StressletField, SumError, check_rpy};
+use crate::slabs::{self, phased};
 use crate::units::VISCOSITY;
 use motile_analysis::fft3::next_smooth_even;
 use num_complex::Complex64;
@@ -470,15 +471,8 @@ impl PointCells {
         assert!(n >= 5, "the symmetric sum needs at least 5 cells per axis");
         let nn = n * n;
         let plane_start = |z: usize| self.start[z * nn];
-        // Slabs as thin as allowed, so each phase has many to share among threads.
-        let t = 2;
-        let ns = (n / t) & !1;
-        let bounds: Vec<usize> = if ns < 2 {
-            vec![0, n]
-        } else {
-            (0..ns).map(|s| s * t).chain([n]).collect()
-        };
-        let nslab = bounds.len() - 1;
+        // Slabs at least two cell planes thick: a target writes up to two planes ahead.
+        let bounds = slabs::bounds(n, 2);
         let mut acc = vec![A::default(); self.members.len()];
         let task = |s: usize, main: &mut [A], main_start: usize, wrap: &mut [A]| {
             let mut hits = Hits::default();
@@ -504,56 +498,13 @@ impl PointCells {
                 }
             }
         };
-        if nslab == 1 {
-            task(0, &mut acc, 0, &mut []);
-        } else {
-            for phase in 0..2 {
-                let head_len = if phase == 1 { plane_start(2) } else { 0 };
-                let (mut head, mut rest) = acc.split_at_mut(head_len);
-                let mut offset = head_len;
-                let mut jobs = Vec::new();
-                for s in (phase..nslab).step_by(2) {
-                    let (a, b) = (
-                        plane_start(bounds[s]),
-                        plane_start((bounds[s + 1] + 2).min(n)),
-                    );
-                    let (_, r) = std::mem::take(&mut rest).split_at_mut(a - offset);
-                    let (win, r) = r.split_at_mut(b - a);
-                    rest = r;
-                    offset = b;
-                    let wrap = if s == nslab - 1 {
-                        std::mem::take(&mut head)
-                    } else {
-                        &mut [][..]
-                    };
-                    jobs.push((s, win, a, wrap));
-                }
-                jobs.into_par_iter()
-                    .for_each(|(s, win, a, wrap)| task(s, win, a, wrap));
-            }
-        }
+        phased(&mut acc, &bounds, 2, plane_start, task);
         let mut result = vec![A::default(); self.members.len()];
         for (k, v) in acc.into_iter().enumerate() {
             result[self.members[k] as usize] = v;
         }
         result
     }
-}
-
-/// A position wrapped into `[0, L)` (a coordinate that rounds to `L` becomes 0).
-pub(crate) fn wrap_position(y: Vec3, l: f64) -> Vec3 {
-    y.map(|c| {
-        let f = c - l * (c / l).floor();
-        if f >= l { 0.0 } else { f }
-    })
-}
-
-/// `floor(x)` for `|x| < 2^62` without a call (the baseline x86-64 target has no rounding
-/// instruction, and `f64::floor` is a library call there).
-#[inline]
-pub(crate) fn floor_i64(x: f64) -> i64 {
-    let i = x as i64;
-    i - i64::from(x < i as f64)
 }
 
 /// Distance along one axis from `x` to the interval `[lo, lo + side)`.
