@@ -185,8 +185,16 @@ hydrodynamics = "sbt"
         p[0].error,
         p[1].error
     );
+    // The cheapest is the fastest measured setting within the accuracy. Which one that is
+    // depends on the machine: both runs take about 0.2 s here, mostly fixed costs, and
+    // asserting dt = 0.04 failed once when noise put dt = 0.02 ahead.
     let cheapest = report.cheapest.expect("a setting within 0.5");
-    assert_eq!(cheapest.value, "0.04", "{}", report.markdown);
+    let fastest = p[..2]
+        .iter()
+        .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
+        .unwrap();
+    assert!(p[..2].iter().all(|q| q.error <= 0.5), "{}", report.markdown);
+    assert_eq!(cheapest.value, fastest.value, "{}", report.markdown);
     assert!(
         report
             .markdown
