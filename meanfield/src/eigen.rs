@@ -44,9 +44,38 @@ pub fn sym3_eigen(a: &Sym3) -> ([f64; 3], Sym3) {
     ([m[0][0], m[1][1], m[2][2]], r)
 }
 
+/// [`sym3_eigen`] with the eigenvalues in descending order and the eigenvector columns
+/// permuted with them. The Bingham closure tables are most accurate per degree with the
+/// largest eigenvalue first (their collapsed coordinate `x = mu_1` then stays in `[1/3, 1]`,
+/// away from the corner where the exponent's singular edges meet): at degree 20 the worst
+/// error of `S:E` over random `Q` is 6.7e-6 against 1.3e-5 for the arbitrary order of the
+/// Jacobi sweeps (`closure_field_is_accurate_at_low_degree` in `solver.rs`).
+pub fn sym3_eigen_sorted(a: &Sym3) -> ([f64; 3], Sym3) {
+    let (w, r) = sym3_eigen(a);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&i, &j| w[j].total_cmp(&w[i]));
+    (
+        order.map(|k| w[k]),
+        std::array::from_fn(|i| order.map(|k| r[i][k])),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sorted_decomposition_is_descending_and_reconstructs() {
+        let a = [[0.2, 0.05, -0.01], [0.05, 0.5, 0.1], [-0.01, 0.1, 0.3]];
+        let (w, r) = sym3_eigen_sorted(&a);
+        assert!(w[0] >= w[1] && w[1] >= w[2], "not descending: {w:?}");
+        for i in 0..3 {
+            for j in 0..3 {
+                let rec: f64 = (0..3).map(|k| r[i][k] * w[k] * r[j][k]).sum();
+                assert!((rec - a[i][j]).abs() < 1e-14, "reconstruction at ({i},{j})");
+            }
+        }
+    }
 
     fn check(a: Sym3) {
         let (w, r) = sym3_eigen(&a);
