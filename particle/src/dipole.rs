@@ -68,9 +68,9 @@ impl Mobility for Dipole {
         let field = self.sum.stresslets(rods.box_length, &rods.x, p, &sigma)?;
         self.report = HydroReport {
             seconds_sums: t.elapsed().as_secs_f64(),
-            sums: 1,
             ..HydroReport::default()
         };
+        self.report.add_sum(self.sum.last_report());
         out.v
             .par_iter_mut()
             .zip(out.w.par_iter_mut())
@@ -97,6 +97,14 @@ impl Mobility for Dipole {
 
     fn report(&self) -> HydroReport {
         self.report.clone()
+    }
+
+    fn sum_state(&self) -> Vec<u32> {
+        self.sum.adaptive_state()
+    }
+
+    fn set_sum_state(&mut self, state: &[u32]) {
+        self.sum.set_adaptive_state(state);
     }
 
     fn force_density(&self) -> Option<ForceDensity<'_>> {

@@ -48,6 +48,28 @@ pub struct HydroReport {
     pub seconds_sums: f64,
     /// Number of periodic sums (mobility products) in the step.
     pub sums: usize,
+    /// The largest estimated error of the step's sums relative to their tolerance
+    /// ([`crate::periodic::SumReport::worst_ratio`]); 0 without estimates.
+    pub sum_error_ratio: f64,
+    /// Whether every sum of the step met its tolerance by its own estimate.
+    pub sum_tolerance_met: bool,
+    /// The fast sum's refinement level after the step.
+    pub sum_level: u32,
+}
+
+impl HydroReport {
+    /// Fold one sum's accuracy report into the step's.
+    pub fn add_sum(&mut self, report: Option<crate::periodic::SumReport>) {
+        if self.sums == 0 {
+            self.sum_tolerance_met = true;
+        }
+        self.sums += 1;
+        if let Some(r) = report {
+            self.sum_error_ratio = self.sum_error_ratio.max(r.worst_ratio());
+            self.sum_tolerance_met &= r.met;
+            self.sum_level = r.level;
+        }
+    }
 }
 
 /// The force density of the last solve, for output and the velocity spectrum.
@@ -156,6 +178,15 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     }
     /// Restore what [`Self::warm_state`] returned.
     fn set_warm_state(&mut self, _state: Vec<f64>) {}
+
+    /// The periodic sum's adaptive state ([`crate::periodic::PeriodicStokes::adaptive_state`]),
+    /// for checkpoints; empty without a sum.
+    fn sum_state(&self) -> Vec<u32> {
+        Vec::new()
+    }
+
+    /// Restore what [`Self::sum_state`] returned.
+    fn set_sum_state(&mut self, _state: &[u32]) {}
 }
 
 /// Free swimming with local slender-body drag (`hydrodynamics = "none"`).

@@ -7,6 +7,7 @@
 //! single points): a point does not see the direct (image 0) contribution of its own group,
 //! itself included, but it sees every periodic image of it, as (P1) requires.
 
+use crate::ewald_params::{EwaldParams, SumOutput};
 use crate::geometry::Vec3;
 
 /// Geometry of a periodic RPY sum.
@@ -37,6 +38,49 @@ pub struct StressletField {
     pub grad: Vec<[Vec3; 3]>,
 }
 
+/// The estimated error of one output of a sum, relative to the output (the contract of
+/// [`crate::spectral_ewald`]: max-relative and relative-L2, each to be at most the tolerance).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ErrorEstimate {
+    /// Which output.
+    pub output: SumOutput,
+    /// `max_t est_t / max(max_t |q_t|, floor)`.
+    pub max_relative: f64,
+    /// `||est||_2 / max(||q||_2, floor sqrt(N))`.
+    pub l2_relative: f64,
+}
+
+/// What a sum reports about its accuracy.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SumReport {
+    /// The requested tolerance.
+    pub tolerance: f64,
+    /// The internal tolerance of the accepted attempt.
+    pub internal_tolerance: f64,
+    /// Its refinement level (internal tolerance `tolerance 10^(-level/2)`, floored).
+    pub level: u32,
+    /// Attempts this sum took (1 when the level in force sufficed).
+    pub attempts: u32,
+    /// The accepted attempt's parameters.
+    pub params: EwaldParams,
+    /// Estimated errors per output.
+    pub estimates: Vec<ErrorEstimate>,
+    /// Whether every estimate is within the tolerance; `false` only when even the finest level
+    /// misses (or parameters were fixed).
+    pub met: bool,
+}
+
+impl SumReport {
+    /// The largest estimate relative to the tolerance.
+    pub fn worst_ratio(&self) -> f64 {
+        self.estimates
+            .iter()
+            .map(|e| e.max_relative.max(e.l2_relative))
+            .fold(0.0, f64::max)
+            / self.tolerance
+    }
+}
+
 /// A periodic Stokes summation with zero mean flow.
 pub trait PeriodicStokes: Send + Sync + std::fmt::Debug {
     /// RPY mobility product: `u_i = sum_j sum_images M_RPY(y_i - y_j) f_j`, own group's direct
@@ -57,6 +101,21 @@ pub trait PeriodicStokes: Send + Sync + std::fmt::Debug {
         p: &[Vec3],
         sigma: &[f64],
     ) -> Result<StressletField, SumError>;
+
+    /// What the last sum reported about its accuracy; `None` for sums without an estimate
+    /// (the direct reference).
+    fn last_report(&self) -> Option<SumReport> {
+        None
+    }
+
+    /// State carried from sum to sum that shapes the next one (a refinement level), for
+    /// checkpoints: restoring it makes a resumed run repeat the same decisions. Empty if none.
+    fn adaptive_state(&self) -> Vec<u32> {
+        Vec::new()
+    }
+
+    /// Restore what [`Self::adaptive_state`] returned (ignored if it does not fit).
+    fn set_adaptive_state(&mut self, _state: &[u32]) {}
 }
 
 /// Shape checks shared by the implementations.

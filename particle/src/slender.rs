@@ -106,7 +106,8 @@ struct P4<'a> {
     s: &'a [f64],
     w: &'a [f64],
     seconds: f64,
-    sums: usize,
+    /// The sums' accuracy, folded as they run.
+    accuracy: HydroReport,
     /// The last `(f, u)` computed: GMRES's final true-residual product is at the solution,
     /// so the velocities reuse it instead of summing again.
     cache: Option<(Vec<f64>, Vec<Vec3>)>,
@@ -132,7 +133,7 @@ impl P4<'_> {
         let t = Instant::now();
         let u = self.sum.rpy(&self.geometry, self.points, &forces)?;
         self.seconds += t.elapsed().as_secs_f64();
-        self.sums += 1;
+        self.accuracy.add_sum(self.sum.last_report());
         self.cache = Some((f.to_vec(), u.clone()));
         Ok(u)
     }
@@ -248,14 +249,21 @@ impl SlenderBody {
             s: &self.s,
             w: &self.w,
             seconds: 0.0,
-            sums: 0,
+            accuracy: HydroReport::default(),
             cache: None,
         };
         let info = gmres(&mut op, rhs, x, &self.params.gmres)
             .map_err(|source| MobilityError::Gmres { stage, source })?;
         let u = op.flow(x)?;
         self.report.seconds_sums += op.seconds;
-        self.report.sums += op.sums;
+        let acc = &op.accuracy;
+        if acc.sums > 0 {
+            self.report.sum_tolerance_met =
+                acc.sum_tolerance_met && (self.report.sums == 0 || self.report.sum_tolerance_met);
+            self.report.sum_error_ratio = self.report.sum_error_ratio.max(acc.sum_error_ratio);
+            self.report.sum_level = acc.sum_level;
+        }
+        self.report.sums += acc.sums;
         Ok((info, u))
     }
 
@@ -408,6 +416,14 @@ impl Mobility for SlenderBody {
 
     fn report(&self) -> HydroReport {
         self.report.clone()
+    }
+
+    fn sum_state(&self) -> Vec<u32> {
+        self.sum.adaptive_state()
+    }
+
+    fn set_sum_state(&mut self, state: &[u32]) {
+        self.sum.set_adaptive_state(state);
     }
 
     /// The last solution of (P4) followed by the last flow velocities (v, w per rod): both
