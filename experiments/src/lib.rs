@@ -3,6 +3,7 @@
 //! write it.
 #![warn(missing_docs)]
 
+pub mod accuracy;
 pub mod analyze;
 pub mod checkpoint;
 pub mod compare;

@@ -150,6 +150,19 @@ enum Command {
         #[arg(long, default_value = "runs/study")]
         out: PathBuf,
     },
+    /// Audit a particle run's fast sums: evaluate the sum its config uses on one snapshot and
+    /// the direct Ewald sum at K sampled targets, and print the measured error of each output
+    /// (and of the rod motion it gives) beside hydro.sum_tolerance (docs/accuracy.md).
+    CheckAccuracy {
+        /// Run directory of a particle run with hydrodynamics "sbt" or "dipole".
+        run_dir: PathBuf,
+        /// Snapshot number (snapshots/snap_NNNNNN.h5) [default: the last].
+        #[arg(long)]
+        snapshot: Option<usize>,
+        /// Targets of the direct sum (its cost is O(N K)).
+        #[arg(long, default_value_t = 256)]
+        targets: usize,
+    },
     /// Continue a stopped or killed run from its newest checkpoint, bit for bit.
     Resume {
         /// Run directory.
@@ -396,6 +409,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 "wrote {}",
                 out.join(format!("stability_{model}.png")).display()
             );
+            Ok(())
+        }
+        Command::CheckAccuracy {
+            run_dir,
+            snapshot,
+            targets,
+        } => {
+            let audit = motile_experiments::accuracy::audit(&run_dir, snapshot, targets)?;
+            print!("{}", motile_experiments::accuracy::render(&audit));
             Ok(())
         }
         Command::Scenes => {

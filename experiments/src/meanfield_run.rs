@@ -122,17 +122,7 @@ impl MeanFieldRunConfig {
     /// Check every field; the message names the field, the value, the allowed range and the
     /// unit (time in mu/|sigma_a|, lengths in box sides).
     pub fn validate(&self) -> Result<(), String> {
-        let chk = |name: &str, v: f64, lo: f64, hi: f64, open: bool, unit: &str| {
-            let ok = v.is_finite() && (if open { v > lo } else { v >= lo }) && v <= hi;
-            if ok {
-                Ok(())
-            } else {
-                Err(format!(
-                    "{name} = {v} is outside the allowed range {}{lo}, {hi}] ({unit})",
-                    if open { "(" } else { "[" }
-                ))
-            }
-        };
+        let chk = crate::rundir::range;
         let time = "mu/|sigma_a|";
         if !(8..=256).contains(&self.grid) || self.grid % 2 == 1 {
             return Err(format!(

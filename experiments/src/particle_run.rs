@@ -9,7 +9,7 @@
 
 use crate::checkpoint::{self, LAST_GOOD};
 use crate::io::IoError;
-use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
+use crate::rundir::{RunDir, TimeSeries, parse_run_config, range, read_run_config};
 use crate::snapshot::{Kinematics, ParticleSnapshot, PointForces, Snapshot, read_snapshot};
 use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
@@ -183,18 +183,6 @@ impl HydroConfig {
             }
         }
         Ok(())
-    }
-}
-
-fn range(name: &str, v: f64, lo: f64, hi: f64, lo_open: bool, unit: &str) -> Result<(), String> {
-    let ok = v.is_finite() && (if lo_open { v > lo } else { v >= lo }) && v <= hi;
-    if ok {
-        Ok(())
-    } else {
-        let l = if lo_open { "(" } else { "[" };
-        Err(format!(
-            "{name} = {v} is outside the allowed range {l}{lo}, {hi}] ({unit})"
-        ))
     }
 }
 
