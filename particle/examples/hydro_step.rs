@@ -45,9 +45,9 @@ fn main() {
             let wall = t.elapsed().as_secs_f64();
             let h = &r.hydro;
             println!(
-                "step {k}: {wall:.3} s | neighbours {:.3} assembly {:.3} prediction {:.3} contacts {:.3} solve + update {:.3} | sums {} in {:.3} s | GMRES {} ({:.1e}) | {} active contacts",
+                "step {k}: {wall:.3} s | neighbours {:.3} assembly {:.3} prediction {:.3} contacts {:.3} solve + update {:.3} | sums {} in {:.3} s, level {}, estimate {:.2} tol | GMRES {} ({:.1e}) | {} active contacts",
                 r.seconds[0], r.seconds[1], r.seconds[2], r.seconds[3], r.seconds[4],
-                h.sums, h.seconds_sums, h.gmres_iterations, h.gmres_residual, r.contact.active
+                h.sums, h.seconds_sums, h.sum_level, h.sum_error_ratio, h.gmres_iterations, h.gmres_residual, r.contact.active
             );
         }
     });

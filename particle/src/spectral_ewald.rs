@@ -511,7 +511,7 @@ fn estimate(
     floor: f64,
 ) -> ErrorEstimate {
     const CHUNK: usize = 4096;
-    let (c_max, c_2) = error_model_constants(output);
+    let (c_max, c_2) = error_model_constants(output, internal);
     let (a_max, a_2) = ((c_max * scale).powi(2), (c_2 * scale).powi(2));
     let far = (FAR_FIELD_SHARE * internal).powi(2);
     let parts: Vec<[f64; 4]> = (0..n.div_ceil(CHUNK))
