@@ -82,6 +82,11 @@ impl SumReport {
 }
 
 /// A periodic Stokes summation with zero mean flow.
+///
+/// Fast implementations promise, for each output separately, a max-relative and a
+/// relative-L2 error at most their tolerance relative to the exact output (not to the input's
+/// scale), with a floor only where an output vanishes by symmetry: the contract of
+/// [`crate::spectral_ewald`], stated in `docs/accuracy.md`.
 pub trait PeriodicStokes: Send + Sync + std::fmt::Debug {
     /// RPY mobility product: `u_i = sum_j sum_images M_RPY(y_i - y_j) f_j`, own group's direct
     /// terms excluded. `points` and `forces` have the same length, a multiple of the group.

@@ -1,6 +1,6 @@
 //! Fast periodic Stokes sums by spectral Ewald (MODEL.md §1, §2): the Hasimoto split of
 //! [`crate::ewald`], the short-ranged real-space part summed over neighbours from a point cell
-//! list ([`crate::point_cells`]), the smooth Fourier part by Gaussian gridding
+//! list (`point_cells.rs`), the smooth Fourier part by Gaussian gridding
 //! ([`crate::gaussian_grid`]: spread the sources onto a uniform grid, real FFTs, a diagonal
 //! multiplication, FFTs back, gather). `O(N log N)`.
 //!
