@@ -15,8 +15,8 @@ use hdf5_pure::{AttrValue, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::solver::{
-    History, MeanFieldError, MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SYM,
-    SpectralGrid, TensorCoefficients,
+    History, MeanFieldError, MeanFieldParams, MeanFieldRhs, MeanFieldStepReport, MeanFieldStepper,
+    RhsEval, SBDF2, SYM, SpectralGrid, TensorCoefficients,
 };
 use num_complex::Complex64;
 use rand::{RngExt, SeedableRng};
@@ -446,6 +446,51 @@ pub struct MeanFieldSummary {
     pub q_hat: TensorCoefficients,
 }
 
+/// A row of `timeseries.csv` for the state at `t` (its diagnostics in `report`), after a step
+/// of `dt`.
+fn row(t: f64, dt: f64, report: &MeanFieldStepReport, steps: u64) -> Vec<f64> {
+    vec![
+        t,
+        dt,
+        report.u_l2,
+        report.u_max,
+        report.e_l2,
+        report.e_dot_q,
+        report.rhs.iterations as f64,
+        report.rhs.residual,
+        report.min_eigenvalue,
+        report.max_eigenvalue,
+        report.entropy,
+        report.energy_residual,
+        steps as f64,
+    ]
+}
+
+/// Write the snapshot of the state at `t` (Q and the velocity of the evaluation `ev`) and
+/// advance the snapshot schedule.
+fn write_field_snapshot(
+    run: &RunDir,
+    grid: &SpectralGrid,
+    clock: &mut Clock,
+    cfg: &MeanFieldRunConfig,
+    t: f64,
+    ev: RhsEval,
+) -> anyhow::Result<()> {
+    let u: [Vec<f64>; 3] = std::array::from_fn(|i| grid.inverse(&ev.u[i]));
+    let snap = FieldSnapshot {
+        time: t,
+        step: clock.steps,
+        box_length: 1.0,
+        grid: cfg.grid,
+        q: ev.q,
+        u,
+    };
+    snap.write(&run.snapshot_path(clock.snap_index as usize))?;
+    clock.snap_index += 1;
+    clock.next_snap += cfg.snapshot_interval;
+    Ok(())
+}
+
 /// The driver's clocks: step-size control and the output schedule.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Clock {
@@ -753,18 +798,7 @@ fn drive(
                     return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, 0.0));
                 }
             };
-            let u: [Vec<f64>; 3] = std::array::from_fn(|i| grid.inverse(&ev.u[i]));
-            let snap = FieldSnapshot {
-                time: t,
-                step: clock.steps,
-                box_length: 1.0,
-                grid: cfg.grid,
-                q: ev.q,
-                u,
-            };
-            snap.write(&run.snapshot_path(clock.snap_index as usize))?;
-            clock.snap_index += 1;
-            clock.next_snap += cfg.snapshot_interval;
+            write_field_snapshot(run, &grid, &mut clock, cfg, t, ev)?;
         }
         // Output time ahead: spread the remaining time over at most two equal steps.
         let target = clock
@@ -818,21 +852,7 @@ fn drive(
             bail!(msg);
         }
         if at_diag {
-            ts.push(vec![
-                t,
-                this_dt,
-                report.u_l2,
-                report.u_max,
-                report.e_l2,
-                report.e_dot_q,
-                report.rhs.iterations as f64,
-                report.rhs.residual,
-                report.min_eigenvalue,
-                report.max_eigenvalue,
-                report.entropy,
-                report.energy_residual,
-                clock.steps as f64,
-            ]);
+            ts.push(row(t, this_dt, &report, clock.steps));
             ts.write(&run.path().join("timeseries.csv"))?;
             bar.set_position((1000.0 * stepper.t / cfg.t_end) as u64);
             bar.set_message(format!(
@@ -870,6 +890,28 @@ fn drive(
                 }
                 .into());
             }
+        }
+    }
+    // The outputs due at t_end: the loop writes outputs before each step, so those of the
+    // final state come here (a diagnostic row and a snapshot whose schedules reach t_end).
+    let t = stepper.t;
+    let diag_due = t >= clock.next_diag - eps;
+    if diag_due || t >= clock.next_snap - eps {
+        rhs.with_entropy = diag_due;
+        let (ev, report) = match stepper.diagnostics(&rhs) {
+            Ok(r) => r,
+            Err(e) => {
+                bar.abandon();
+                return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, 0.0));
+            }
+        };
+        if diag_due {
+            clock.next_diag += cfg.diagnostic_interval;
+            ts.push(row(t, clock.prev_dt, &report, clock.steps));
+            ts.write(&run.path().join("timeseries.csv"))?;
+        }
+        if t >= clock.next_snap - eps {
+            write_field_snapshot(run, &grid, &mut clock, cfg, t, ev)?;
         }
     }
     write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;

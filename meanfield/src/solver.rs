@@ -780,41 +780,60 @@ impl MeanFieldStepper {
         {
             return Err(MeanFieldError::NonFinite("Q after the step"));
         }
+        let report = state_report(rhs, &ev);
         let old_q = std::mem::replace(&mut self.q_hat, new);
         self.prev = Some(History {
             q_hat: old_q,
             nonlinear: ev.nonlinear,
             dt,
         });
-        let npts = g.len() as f64;
-        let u_l2 = ev.u.iter().map(|c| g.norm_sqr(c)).sum::<f64>().sqrt();
-        let ug = &ev.u_grid;
-        let u_max = (0..g.len())
-            .map(|p| ug[0][p].abs() + ug[1][p].abs() + ug[2][p].abs())
-            .fold(0.0, f64::max);
-        let w = |c: usize| if SYM[c].0 == SYM[c].1 { 1.0 } else { 2.0 };
-        let (mut ee, mut eq, mut ese) = (0.0, 0.0, 0.0);
-        for c in 0..6 {
-            for p in 0..g.len() {
-                ee += w(c) * ev.e[c][p] * ev.e[c][p];
-                eq += w(c) * ev.e[c][p] * ev.q[c][p];
-                ese += w(c) * ev.e[c][p] * ev.se[c][p];
-            }
-        }
-        let energy_residual = (2.0 * ee + rhs.params.zeta * ese - eq) / eq.abs().max(1e-300);
         self.u_hat = ev.u;
         self.t += dt;
-        Ok(MeanFieldStepReport {
-            rhs: ev.report,
-            min_eigenvalue: ev.min_eigenvalue,
-            u_l2,
-            u_max,
-            e_l2: (ee / npts).sqrt(),
-            e_dot_q: eq / npts,
-            max_eigenvalue: ev.max_eigenvalue,
-            entropy: ev.entropy,
-            energy_residual,
-        })
+        Ok(report)
+    }
+
+    /// The diagnostics of the current state, without stepping: the report a step from here
+    /// would give, and the right-hand side evaluation behind it (for output at the end of a
+    /// run).
+    pub fn diagnostics(
+        &self,
+        rhs: &MeanFieldRhs,
+    ) -> Result<(RhsEval, MeanFieldStepReport), MeanFieldError> {
+        let ev = rhs.eval(&self.q_hat, &self.u_hat)?;
+        let report = state_report(rhs, &ev);
+        Ok((ev, report))
+    }
+}
+
+/// Norms, eigenvalue bounds, entropy and the energy identity's residual of one evaluation.
+fn state_report(rhs: &MeanFieldRhs, ev: &RhsEval) -> MeanFieldStepReport {
+    let g = rhs.grid;
+    let npts = g.len() as f64;
+    let u_l2 = ev.u.iter().map(|c| g.norm_sqr(c)).sum::<f64>().sqrt();
+    let ug = &ev.u_grid;
+    let u_max = (0..g.len())
+        .map(|p| ug[0][p].abs() + ug[1][p].abs() + ug[2][p].abs())
+        .fold(0.0, f64::max);
+    let w = |c: usize| if SYM[c].0 == SYM[c].1 { 1.0 } else { 2.0 };
+    let (mut ee, mut eq, mut ese) = (0.0, 0.0, 0.0);
+    for c in 0..6 {
+        for p in 0..g.len() {
+            ee += w(c) * ev.e[c][p] * ev.e[c][p];
+            eq += w(c) * ev.e[c][p] * ev.q[c][p];
+            ese += w(c) * ev.e[c][p] * ev.se[c][p];
+        }
+    }
+    let energy_residual = (2.0 * ee + rhs.params.zeta * ese - eq) / eq.abs().max(1e-300);
+    MeanFieldStepReport {
+        rhs: ev.report.clone(),
+        min_eigenvalue: ev.min_eigenvalue,
+        u_l2,
+        u_max,
+        e_l2: (ee / npts).sqrt(),
+        e_dot_q: eq / npts,
+        max_eigenvalue: ev.max_eigenvalue,
+        entropy: ev.entropy,
+        energy_residual,
     }
 }
 

@@ -38,7 +38,11 @@ fn plane_wave_run_grows_at_the_linear_rate_and_is_analysed() {
     );
     let report = analyze_run(&out, &AnalyzeOptions::default()).unwrap();
     assert_eq!(report.kind, "meanfield");
-    assert_eq!(report.snapshots.len(), 2);
+    assert_eq!(
+        report.snapshots.len(),
+        3,
+        "snapshots at t = 0, 2 and 4 (t_end)"
+    );
     // The analysed velocity norm of a snapshot equals the run's own diagnostic at that time.
     let ua = report.timeseries.column("u_l2 [L |sigma_a|/mu]").unwrap();
     let idx = t.iter().position(|&x| (x - 2.0).abs() < 1e-9).unwrap();
@@ -47,6 +51,43 @@ fn plane_wave_run_grows_at_the_linear_rate_and_is_analysed() {
         "analysed ||u|| {} vs run diagnostic {}",
         ua[1],
         u[idx]
+    );
+}
+
+/// The outputs due at t_end are written: the last diagnostic row and the last snapshot are at
+/// t_end (they used to stop one interval early, so a short run's "second half" held one
+/// snapshot), and the final checkpoint too.
+#[test]
+fn a_short_run_writes_its_final_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = MeanFieldRunConfig {
+        grid: 12,
+        t_end: 1.0,
+        dt_max: 0.1,
+        diagnostic_interval: 0.25,
+        snapshot_interval: 0.5,
+        checkpoint_interval: 0.5,
+        ..Default::default()
+    };
+    let out = dir.path().join("mf");
+    let s = run_meanfield(&cfg, &out, false).unwrap();
+    let t = s.timeseries.column("t [mu/|sigma_a|]").unwrap();
+    assert_eq!(t, vec![0.0, 0.25, 0.5, 0.75, 1.0], "diagnostic times");
+    let snaps = motile_experiments::rundir::RunDir::open(&out)
+        .unwrap()
+        .snapshots()
+        .unwrap();
+    let times: Vec<f64> = snaps.iter().map(|s| s.time()).collect();
+    assert_eq!(times, vec![0.0, 0.5, 1.0], "snapshot times");
+    let ckpts = motile_experiments::rundir::checkpoint_paths(&out.join("checkpoints"));
+    let last = ckpts.last().expect("a checkpoint");
+    let t_ckpt = motile_experiments::checkpoint::H5Reader::open(last)
+        .unwrap()
+        .attr_f64("time")
+        .unwrap();
+    assert!(
+        (t_ckpt - 1.0).abs() < 1e-12,
+        "final checkpoint at t = {t_ckpt}"
     );
 }
 
