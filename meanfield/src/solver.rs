@@ -825,7 +825,7 @@ fn state_report(rhs: &MeanFieldRhs, ev: &RhsEval) -> MeanFieldStepReport {
     }
     let energy_residual = (2.0 * ee + rhs.params.zeta * ese - eq) / eq.abs().max(1e-300);
     MeanFieldStepReport {
-        rhs: ev.report.clone(),
+        rhs: ev.report,
         min_eigenvalue: ev.min_eigenvalue,
         u_l2,
         u_max,
