@@ -798,7 +798,7 @@ fn drive(
                     return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, 0.0));
                 }
             };
-            write_field_snapshot(run, &grid, &mut clock, cfg, t, ev)?;
+            write_field_snapshot(run, grid, &mut clock, cfg, t, ev)?;
         }
         // Output time ahead: spread the remaining time over at most two equal steps.
         let target = clock
@@ -911,7 +911,7 @@ fn drive(
             ts.write(&run.path().join("timeseries.csv"))?;
         }
         if t >= clock.next_snap - eps {
-            write_field_snapshot(run, &grid, &mut clock, cfg, t, ev)?;
+            write_field_snapshot(run, grid, &mut clock, cfg, t, ev)?;
         }
     }
     write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;
