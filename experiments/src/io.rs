@@ -25,6 +25,15 @@ pub enum IoError {
         /// What went wrong.
         message: String,
     },
+    /// Not a readable motile snapshot at all: cut short (a copy or a run killed outside
+    /// motile's atomic writes) or another file.
+    #[error("file truncated or not a motile snapshot: {path} ({detail})")]
+    NotSnapshot {
+        /// The file.
+        path: PathBuf,
+        /// What the HDF5 reader said.
+        detail: String,
+    },
     /// A file's content is not what motile expects.
     #[error("{path}: {message}")]
     Content {

@@ -327,8 +327,15 @@ fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
     })
 }
 
-/// Load an initial configuration from a snapshot (.h5) or a text table, validated.
-pub fn load_configuration(path: &Path, box_length: f64) -> anyhow::Result<RodSet> {
+/// Load an initial configuration from a snapshot (.h5) or a text table, validated: unit
+/// orientations, and no two rods overlapping by more than `overlap_tolerance` (rod lengths;
+/// a run's own snapshots carry overlaps up to `contact.overlap_tolerance`, and rods at exactly
+/// one diameter are in contact, not overlapping).
+pub fn load_configuration(
+    path: &Path,
+    box_length: f64,
+    overlap_tolerance: f64,
+) -> anyhow::Result<RodSet> {
     let (x, p, l): (Vec<[f64; 3]>, Vec<[f64; 3]>, f64) = if path
         .extension()
         .is_some_and(|e| e == "h5")
@@ -416,12 +423,13 @@ pub fn load_configuration(path: &Path, box_length: f64) -> anyhow::Result<RodSet
             po[j as usize],
             ROD_LENGTH,
         );
-        (dist < DIAMETER - 1e-9).then_some((i.min(j), i.max(j), dist))
+        (dist < DIAMETER - overlap_tolerance).then_some((i.min(j), i.max(j), dist))
     });
     if let Some((i, j, dist)) = bad.iter().min_by_key(|b| (b.0, b.1)) {
         bail!(
-            "{}: rods {i} and {j} overlap (centerline distance {dist:.4} < diameter {DIAMETER}); {} overlapping pairs in all",
+            "{}: rods {i} and {j} overlap by {:.2e} (centerline distance {dist:.4} < diameter {DIAMETER}), more than contact.overlap_tolerance = {overlap_tolerance}; {} such pairs in all",
             path.display(),
+            DIAMETER - dist,
             bad.len()
         );
     }
@@ -582,7 +590,11 @@ pub fn initial_rods(cfg: &ParticleRunConfig) -> anyhow::Result<RodSet> {
             .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
         Ok(random_nonoverlapping(n, cfg.box_length, cfg.seed, 200_000)?)
     } else {
-        load_configuration(Path::new(&cfg.initial), cfg.box_length)
+        load_configuration(
+            Path::new(&cfg.initial),
+            cfg.box_length,
+            cfg.contact.overlap_tolerance,
+        )
     }
 }
 

@@ -235,8 +235,20 @@ fn read_rows(
 
 /// Read and validate a snapshot of either kind.
 pub fn read_snapshot(path: &Path) -> Result<Snapshot, IoError> {
-    let file = File::open(path).map_err(|e| h5err(path, e))?;
-    let attrs = file.root().attrs().map_err(|e| h5err(path, e))?;
+    // A file that is not HDF5 at all, or whose root cannot be read (cut short), is not a
+    // snapshot: say so, not which attribute is missing.
+    let not_snapshot = |detail: String| IoError::NotSnapshot {
+        path: path.to_path_buf(),
+        detail,
+    };
+    if !path.exists() {
+        return Err(h5err(path, "no such file"));
+    }
+    let file = File::open(path).map_err(|e| not_snapshot(e.to_string()))?;
+    let attrs = file
+        .root()
+        .attrs()
+        .map_err(|e| not_snapshot(e.to_string()))?;
     let kind = match attrs.get("kind") {
         Some(
             AttrValue::String(s)
@@ -245,9 +257,8 @@ pub fn read_snapshot(path: &Path) -> Result<Snapshot, IoError> {
             | AttrValue::VarLenAsciiString(s),
         ) => s.clone(),
         _ => {
-            return Err(content(
-                path,
-                "missing root attribute 'kind' (\"particle\" or \"meanfield\")".into(),
+            return Err(not_snapshot(
+                "no root attribute 'kind' (\"particle\" or \"meanfield\")".into(),
             ));
         }
     };

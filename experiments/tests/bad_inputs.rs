@@ -15,6 +15,21 @@ fn write_fixtures(dir: &Path) {
     w("short.txt", "1 1 1 1 0 0\n4 4 4 0 1\n");
     w("outside.txt", "1 1 1 1 0 0\n4 4 40 0 0 1\n");
     w("garbage.h5", "this is not an HDF5 file\n");
+    // A particle snapshot cut to half its length.
+    let snap = motile_experiments::snapshot::ParticleSnapshot {
+        time: 0.0,
+        step: 0,
+        box_length: 10.0,
+        positions: vec![[1.0, 1.0, 1.0], [4.0, 4.0, 4.0]],
+        orientations: vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        image_counts: vec![[0; 3]; 2],
+        forces: None,
+        kinematics: None,
+    };
+    let path = dir.join("truncated.h5");
+    snap.write(&path).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
 }
 
 /// Rows of the table: (number, kind, input, expected message).

@@ -176,26 +176,38 @@ fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("rods.txt");
     std::fs::write(&f, "1 1 1 1 0 0\n1.0 1.1 1.0 1 0 0\n5 5 5 0 0 1\n").unwrap();
-    let e = load_configuration(&f, 8.0).unwrap_err().to_string();
+    let e = load_configuration(&f, 8.0, 5e-3).unwrap_err().to_string();
     assert!(
         e.contains("rods 0 and 1 overlap") && e.contains("rods.txt"),
         "{e}"
     );
     std::fs::write(&f, "1 1 1 1 0 0\n2 2 2 0.5 0 0\n").unwrap();
-    let e = load_configuration(&f, 8.0).unwrap_err().to_string();
+    let e = load_configuration(&f, 8.0, 5e-3).unwrap_err().to_string();
     assert!(
         e.contains("line 2") && e.contains("not a unit vector"),
         "{e}"
     );
     std::fs::write(&f, "1 1 1 1 0\n").unwrap();
-    let e = load_configuration(&f, 8.0).unwrap_err().to_string();
+    let e = load_configuration(&f, 8.0, 5e-3).unwrap_err().to_string();
     assert!(
         e.contains("line 1") && e.contains("expected 6 finite numbers"),
         "{e}"
     );
     std::fs::write(&f, "1 1 1 1 0 0\n3 3 3 0 1 0\n").unwrap();
-    let rods = load_configuration(&f, 8.0).unwrap();
+    let rods = load_configuration(&f, 8.0, 5e-3).unwrap();
     assert_eq!(rods.len(), 2);
+    // Parallel rods one diameter apart are in contact, not overlapping; an overlap within the
+    // tolerance (what a run's own steps leave) is accepted, one beyond it is not.
+    for (gap, ok) in [(0.2, true), (0.2 - 4e-3, true), (0.2 - 6e-3, false)] {
+        std::fs::write(&f, format!("1 1 1 1 0 0\n1 {} 1 1 0 0\n", 1.0 + gap)).unwrap();
+        let r = load_configuration(&f, 8.0, 5e-3);
+        assert_eq!(r.is_ok(), ok, "axes {gap} apart: {:?}", r.err());
+    }
+    let e = load_configuration(&f, 8.0, 5e-3).unwrap_err().to_string();
+    assert!(
+        e.contains("more than contact.overlap_tolerance = 0.005"),
+        "{e}"
+    );
     // A snapshot of a run is a valid initial configuration, and a run can start from it.
     let first = dir.path().join("first");
     let done = run_particle(
@@ -208,7 +220,7 @@ fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
     )
     .unwrap();
     let snap = first.join("snapshots/snap_000000.h5");
-    let loaded = load_configuration(&snap, 99.0).unwrap();
+    let loaded = load_configuration(&snap, 99.0, 5e-3).unwrap();
     assert_eq!(
         loaded.box_length, 6.0,
         "the snapshot's box wins over the config's"
@@ -220,4 +232,15 @@ fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
         ..small()
     };
     run_particle(&cfg, &dir.path().join("second"), false).unwrap();
+    // So is its last snapshot, after steps at nu = 5: rods in contact and within the overlap
+    // tolerance (the check used to demand distances of at least the diameter less 1e-9).
+    let dense = dir.path().join("dense");
+    run_particle(&small(), &dense, false).unwrap();
+    let last = dense.join("snapshots/snap_000002.h5");
+    let cfg = ParticleRunConfig {
+        initial: last.to_string_lossy().into_owned(),
+        t_end: 0.02,
+        ..small()
+    };
+    run_particle(&cfg, &dir.path().join("third"), false).unwrap();
 }
