@@ -189,9 +189,9 @@ enum Command {
 struct RunArgs {
     /// TOML config (every key optional; see README). Without it, built-in defaults.
     config: Option<PathBuf>,
-    /// Output run directory.
-    #[arg(long)]
-    out: PathBuf,
+    /// Output run directory (not needed with --dry-run).
+    #[arg(long, required_unless_present = "dry_run")]
+    out: Option<PathBuf>,
     /// Print the resolved config and exit.
     #[arg(long)]
     dry_run: bool,
@@ -210,18 +210,21 @@ enum MeanfieldAction {
     Run(RunArgs),
 }
 
-/// The config of a run command: parsed from `path` (or the defaults), printed and `None` on a
-/// dry run.
+/// The config of a run command: parsed from `path` (or the defaults), file names in it made
+/// relative to the config file's folder (`resolve`), printed and `None` on a dry run.
 fn resolve_config<C: Default + serde::Serialize>(
     path: &Option<PathBuf>,
     dry_run: bool,
     parse: impl Fn(&str, &std::path::Path) -> anyhow::Result<C>,
+    resolve: impl Fn(&mut C, &std::path::Path),
 ) -> anyhow::Result<Option<C>> {
     let cfg = match path {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("{}: cannot read", p.display()))?;
-            parse(&text, p)?
+            let mut cfg = parse(&text, p)?;
+            resolve(&mut cfg, p.parent().unwrap_or(std::path::Path::new(".")));
+            cfg
         }
         None => C::default(),
     };
@@ -283,9 +286,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     dry_run,
                 }),
         } => {
-            let Some(cfg) = resolve_config(&config, dry_run, parse_config)? else {
+            let Some(cfg) = resolve_config(
+                &config,
+                dry_run,
+                parse_config,
+                ParticleRunConfig::resolve_paths,
+            )?
+            else {
                 return Ok(());
             };
+            let out = out.context("--out DIR is required to run")?;
             let s = run_particle(
                 &cfg,
                 &out,
@@ -309,9 +319,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     dry_run,
                 }),
         } => {
-            let Some(cfg) = resolve_config(&config, dry_run, meanfield_run::parse_config)? else {
+            let Some(cfg) = resolve_config(
+                &config,
+                dry_run,
+                meanfield_run::parse_config,
+                meanfield_run::MeanFieldRunConfig::resolve_paths,
+            )?
+            else {
                 return Ok(());
             };
+            let out = out.context("--out DIR is required to run")?;
             let s = meanfield_run::run_meanfield(
                 &cfg,
                 &out,

@@ -119,6 +119,18 @@ impl Default for MeanFieldRunConfig {
 }
 
 impl MeanFieldRunConfig {
+    /// Make a relative `snapshot` file name relative to `base` (the folder of the config file
+    /// it came from) instead of the working directory.
+    pub fn resolve_paths(&mut self, base: &Path) {
+        if !self.snapshot.is_empty() && Path::new(&self.snapshot).is_relative() {
+            let p = base.join(&self.snapshot);
+            self.snapshot = std::path::absolute(&p)
+                .unwrap_or(p)
+                .to_string_lossy()
+                .into_owned();
+        }
+    }
+
     /// Check every field; the message names the field, the value, the allowed range and the
     /// unit (time in mu/|sigma_a|, lengths in box sides).
     pub fn validate(&self) -> Result<(), String> {

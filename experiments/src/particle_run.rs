@@ -187,6 +187,18 @@ impl HydroConfig {
 }
 
 impl ParticleRunConfig {
+    /// Make a relative `initial` file name relative to `base` (the folder of the config file
+    /// it came from) instead of the working directory.
+    pub fn resolve_paths(&mut self, base: &Path) {
+        if self.initial != "random" && Path::new(&self.initial).is_relative() {
+            let p = base.join(&self.initial);
+            self.initial = std::path::absolute(&p)
+                .unwrap_or(p)
+                .to_string_lossy()
+                .into_owned();
+        }
+    }
+
     /// Check every field; the message names the field, the value, the range and the unit.
     pub fn validate(&self) -> Result<(), String> {
         range(

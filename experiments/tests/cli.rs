@@ -37,3 +37,62 @@ fn cli_help_and_errors_name_what_is_wrong() {
         "{err}"
     );
 }
+
+/// `--dry-run` needs no `--out`, and a relative file name in a config (`initial` of a particle
+/// run, `snapshot` of a mean-field run) is read from the config file's folder, not from the
+/// working directory: the resolved config names the absolute path.
+#[test]
+fn dry_run_needs_no_out_and_relative_initial_paths_follow_the_config_file() {
+    let bin = env!("CARGO_BIN_EXE_motile");
+    let dir = tempfile::tempdir().unwrap();
+    let cfgs = dir.path().join("configs");
+    std::fs::create_dir(&cfgs).unwrap();
+    std::fs::write(cfgs.join("rods.txt"), "1 1 1 1 0 0\n4 4 4 0 1 0\n").unwrap();
+    std::fs::write(
+        cfgs.join("run.toml"),
+        "initial = \"rods.txt\"\nbox_length = 8\nt_end = 0.02\ndt = 0.01\nvtk = false\n",
+    )
+    .unwrap();
+    // Run from another folder.
+    let elsewhere = dir.path().join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["particle", "run", "../configs/run.toml", "--dry-run"])
+        .current_dir(&elsewhere)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let expected = std::path::absolute(elsewhere.join("../configs/rods.txt")).unwrap();
+    assert!(
+        out.status.success() && text.contains(&format!("initial = \"{}\"", expected.display())),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = std::process::Command::new(bin)
+        .args(["particle", "run", "../configs/run.toml", "--out", "run"])
+        .current_dir(&elsewhere)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success() && elsewhere.join("run/snapshots").exists(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = std::process::Command::new(bin)
+        .args(["meanfield", "run", "--dry-run"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success() && String::from_utf8_lossy(&out.stdout).contains("grid = 32"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = std::process::Command::new(bin)
+        .args(["particle", "run"])
+        .output()
+        .unwrap();
+    assert!(
+        !out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--out"),
+        "a run without --out must say it needs one"
+    );
+}
