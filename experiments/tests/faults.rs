@@ -374,3 +374,46 @@ fn results_do_not_depend_on_the_thread_count() {
         );
     }
 }
+
+/// A comparison that fails half-way (here: one of the runs has a damaged snapshot, found only
+/// when its snapshots are analysed, after the velocity norms are read) writes nothing under the
+/// final names, and leaves no staging folder behind; the same comparison of intact runs writes
+/// its files.
+#[test]
+fn a_failed_comparison_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("mf.toml");
+    std::fs::write(
+        &cfg,
+        "grid = 12\nt_end = 1.0\ndt_max = 0.1\ndiagnostic_interval = 0.25\nsnapshot_interval = 0.5\n",
+    )
+    .unwrap();
+    let o = motile(&["meanfield", "run", "mf.toml", "--out", "mf"], dir.path());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let good = motile(&["compare", "mf", "--out", "good"], dir.path());
+    assert!(
+        good.status.success() && dir.path().join("good/velocity_norm.csv").exists(),
+        "{}",
+        String::from_utf8_lossy(&good.stderr)
+    );
+    let snap = dir.path().join("mf/snapshots/snap_000001.h5");
+    let bytes = std::fs::read(&snap).unwrap();
+    std::fs::write(&snap, &bytes[..bytes.len() / 2]).unwrap();
+    let bad = motile(&["compare", "mf", "--out", "bad"], dir.path());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("file truncated or not a motile snapshot"),
+        "{err}"
+    );
+    assert!(
+        !dir.path().join("bad").exists(),
+        "compare left {:?}",
+        files(&dir.path().join("bad"))
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().contains("partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "staging folder left: {leftovers:?}");
+}
