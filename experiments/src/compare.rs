@@ -314,10 +314,42 @@ pub struct CompareReport {
 /// `velocity_correlation.{png,svg,csv}` and, for particle runs, `msd.{png,svg}`,
 /// `orientation.{png,svg}` and `trajectories.csv` into `out`. Time averages are over the second half of
 /// each run (a stated window; the table and the legend say which).
+///
+/// Everything is written into a staging folder beside `out` first and moved into `out` only
+/// when all of it succeeded: a comparison that fails (a damaged snapshot, an unreadable run)
+/// leaves nothing under the final names.
 pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     if runs.is_empty() {
         bail!("compare: give at least one run directory");
     }
+    let name = out
+        .file_name()
+        .map_or("compare".into(), |n| n.to_string_lossy().into_owned());
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent)
+        .with_context(|| format!("{}: cannot create", parent.display()))?;
+    let stage = parent.join(format!(".{name}.partial-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&stage);
+    let result = compare_into(runs, &stage).and_then(|report| {
+        std::fs::create_dir_all(out)
+            .with_context(|| format!("{}: cannot create", out.display()))?;
+        for entry in std::fs::read_dir(&stage)? {
+            let entry = entry?;
+            let target = out.join(entry.file_name());
+            std::fs::rename(entry.path(), &target)
+                .with_context(|| format!("{}: cannot write", target.display()))?;
+        }
+        Ok(report)
+    });
+    let _ = std::fs::remove_dir_all(&stage);
+    result
+}
+
+/// [`compare`] writing straight into `out`.
+fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     let curves = runs
         .iter()
         .map(|r| norm_curve(r))
