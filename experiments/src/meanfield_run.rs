@@ -14,15 +14,13 @@ use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
 use motile_meanfield::closure::BinghamClosure;
+use motile_meanfield::initial::{Perturbation, PerturbationField};
 use motile_meanfield::solver::{
     History, MeanFieldError, MeanFieldParams, MeanFieldRhs, MeanFieldStepReport, MeanFieldStepper,
     RhsEval, SBDF2, SYM, SpectralGrid, TensorCoefficients,
 };
 use num_complex::Complex64;
-use rand::{RngExt, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -45,11 +43,18 @@ pub struct MeanFieldRunConfig {
     /// Largest ratio of consecutive steps. Default 1.5; allowed (1, 2.4).
     pub max_step_ratio: f64,
     /// "random" (perturbations with wavenumbers |m| in [mode_min, mode_max]), "plane_wave"
-    /// (Q_xy = amplitude cos(2 pi m.x) with m = `wavevector`) or "snapshot" (Q of the
-    /// mean-field snapshot file `snapshot`, spectrally resampled if its grid differs).
+    /// (Q_xy = amplitude cos(2 pi m.x) with m = `wavevector`) or "snapshot" (Q of the snapshot
+    /// file `snapshot`: a mean-field snapshot, spectrally resampled if its grid differs, or a
+    /// particle snapshot, its second-moment density smoothed onto the grid, MODEL.md §5).
     pub initial: String,
-    /// Mean-field snapshot (.h5) to start from when `initial = "snapshot"`.
+    /// Snapshot (.h5) to start from when `initial = "snapshot"`.
     pub snapshot: String,
+    /// Width (standard deviation, in box sides) of the Gaussian that smooths a particle
+    /// snapshot's `Q(x) = (1/N) sum_n p_n p_n delta(x - x_n)` onto the grid (modes within the
+    /// grid's dealiased band, each multiplied by `exp(-2 pi^2 |m|^2 smoothing^2)`). Default
+    /// 0.02; allowed [0, 0.5]. Wider loses short-wave structure; narrower keeps more of the
+    /// particles' sampling noise.
+    pub smoothing: f64,
     /// Perturbation amplitude. Default 1e-2; allowed (0, 0.3].
     pub amplitude: f64,
     /// Smallest integer wavenumber of random perturbations. Default 1.
@@ -99,6 +104,7 @@ impl Default for MeanFieldRunConfig {
             max_step_ratio: 1.5,
             initial: "random".into(),
             snapshot: String::new(),
+            smoothing: 0.02,
             amplitude: 1e-2,
             mode_min: 1,
             mode_max: 4,
@@ -119,6 +125,23 @@ impl Default for MeanFieldRunConfig {
 }
 
 impl MeanFieldRunConfig {
+    /// The perturbation of a "random" or "plane_wave" start.
+    pub fn perturbation(&self) -> Perturbation {
+        if self.initial == "plane_wave" {
+            Perturbation::PlaneWave {
+                amplitude: self.amplitude,
+                wavevector: self.wavevector,
+            }
+        } else {
+            Perturbation::Random {
+                amplitude: self.amplitude,
+                mode_min: self.mode_min,
+                mode_max: self.mode_max,
+                seed: self.seed,
+            }
+        }
+    }
+
     /// Make a relative `snapshot` file name relative to `base` (the folder of the config file
     /// it came from) instead of the working directory.
     pub fn resolve_paths(&mut self, base: &Path) {
@@ -169,6 +192,7 @@ impl MeanFieldRunConfig {
             true,
             "dimensionless; SBDF2 is zero-stable below 1 + sqrt 2",
         )?;
+        chk("smoothing", self.smoothing, 0.0, 0.5, false, "box sides")?;
         chk(
             "amplitude",
             self.amplitude,
@@ -284,7 +308,7 @@ impl MeanFieldRunConfig {
         }
         if self.initial == "snapshot" && self.snapshot.is_empty() {
             return Err(
-                "initial = \"snapshot\" needs snapshot = \"path/to/snapshot.h5\" (a mean-field snapshot)"
+                "initial = \"snapshot\" needs snapshot = \"path/to/snapshot.h5\" (a mean-field or particle snapshot)"
                     .into(),
             );
         }
@@ -320,15 +344,13 @@ pub fn closure_tables(degree: usize) -> anyhow::Result<BinghamClosure> {
     Ok(c)
 }
 
-/// Q of a mean-field snapshot on a grid of `n^3` points (spectrally resampled if the
-/// snapshot's grid differs), validated: finite, positive trace (concentration) everywhere.
-pub fn snapshot_state(path: &Path, n: usize) -> anyhow::Result<[Vec<f64>; 6]> {
+/// Q of a snapshot on a grid of `n^3` points: a mean-field snapshot spectrally resampled if its
+/// grid differs, or a particle snapshot smoothed (see [`particle_state`]); validated: finite,
+/// positive trace (concentration) everywhere.
+pub fn snapshot_state(path: &Path, n: usize, smoothing: f64) -> anyhow::Result<[Vec<f64>; 6]> {
     let snap = match read_snapshot(path)? {
         Snapshot::Field(s) => s,
-        Snapshot::Particle(_) => bail!(
-            "{}: a particle snapshot; initial = \"snapshot\" needs a mean-field one (kind = \"meanfield\")",
-            path.display()
-        ),
+        Snapshot::Particle(p) => return particle_state(&p, n, smoothing, path),
     };
     let m = snap.grid;
     if let Some(i) = (0..m * m * m).find(|&i| snap.q[0][i] + snap.q[3][i] + snap.q[5][i] <= 0.0) {
@@ -353,79 +375,81 @@ pub fn snapshot_state(path: &Path, n: usize) -> anyhow::Result<[Vec<f64>; 6]> {
     }))
 }
 
+/// The second-moment field of a particle configuration on the unit box's `n^3` grid (MODEL.md
+/// §5-§6): `Q(x) = (1/N) sum_n p_n p_n delta(x - x_n / L)` (so that its mean trace, the
+/// concentration, is 1), its Fourier coefficients by a type-1 NUFFT on the modes of the grid's
+/// dealiased band (`|m_i| <= n/3`), each multiplied by `exp(-2 pi^2 |m|^2 sigma^2)` (a Gaussian
+/// of standard deviation `sigma` = `smoothing` box sides), back to the grid by an FFT.
+pub fn particle_state(
+    snap: &crate::snapshot::ParticleSnapshot,
+    n: usize,
+    smoothing: f64,
+    path: &Path,
+) -> anyhow::Result<[Vec<f64>; 6]> {
+    use motile_analysis::correlation::Spectrum;
+    use motile_analysis::nufft::{NufftPlan, mode_of};
+    use num_complex::Complex64;
+    let count = snap.positions.len();
+    if count == 0 {
+        bail!("{}: a particle snapshot without rods", path.display());
+    }
+    let l = snap.box_length;
+    let modes = 2 * (n / 3) + 1;
+    let mut plan = NufftPlan::new([modes; 3], 1e-10)?;
+    plan.set_points(&snap.positions, l)?;
+    let inv = 1.0 / count as f64;
+    let fields: Vec<Vec<Complex64>> = SYM
+        .iter()
+        .map(|&(i, j)| {
+            snap.orientations
+                .iter()
+                .map(|p| Complex64::new(p[i] * p[j] * inv, 0.0))
+                .collect()
+        })
+        .collect();
+    let refs: Vec<&[Complex64]> = fields.iter().map(|f| f.as_slice()).collect();
+    let mut coef = plan.type1(&refs)?;
+    let s2 = 2.0 * std::f64::consts::PI.powi(2) * smoothing * smoothing;
+    for c in &mut coef {
+        for (idx, v) in c.iter_mut().enumerate() {
+            let m = [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+                .map(|i| mode_of(i, modes) as f64);
+            *v *= (-s2 * (m[0] * m[0] + m[1] * m[1] + m[2] * m[2])).exp();
+        }
+    }
+    // On the run's grid: the band's coefficients placed among n^3 modes.
+    let q: [Vec<f64>; 6] = std::array::from_fn(|c| {
+        let mut full = vec![Complex64::default(); n * n * n];
+        for (idx, v) in coef[c].iter().enumerate() {
+            let m = [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+                .map(|i| mode_of(i, modes));
+            let k = m.map(|v| (v + (n / 2) as i64) as usize);
+            full[(k[2] * n + k[1]) * n + k[0]] = *v;
+        }
+        Spectrum {
+            modes: n,
+            box_length: 1.0,
+            components: vec![full],
+            weights: vec![1.0],
+        }
+        .to_grid(0)
+    });
+    if let Some(i) = (0..n * n * n).find(|&i| q[0][i] + q[3][i] + q[5][i] <= 0.0) {
+        bail!(
+            "{}: the smoothed concentration at grid point {i} is {}: too few rods for this grid and smoothing = {smoothing}; smooth more",
+            path.display(),
+            q[0][i] + q[3][i] + q[5][i]
+        );
+    }
+    Ok(q)
+}
+
 /// Initial Q on the grid.
 pub fn initial_state(cfg: &MeanFieldRunConfig) -> anyhow::Result<[Vec<f64>; 6]> {
     if cfg.initial == "snapshot" {
-        return snapshot_state(Path::new(&cfg.snapshot), cfg.grid);
+        return snapshot_state(Path::new(&cfg.snapshot), cfg.grid, cfg.smoothing);
     }
-    let n = cfg.grid;
-    let mut q: [Vec<f64>; 6] = std::array::from_fn(|c| {
-        vec![if SYM[c].0 == SYM[c].1 { 1.0 / 3.0 } else { 0.0 }; n * n * n]
-    });
-    let point = |idx: usize| [idx % n, (idx / n) % n, idx / (n * n)].map(|i| i as f64 / n as f64);
-    if cfg.initial == "plane_wave" {
-        let m = cfg.wavevector.map(|v| v as f64);
-        for idx in 0..n * n * n {
-            let x = point(idx);
-            q[1][idx] +=
-                cfg.amplitude * (2.0 * PI * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2])).cos();
-        }
-        return Ok(q);
-    }
-    // Random traceless perturbations: a sum of modes in the band, each with random traceless
-    // symmetric amplitude and phase, normalised so the largest |Q' component| on a fixed 32^3
-    // sampling equals amplitude. The sampling does not depend on the run's grid, so every grid
-    // starts from the same function (resolution studies compare like with like).
-    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let (lo, hi) = (cfg.mode_min as i64, cfg.mode_max as i64);
-    let mut modes: Vec<([f64; 3], [f64; 6], f64)> = Vec::new();
-    for mx in -hi..=hi {
-        for my in -hi..=hi {
-            for mz in 0..=hi {
-                let m2 = mx * mx + my * my + mz * mz;
-                if m2 < lo * lo || m2 > hi * hi || (mz == 0 && (my < 0 || (my == 0 && mx <= 0))) {
-                    continue;
-                }
-                let mut a: [f64; 6] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
-                let tr = (a[0] + a[3] + a[5]) / 3.0;
-                a[0] -= tr;
-                a[3] -= tr;
-                a[5] -= tr;
-                let phase: f64 = rng.random_range(0.0..2.0 * PI);
-                modes.push(([mx as f64, my as f64, mz as f64], a, phase));
-            }
-        }
-    }
-    let pert = |x: [f64; 3]| {
-        let mut v = [0.0; 6];
-        for (m, a, phase) in &modes {
-            let s = (2.0 * PI * (m[0] * x[0] + m[1] * x[1] + m[2] * x[2]) + phase).cos();
-            for c in 0..6 {
-                v[c] += a[c] * s;
-            }
-        }
-        v
-    };
-    const SAMPLING: usize = 32;
-    let peak = (0..SAMPLING.pow(3))
-        .map(|idx| {
-            let x = [
-                idx % SAMPLING,
-                (idx / SAMPLING) % SAMPLING,
-                idx / (SAMPLING * SAMPLING),
-            ]
-            .map(|i| i as f64 / SAMPLING as f64);
-            pert(x).iter().fold(0.0f64, |m, v| m.max(v.abs()))
-        })
-        .fold(0.0f64, f64::max)
-        .max(1e-300);
-    for idx in 0..n * n * n {
-        let v = pert(point(idx));
-        for c in 0..6 {
-            q[c][idx] += cfg.amplitude * v[c] / peak;
-        }
-    }
-    Ok(q)
+    Ok(PerturbationField::new(&cfg.perturbation()).on_grid(cfg.grid))
 }
 
 /// Columns of a mean-field `timeseries.csv`.
@@ -701,7 +725,10 @@ pub fn run_meanfield(
     let grid = SpectralGrid::new(cfg.grid);
     let stepper = MeanFieldStepper::new(&grid, &q0, SBDF2);
     if cfg.initial == "snapshot" {
-        run.log(&format!("initial state: Q of {}", cfg.snapshot))?;
+        run.log(&format!(
+            "initial state: Q of {} (a particle snapshot is smoothed with a Gaussian of {} box sides)",
+            cfg.snapshot, cfg.smoothing
+        ))?;
     }
     let dt = cfg.dt_max.min(0.1 * cfg.diagnostic_interval);
     let clock = Clock {

@@ -16,12 +16,13 @@ use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, FileBuilder};
 use indicatif::{ProgressBar, ProgressStyle};
 use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
+use motile_meanfield::initial::PerturbationField;
 use motile_particle::cells::CellList;
 use motile_particle::contact::WarmStart;
 use motile_particle::dipole::Dipole;
 use motile_particle::geometry::{axpy, quat_from_axis, segment_distance};
 use motile_particle::gmres::GmresParams;
-use motile_particle::init::random_nonoverlapping;
+use motile_particle::init::{nonoverlapping_with, perturbed_orientation, random_nonoverlapping};
 use motile_particle::slender::{SlenderBody, SlenderParams};
 use motile_particle::spectral_ewald::SpectralEwald;
 use motile_particle::units::{DIAMETER, ROD_LENGTH, SWIM_SPEED, VISCOSITY};
@@ -56,9 +57,13 @@ pub struct ParticleRunConfig {
     pub hydrodynamics: String,
     /// Settings of the hydrodynamic models.
     pub hydro: HydroConfig,
-    /// "random", or a file: a particle snapshot (.h5) or a text table with one rod per line,
-    /// `x y z px py pz`.
+    /// "random" (isotropic), "perturbation" (orientations drawn from
+    /// `Psi = (1 + (15/2) Q'(x) : pp) / 4 pi` with `Q'` from `[perturbation]`: the mean-field
+    /// model's initial field, MODEL.md §5), or a file: a particle snapshot (.h5) or a text table
+    /// with one rod per line, `x y z px py pz`.
     pub initial: String,
+    /// The perturbation of `initial = "perturbation"`.
+    pub perturbation: PerturbationConfig,
     /// Time between time-series rows, 1/beta. Default 0.02.
     pub diagnostic_interval: f64,
     /// Time between snapshots, 1/beta. Default 0.2.
@@ -88,6 +93,7 @@ impl Default for ParticleRunConfig {
             hydrodynamics: "none".into(),
             hydro: HydroConfig::default(),
             initial: "random".into(),
+            perturbation: PerturbationConfig::default(),
             diagnostic_interval: 0.02,
             snapshot_interval: 0.2,
             checkpoint_interval: 0.5,
@@ -96,6 +102,88 @@ impl Default for ParticleRunConfig {
             vtk: true,
             contact: ContactParams::default(),
         }
+    }
+}
+
+/// A perturbation of the isotropic state (`[perturbation]`), the same keys and function as a
+/// mean-field run's initial field (`initial`, `amplitude`, `mode_min`, `mode_max`, `seed`,
+/// `wavevector`), on the particle box scaled to the unit box.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PerturbationConfig {
+    /// "random" (modes with `|m|` in `[mode_min, mode_max]`, random traceless amplitudes and
+    /// phases) or "plane_wave" (`Q'_xy = amplitude cos(2 pi m . x / L)`). Default "random".
+    pub kind: String,
+    /// Largest component of `Q'`. Default 0.02; allowed (0, 0.1] (the distribution must stay
+    /// positive: `|Q'|_F < 2/15` everywhere, checked).
+    pub amplitude: f64,
+    /// Smallest integer wavenumber. Default 1.
+    pub mode_min: usize,
+    /// Largest integer wavenumber. Default 2.
+    pub mode_max: usize,
+    /// Seed of the amplitudes and phases (not of the rods: that is the run's `seed`). Default 1.
+    pub seed: u64,
+    /// Plane wave's integer wavevector. Default [1, 0, 0].
+    pub wavevector: [i64; 3],
+}
+
+impl Default for PerturbationConfig {
+    fn default() -> Self {
+        Self {
+            kind: "random".into(),
+            amplitude: 0.02,
+            mode_min: 1,
+            mode_max: 2,
+            seed: 1,
+            wavevector: [1, 0, 0],
+        }
+    }
+}
+
+impl PerturbationConfig {
+    /// The perturbation (the mean-field library's description of it).
+    pub fn perturbation(&self) -> motile_meanfield::initial::Perturbation {
+        use motile_meanfield::initial::Perturbation;
+        if self.kind == "plane_wave" {
+            Perturbation::PlaneWave {
+                amplitude: self.amplitude,
+                wavevector: self.wavevector,
+            }
+        } else {
+            Perturbation::Random {
+                amplitude: self.amplitude,
+                mode_min: self.mode_min,
+                mode_max: self.mode_max,
+                seed: self.seed,
+            }
+        }
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        if !["random", "plane_wave"].contains(&self.kind.as_str()) {
+            return Err(format!(
+                "perturbation.kind = \"{}\": allowed \"random\" or \"plane_wave\"",
+                self.kind
+            ));
+        }
+        range(
+            "perturbation.amplitude",
+            self.amplitude,
+            0.0,
+            0.1,
+            true,
+            "largest component of Q'",
+        )?;
+        if self.mode_min < 1 || self.mode_min > self.mode_max || self.mode_max > 16 {
+            return Err(format!(
+                "perturbation.mode_min = {}, mode_max = {}: need 1 <= mode_min <= mode_max <= 16",
+                self.mode_min, self.mode_max
+            ));
+        }
+        if self.kind == "plane_wave" && self.wavevector == [0, 0, 0] {
+            return Err("perturbation.wavevector = [0, 0, 0]: a plane wave needs m != 0".into());
+        }
+        Ok(())
     }
 }
 
@@ -190,7 +278,9 @@ impl ParticleRunConfig {
     /// Make a relative `initial` file name relative to `base` (the folder of the config file
     /// it came from) instead of the working directory.
     pub fn resolve_paths(&mut self, base: &Path) {
-        if self.initial != "random" && Path::new(&self.initial).is_relative() {
+        if !["random", "perturbation"].contains(&self.initial.as_str())
+            && Path::new(&self.initial).is_relative()
+        {
             let p = base.join(&self.initial);
             self.initial = std::path::absolute(&p)
                 .unwrap_or(p)
@@ -218,6 +308,7 @@ impl ParticleRunConfig {
             "N l^3 / L^3",
         )?;
         range("dt", self.dt, 0.0, 0.05, true, "1/beta")?;
+        self.perturbation.validate()?;
         range("t_end", self.t_end, 0.0, 1e9, true, "1/beta")?;
         for (name, v) in [
             ("diagnostic_interval", self.diagnostic_interval),
@@ -594,8 +685,26 @@ pub struct RunSummary {
     pub rods: RodSet,
 }
 
-/// The rods a run starts from: random (seeded) or read from `initial`.
+/// The rods a run starts from: random (seeded), drawn from a perturbation, or read from
+/// `initial`.
 pub fn initial_rods(cfg: &ParticleRunConfig) -> anyhow::Result<RodSet> {
+    if cfg.initial == "perturbation" {
+        let n = cfg
+            .rods
+            .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
+        let field = PerturbationField::new(&cfg.perturbation.perturbation());
+        let peak = field.max_norm();
+        if peak >= 2.0 / 15.0 {
+            bail!(
+                "perturbation.amplitude = {}: |Q'| reaches {peak:.3}, the orientation distribution (1 + (15/2) Q':pp)/4 pi turns negative beyond 2/15 = 0.133; lower the amplitude",
+                cfg.perturbation.amplitude
+            );
+        }
+        let l = cfg.box_length;
+        return Ok(nonoverlapping_with(n, l, cfg.seed, 200_000, |x, rng| {
+            perturbed_orientation(&field.eval(x.map(|c| c / l)), rng)
+        })?);
+    }
     if cfg.initial == "random" {
         let n = cfg
             .rods

@@ -7,4 +7,5 @@ pub mod bessel;
 pub mod bingham;
 pub mod closure;
 pub mod eigen;
+pub mod initial;
 pub mod solver;

@@ -1,6 +1,7 @@
-//! Initial configurations: uniform random centres and isotropic orientations without overlaps,
-//! by random sequential addition (each new rod is kept only if its centerline stays at least
-//! `b` from every other), with a cell grid so each trial costs O(1).
+//! Initial configurations: uniform random centres and isotropic (or perturbed, MODEL.md §5)
+//! orientations without overlaps, by random sequential addition (each new rod is kept only if
+//! its centerline stays at least `b` from every other), with a cell grid so each trial costs
+//! O(1).
 
 use crate::geometry::{Vec3, axpy, min_image, quat_from_axis, segment_distance, sub};
 use crate::rods::RodSet;
@@ -47,6 +48,41 @@ pub fn random_nonoverlapping(
     seed: u64,
     max_trials: usize,
 ) -> Result<RodSet, InitError> {
+    nonoverlapping_with(n, box_length, seed, max_trials, |_, rng| {
+        isotropic_orientation(rng)
+    })
+}
+
+/// A unit vector from `Psi(p) = (1 + (15/2) Q' : pp) / 4 pi` (traceless `Q'`, components
+/// `xx, xy, xz, yy, yz, zz`), the orientation distribution whose second moment is
+/// `I/3 + Q'` (because `int pppp dp / 4 pi = (d d + d d + d d) / 15`), by rejection from the
+/// isotropic one. Needs `|Q'|_F < 2/15` so that `Psi > 0`.
+pub fn perturbed_orientation<R: Rng>(q: &[f64; 6], rng: &mut R) -> Vec3 {
+    let [xx, xy, xz, yy, yz, zz] = *q;
+    let frob = (xx * xx + yy * yy + zz * zz + 2.0 * (xy * xy + xz * xz + yz * yz)).sqrt();
+    let bound = 1.0 + 7.5 * frob;
+    loop {
+        let p = isotropic_orientation(rng);
+        let qpp = xx * p[0] * p[0]
+            + yy * p[1] * p[1]
+            + zz * p[2] * p[2]
+            + 2.0 * (xy * p[0] * p[1] + xz * p[0] * p[2] + yz * p[1] * p[2]);
+        let u: f64 = rng.random_range(0.0..bound);
+        if u < 1.0 + 7.5 * qpp {
+            return p;
+        }
+    }
+}
+
+/// [`random_nonoverlapping`] with orientations drawn by `orientation(x, rng)` for a rod at
+/// centre `x` (called once per trial, after its centre is drawn).
+pub fn nonoverlapping_with(
+    n: usize,
+    box_length: f64,
+    seed: u64,
+    max_trials: usize,
+    mut orientation: impl FnMut(&Vec3, &mut ChaCha8Rng) -> Vec3,
+) -> Result<RodSet, InitError> {
     let reach = ROD_LENGTH + DIAMETER;
     if box_length <= reach {
         return Err(InitError::BoxTooSmall(box_length));
@@ -66,7 +102,7 @@ pub fn random_nonoverlapping(
         let mut trials = 0;
         loop {
             let x: Vec3 = [0, 1, 2].map(|_| rng.random_range(0.0..box_length));
-            let p = isotropic_orientation(&mut rng);
+            let p = orientation(&x, &mut rng);
             let c = cell_of(&x);
             let mut ok = true;
             'search: for &dz in &stencil {
@@ -117,4 +153,37 @@ pub fn random_nonoverlapping(
         image: vec![[0; 3]; n],
         x: xs,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sampled orientations have the second moment `I/3 + Q'`: the mean of `pp` over many
+    /// draws within its statistical error (5 standard errors).
+    #[test]
+    fn perturbed_orientations_have_the_prescribed_second_moment() {
+        let q = [0.06, 0.03, -0.02, -0.04, 0.05, -0.02];
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let n = 200_000;
+        let mut m = [0.0f64; 6];
+        let idx = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+        for _ in 0..n {
+            let p = perturbed_orientation(&q, &mut rng);
+            for (c, &(i, j)) in idx.iter().enumerate() {
+                m[c] += p[i] * p[j];
+            }
+        }
+        for (c, &(i, j)) in idx.iter().enumerate() {
+            let mean = m[c] / n as f64;
+            let expected = q[c] + if i == j { 1.0 / 3.0 } else { 0.0 };
+            // Var(p_i p_j) <= 1/5 under the near-isotropic distribution.
+            let se = (0.2 / n as f64).sqrt();
+            assert!(
+                (mean - expected).abs() < 5.0 * se,
+                "<p{i} p{j}> = {mean}, expected {expected} (5 se = {:e})",
+                5.0 * se
+            );
+        }
+    }
 }
