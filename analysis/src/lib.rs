@@ -1,4 +1,4 @@
-//! Analysis shared by both motile models (MODEL.md §5, §6): the non-uniform FFT, correlation
+//! Analysis shared by both motile models (docs/MODEL.md §5, §6): the non-uniform FFT, correlation
 //! functions of particle configurations and of fields on a grid, the velocity spectrum of point
 //! forces, volume-averaged norms, correlation lengths, time averages and trajectory statistics.
 //!

@@ -1,4 +1,4 @@
-//! Three-dimensional non-uniform FFT on the periodic box (MODEL.md §6).
+//! Three-dimensional non-uniform FFT on the periodic box (docs/MODEL.md §6).
 //!
 //! Type 1 (points to modes): `c(m) = sum_j f_j exp(-i k_m . x_j)`,
 //! type 2 (modes to points): `f(x_j) = sum_m c(m) exp(+i k_m . x_j)`, with `k_m = 2 pi m / L`,

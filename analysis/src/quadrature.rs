@@ -1,7 +1,7 @@
 //! Gauss-Legendre quadrature on `[-1, 1]`.
 //!
 //! Used for the NUFFT kernel's Fourier transform (the deconvolution factors) and, later, for
-//! integrals along a rod's centreline (MODEL.md §1). Nodes come from Newton's method on the
+//! integrals along a rod's centreline (docs/MODEL.md §1). Nodes come from Newton's method on the
 //! three-term Legendre recurrence, started at the Tricomi approximation; accurate to a few ulp
 //! for every `n` used here (tested against polynomial integrals).
 

@@ -1,5 +1,5 @@
 //! `motile demo`, part 2: a free-swimming suspension, the exact solution of the particle model with
-//! hydrodynamics and contacts switched off (MODEL.md §1: an isolated rod swims at U along p),
+//! hydrodynamics and contacts switched off (docs/MODEL.md §1: an isolated rod swims at U along p),
 //! written as a particle run and analysed. It checks the analysis end to end against numbers
 //! known exactly: the shot-noise level of a random configuration and the ballistic mean squared
 //! displacement `(U t)^2`. Until the particle and mean-field solvers land, this is the
@@ -79,7 +79,7 @@ impl DemoConfig {
 }
 
 /// Force-density points of a free swimmer: 2-point Gauss-Legendre on each half rod (exact for
-/// the slip's jump, MODEL.md §1), `f = (U / (2 eta)) sign(s) p`, weighted.
+/// the slip's jump, docs/MODEL.md §1), `f = (U / (2 eta)) sign(s) p`, weighted.
 fn swimmer_forces(x: [f64; 3], p: [f64; 3], pts: &mut Vec<[f64; 3]>, f: &mut Vec<[f64; 3]>) {
     let (gx, gw) = gauss_legendre(2);
     for half in [-1.0, 1.0] {

@@ -1,4 +1,4 @@
-//! `motile meanfield run`: drives the mean-field stepper (MODEL.md §4) and owns the run
+//! `motile meanfield run`: drives the mean-field stepper (docs/MODEL.md §4) and owns the run
 //! directory, the time-step control, the output schedule, snapshots and the closure-table cache.
 //!
 //! Time step: `dt = min(dt_max, cfl h / max(|u_x| + |u_y| + |u_z|))` (the sum over axes), its
@@ -45,7 +45,7 @@ pub struct MeanFieldRunConfig {
     /// "random" (perturbations with wavenumbers |m| in [mode_min, mode_max]), "plane_wave"
     /// (Q_xy = amplitude cos(2 pi m.x) with m = `wavevector`) or "snapshot" (Q of the snapshot
     /// file `snapshot`: a mean-field snapshot, spectrally resampled if its grid differs, or a
-    /// particle snapshot, its second-moment density smoothed onto the grid, MODEL.md §5).
+    /// particle snapshot, its second-moment density smoothed onto the grid, docs/MODEL.md §5).
     pub initial: String,
     /// Snapshot (.h5) to start from when `initial = "snapshot"`.
     pub snapshot: String,
@@ -375,7 +375,7 @@ pub fn snapshot_state(path: &Path, n: usize, smoothing: f64) -> anyhow::Result<[
     }))
 }
 
-/// The second-moment field of a particle configuration on the unit box's `n^3` grid (MODEL.md
+/// The second-moment field of a particle configuration on the unit box's `n^3` grid (docs/MODEL.md
 /// §5-§6): `Q(x) = (1/N) sum_n p_n p_n delta(x - x_n / L)` (so that its mean trace, the
 /// concentration, is 1), its Fourier coefficients by a type-1 NUFFT on the modes of the grid's
 /// dealiased band (`|m_i| <= n/3`), each multiplied by `exp(-2 pi^2 |m|^2 sigma^2)` (a Gaussian

@@ -1,4 +1,4 @@
-//! The Bingham distribution `Psi_B(p) = exp(p.B p) / Z` on the unit sphere (MODEL.md §4): its
+//! The Bingham distribution `Psi_B(p) = exp(p.B p) / Z` on the unit sphere (docs/MODEL.md §4): its
 //! moments by accurate quadrature, and the exponent `B` whose second moment has given
 //! eigenvalues (Newton). This is the slow, accurate reference; [`crate::closure`] tabulates it.
 //!

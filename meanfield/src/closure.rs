@@ -1,4 +1,4 @@
-//! The fast Bingham closure of MODEL.md §4: in the eigenframe of `Q = R diag(mu) R^T` the
+//! The fast Bingham closure of docs/MODEL.md §4: in the eigenframe of `Q = R diag(mu) R^T` the
 //! fourth moment `S` has only `S_iijj` components (and their index permutations), smooth
 //! functions of two eigenvalues, tabulated once as 2D Chebyshev interpolants.
 //!

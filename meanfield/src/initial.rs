@@ -1,8 +1,8 @@
 //! Initial conditions of the mean-field model: perturbations `Q' ` of the isotropic state
-//! `Q = I/3` on the unit box (MODEL.md §4), as functions of position, so that the same field can
+//! `Q = I/3` on the unit box (docs/MODEL.md §4), as functions of position, so that the same field can
 //! be sampled on any grid and, by the particle model, at rod positions (a particle
 //! configuration drawn from `Psi(x, p) = (1 + (15/2) Q'(x) : pp) / 4 pi`, whose second moment is
-//! `I/3 + Q'`: the comparison of the two models from one initial condition, MODEL.md §5).
+//! `I/3 + Q'`: the comparison of the two models from one initial condition, docs/MODEL.md §5).
 
 use crate::solver::SYM;
 use rand::{RngExt, SeedableRng};

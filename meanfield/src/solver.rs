@@ -1,4 +1,4 @@
-//! The mean-field equations (M1)-(M2) of MODEL.md §4, pseudo-spectrally on the periodic unit
+//! The mean-field equations (M1)-(M2) of docs/MODEL.md §4, pseudo-spectrally on the periodic unit
 //! cube:
 //!
 //! ```text
@@ -702,11 +702,11 @@ pub struct MeanFieldStepReport {
     pub u_max: f64,
     /// `||E||_2 = sqrt(<E:E>)`.
     pub e_l2: f64,
-    /// `<E:Q>`, the power the active stress injects (MODEL §4 energy identity).
+    /// `<E:Q>`, the power the active stress injects (docs/MODEL.md §4 energy identity).
     pub e_dot_q: f64,
     /// Largest eigenvalue of `Q / tr Q`.
     pub max_eigenvalue: f64,
-    /// Relative entropy `H` (volume average), MODEL §4.
+    /// Relative entropy `H` (volume average), docs/MODEL.md §4.
     pub entropy: f64,
     /// Energy identity residual `(<2 E:E + zeta E:S:E> - <E:Q>) / <E:Q>` (zero up to the
     /// fixed-point tolerance).

@@ -1,4 +1,4 @@
-//! The mean-field solver against exact properties (MODEL.md §4): the linear growth rate of a
+//! The mean-field solver against exact properties (docs/MODEL.md §4): the linear growth rate of a
 //! plane-wave perturbation of isotropy, `gamma = (1/5)/(1 + zeta/15) - D |k|^2`, for three
 //! values of zeta; the energy identity `int (2 E:E + zeta E:S:E) = int E:Q` on a nonlinear state
 //! to the fixed-point tolerance; second-order convergence of SBDF2 on a smooth nonlinear run.

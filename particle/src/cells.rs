@@ -1,4 +1,4 @@
-//! Periodic cell lists (MODEL.md §3: neighbour search is O(N), never all pairs).
+//! Periodic cell lists (docs/MODEL.md §3: neighbour search is O(N), never all pairs).
 //!
 //! The box is cut into `n^3` cells of side at least the cutoff; a pair can only be closer than
 //! the cutoff if its cells are neighbours (27-cell stencil). Each unordered pair is reported once,

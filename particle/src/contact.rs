@@ -1,4 +1,4 @@
-//! Steric contacts (MODEL.md §3) as a linear complementarity problem solved by BBPGD.
+//! Steric contacts (docs/MODEL.md §3) as a linear complementarity problem solved by BBPGD.
 //!
 //! For each pair closer than `b + margin`, a constraint `alpha` between the closest points
 //! `y_i`, `y_j` of the two centerlines, unit normal `n` from `j` to `i`, separation

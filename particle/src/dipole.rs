@@ -1,4 +1,4 @@
-//! The far-field (dipole) mobility (`hydrodynamics = "dipole"`, MODEL.md §2): each rod is a
+//! The far-field (dipole) mobility (`hydrodynamics = "dipole"`, docs/MODEL.md §2): each rod is a
 //! point stresslet `sigma_0 p p`, `sigma_0 = U l^2/(8 eta)`, at its centre; it swims at `U p`
 //! plus the periodic flow of all the others (its own singular term excluded) and turns with
 //! Jeffery's rule `pdot = (I - pp)(grad u) p`. No GMRES: one stresslet sum per step.

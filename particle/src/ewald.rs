@@ -1,4 +1,4 @@
-//! Kernels of the periodic Stokes sums (MODEL.md §1, §2) and their Ewald split.
+//! Kernels of the periodic Stokes sums (docs/MODEL.md §1, §2) and their Ewald split.
 //!
 //! The Rotne-Prager-Yamakawa tensor of two spheres of radius `a` (mu = 1 throughout; divide
 //! by the viscosity at the call site):

@@ -1,5 +1,5 @@
 //! Parameters of the spectral Ewald sums ([`crate::spectral_ewald`]) from a tolerance, per
-//! output (MODEL.md §1, §2; the accuracy contract is stated in `docs/accuracy.md`).
+//! output (docs/MODEL.md §1, §2; the accuracy contract is stated in `docs/accuracy.md`).
 //!
 //! Three outputs, the `n`-th derivative of the Stokeslet sum: RPY velocities (`n = 0`),
 //! stresslet velocities (`n = 1`), stresslet velocity gradients (`n = 2`). Each source's

@@ -1,4 +1,4 @@
-//! Vectors, unit quaternions (MODEL.md §1: `p = q z q*`, `q <- theta(dt Omega) q`), periodic
+//! Vectors, unit quaternions (docs/MODEL.md §1: `p = q z q*`, `q <- theta(dt Omega) q`), periodic
 //! minimum images and the closest points of two segments.
 
 /// 3-vector.

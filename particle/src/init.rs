@@ -1,4 +1,4 @@
-//! Initial configurations: uniform random centres and isotropic (or perturbed, MODEL.md §5)
+//! Initial configurations: uniform random centres and isotropic (or perturbed, docs/MODEL.md §5)
 //! orientations without overlaps, by random sequential addition (each new rod is kept only if
 //! its centerline stays at least `b` from every other), with a cell grid so each trial costs
 //! O(1).

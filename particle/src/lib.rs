@@ -1,4 +1,4 @@
-//! The particle model of MODEL.md §1-§3: rigid rods in a triply periodic box, periodic
+//! The particle model of docs/MODEL.md §1-§3: rigid rods in a triply periodic box, periodic
 //! neighbour search, steric contacts as a complementarity problem solved by BBPGD, and explicit
 //! time stepping with quaternion orientation updates. Hydrodynamics plugs in through
 //! [`mobility::Mobility`] (here only `LocalDrag`, `hydrodynamics = "none"`).

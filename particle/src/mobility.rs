@@ -2,7 +2,7 @@
 //!
 //! A [`Mobility`] gives (a) the velocities the rods would have without contacts (swimming plus,
 //! in later models, the hydrodynamic flow) and (b) the local response to a force and torque on
-//! one rod, which the contact solver uses (MODEL.md §3: the QP may use the local mobility of
+//! one rod, which the contact solver uses (docs/MODEL.md §3: the QP may use the local mobility of
 //! (P2)-(P3), block diagonal, while the flows that contact forces induce on other rods are left
 //! to the hydrodynamic solve).
 //!

@@ -1,7 +1,7 @@
 //! The periodic Stokes sums every hydrodynamic model needs, behind one trait so that the fast
 //! method ([`crate::spectral_ewald::SpectralEwald`]) and its slow twin
 //! ([`crate::rpy_reference::EwaldReference`]) are interchangeable in the solvers and compared
-//! in the tests (MODEL.md §1, §2).
+//! in the tests (docs/MODEL.md §1, §2).
 //!
 //! Points come in groups of `group` consecutive points (the quadrature points of one rod, or
 //! single points): a point does not see the direct (image 0) contribution of its own group,

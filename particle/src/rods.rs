@@ -1,4 +1,4 @@
-//! The rods' state (MODEL.md §1): centres wrapped into the periodic box, unit quaternions, and
+//! The rods' state (docs/MODEL.md §1): centres wrapped into the periodic box, unit quaternions, and
 //! the periodic images each rod has crossed, so unwrapped trajectories are exact.
 
 use crate::geometry::{Quat, Vec3, quat_axis};

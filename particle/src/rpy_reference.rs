@@ -1,4 +1,4 @@
-//! The slow, obviously correct twin of the periodic sums: a direct Ewald summation (MODEL.md
+//! The slow, obviously correct twin of the periodic sums: a direct Ewald summation (docs/MODEL.md
 //! §1: "every fast method must agree with a slow, obviously-correct Ewald sum").
 //!
 //! Real space: every source, every periodic image within `r_c = 6.5/xi` of the target (an

@@ -1,17 +1,17 @@
-//! The slender-body mobility (`hydrodynamics = "sbt"`, MODEL.md §1): the second-kind equation
+//! The slender-body mobility (`hydrodynamics = "sbt"`, docs/MODEL.md §1): the second-kind equation
 //! (P4) for the force densities, solved by GMRES with the periodic RPY sum applied
 //! matrix-free, then the rigid-body velocities (P2)-(P3).
 //!
 //! Quadrature: Gauss-Legendre on each half rod (`M/2` nodes per half, `M` even, default 4),
 //! which respects the jump of the slip at `s = 0`: the discrete rod carries exactly the
-//! stresslet `U l^2/(8 eta)` (MODEL.md's caution; a Chebyshev rule over the whole rod would be
+//! stresslet `U l^2/(8 eta)` (docs/MODEL.md's caution; a Chebyshev rule over the whole rod would be
 //! 11% too strong at M = 4) and integrates `s^2` exactly, so the discrete (P4) keeps the
 //! identities behind it: zero net force and torque without contacts, for any flow.
 //!
 //! Rod n's own direct terms are excluded from `u_n` (the point-group exclusion of
 //! [`crate::periodic`]); all periodic images, its own included, are in.
 //!
-//! Contacts (MODEL.md §3), the splitting: the contact solver plans with the local mobility of
+//! Contacts (docs/MODEL.md §3), the splitting: the contact solver plans with the local mobility of
 //! (P2)-(P3) applied to predicted velocities, namely swimming plus the previous step's flow
 //! velocities (an exact free solve on the first step). Once it has the contact forces `F_n` and
 //! torques `T_n`, one GMRES solve of (P4) with swimming and contact terms together gives the

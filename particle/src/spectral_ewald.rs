@@ -1,4 +1,4 @@
-//! Fast periodic Stokes sums by spectral Ewald (MODEL.md §1, §2): the Hasimoto split of
+//! Fast periodic Stokes sums by spectral Ewald (docs/MODEL.md §1, §2): the Hasimoto split of
 //! [`crate::ewald`], the short-ranged real-space part summed over neighbours from a point cell
 //! list (`point_cells.rs`), the smooth Fourier part by Gaussian gridding
 //! ([`crate::gaussian_grid`]: spread the sources onto a uniform grid, real FFTs, a diagonal

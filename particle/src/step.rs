@@ -1,4 +1,4 @@
-//! One time step of the particle model (MODEL.md §1, §3):
+//! One time step of the particle model (docs/MODEL.md §1, §3):
 //!
 //! 1. neighbour search (cell list) and one constraint per pair closer than `b + margin`;
 //! 2. predicted velocities from the [`Mobility`] (swimming and, with hydrodynamics, the flow);

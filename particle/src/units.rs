@@ -1,4 +1,4 @@
-//! The units and fixed parameters of MODEL.md §1: rod length `l = 1`, diameter `b = l/5`,
+//! The units and fixed parameters of docs/MODEL.md §1: rod length `l = 1`, diameter `b = l/5`,
 //! viscosity `mu = 1`, propulsion rate `beta = 1` (swimming speed `U = beta l = 1`, time unit
 //! `1/beta`), slender-body coefficient `eta = ln(2l/b) / (4 pi mu)`.
 

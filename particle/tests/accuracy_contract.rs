@@ -1,4 +1,4 @@
-//! The accuracy contract of the spectral Ewald sums (`docs/accuracy.md`, MODEL.md §1-§2):
+//! The accuracy contract of the spectral Ewald sums (`docs/accuracy.md`, docs/MODEL.md §1-§2):
 //! for every output a sum returns (RPY velocities, stresslet velocities, stresslet velocity
 //! gradients) the largest error over the targets is at most `tol` times the largest exact
 //! output, and the L2 norm of the errors at most `tol` times the exact output's (an absolute

@@ -1,4 +1,4 @@
-//! The particle core against exact answers (MODEL.md §1, §3): an isolated rod swims `U t` along
+//! The particle core against exact answers (docs/MODEL.md §1, §3): an isolated rod swims `U t` along
 //! `p` without turning; two collinear rods swimming head-on stop touching, held by the contact
 //! force `lambda = U l / (2 eta)`; BBPGD agrees with projected Gauss-Seidel on a small dense
 //! problem; a dense suspension (nu = 5) never overlaps beyond tolerance and its contact forces

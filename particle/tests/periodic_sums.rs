@@ -1,4 +1,4 @@
-//! The periodic Stokes sums of MODEL.md §1-§2: the direct Ewald reference is checked on its
+//! The periodic Stokes sums of docs/MODEL.md §1-§2: the direct Ewald reference is checked on its
 //! own (independence of the splitting parameter; agreement with explicit image sums where
 //! those converge), then the spectral Ewald fast sum is checked against it at tolerances 1e-2
 //! to 1e-8 and for thread-count independence (the full accuracy contract, on force-free and

@@ -1,4 +1,4 @@
-//! The slender-body model (MODEL.md §1) and its far-field limit (§2) against exact answers:
+//! The slender-body model (docs/MODEL.md §1) and its far-field limit (§2) against exact answers:
 //! an isolated rod swims at U along p and turns only through its periodic images, at a rate
 //! that falls like (l/L)^3; the force density solving (P4) carries zero net force and torque,
 //! meets the GMRES tolerance and does not move with the fast-sum tolerance beyond it; GMRES

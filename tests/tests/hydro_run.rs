@@ -1,4 +1,4 @@
-//! Particle runs with hydrodynamics (MODEL.md §1-§2) through the run machinery: the time series
+//! Particle runs with hydrodynamics (docs/MODEL.md §1-§2) through the run machinery: the time series
 //! carries GMRES iterations and residuals and the velocity norm; snapshots carry the force
 //! densities; a run resumed from a checkpoint (which keeps the GMRES warm start) ends
 //! bit-identical to the uninterrupted one; a GMRES that cannot converge stops the run with a
@@ -151,7 +151,7 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
     ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
-    // The particle curve is the run's own time series through MODEL.md section 5.
+    // The particle curve is the run's own time series through docs/MODEL.md section 5.
     let ts = TimeSeries::read(&p.join("timeseries.csv")).unwrap();
     let (t, u) = (column(&ts, "t"), column(&ts, "velocity_norm"));
     let nu = (0.625f64 * 216.0).round() / 216.0;
@@ -227,7 +227,7 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
         );
     }
     // Concentrated runs (every run a particle run with nu > 1): order-parameter correlations
-    // against r/l, as MODEL.md section 7 reads them.
+    // against r/l, as docs/MODEL.md section 7 reads them.
     let dense = dir.path().join("dense");
     let mut cfg = small("sbt");
     cfg.box_length = 3.0;
@@ -249,7 +249,7 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
 #[test]
 fn compare_fits_the_mean_field_growth_rate_of_the_dominant_mode() {
     // A plane wave of Q_xy with wavevector m = (1, 0, 0) on the unit cube grows at
-    // gamma = (1/5)/(1 + zeta/15) - D k^2, k = 2 pi |m| (MODEL.md section 4), independent of
+    // gamma = (1/5)/(1 + zeta/15) - D k^2, k = 2 pi |m| (docs/MODEL.md section 4), independent of
     // k apart from diffusion; ||u||_2 grows at the same rate.
     use motile_experiments::compare::{compare, growth_fit};
     use motile_experiments::meanfield_run::{MeanFieldRunConfig, run_meanfield};

@@ -1,4 +1,4 @@
-//! One initial condition for both models (MODEL.md §5): a particle configuration drawn from a
+//! One initial condition for both models (docs/MODEL.md §5): a particle configuration drawn from a
 //! mean-field perturbation `Q'` (orientations from `Psi = (1 + (15/2) Q' : pp) / 4 pi`) carries
 //! that `Q'` up to its sampling noise, and a mean-field state made from a particle snapshot
 //! (its second-moment density smoothed onto the grid) carries the particles' `Q` with the

@@ -301,7 +301,7 @@ fn a_run_starts_from_a_snapshot_on_the_same_or_another_grid() {
     assert!(e.contains("missing.h5"), "{e}");
 }
 
-/// The flow bound `||u||_2 <= sqrt(1/(24 pi^2))` (MODEL §4) over a long nonlinear run at
+/// The flow bound `||u||_2 <= sqrt(1/(24 pi^2))` (docs/MODEL.md §4) over a long nonlinear run at
 /// 32^3 through the instability into the saturated state. D = 1e-3: with the paper's
 /// D = 1e-4, 32^3 under-resolves the flow (Q loses realizability from t ~ 34 and the Stokes fixed
 /// point breaks down at t ~ 62, as the source paper's code does near t = 81; BENCHMARKS.md).
