@@ -1,11 +1,13 @@
-//! Correlation functions (MODEL.md §6).
+//! Correlation functions (docs/MODEL.md §6).
 //!
 //! A field `Phi` on the periodic box with Fourier coefficients `Phi~(k)` (so that
 //! `Phi(x) = sum_k Phi~(k) exp(i k.x)`) has the autocorrelation
-//! `C(x) = (1/|V|) integral Phi(y) Phi(y + x) dy = sum_k |Phi~(k)|^2 exp(i k.x)`, evaluated on
-//! the grid of the retained modes by an inverse FFT and averaged over spherical shells of the
-//! minimum-image distance `|x|`. Vector and tensor fields sum their components, so
-//! `Corr[Phi](0) = ||Phi||_2^2`, the volume-averaged mean square.
+//! `C(x) = (1/|V|) integral Phi(y) Phi(y + x) dy = sum_k |Phi~(k)|^2 exp(i k.x)`, and its
+//! spherical average at radius `r` is exactly `Corr(r) = sum_k |Phi~(k)|^2 j0(|k| r)`,
+//! `j0(x) = sin(x)/x` (docs/MODEL.md (A2)): evaluated from the retained modes (grouped by `|m|^2`)
+//! at any radius, 64 of them in `(0, L/2]` by default. The resolution is that of the modes kept
+//! (`L/M` for `M` per axis), not of the sampling. Vector and tensor fields sum their components,
+//! so `Corr[Phi](0) = ||Phi||_2^2`, the volume-averaged mean square.
 //!
 //! Three sources of `Phi~`:
 //! - a particle configuration, `Phi~(k) = (1/N) sum_n phi(p_n) exp(-i k.x_n)` by a type-1 NUFFT
@@ -27,7 +29,8 @@ pub struct CorrelationOptions {
     /// Fourier modes per dimension for particle data. Default (`None`): `floor((L/l)/2)`
     /// with `l = 1`, at least 4. More modes resolve shorter distances and cost more.
     pub modes: Option<usize>,
-    /// Shell width in units of length. Default (`None`): the grid spacing `L / modes`.
+    /// Spacing of the radii at which correlations are evaluated, in units of length. Default
+    /// (`None`): `L / 128`, 64 radii in `(0, L/2]`.
     pub shell_width: Option<f64>,
     /// NUFFT tolerance. Default 1e-6: far below the statistical noise of any configuration.
     pub tolerance: f64,
@@ -54,12 +57,12 @@ impl CorrelationOptions {
 /// A radially averaged correlation function.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RadialCorrelation {
-    /// Shell centres (units of length); the first is 0.
+    /// Radii (units of length); the first is 0.
     pub r: Vec<f64>,
-    /// Shell averages of `C`.
+    /// Spherical averages of `C` there.
     pub value: Vec<f64>,
-    /// Number of grid points in each shell.
-    pub count: Vec<usize>,
+    /// Fourier modes per axis behind it (its resolution: `L / modes`).
+    pub modes: usize,
 }
 
 impl RadialCorrelation {
@@ -69,7 +72,7 @@ impl RadialCorrelation {
     }
 }
 
-/// Order parameters of a particle configuration (MODEL.md §6).
+/// Order parameters of a particle configuration (docs/MODEL.md §6).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OrderParameter {
     /// Concentration fluctuation `c' = c - 1` (scalar; the k = 0 mode is removed).
@@ -239,7 +242,7 @@ pub fn grid_coefficients(
     }
 }
 
-/// Velocity spectrum of point forces `f` at points `y` (MODEL.md §6): the Fourier coefficients
+/// Velocity spectrum of point forces `f` at points `y` (docs/MODEL.md §6): the Fourier coefficients
 /// of the zero-mean periodic Stokes flow, `modes^3` of them, viscosity `mu`.
 pub fn velocity_spectrum(
     y: &[[f64; 3]],
@@ -279,49 +282,43 @@ pub fn velocity_spectrum(
     })
 }
 
-/// Radially averaged inverse transform of a power spectrum on a `modes^3` cube (centred mode
-/// order): `C(x) = sum_k power(k) exp(i k.x)` on the grid `x = L j / modes`, averaged over shells
-/// of the minimum-image distance of width `shell_width` centred at `0, w, 2w, ...` up to `L/2`.
+/// Spherically averaged inverse transform of a power spectrum on a `modes^3` cube (centred mode
+/// order): `Corr(r) = sum_k power(k) j0(|k| r)` at `r = 0, w, 2w, ...` up to `L/2`, `w` the
+/// given spacing or `L/128`.
 pub fn radial_autocorrelation(
     power: &[f64],
     modes: usize,
     box_length: f64,
-    shell_width: Option<f64>,
+    spacing: Option<f64>,
 ) -> RadialCorrelation {
     let n = modes;
-    let h = box_length / n as f64;
-    let width = shell_width.unwrap_or(h);
-    assert!(width > 0.0, "shell width must be positive, got {width}");
-    let mut c = vec![Complex64::default(); n * n * n];
+    let w = spacing.unwrap_or(box_length / 128.0);
+    assert!(w > 0.0, "radial spacing must be positive, got {w}");
+    // Power per integer |m|^2.
+    let mut shells = std::collections::BTreeMap::<i64, f64>::new();
     for (idx, p) in power.iter().enumerate() {
-        let m = [idx % n, (idx / n) % n, idx / (n * n)]
-            .map(|i| mode_of(i, n).rem_euclid(n as i64) as usize);
-        c[(m[2] * n + m[1]) * n + m[0]] = Complex64::new(*p, 0.0);
+        let m = [idx % n, (idx / n) % n, idx / (n * n)].map(|i| mode_of(i, n));
+        *shells
+            .entry(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+            .or_default() += p;
     }
-    Fft3::new([n; 3]).process(&mut c, Direction::Inverse);
-    let nshell = ((box_length / 2.0) / width + 0.5).floor() as usize + 1;
-    let mut sum = vec![0.0; nshell];
-    let mut count = vec![0usize; nshell];
-    for (idx, v) in c.iter().enumerate() {
-        let d = [idx % n, (idx / n) % n, idx / (n * n)].map(|i| {
-            let j = if i > n / 2 {
-                i as f64 - n as f64
-            } else {
-                i as f64
-            };
-            j * h
-        });
-        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        let s = (r / width + 0.5).floor() as usize;
-        if s < nshell {
-            sum[s] += v.re;
-            count[s] += 1;
-        }
-    }
-    let keep: Vec<usize> = (0..nshell).filter(|&s| count[s] > 0).collect();
-    RadialCorrelation {
-        r: keep.iter().map(|&s| s as f64 * width).collect(),
-        value: keep.iter().map(|&s| sum[s] / count[s] as f64).collect(),
-        count: keep.iter().map(|&s| count[s]).collect(),
-    }
+    let count = ((box_length / 2.0) / w * (1.0 + 1e-12)).floor() as usize + 1;
+    let r: Vec<f64> = (0..count).map(|i| i as f64 * w).collect();
+    let value = r
+        .iter()
+        .map(|&r| {
+            shells
+                .iter()
+                .map(|(&m2, &p)| {
+                    let x = 2.0 * PI * (m2 as f64).sqrt() * r / box_length;
+                    p * if x < 1e-4 {
+                        1.0 - x * x / 6.0
+                    } else {
+                        x.sin() / x
+                    }
+                })
+                .sum()
+        })
+        .collect();
+    RadialCorrelation { r, value, modes: n }
 }

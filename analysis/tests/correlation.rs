@@ -28,7 +28,6 @@ fn single_fourier_mode_gives_half_a_squared_sinc() {
     let field = grid_field(n, l, |x| amp * (k * x[0]).cos());
     let spec = grid_coefficients(&[&field], &[1.0], n, l, false);
     let corr = spec.correlation(None);
-    let h = l / n as f64;
     let mean_sq = field.iter().map(|v| v * v).sum::<f64>() / field.len() as f64;
     assert!(
         (corr.at_zero() - mean_sq).abs() < 1e-11 * mean_sq,
@@ -36,24 +35,23 @@ fn single_fourier_mode_gives_half_a_squared_sinc() {
         corr.at_zero()
     );
     assert!((mean_sq - amp * amp / 2.0).abs() < 1e-11);
+    // The spherical average of a band-limited correlation is a j0 sum: exact at every radius.
+    assert!(
+        corr.r.len() >= 65 && corr.r[64] <= l / 2.0,
+        "{} radii",
+        corr.r.len()
+    );
     let mut worst: f64 = 0.0;
-    for ((r, c), count) in corr.r.iter().zip(&corr.value).zip(&corr.count).skip(1) {
+    for (r, c) in corr.r.iter().zip(&corr.value).skip(1) {
         let exact = amp * amp / 2.0 * (k * r).sin() / (k * r);
-        // Shell averaging on the lattice: the points of a shell lie within h/2 of its centre, so
-        // the radial error is at most (A^2/2) max|sinc'| k h/2 <= (A^2/2) 0.44 k h / 2, plus the
-        // angular sampling error of `count` lattice points, ~ (A^2/2) / sqrt(count).
-        let bound = amp * amp / 2.0 * (0.44 * k * h / 2.0 + 1.0 / (*count as f64).sqrt());
         let err = (c - exact).abs();
         worst = worst.max(err / (amp * amp / 2.0));
         assert!(
-            err <= bound,
-            "r = {r:.4}: Corr {c:.5} vs (A^2/2) sinc(kr) {exact:.5}: error {err:.2e} > {bound:.2e}"
+            err <= 1e-11 * amp * amp,
+            "r = {r:.4}: Corr {c:.5} vs (A^2/2) sinc(kr) {exact:.5}: error {err:.2e}"
         );
     }
-    eprintln!(
-        "single mode: worst relative shell error {worst:.3e} (k h = {:.3})",
-        k * h
-    );
+    eprintln!("single mode: worst relative error {worst:.3e}");
 }
 
 #[test]

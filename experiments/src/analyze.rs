@@ -1,5 +1,5 @@
 //! `motile analyze`: correlation functions, norms and trajectory statistics of a run's
-//! snapshots (MODEL.md §6), written to `<run>/analysis/`.
+//! snapshots (docs/MODEL.md §6), written to `<run>/analysis/`.
 
 use crate::io::{IoError, write_atomic};
 use crate::plot::{Chart, Series, line_chart};
@@ -22,7 +22,9 @@ use std::path::Path;
 pub struct AnalyzeOptions {
     /// Fourier modes per dimension for particle snapshots. Default: floor((L/l)/2), at least 4.
     pub modes: Option<usize>,
-    /// Shell width for radial averages (units of length). Default: the grid spacing.
+    /// Spacing of the radii at which correlations are evaluated (units of length): each value
+    /// is the exact spherical average `sum_k P(k) j0(|k| r)` of the retained modes
+    /// (docs/MODEL.md (A2)). Default: L/128, 64 radii in (0, L/2].
     pub shell_width: Option<f64>,
     /// NUFFT tolerance, in [1e-12, 1e-1]. Default 1e-6.
     pub tolerance: f64,
@@ -134,7 +136,7 @@ fn particle_fields(
         let mut spec =
             velocity_spectrum(pts, f, s.box_length, opts.viscosity, modes, opts.tolerance)
                 .map_err(|e| e.to_string())?;
-        // Report velocities normalised by beta L (MODEL.md §5), with beta = 1.
+        // Report velocities normalised by beta L (docs/MODEL.md §5), with beta = 1.
         for c in &mut spec.components {
             for v in c.iter_mut() {
                 *v /= s.box_length;
@@ -315,7 +317,7 @@ pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisRepo
                 RadialCorrelation {
                     r: base.r.clone(),
                     value,
-                    count: base.count.clone(),
+                    modes: base.modes,
                 },
             ))
         })

@@ -216,12 +216,38 @@ where
         });
     let span = if hi > lo { hi - lo } else { 1.0 };
     let root = root
-        .titled(
-            &format!("{title} (colour: {scale_label}, from {lo:.3e} to {hi:.3e})"),
-            ("sans-serif", 18),
-        )
+        .titled(title, ("sans-serif", 18))
         .map_err(|e| e.to_string())?;
-    let areas = root.split_evenly((1, panels.len().max(1)));
+    // Panels on the left, the shared colour bar (with its scale and unit) on the right.
+    let width = root.dim_in_pixel().0;
+    let (main, bar) = root.split_horizontally(width.saturating_sub(130));
+    let mut cb = ChartBuilder::on(&bar)
+        .margin(10)
+        .margin_top(40)
+        .margin_bottom(45)
+        .y_label_area_size(75)
+        .build_cartesian_2d(0.0..1.0, lo..(lo + span))
+        .map_err(|e| e.to_string())?;
+    cb.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc(scale_label)
+        .y_labels(6)
+        .y_label_formatter(&|v| format!("{v:.2e}"))
+        .label_style(("sans-serif", 12))
+        .axis_desc_style(("sans-serif", 14))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    const STEPS: usize = 100;
+    cb.draw_series((0..STEPS).map(|i| {
+        let (a, b) = (i as f64 / STEPS as f64, (i + 1) as f64 / STEPS as f64);
+        Rectangle::new(
+            [(0.0, lo + a * span), (1.0, lo + b * span)],
+            colormap((a + b) / 2.0).filled(),
+        )
+    }))
+    .map_err(|e| e.to_string())?;
+    let areas = main.split_evenly((1, panels.len().max(1)));
     for (area, p) in areas.iter().zip(panels) {
         let n = p.n as f64;
         let mut c = ChartBuilder::on(area)
@@ -258,7 +284,7 @@ pub fn heatmaps(
     scale_label: &str,
     panels: &[Panel],
 ) -> Result<(), crate::io::IoError> {
-    let size = (450 * panels.len().max(1) as u32, 500);
+    let size = (450 * panels.len().max(1) as u32 + 130, 500);
     render(
         stem,
         size,
