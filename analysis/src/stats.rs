@@ -1,4 +1,4 @@
-//! Scalar statistics of fields and trajectories (MODEL.md §6): volume-averaged L2 norms,
+//! Scalar statistics of fields and trajectories (docs/MODEL.md §6): volume-averaged L2 norms,
 //! correlation lengths, time averages over a window, mean squared displacement of unwrapped
 //! positions and orientation autocorrelation.
 
@@ -92,6 +92,18 @@ pub struct GrowthFit {
     pub t0: f64,
     /// The window's end.
     pub t1: f64,
+    /// Coefficient of determination of the fit of `ln y` (1 for an exact exponential).
+    pub r_squared: f64,
+    /// `exp(rate (t_last - t_first))` over the samples used: how much the fit grew.
+    pub growth_factor: f64,
+}
+
+impl GrowthFit {
+    /// Whether the window is a growth phase by the stated criterion (docs/MODEL.md §6): grew by
+    /// at least `min_factor` with `R^2` at least `min_r2`.
+    pub fn is_growth(&self, min_factor: f64, min_r2: f64) -> bool {
+        self.growth_factor >= min_factor && self.r_squared >= min_r2
+    }
 }
 
 /// Fit `y = A exp(rate t)` over `t0 <= t <= t1` by least squares on `ln y` (samples with
@@ -130,13 +142,50 @@ pub fn fit_growth_rate(t: &[f64], y: &[f64], t0: f64, t1: f64) -> Option<GrowthF
             tau += 2.0 * rho;
         }
     }
+    let syy: f64 = pts.iter().map(|p| (p.1 - ym).powi(2)).sum();
+    let span = pts[n - 1].0 - pts[0].0;
     Some(GrowthFit {
         rate,
         std_error: (tau * res / (n - 2) as f64 / stt).sqrt(),
         samples: n,
         t0,
         t1,
+        r_squared: if syy > 0.0 { 1.0 - res / syy } else { 1.0 },
+        growth_factor: (rate * span).exp(),
     })
+}
+
+/// The growth phase of a series that may grow and then saturate (docs/MODEL.md §6): fitted from
+/// the first sample either to the first time `y` reaches a quarter of its maximum (before the
+/// saturation bends the curve) or, if that window is too short to be a growth phase, to the
+/// time of the maximum (a curve still growing at its end). The flag says whether the window is
+/// a growth phase: grew by at least `min_factor` with `R^2` at least `min_r2`. Without one, the
+/// fit over the whole series is returned (a decay or a flat line) with the flag false; `None`
+/// with fewer than 3 positive samples.
+pub fn growth_phase(
+    t: &[f64],
+    y: &[f64],
+    min_factor: f64,
+    min_r2: f64,
+) -> Option<(GrowthFit, bool)> {
+    let (&t0, &t_last) = (t.first()?, t.last()?);
+    let (k_max, max) = y
+        .iter()
+        .copied()
+        .enumerate()
+        .fold(
+            (0, f64::NEG_INFINITY),
+            |a, (k, v)| if v > a.1 { (k, v) } else { a },
+        );
+    let quarter = y.iter().position(|v| *v >= 0.25 * max);
+    for end in quarter.into_iter().chain([k_max]) {
+        if let Some(g) = fit_growth_rate(t, y, t0, t[end])
+            && g.is_growth(min_factor, min_r2)
+        {
+            return Some((g, true));
+        }
+    }
+    fit_growth_rate(t, y, t0, t_last).map(|g| (g, false))
 }
 
 /// Unwrapped position `x + L * image` of one particle.

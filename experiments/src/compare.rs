@@ -1,9 +1,9 @@
-//! `motile compare RUN... --out DIR` (MODEL.md §5): particle and mean-field runs on one chart in
+//! `motile compare RUN... --out DIR` (docs/MODEL.md §5): particle and mean-field runs on one chart in
 //! the mean-field unit system. So far the velocity norm against time, the table of its time
 //! averages, and the time-averaged velocity autocorrelation `Corr[u](r)` against `r/L`
 //! (issue 6 lists the rest: slices, order-parameter correlations, growth rates).
 //!
-//! Conversions (MODEL.md §5): particle time `t_mf = t_p nu / (8 eta mu)`, particle velocity
+//! Conversions (docs/MODEL.md §5): particle time `t_mf = t_p nu / (8 eta mu)`, particle velocity
 //! (reported normalised by `beta L`) `u_mf = (u_p / (beta L)) 8 eta mu / nu`; mean-field runs are
 //! already in those units.
 
@@ -16,7 +16,7 @@ use crate::rundir::{RunDir, TimeSeries, read_run_config};
 use crate::snapshot::Snapshot;
 use anyhow::{Context, bail};
 use motile_analysis::correlation::velocity_spectrum;
-use motile_analysis::stats::{GrowthFit, correlation_length, fit_growth_rate, window_average};
+use motile_analysis::stats::{GrowthFit, correlation_length, growth_phase, window_average};
 use motile_particle::units::{VISCOSITY, eta};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -34,6 +34,10 @@ pub struct NormCurve {
     pub u: Vec<f64>,
     /// The run's last time in its own unit (1/beta or mu/|sigma_a|).
     pub t_end_own: f64,
+    /// The continuum's linear growth rate for this run, mean-field units (docs/MODEL.md (M3)):
+    /// `(1/5)/(1 + zeta/15) - D k^2` with the run's `zeta` and, for a mean-field run, its `D`
+    /// and smallest perturbed wavenumber; particles have no `D`.
+    pub theory_rate: f64,
 }
 
 /// Particle time and normalised velocity to mean-field units at volume fraction `nu`.
@@ -79,17 +83,29 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 .zip(&u)
                 .map(|(t, u)| particle_to_meanfield(*t, *u, nu))
                 .unzip();
+            let zeta = nu / (24.0 * eta() * VISCOSITY);
             Ok(NormCurve {
                 label: format!("particle L/l = {l}, nu = {nu:.3} ({})", cfg.hydrodynamics),
                 run: run.into(),
                 t,
                 u,
                 t_end_own,
+                theory_rate: 0.2 / (1.0 + zeta / 15.0),
             })
         }
         "meanfield" => {
             let cfg: MeanFieldRunConfig = read_run_config(run, MeanFieldRunConfig::validate)?;
             let t = column(&ts, "t [", &ts_path)?;
+            let m = if cfg.initial == "plane_wave" {
+                cfg.wavevector
+                    .iter()
+                    .map(|v| (v * v) as f64)
+                    .sum::<f64>()
+                    .sqrt()
+            } else {
+                cfg.mode_min as f64
+            };
+            let k = 2.0 * std::f64::consts::PI * m;
             Ok(NormCurve {
                 label: format!(
                     "mean field {}^3, zeta = {}, D = {}",
@@ -99,6 +115,7 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 t_end_own: t.last().copied().unwrap_or(0.0),
                 t,
                 u: column(&ts, "u_l2", &ts_path)?,
+                theory_rate: 0.2 / (1.0 + cfg.zeta / 15.0) - cfg.diffusion * k * k,
             })
         }
         other => bail!("{}: cannot compare a run of kind `{other}`", run.display()),
@@ -144,6 +161,8 @@ struct RunAnalysis {
     particle: Option<(f64, f64)>,
     /// Correlation lengths (first zero of each time-averaged correlation), `r / L`, by field.
     lengths: Vec<(String, f64)>,
+    /// Fields whose L2 norm is at most [`ZERO_FIELD_NORM`] (identically zero by construction).
+    zero_fields: Vec<String>,
 }
 
 /// One run's snapshots, read once: its Corr[u], order-parameter correlations, velocity slice
@@ -206,9 +225,18 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
     } else {
         (1.0, 1.0)
     };
+    // Fields identically zero by construction (the mean-field c = tr Q - 1 while tr Q = 1) have
+    // no correlation to normalise: left out of the charts and named in the table instead.
+    let zero_fields: Vec<String> = report
+        .mean
+        .iter()
+        .filter(|(_, c)| c.at_zero().abs().sqrt() <= ZERO_FIELD_NORM)
+        .map(|(n, _)| n.clone())
+        .collect();
     let lengths = report
         .mean
         .iter()
+        .filter(|(n, _)| !zero_fields.contains(n))
         .map(|(n, c)| {
             (
                 n.clone(),
@@ -219,7 +247,7 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
     let order = report
         .mean
         .iter()
-        .filter(|(n, c)| n != "u" && c.at_zero() > 0.0)
+        .filter(|(n, c)| n != "u" && c.at_zero() > 0.0 && !zero_fields.contains(n))
         .map(|(n, c)| {
             let c0 = c.at_zero();
             (
@@ -250,12 +278,13 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
         order,
         particle,
         lengths,
+        zero_fields,
     })
 }
 
 /// The velocity magnitude on the plane z = 0 of a snapshot, in mean-field units:
 /// `(n, values)` with `values[y n + x]`. Particle runs: the velocity field of the snapshot's
-/// force density on `min(2 L/l, 64)` modes per side (MODEL.md §6, doublet neglected); mean-field
+/// force density on `min(2 L/l, 64)` modes per side (docs/MODEL.md §6, doublet neglected); mean-field
 /// runs: the snapshot's grid. `None` if the snapshot has no flow.
 pub fn velocity_slice(
     snap: &Snapshot,
@@ -282,19 +311,23 @@ pub fn velocity_slice(
     Ok(Some((n, slice, time)))
 }
 
-/// The growth rate of `||u||_2` in a run's growth phase: from its first sample to the first time
-/// the norm reaches a quarter of its maximum (before nonlinear saturation). When that leaves
-/// fewer than 3 samples (no growth phase: a particle run that starts at its noise level and
-/// stays there), the rate is fitted over the whole run instead, and the flag is false: a rate
-/// consistent with zero then says the run did not grow. `None` with fewer than 3 samples.
+/// A field whose time-averaged `||Phi||_2` is at most this is identically zero (round-off), not
+/// physics: the mean-field `c = tr Q - 1` with `tr Q = 1` conserved.
+pub const ZERO_FIELD_NORM: f64 = 1e-10;
+
+/// Smallest growth and fit quality that make a growth phase (docs/MODEL.md §6).
+pub const MIN_GROWTH_FACTOR: f64 = 3.0;
+/// See [`MIN_GROWTH_FACTOR`].
+pub const MIN_R_SQUARED: f64 = 0.9;
+
+/// The growth rate of `||u||_2` in a run's growth phase ([`growth_phase`]: from its first
+/// sample to the first time the norm reaches a quarter of its maximum, before nonlinear
+/// saturation, or to its maximum if it is still growing at the end). The flag says whether that is a growth phase: the norm grew by at least [`MIN_GROWTH_FACTOR`]
+/// with `R^2` at least [`MIN_R_SQUARED`]. Without one (a particle run at its noise level, a
+/// decay) the fit is over the whole run and only its growth factor and `R^2` are reported, not
+/// its rate. `None` with fewer than 3 samples.
 pub fn growth_fit(c: &NormCurve) -> Option<(GrowthFit, bool)> {
-    let max = c.u.iter().copied().fold(0.0, f64::max);
-    let t0 = *c.t.first()?;
-    let k = c.u.iter().position(|u| *u >= 0.25 * max)?;
-    match fit_growth_rate(&c.t, &c.u, t0, c.t[k]) {
-        Some(g) => Some((g, true)),
-        None => fit_growth_rate(&c.t, &c.u, t0, *c.t.last()?).map(|g| (g, false)),
-    }
+    growth_phase(&c.t, &c.u, MIN_GROWTH_FACTOR, MIN_R_SQUARED)
 }
 
 /// What `compare` wrote.
@@ -363,50 +396,69 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     }
     write_atomic(&out.join("velocity_norm.csv"), csv.as_bytes())?;
     let mut md = String::from(
-        "| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth window (t) | growth rate (mean-field units) | standard error |\n|---|---|---|---|---|---|---|---|\n",
+        "| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth phase (t) | growth rate (mean-field units) | R^2, grew by | linear theory (M3) |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut scsv = String::from(
-        "run,label,t0,t1,mean_u_l2,std_error,samples,growth_t0,growth_t1,growth_rate,growth_rate_std_error\n",
+        "run,label,t0,t1,mean_u_l2,std_error,samples,growth_phase,growth_t0,growth_t1,growth_rate,growth_rate_std_error,r_squared,growth_factor,theory_rate\n",
     );
     for c in &curves {
         let t1 = c.t.last().copied().unwrap_or(0.0);
         let t0 = 0.5 * t1;
         let w = window_average(&c.t, &c.u, t0, t1);
         let g = growth_fit(c);
-        let (gw, gr, ge) = match g {
-            Some((g, phase)) => (
+        let (gw, gr, gq) = match &g {
+            Some((g, true)) => (
+                format!("[{:.3}, {:.3}]", g.t0, g.t1),
+                format!("{:.4} +- {:.1e}", g.rate, g.std_error),
+                format!("{:.3}, x{:.1}", g.r_squared, g.growth_factor),
+            ),
+            Some((g, false)) => (
+                "none".into(),
+                "-".into(),
                 format!(
-                    "[{:.3}, {:.3}]{}",
-                    g.t0,
-                    g.t1,
-                    if phase {
-                        ""
-                    } else {
-                        " whole run (no growth phase)"
-                    }
+                    "no growth phase (over the run: R^2 {:.2}, x{:.2})",
+                    g.r_squared, g.growth_factor
                 ),
-                format!("{:.5}", g.rate),
-                format!("{:.1e}", g.std_error),
             ),
             None => ("too few samples".into(), "-".into(), "-".into()),
         };
         writeln!(
             md,
-            "| {} | [{t0:.3}, {t1:.3}] | {:.4e} | {:.1e} | {} | {gw} | {gr} | {ge} |",
-            c.label, w.mean, w.std_error, w.samples
+            "| {} | [{t0:.3}, {t1:.3}] | {:.4e} | {:.1e} | {} | {gw} | {gr} | {gq} | {:.4} |",
+            c.label, w.mean, w.std_error, w.samples, c.theory_rate
         )
         .expect("string");
-        let (g0, g1, grate, gerr) = g.map_or((f64::NAN, f64::NAN, f64::NAN, f64::NAN), |g| {
-            (g.0.t0, g.0.t1, g.0.rate, g.0.std_error)
-        });
+        let (phase, g0, g1, grate, gerr, r2, gf) = g.map_or(
+            (
+                false,
+                f64::NAN,
+                f64::NAN,
+                f64::NAN,
+                f64::NAN,
+                f64::NAN,
+                f64::NAN,
+            ),
+            |(g, p)| {
+                (
+                    p,
+                    g.t0,
+                    g.t1,
+                    g.rate,
+                    g.std_error,
+                    g.r_squared,
+                    g.growth_factor,
+                )
+            },
+        );
         writeln!(
             scsv,
-            "{},\"{}\",{t0:e},{t1:e},{:e},{:e},{},{g0:e},{g1:e},{grate:e},{gerr:e}",
+            "{},\"{}\",{t0:e},{t1:e},{:e},{:e},{},{phase},{g0:e},{g1:e},{grate:e},{gerr:e},{r2:e},{gf:e},{:e}",
             c.run.display(),
             c.label,
             w.mean,
             w.std_error,
-            w.samples
+            w.samples,
+            c.theory_rate
         )
         .expect("string");
     }
@@ -415,7 +467,7 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     line_chart(
         &out.join("velocity_norm"),
         &Chart {
-            title: "Velocity norm, mean-field units (MODEL.md section 5)",
+            title: "Velocity norm, mean-field units (docs/MODEL.md section 5)",
             x_label: "t [mu/|sigma_a|]",
             y_label: "||u||_2 [L |sigma_a|/mu]",
             series: curves
@@ -439,7 +491,7 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         .map(|(run, c)| analyse(run, &c.label, 0.5 * c.t_end_own))
         .collect::<anyhow::Result<Vec<_>>>()?;
     // Concentrated suspensions (every run a particle run with nu > 1) keep their structure at
-    // the rod scale: their order-parameter correlations are read against r/l (MODEL.md §7).
+    // the rod scale: their order-parameter correlations are read against r/l (docs/MODEL.md §7).
     let concentrated = analyses
         .iter()
         .all(|a| a.particle.is_some_and(|(_, nu)| nu > 1.0));
@@ -465,6 +517,11 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
             } else {
                 format!("{field}: {z:.3}")
             });
+        }
+        for field in &a.zero_fields {
+            cells.push(format!(
+                "{field}: identically zero (||{field}||_2 <= {ZERO_FIELD_NORM:.0e}), not plotted"
+            ));
         }
         writeln!(lmd, "| {} | {} |", c.label, cells.join("; ")).expect("string");
     }

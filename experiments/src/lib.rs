@@ -10,6 +10,7 @@ pub mod compare;
 pub mod demo;
 pub mod io;
 pub mod meanfield_run;
+pub mod onset;
 pub mod particle_run;
 pub mod plot;
 pub mod rundir;

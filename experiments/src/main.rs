@@ -30,7 +30,7 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Compare particle and mean-field runs in one unit system (MODEL.md section 5): velocity
+    /// Compare particle and mean-field runs in one unit system (docs/MODEL.md section 5): velocity
     /// norm against time (PNG, SVG, CSV) and a table of its time averages.
     Compare {
         /// Run directories (particle runs need hydrodynamics "dipole" or "sbt").
@@ -51,7 +51,8 @@ enum Command {
         /// Fourier modes per dimension for particle snapshots [default: floor((L/l)/2)].
         #[arg(long)]
         modes: Option<usize>,
-        /// Shell width of radial averages, in units of length [default: grid spacing].
+        /// Spacing of the radii of the correlation functions, in units of length [default: L/128,
+        /// 64 radii in (0, L/2]].
         #[arg(long)]
         shell_width: Option<f64>,
         /// NUFFT tolerance [default: 1e-6].
@@ -92,9 +93,11 @@ enum Command {
     Scenes,
     /// Where methods fail: a map of short runs, time step against volume fraction (particle)
     /// or against resolution (mean-field), each cell the run's outcome (PNG, SVG, CSV, MD in
-    /// OUT).
+    /// OUT). `onset`: where the particle model starts to grow like the continuum, the growth
+    /// rate of a seeded box-scale perturbation over nu against L nu for each volume fraction,
+    /// beside the continuum's rate (docs/MODEL.md section 5; OUT/onset.{png,svg,csv,md}).
     Stability {
-        /// "particle" or "meanfield".
+        /// "particle", "meanfield" or "onset".
         model: String,
         /// Time steps (particle dt, 1/beta; mean-field dt_max), comma-separated
         /// [default: particle 0.005,0.01,0.02,0.04; mean-field 0.05,0.1,0.2,0.4,0.8].
@@ -109,6 +112,12 @@ enum Command {
         /// Particle: box side L/l [default: 6].
         #[arg(long, default_value_t = 6.0)]
         box_length: f64,
+        /// Onset: values of L nu, comma-separated [default: 10,20,40].
+        #[arg(long, value_delimiter = ',')]
+        box_nu: Option<Vec<f64>>,
+        /// Onset: amplitude of the seeded perturbation [default: 0.05].
+        #[arg(long)]
+        amplitude: Option<f64>,
         /// Particle: hydrodynamics [default: sbt].
         #[arg(long, default_value = "sbt")]
         hydrodynamics: String,
@@ -372,6 +381,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             fractions,
             grids,
             box_length,
+            box_nu,
+            amplitude,
             hydrodynamics,
             diffusion,
             cfl,
@@ -380,6 +391,28 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             use motile_experiments::stability;
             let mut event = |line: &str| println!("{line}");
+            if model == "onset" {
+                let d = motile_experiments::onset::OnsetOptions::default();
+                let hydrodynamics = if hydrodynamics == "sbt" {
+                    // The stability map's default; the onset scan's is the dipole model.
+                    d.hydrodynamics.clone()
+                } else {
+                    hydrodynamics
+                };
+                let opts = motile_experiments::onset::OnsetOptions {
+                    fractions: fractions.unwrap_or(d.fractions.clone()),
+                    box_nu: box_nu.unwrap_or(d.box_nu.clone()),
+                    hydrodynamics,
+                    dt: dts.and_then(|v| v.first().copied()).unwrap_or(d.dt),
+                    t_end_nu: t_end.unwrap_or(d.t_end_nu),
+                    amplitude: amplitude.unwrap_or(d.amplitude),
+                    ..d
+                };
+                motile_experiments::onset::onset(&opts, &out, &mut event)?;
+                println!("{}", std::fs::read_to_string(out.join("onset.md"))?);
+                println!("wrote {}", out.join("onset.png").display());
+                return Ok(());
+            }
             let md = match model.as_str() {
                 "particle" => {
                     let base = ParticleRunConfig {
@@ -418,7 +451,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .1
                 }
                 other => anyhow::bail!(
-                    "stability: model \"{other}\" is not one of \"particle\", \"meanfield\""
+                    "stability: model \"{other}\" is not one of \"particle\", \"meanfield\", \"onset\""
                 ),
             };
             println!("{md}");
@@ -514,7 +547,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             // Parts 1-3: the demo scene (experiments/scenes/demo.toml): a small dilute particle
             // run with slender-body hydrodynamics and a small mean-field run at the paper's zeta,
-            // both analysed and compared in mean-field units (MODEL.md section 5).
+            // both analysed and compared in mean-field units (docs/MODEL.md section 5).
             let s = scene::load_scene("demo")?;
             let report = scene::run_scene(
                 &s,

@@ -51,15 +51,15 @@ pub struct ParticleRunConfig {
     /// Random seed of the initial configuration. Default 1.
     pub seed: u64,
     /// Hydrodynamic coupling: "none" (free swimming with local drag, no flow), "dipole" (point
-    /// stresslets moved by the periodic flow, MODEL §2: one fast sum per step) or "sbt"
-    /// (slender-body theory, MODEL §1: a GMRES solve per step, several fast sums each).
+    /// stresslets moved by the periodic flow, docs/MODEL.md §2: one fast sum per step) or "sbt"
+    /// (slender-body theory, docs/MODEL.md §1: a GMRES solve per step, several fast sums each).
     /// Default "none".
     pub hydrodynamics: String,
     /// Settings of the hydrodynamic models.
     pub hydro: HydroConfig,
     /// "random" (isotropic), "perturbation" (orientations drawn from
     /// `Psi = (1 + (15/2) Q'(x) : pp) / 4 pi` with `Q'` from `[perturbation]`: the mean-field
-    /// model's initial field, MODEL.md §5), or a file: a particle snapshot (.h5) or a text table
+    /// model's initial field, docs/MODEL.md §5), or a file: a particle snapshot (.h5) or a text table
     /// with one rod per line, `x y z px py pz`.
     pub initial: String,
     /// The perturbation of `initial = "perturbation"`.
@@ -651,7 +651,7 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64, f64)> {
 }
 
 /// Columns of a particle run's `timeseries.csv`.
-pub const COLUMNS: [&str; 18] = [
+pub const COLUMNS: [&str; 19] = [
     "t [1/beta]",
     "steps_per_second [1/s]",
     "constraints [1]",
@@ -670,6 +670,7 @@ pub const COLUMNS: [&str; 18] = [
     "projections [1]",
     "sum_error_estimate [tol]",
     "sum_level [1]",
+    "velocity_norm_box [beta L]",
 ];
 
 /// What a run did.
@@ -887,6 +888,7 @@ fn drive(
             t_window = Instant::now();
             steps_in_window = 0;
             let c = &report.contact;
+            let norms = velocity_norms(&stepper, &before)?;
             ts.push(vec![
                 t,
                 rate,
@@ -899,13 +901,14 @@ fn drive(
                 report.polar_order,
                 report.hydro.gmres_iterations as f64,
                 report.hydro.gmres_residual,
-                velocity_norm(&stepper, &before)?,
+                norms.0,
                 report.max_speed,
                 report.max_rotation_rate,
                 report.correction_active as f64,
                 report.projections as f64,
                 report.hydro.sum_error_ratio,
                 report.hydro.sum_level as f64,
+                norms.1,
             ]);
             ts.write(&run.path().join("timeseries.csv"))?;
             bar.set_message(format!(
@@ -972,17 +975,32 @@ fn drive(
     })
 }
 
-/// `||u||_2 / (beta L)` of the step's force density (MODEL §5, §6: the velocity spectrum on
+/// `||u||_2 / (beta L)` of the step's force density (docs/MODEL.md §5, §6: the velocity spectrum on
 /// `floor(L/2)` modes per dimension, doublet neglected); 0 for models without flow.
-fn velocity_norm(stepper: &Stepper, at: &RodSet) -> anyhow::Result<f64> {
+/// The flow's volume-averaged L2 norm from the velocity spectrum of the force density, over
+/// the analysis modes and over the box-scale modes alone (every `|m_i| <= 1`: wavelengths of
+/// one box and more, where the instability begins), both in units of `beta L`.
+fn velocity_norms(stepper: &Stepper, at: &RodSet) -> anyhow::Result<(f64, f64)> {
     let Some(fd) = stepper.mobility().force_density() else {
-        return Ok(0.0);
+        return Ok((0.0, 0.0));
     };
     let (points, forces) = fd.point_forces(at, &at.orientations());
     let l = at.box_length;
     let modes = CorrelationOptions::default().modes_for(l);
     let spectrum = velocity_spectrum(&points, &forces, l, VISCOSITY, modes, 1e-6)?;
-    Ok(spectrum.l2_norm() / (SWIM_SPEED / ROD_LENGTH * l))
+    let power = spectrum.power();
+    let box_scale: f64 = power
+        .iter()
+        .enumerate()
+        .filter(|(idx, _)| {
+            [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+                .iter()
+                .all(|&i| motile_analysis::nufft::mode_of(i, modes).abs() <= 1)
+        })
+        .map(|(_, p)| p)
+        .sum();
+    let unit = SWIM_SPEED / ROD_LENGTH * l;
+    Ok((spectrum.l2_norm() / unit, box_scale.sqrt() / unit))
 }
 
 fn write_snapshot(
