@@ -96,6 +96,10 @@ pub struct GrowthFit {
     pub r_squared: f64,
     /// `exp(rate (t_last - t_first))` over the samples used: how much the fit grew.
     pub growth_factor: f64,
+    /// The largest local rate (slope of `ln y` over 7 neighbouring samples, away from the
+    /// ends) in a [`growth_phase`]: the linear-theory rate before saturation slows the growth;
+    /// equal to `rate` for a plain fit.
+    pub peak_rate: f64,
 }
 
 impl GrowthFit {
@@ -152,41 +156,73 @@ pub fn fit_growth_rate(t: &[f64], y: &[f64], t0: f64, t1: f64) -> Option<GrowthF
         t1,
         r_squared: if syy > 0.0 { 1.0 - res / syy } else { 1.0 },
         growth_factor: (rate * span).exp(),
+        peak_rate: rate,
     })
 }
 
-/// The growth phase of a series that may grow and then saturate (docs/MODEL.md §6): fitted from
-/// the first sample either to the first time `y` reaches a quarter of its maximum (before the
-/// saturation bends the curve) or, if that window is too short to be a growth phase, to the
-/// time of the maximum (a curve still growing at its end). The flag says whether the window is
-/// a growth phase: grew by at least `min_factor` with `R^2` at least `min_r2`. Without one, the
-/// fit over the whole series is returned (a decay or a flat line) with the flag false; `None`
-/// with fewer than 3 positive samples.
+/// The growth phase of a series that may grow and then saturate (docs/MODEL.md §6). The local
+/// growth rate is the slope of `ln y` over 7 neighbouring samples (away from the ends); the
+/// phase runs from the first sample to where the local rate, past its largest value, first
+/// falls below [`SATURATION_FRACTION`] of it (saturation bends the curve), or to the end if it
+/// never does (a pure exponential). The flag says whether the fit over that window is a growth
+/// phase: grew by at least `min_factor` with `R^2` at least `min_r2`; its `peak_rate` is the
+/// largest local rate. Without one, the fit over the whole series is returned (a decay or a flat
+/// line) with the flag false; `None` with fewer than 3 positive samples.
 pub fn growth_phase(
     t: &[f64],
     y: &[f64],
     min_factor: f64,
     min_r2: f64,
 ) -> Option<(GrowthFit, bool)> {
+    let (t, y): (Vec<f64>, Vec<f64>) = t
+        .iter()
+        .zip(y)
+        .filter(|(_, v)| **v > 0.0 && v.is_finite())
+        .map(|(a, b)| (*a, *b))
+        .unzip();
     let (&t0, &t_last) = (t.first()?, t.last()?);
-    let (k_max, max) = y
+    let whole = fit_growth_rate(&t, &y, t0, t_last)?;
+    const HALF_WIDTH: usize = 3;
+    let n = t.len();
+    if n < 2 * HALF_WIDTH + 1 {
+        return Some((whole, false));
+    }
+    let local: Vec<f64> = (HALF_WIDTH..n - HALF_WIDTH)
+        .map(|i| {
+            fit_growth_rate(&t, &y, t[i - HALF_WIDTH], t[i + HALF_WIDTH])
+                .map_or(f64::NAN, |g| g.rate)
+        })
+        .collect();
+    let (k_max, s_max) = local
         .iter()
         .copied()
         .enumerate()
+        .filter(|(_, s)| s.is_finite())
         .fold(
             (0, f64::NEG_INFINITY),
-            |a, (k, v)| if v > a.1 { (k, v) } else { a },
+            |a, (i, s)| if s > a.1 { (i, s) } else { a },
         );
-    let quarter = y.iter().position(|v| *v >= 0.25 * max);
-    for end in quarter.into_iter().chain([k_max]) {
-        if let Some(g) = fit_growth_rate(t, y, t0, t[end])
-            && g.is_growth(min_factor, min_r2)
-        {
-            return Some((g, true));
-        }
+    if s_max <= 0.0 {
+        return Some((whole, false));
     }
-    fit_growth_rate(t, y, t0, t_last).map(|g| (g, false))
+    let end = (k_max..local.len())
+        .find(|&k| local[k] < SATURATION_FRACTION * s_max)
+        .map_or(n - 1, |k| k + HALF_WIDTH);
+    match fit_growth_rate(&t, &y, t0, t[end]) {
+        Some(g) if g.is_growth(min_factor, min_r2) => Some((
+            GrowthFit {
+                peak_rate: s_max,
+                ..g
+            },
+            true,
+        )),
+        _ => Some((whole, false)),
+    }
 }
+
+/// Where a growth phase ends: the local growth rate has fallen below this fraction of its
+/// largest value ([`growth_phase`]).
+pub const SATURATION_FRACTION: f64 = 0.4;
 
 /// Unwrapped position `x + L * image` of one particle.
 pub fn unwrap(x: [f64; 3], image: [i64; 3], box_length: f64) -> [f64; 3] {
