@@ -10,6 +10,7 @@ copy() { # copy SRC NAME [EXT]: SRC.EXT -> docs/gallery/NAME.EXT (default svg), 
   if [ -f "$1.$ext" ]; then cp "$1.$ext" "$out/$2.$ext"; echo "$out/$2.$ext"; else echo "skip $1 (not run)"; fi
 }
 copy runs/demo/compare/velocity_norm demo_velocity_norm
+copy runs/demo/compare/velocity_correlation demo_velocity_correlation
 copy runs/demo/compare/velocity_slice demo_velocity_slice png  # heat maps: PNG is smaller
 copy runs/dilute/compare/velocity_norm dilute_velocity_norm
 copy runs/dilute/compare/velocity_correlation dilute_velocity_correlation

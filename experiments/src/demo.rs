@@ -1,9 +1,9 @@
-//! `motile demo`, part 2: a free-swimming suspension, the exact solution of the particle model with
+//! `motile demo`: part 1 is the demo scene (experiments/scenes/demo.toml, both models above the
+//! instability; [`DemoSummary`] reads back what its comparison shows); part 2, here, a free-swimming suspension, the exact solution of the particle model with
 //! hydrodynamics and contacts switched off (docs/MODEL.md §1: an isolated rod swims at U along p),
 //! written as a particle run and analysed. It checks the analysis end to end against numbers
 //! known exactly: the shot-noise level of a random configuration and the ballistic mean squared
-//! displacement `(U t)^2`. Until the particle and mean-field solvers land, this is the
-//! README's main job.
+//! displacement `(U t)^2`.
 
 use crate::rundir::RunDir;
 use crate::snapshot::{ParticleSnapshot, PointForces};
@@ -142,4 +142,112 @@ pub fn write_demo_run(out: &Path, cfg: &DemoConfig) -> anyhow::Result<RunDir> {
         run.log(&format!("wrote snapshot {k} at t = {t}"))?;
     }
     Ok(run)
+}
+
+/// What the demo's comparison shows, read back from the scene's output (`out/particle`,
+/// `out/meanfield`, `out/compare`): the checks `motile demo` prints and its test asserts.
+#[derive(Clone, Debug)]
+pub struct DemoSummary {
+    /// The particle run's box-scale velocity norm in its growth phase (mean-field units), if any.
+    pub particle: Option<(motile_analysis::stats::GrowthFit, bool)>,
+    /// The mean-field velocity norm's growth phase.
+    pub meanfield: Option<(motile_analysis::stats::GrowthFit, bool)>,
+    /// The continuum's linear rate (M3) at the mean-field run's settings.
+    pub theory_rate: f64,
+    /// Saturated norms: each run's mean over the last fifth of its window (mean-field units).
+    pub saturated: (f64, f64),
+    /// Each run's last growth over the last fifth of its window (ratio of the norm at the end to
+    /// the norm a fifth of the window earlier): near 1 once saturated.
+    pub late_growth: (f64, f64),
+    /// Each run's last time in mean-field units (particle converted by U1).
+    pub t_end: (f64, f64),
+    /// The mean-field run's configured end time.
+    pub meanfield_t_end_config: f64,
+    /// Radial points of the velocity autocorrelation in `0 < r/L <= 1/2`.
+    pub radial_points: usize,
+}
+
+impl DemoSummary {
+    /// Read the summary of a finished demo scene in `out`.
+    pub fn read(out: &Path) -> anyhow::Result<Self> {
+        use crate::compare::{growth_fit, norm_curve};
+        let p = norm_curve(&out.join("particle"))?;
+        let m = norm_curve(&out.join("meanfield"))?;
+        let last_fifth = |t: &[f64], u: &[f64]| {
+            let t1 = t.last().copied().unwrap_or(0.0);
+            let t0 = 0.8 * t1;
+            let w = motile_analysis::stats::window_average(t, u, t0, t1);
+            let k = t.iter().position(|x| *x >= t0).unwrap_or(0);
+            (w.mean, u.last().copied().unwrap_or(f64::NAN) / u[k])
+        };
+        let (ps, pg) = last_fifth(&p.t, &p.u);
+        let (ms, mg) = last_fifth(&m.t, &m.u);
+        let cfg: crate::meanfield_run::MeanFieldRunConfig = crate::rundir::read_run_config(
+            &out.join("meanfield"),
+            crate::meanfield_run::MeanFieldRunConfig::validate,
+        )?;
+        let csv = std::fs::read_to_string(out.join("compare").join("velocity_correlation.csv"))?;
+        // Rows `"label",r/L,value` (the label may hold commas): the fewest radii in (0, 1/2]
+        // over the runs.
+        let mut per_run: std::collections::BTreeMap<&str, usize> = Default::default();
+        for line in csv.lines().skip(1) {
+            let mut f = line.rsplitn(3, ',');
+            let (_, r, label) = (f.next(), f.next(), f.next().unwrap_or(""));
+            if let Some(r) = r.and_then(|r| r.trim().parse::<f64>().ok())
+                && r > 0.0
+                && r <= 0.5 + 1e-12
+            {
+                *per_run.entry(label).or_default() += 1;
+            }
+        }
+        let radial_points = per_run.values().copied().min().unwrap_or(0);
+        Ok(Self {
+            particle: growth_fit(&p),
+            meanfield: growth_fit(&m),
+            theory_rate: m.theory_rate,
+            saturated: (ps, ms),
+            late_growth: (pg, mg),
+            t_end: (
+                p.t.last().copied().unwrap_or(f64::NAN),
+                m.t.last().copied().unwrap_or(f64::NAN),
+            ),
+            meanfield_t_end_config: cfg.t_end,
+            radial_points,
+        })
+    }
+
+    /// The lines `motile demo` prints.
+    pub fn lines(&self) -> Vec<String> {
+        let growth = |name: &str, g: &Option<(motile_analysis::stats::GrowthFit, bool)>| match g {
+            Some((g, true)) => format!(
+                "check: {name}: growth phase t_mf = [{:.2}, {:.2}], grew x{:.1} at {:.4} +- {:.1e} (R^2 {:.3}), peak local rate {:.4}",
+                g.t0, g.t1, g.growth_factor, g.rate, g.std_error, g.r_squared, g.peak_rate
+            ),
+            Some((g, false)) => format!(
+                "check: {name}: NO growth phase (over the run x{:.2}, R^2 {:.2})",
+                g.growth_factor, g.r_squared
+            ),
+            None => format!("check: {name}: too few samples for a fit"),
+        };
+        vec![
+            growth("particle box-scale flow", &self.particle),
+            growth("mean-field flow", &self.meanfield),
+            format!(
+                "check: linear theory (M3) at the mean-field settings: {:.4}",
+                self.theory_rate
+            ),
+            format!(
+                "check: saturation: norm over the last fifth {:.3e} (particle) and {:.3e} (mean field); growth over it x{:.2} and x{:.2}",
+                self.saturated.0, self.saturated.1, self.late_growth.0, self.late_growth.1
+            ),
+            format!(
+                "check: same window: the particle run ends at t_mf = {:.3}, the mean-field run at {:.3} (configured {:.3})",
+                self.t_end.0, self.t_end.1, self.meanfield_t_end_config
+            ),
+            format!(
+                "check: velocity autocorrelation sampled at {} radii in 0 < r/L <= 1/2",
+                self.radial_points
+            ),
+        ]
+    }
 }

@@ -570,6 +570,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 if peak <= bound { "holds" } else { "VIOLATED" },
             );
             println!("{}", report.markdown);
+            for line in motile_experiments::demo::DemoSummary::read(&out)?.lines() {
+                println!("{line}");
+            }
             let out = out.join("free_swimmers");
             let mut cfg = DemoConfig::default();
             cfg.box_length = box_length.unwrap_or(cfg.box_length);

@@ -101,8 +101,8 @@ fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
     }
     let table = std::fs::read_to_string(out.join("compare/summary.md")).unwrap();
     assert!(
-        table.contains("particle L/l = 8")
-            && table.contains("mean field 16^3")
+        table.contains("particle L/l = 12")
+            && table.contains("mean field 32^3")
             && table.contains("correlation lengths")
             && out.join("compare/correlation_lengths.csv").exists(),
         "{table}"
