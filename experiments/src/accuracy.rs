@@ -13,6 +13,7 @@ use crate::particle_run::ParticleRunConfig;
 use crate::rundir::{RunDir, read_run_config};
 use crate::snapshot::{ParticleSnapshot, Snapshot, read_snapshot};
 use anyhow::{Context, bail};
+use motile_particle::Hydrodynamics;
 use motile_particle::dipole::stresslet_strength;
 use motile_particle::geometry::{Vec3, cross, dot};
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry, SumReport};
@@ -46,8 +47,8 @@ pub struct Audit {
     pub snapshot: PathBuf,
     /// Its time (1/beta).
     pub time: f64,
-    /// `"sbt"` or `"dipole"`.
-    pub hydrodynamics: String,
+    /// Sbt or Dipole.
+    pub hydrodynamics: Hydrodynamics,
     /// `hydro.sum_tolerance`.
     pub tolerance: f64,
     /// Sampled rods (indices into the snapshot's rods); for `"sbt"` every quadrature point of
@@ -150,7 +151,7 @@ pub fn audit(run_dir: &Path, snapshot: Option<usize>, targets: usize) -> anyhow:
         );
     }
     let cfg: ParticleRunConfig = read_run_config(run_dir, ParticleRunConfig::validate)?;
-    if cfg.hydrodynamics == "none" {
+    if !cfg.hydrodynamics.has_flow() {
         bail!(
             "{}: hydrodynamics = \"none\": the run uses no fast sums, there is nothing to audit",
             run_dir.display()
@@ -160,10 +161,10 @@ pub fn audit(run_dir: &Path, snapshot: Option<usize>, targets: usize) -> anyhow:
     let tol = cfg.hydro.sum_tolerance;
     let l = snap.box_length;
     let mut fast = SpectralEwald::new(tol)?;
-    match cfg.hydrodynamics.as_str() {
-        "sbt" => audit_sbt(&cfg, path, &snap, targets, &mut fast),
-        "dipole" => audit_dipole(path, &snap, targets, &mut fast),
-        other => bail!("{}: unknown hydrodynamics {other:?}", run_dir.display()),
+    match cfg.hydrodynamics {
+        Hydrodynamics::Sbt => audit_sbt(&cfg, path, &snap, targets, &mut fast),
+        Hydrodynamics::Dipole => audit_dipole(path, &snap, targets, &mut fast),
+        Hydrodynamics::None => unreachable!("refused above: no flow, no sums"),
     }
     .map(|mut a| {
         a.tolerance = tol;
@@ -261,7 +262,7 @@ fn audit_sbt(
     Ok(Audit {
         snapshot: path,
         time: snap.time,
-        hydrodynamics: "sbt".into(),
+        hydrodynamics: Hydrodynamics::Sbt,
         tolerance: 0.0,
         targets: idx.len(),
         sources: pf.points.len(),
@@ -332,7 +333,7 @@ fn audit_dipole(
     Ok(Audit {
         snapshot: path,
         time: snap.time,
-        hydrodynamics: "dipole".into(),
+        hydrodynamics: Hydrodynamics::Dipole,
         tolerance: 0.0,
         targets: rods.len(),
         sources: n,

@@ -64,7 +64,7 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
     match model.as_str() {
         "particle" => {
             let cfg: ParticleRunConfig = read_run_config(run, ParticleRunConfig::validate)?;
-            if cfg.hydrodynamics == "none" {
+            if !cfg.hydrodynamics.has_flow() {
                 bail!(
                     "{}: a particle run without hydrodynamics has no flow to compare (hydrodynamics = \"none\")",
                     run.display()

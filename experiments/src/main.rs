@@ -103,7 +103,7 @@ enum Command {
         /// [default: particle 0.005,0.01,0.02,0.04; mean-field 0.05,0.1,0.2,0.4,0.8].
         #[arg(long, value_delimiter = ',')]
         dts: Option<Vec<f64>>,
-        /// Particle: volume fractions [default: 0.625,2,5].
+        /// Particle: volume fractions [default: 0.625,2,5; onset: 3.75,5].
         #[arg(long, value_delimiter = ',')]
         fractions: Option<Vec<f64>>,
         /// Mean-field: grids [default: 8,16,32].
@@ -112,15 +112,15 @@ enum Command {
         /// Particle: box side L/l [default: 6].
         #[arg(long, default_value_t = 6.0)]
         box_length: f64,
-        /// Onset: values of L nu, comma-separated [default: 10,20,40].
+        /// Onset: values of L nu, comma-separated [default: 30,45,60].
         #[arg(long, value_delimiter = ',')]
         box_nu: Option<Vec<f64>>,
-        /// Onset: amplitude of the seeded perturbation [default: 0.05].
+        /// Onset: amplitude of the seeded perturbation [default: 0.025].
         #[arg(long)]
         amplitude: Option<f64>,
-        /// Particle: hydrodynamics [default: sbt].
+        /// Particle and onset: hydrodynamics [default: sbt].
         #[arg(long, default_value = "sbt")]
-        hydrodynamics: String,
+        hydrodynamics: motile_particle::Hydrodynamics,
         /// Mean-field: diffusion D [default: 1e-4, the paper's].
         #[arg(long, default_value_t = 1e-4)]
         diffusion: f64,
@@ -128,7 +128,7 @@ enum Command {
         /// the flow is strong].
         #[arg(long, default_value_t = 2.0)]
         cfl: f64,
-        /// End time of each run [default: particle 2, mean-field 60].
+        /// End time of each run [default: particle 2, mean-field 60]; onset: end time times nu [default: 40].
         #[arg(long)]
         t_end: Option<f64>,
         /// Output directory.
@@ -393,12 +393,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let mut event = |line: &str| println!("{line}");
             if model == "onset" {
                 let d = motile_experiments::onset::OnsetOptions::default();
-                let hydrodynamics = if hydrodynamics == "sbt" {
-                    // The stability map's default; the onset scan's is the dipole model.
-                    d.hydrodynamics.clone()
-                } else {
-                    hydrodynamics
-                };
                 let opts = motile_experiments::onset::OnsetOptions {
                     fractions: fractions.unwrap_or(d.fractions.clone()),
                     box_nu: box_nu.unwrap_or(d.box_nu.clone()),

@@ -704,12 +704,18 @@ fn save_failure(
         );
     }
     let _ = run.log(&format!("step {step} at t = {t} (dt = {dt:e}) failed: {e}"));
-    anyhow::anyhow!(
-        "mean-field step {step} at t = {t:.4} (dt = {dt:.3e}) failed: {e}. The state before it is saved in {}; `motile resume {}` continues from it (after editing {} if a setting caused the failure)",
-        saved.display(),
-        run.path().display(),
-        run.path().join("config.toml").display()
-    )
+    crate::failure::RunFailure {
+        kind: e.into(),
+        step,
+        t,
+        message: format!(
+            "mean-field step {step} at t = {t:.4} (dt = {dt:.3e}) failed: {e}. The state before it is saved in {}; `motile resume {}` continues from it (after editing {} if a setting caused the failure)",
+            saved.display(),
+            run.path().display(),
+            run.path().join("config.toml").display()
+        ),
+    }
+    .into()
 }
 
 /// Run the mean-field model into `out`.
@@ -888,7 +894,13 @@ fn drive(
                 clock.steps, report.min_eigenvalue, cfg.realizability_limit
             );
             run.log(&msg)?;
-            bail!(msg);
+            return Err(crate::failure::RunFailure {
+                kind: crate::failure::FailureKind::Realizability,
+                step: clock.steps,
+                t,
+                message: msg,
+            }
+            .into());
         }
         if at_diag {
             ts.push(row(t, this_dt, &report, clock.steps));

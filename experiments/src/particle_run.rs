@@ -26,7 +26,7 @@ use motile_particle::init::{nonoverlapping_with, perturbed_orientation, random_n
 use motile_particle::slender::{SlenderBody, SlenderParams};
 use motile_particle::spectral_ewald::SpectralEwald;
 use motile_particle::units::{DIAMETER, ROD_LENGTH, SWIM_SPEED, VISCOSITY};
-use motile_particle::{ContactParams, LocalDrag, Mobility, RodSet, Stepper};
+use motile_particle::{ContactParams, Hydrodynamics, LocalDrag, Mobility, RodSet, Stepper};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Instant;
@@ -54,7 +54,7 @@ pub struct ParticleRunConfig {
     /// stresslets moved by the periodic flow, docs/MODEL.md §2: one fast sum per step) or "sbt"
     /// (slender-body theory, docs/MODEL.md §1: a GMRES solve per step, several fast sums each).
     /// Default "none".
-    pub hydrodynamics: String,
+    pub hydrodynamics: Hydrodynamics,
     /// Settings of the hydrodynamic models.
     pub hydro: HydroConfig,
     /// "random" (isotropic), "perturbation" (orientations drawn from
@@ -90,7 +90,7 @@ impl Default for ParticleRunConfig {
             dt: 0.002,
             t_end: 2.0,
             seed: 1,
-            hydrodynamics: "none".into(),
+            hydrodynamics: Hydrodynamics::None,
             hydro: HydroConfig::default(),
             initial: "random".into(),
             perturbation: PerturbationConfig::default(),
@@ -212,14 +212,16 @@ pub struct HydroConfig {
 }
 
 impl Default for HydroConfig {
+    /// The library's defaults ([`SlenderParams`], [`GmresParams`]): one source for each.
     fn default() -> Self {
+        let s = SlenderParams::default();
         Self {
             sum_tolerance: 1e-4,
-            quadrature_points: 4,
-            gmres_tolerance: 1e-5,
-            gmres_max_iterations: 100,
-            gmres_restart: 40,
-            rpy_radius: motile_particle::slender::default_rpy_radius(),
+            quadrature_points: s.quadrature_points,
+            gmres_tolerance: s.gmres.tol,
+            gmres_max_iterations: s.gmres.max_iterations,
+            gmres_restart: s.gmres.restart,
+            rpy_radius: s.rpy_radius,
         }
     }
 }
@@ -365,12 +367,6 @@ impl ParticleRunConfig {
             true,
             "rod lengths",
         )?;
-        if !["none", "dipole", "sbt"].contains(&self.hydrodynamics.as_str()) {
-            return Err(format!(
-                "hydrodynamics = \"{}\" is not one of \"none\", \"dipole\", \"sbt\"",
-                self.hydrodynamics
-            ));
-        }
         self.hydro.validate()?;
         if let Some(n) = self.rods {
             let nu = n as f64 / self.box_length.powi(3);
@@ -412,9 +408,9 @@ pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig
 fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
     let h = &cfg.hydro;
     let sum = || SpectralEwald::new(h.sum_tolerance).map(Box::new);
-    Ok(match cfg.hydrodynamics.as_str() {
-        "dipole" => Box::new(Dipole::new(sum()?)),
-        "sbt" => Box::new(SlenderBody::new(
+    Ok(match cfg.hydrodynamics {
+        Hydrodynamics::Dipole => Box::new(Dipole::new(sum()?)),
+        Hydrodynamics::Sbt => Box::new(SlenderBody::new(
             SlenderParams {
                 quadrature_points: h.quadrature_points,
                 rpy_radius: h.rpy_radius,
@@ -426,7 +422,7 @@ fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
             },
             sum()?,
         )),
-        _ => Box::new(LocalDrag::default()),
+        Hydrodynamics::None => Box::new(LocalDrag::default()),
     })
 }
 
@@ -860,13 +856,19 @@ fn drive(
                 )?;
                 run.log(&format!("step {step} failed: {e}"))?;
                 bar.abandon();
-                bail!(
-                    "step {step} (t = {:.4}) failed: {e}. The state before it is saved in {}; `motile resume {}` continues from it (after editing {} if a setting caused the failure)",
-                    step as f64 * cfg.dt,
-                    saved.display(),
-                    run.path().display(),
-                    run.path().join("config.toml").display()
-                );
+                return Err(crate::failure::RunFailure {
+                    kind: (&e).into(),
+                    step,
+                    t: (step - 1) as f64 * cfg.dt,
+                    message: format!(
+                        "step {step} (t = {:.4}) failed: {e}. The state before it is saved in {}; `motile resume {}` continues from it (after editing {} if a setting caused the failure)",
+                        step as f64 * cfg.dt,
+                        saved.display(),
+                        run.path().display(),
+                        run.path().join("config.toml").display()
+                    ),
+                }
+                .into());
             }
         };
         steps_in_window += 1;

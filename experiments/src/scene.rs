@@ -308,7 +308,7 @@ pub fn run_scene(
         .filter(|(name, cfg)| {
             out.join(name).join("timeseries.csv").exists()
                 && match cfg {
-                    RunConfig::Particle(c) => c.hydrodynamics != "none",
+                    RunConfig::Particle(c) => c.hydrodynamics.has_flow(),
                     RunConfig::MeanField(_) => true,
                 }
         })

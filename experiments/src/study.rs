@@ -87,7 +87,7 @@ fn set_particle(c: &mut ParticleRunConfig, knob: &str, v: &str) -> anyhow::Resul
     match knob {
         "sum_tolerance" => c.hydro.sum_tolerance = num()?,
         "quadrature_points" => c.hydro.quadrature_points = num()? as usize,
-        "hydrodynamics" => c.hydrodynamics = v.to_string(),
+        "hydrodynamics" => c.hydrodynamics = v.parse()?,
         "dt" => c.dt = num()?,
         _ => unreachable!("checked knob"),
     }

@@ -20,7 +20,7 @@ fn short_run(hydrodynamics: &str, box_length: f64, out: &Path) -> ParticleRunCon
         volume_fraction: 1.0,
         dt: 0.02,
         t_end: 0.06,
-        hydrodynamics: hydrodynamics.into(),
+        hydrodynamics: hydrodynamics.parse().unwrap(),
         snapshot_interval: 0.06,
         vtk: false,
         ..ParticleRunConfig::default()

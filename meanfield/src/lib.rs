@@ -1,6 +1,8 @@
 //! The mean-field model of docs/MODEL.md §4: the orientation tensor Q with the Bingham closure.
-//! So far: the Bingham distribution's moments and its inversion ([`bingham`]) and the tabulated
-//! fast closure ([`closure`]). The spectral Stokes solve and IMEX stepping are not implemented yet.
+//! The Bingham distribution's moments and its inversion ([`bingham`]), the tabulated fast closure
+//! ([`closure`], eigenvalues sorted largest first by [`eigen`]), the pseudo-spectral Stokes
+//! fixed point and SBDF2 stepping ([`solver`]), and initial perturbations of the isotropic state
+//! shared with the particle model ([`initial`]).
 #![warn(missing_docs)]
 
 pub mod bessel;

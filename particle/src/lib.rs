@@ -1,7 +1,12 @@
 //! The particle model of docs/MODEL.md §1-§3: rigid rods in a triply periodic box, periodic
 //! neighbour search, steric contacts as a complementarity problem solved by BBPGD, and explicit
 //! time stepping with quaternion orientation updates. Hydrodynamics plugs in through
-//! [`mobility::Mobility`] (here only `LocalDrag`, `hydrodynamics = "none"`).
+//! [`mobility::Mobility`], one implementation per [`Hydrodynamics`] level: [`LocalDrag`]
+//! (`"none"`), [`dipole::Dipole`] (point stresslets, §2) and [`slender::SlenderBody`]
+//! (slender-body theory inside GMRES, §1); their periodic flows come from a
+//! [`periodic::PeriodicStokes`] sum ([`spectral_ewald::SpectralEwald`], with the direct
+//! [`rpy_reference::EwaldReference`] as its slow twin), which honours the tolerance of
+//! docs/accuracy.md for every output it returns.
 //!
 //! State ([`rods::RodSet`]) is plain data; [`step::Stepper`] owns only the mobility, the solver
 //! and scratch memory, and returns a [`step::StepReport`] instead of printing.
@@ -16,6 +21,7 @@ pub mod gaussian_grid;
 pub mod geometry;
 pub mod gmres;
 pub mod init;
+pub mod level;
 pub mod mobility;
 pub mod periodic;
 mod point_cells;
@@ -28,6 +34,7 @@ pub mod step;
 pub mod units;
 
 pub use contact::{ContactParams, ContactSolver};
+pub use level::Hydrodynamics;
 pub use mobility::{LocalDrag, Mobility};
 pub use rods::RodSet;
 pub use step::{StepError, StepReport, Stepper};

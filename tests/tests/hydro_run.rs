@@ -13,7 +13,7 @@ fn small(model: &str) -> ParticleRunConfig {
         box_length: 6.0,
         volume_fraction: 0.625,
         t_end: 0.04,
-        hydrodynamics: model.into(),
+        hydrodynamics: model.parse().unwrap(),
         snapshot_interval: 0.02,
         checkpoint_interval: 0.02,
         diagnostic_interval: 0.01,
