@@ -18,6 +18,7 @@ copy runs/dilute/compare/velocity_slice dilute_velocity_slice png
 copy runs/concentrated/compare/correlation_Q concentrated_correlation_Q
 copy runs/concentrated/compare/msd concentrated_msd
 copy runs/concentrated/compare/orientation concentrated_orientation
+copy runs/onset/onset onset
 for k in sum_tolerance quadrature_points hydrodynamics dt meanfield_dt grid closure_degree; do
   copy runs/study/study_$k study_$k
 done

@@ -164,8 +164,8 @@ pub fn fit_growth_rate(t: &[f64], y: &[f64], t0: f64, t1: f64) -> Option<GrowthF
 /// growth rate is the slope of `ln y` over 7 neighbouring samples (away from the ends); the
 /// phase runs from the first sample to where the local rate, past its largest value, first
 /// falls below [`SATURATION_FRACTION`] of it (saturation bends the curve), or to the end if it
-/// never does (a pure exponential). The flag says whether the fit over that window is a growth
-/// phase: grew by at least `min_factor` with `R^2` at least `min_r2`; its `peak_rate` is the
+/// never does (a pure exponential), or if that window is not a growth phase, the whole series.
+/// The flag says whether the fit over the window is a growth phase: grew by at least `min_factor` with `R^2` at least `min_r2`; its `peak_rate` is the
 /// largest local rate. Without one, the fit over the whole series is returned (a decay or a flat
 /// line) with the flag false; `None` with fewer than 3 positive samples.
 pub fn growth_phase(
@@ -208,16 +208,23 @@ pub fn growth_phase(
     let end = (k_max..local.len())
         .find(|&k| local[k] < SATURATION_FRACTION * s_max)
         .map_or(n - 1, |k| k + HALF_WIDTH);
-    match fit_growth_rate(&t, &y, t0, t[end]) {
-        Some(g) if g.is_growth(min_factor, min_r2) => Some((
-            GrowthFit {
-                peak_rate: s_max,
-                ..g
-            },
-            true,
-        )),
-        _ => Some((whole, false)),
+    // The window up to the bend, else the whole series (a run that grows throughout, its local
+    // rate noisy enough to dip early).
+    for g in [fit_growth_rate(&t, &y, t0, t[end]), Some(whole)]
+        .into_iter()
+        .flatten()
+    {
+        if g.is_growth(min_factor, min_r2) {
+            return Some((
+                GrowthFit {
+                    peak_rate: s_max,
+                    ..g
+                },
+                true,
+            ));
+        }
     }
+    Some((whole, false))
 }
 
 /// Where a growth phase ends: the local growth rate has fallen below this fraction of its

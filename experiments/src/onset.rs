@@ -12,6 +12,7 @@ use crate::plot::{Chart, Series, line_chart};
 use crate::rundir::TimeSeries;
 use anyhow::Context;
 use motile_analysis::stats::{GrowthFit, growth_phase};
+use motile_particle::Hydrodynamics;
 use motile_particle::units::{VISCOSITY, eta};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -23,8 +24,8 @@ pub struct OnsetOptions {
     pub fractions: Vec<f64>,
     /// Values of `L nu` (the box side of each run is `L nu / nu`, rounded to a tenth).
     pub box_nu: Vec<f64>,
-    /// `"dipole"` or `"sbt"`.
-    pub hydrodynamics: String,
+    /// The hydrodynamic level (a flow is needed: Dipole or Sbt).
+    pub hydrodynamics: Hydrodynamics,
     /// Time step (1/beta).
     pub dt: f64,
     /// End time times `nu` (each run ends at `t_end_nu / nu`, the same number of continuum
@@ -39,12 +40,12 @@ pub struct OnsetOptions {
 impl Default for OnsetOptions {
     fn default() -> Self {
         Self {
-            fractions: vec![0.625, 1.25],
-            box_nu: vec![10.0, 20.0, 40.0],
-            hydrodynamics: "dipole".into(),
+            fractions: vec![3.75, 5.0],
+            box_nu: vec![30.0, 45.0, 60.0],
+            hydrodynamics: Hydrodynamics::Sbt,
             dt: 0.04,
-            t_end_nu: 12.0,
-            amplitude: 0.05,
+            t_end_nu: 40.0,
+            amplitude: 0.025,
             sum_tolerance: 1e-2,
         }
     }
@@ -100,7 +101,7 @@ pub fn onset(
                 volume_fraction: nu,
                 dt: opts.dt,
                 t_end,
-                hydrodynamics: opts.hydrodynamics.clone(),
+                hydrodynamics: opts.hydrodynamics,
                 initial: "perturbation".into(),
                 perturbation: PerturbationConfig {
                     amplitude: opts.amplitude,
@@ -116,20 +117,44 @@ pub fn onset(
             };
             cfg.hydro.sum_tolerance = opts.sum_tolerance;
             let dir = out.join(format!("nu{nu}_L{l}"));
-            crate::io::remove_old_run(&dir)?;
-            let t = std::time::Instant::now();
-            let summary = particle_run::run_particle(&cfg, &dir, false)
-                .with_context(|| format!("onset run nu = {nu}, L/l = {l}"))?;
-            let seconds = t.elapsed().as_secs_f64();
-            let ts = TimeSeries::read(&dir.join("timeseries.csv"))?;
+            let seconds_file = dir.join("onset_seconds.txt");
+            let ts_path = dir.join("timeseries.csv");
+            // A finished run with the same settings is reused (a scan can be extended or
+            // re-charted without running its cells again); anything else is run afresh.
+            let finished = crate::rundir::read_run_config::<ParticleRunConfig>(
+                &dir,
+                ParticleRunConfig::validate,
+            )
+            .is_ok_and(|c| c == cfg)
+                && TimeSeries::read(&ts_path).is_ok_and(|ts| {
+                    ts.column("t [1/beta]")
+                        .and_then(|t| t.last().copied())
+                        .is_some_and(|t| t > t_end - cfg.diagnostic_interval)
+                });
+            let (rods, seconds) = if finished {
+                let seconds = std::fs::read_to_string(&seconds_file)
+                    .ok()
+                    .and_then(|s| s.trim().parse().ok())
+                    .unwrap_or(f64::NAN);
+                ((nu * l * l * l).round() as usize, seconds)
+            } else {
+                crate::io::remove_old_run(&dir)?;
+                let t = std::time::Instant::now();
+                let summary = particle_run::run_particle(&cfg, &dir, false)
+                    .with_context(|| format!("onset run nu = {nu}, L/l = {l}"))?;
+                let seconds = t.elapsed().as_secs_f64();
+                write_atomic(&seconds_file, format!("{seconds}\n").as_bytes())?;
+                (summary.rods.len(), seconds)
+            };
+            let ts = TimeSeries::read(&ts_path)?;
             let time = ts.column("t [1/beta]").context("time column")?;
             let u = ts
                 .column("velocity_norm_box [beta L]")
                 .context("box-scale velocity column")?;
             let (fit, grew) = box_scale_fit(&time, &u);
             event(&format!(
-                "nu = {nu}, L/l = {l} ({} rods, {seconds:.0} s): {}",
-                summary.rods.len(),
+                "nu = {nu}, L/l = {l} ({rods} rods, {seconds:.0} s{}): {}",
+                if finished { ", done already" } else { "" },
                 fit.as_ref().map_or("no fit".into(), |g| format!(
                     "rate {:.4} +- {:.4} per 1/beta over [{:.2}, {:.2}], R^2 {:.2}, grew x{:.2}{}",
                     g.rate,
@@ -144,7 +169,7 @@ pub fn onset(
             points.push(OnsetPoint {
                 nu,
                 box_length: l,
-                rods: summary.rods.len(),
+                rods,
                 fit,
                 grew,
                 seconds,
@@ -160,7 +185,7 @@ fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow
         "nu,L/l,L nu,rods,rate [1/beta],rate_std_error,rate/nu,continuum_rate/nu,r_squared,growth_factor,growth_phase,t0,t1,seconds\n",
     );
     let mut md = format!(
-        "# Onset of the instability ({} model)\n\nEach run starts from the same seeded perturbation of the isotropic state (box-scale modes |m| = 1, amplitude {}), the rods' orientations drawn from it (docs/MODEL.md §5); the growth rate is a least-squares fit of the logarithm of the box-scale velocity norm, over its growth phase (from the start to where the local rate falls below 40% of its largest value, grown at least 3 times with R^2 >= 0.9) or, without one, over the whole run. Continuum: (M3) with D = 0, in particle units.\n\n| nu | L/l | L nu | rods | rate (1/beta) | rate / nu | continuum / nu | growth phase | R^2 | grew by | wall (s) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "# Onset of the instability ({} model)\n\nEach run starts from the same seeded perturbation of the isotropic state (box-scale modes |m| = 1, amplitude {}), the rods' orientations drawn from it (docs/MODEL.md §5); the growth rate is a least-squares fit of the logarithm of the box-scale velocity norm, and its peak local rate (charted), over its growth phase (from the start to where the local rate falls below 40% of its largest value, grown at least 3 times with R^2 >= 0.9) or, without one, over the whole run. Continuum: (M3) with D = 0, in particle units.\n\n| nu | L/l | L nu | rods | rate (1/beta) | peak rate / nu | continuum / nu | growth phase | R^2 | grew by | wall (s) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
         opts.hydrodynamics, opts.amplitude
     );
     for p in points {
@@ -197,7 +222,7 @@ fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow
             p.box_length,
             p.box_length * p.nu,
             p.rods,
-            rate / p.nu,
+            p.fit.as_ref().map_or(f64::NAN, |g| g.peak_rate) / p.nu,
             if p.grew { "yes" } else { "no" },
             p.seconds
         )
@@ -216,7 +241,11 @@ fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow
             points: points
                 .iter()
                 .filter(|p| p.nu == nu)
-                .filter_map(|p| p.fit.as_ref().map(|g| (p.box_length * nu, g.rate / nu)))
+                .filter_map(|p| {
+                    p.fit
+                        .as_ref()
+                        .map(|g| (p.box_length * nu, g.peak_rate / nu))
+                })
                 .collect(),
         });
     }
@@ -232,7 +261,7 @@ fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow
         &Chart {
             title: "Growth rate of the box-scale flow over nu, against L nu (docs/MODEL.md section 5)",
             x_label: "L nu [l]",
-            y_label: "growth rate / nu [beta]",
+            y_label: "peak growth rate / nu [beta]",
             series,
         },
     )?;

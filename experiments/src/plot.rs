@@ -86,6 +86,16 @@ where
         .map_err(|e| e.to_string())?
         .label(s.label.clone())
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+        // Sparse series (a scan's few runs) show where the samples are, not only the line
+        // through them; a two-point series is a reference line.
+        if (3..=SPARSE_POINTS).contains(&s.points.len()) {
+            c.draw_series(
+                s.points
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, y), 5, color.filled())),
+            )
+            .map_err(|e| e.to_string())?;
+        }
     }
     c.configure_series_labels()
         .position(legend_corner(&chart.series, (x0, x1), (y0, y1), |v| v))
@@ -133,6 +143,9 @@ fn legend_corner(
         .map(|c| c.0)
         .unwrap_or(SeriesLabelPosition::UpperRight)
 }
+
+/// Series with at most this many points are drawn with a marker at each.
+const SPARSE_POINTS: usize = 12;
 
 /// Render one figure twice, to `<stem>.png` and `<stem>.svg`, each written atomically (the PNG
 /// through a hidden temporary file, since the bitmap backend writes to a path).
