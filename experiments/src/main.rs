@@ -79,7 +79,7 @@ enum Command {
     Run {
         /// Built-in scene name (demo, dilute, concentrated, meanfield) or a scene file.
         scene: String,
-        /// Output directory [default: runs/<scene name>].
+        /// Output directory [default: runs/SCENE (the scene's name)].
         #[arg(long)]
         out: Option<PathBuf>,
         /// Only these runs of the scene (repeatable).
@@ -138,7 +138,7 @@ enum Command {
     /// Accuracy against cost: sweep one knob of a scene's run (particle: sum_tolerance,
     /// quadrature_points, hydrodynamics, dt; mean-field: meanfield_dt, grid, closure_degree),
     /// measure each setting's error against the most accurate one and its wall time, chart
-    /// them (OUT/study_<knob>.{png,svg,csv,md}) and name the cheapest setting within the
+    /// them (OUT/study_KNOB.{png,svg,csv,md}) and name the cheapest setting within the
     /// stated accuracy.
     Study {
         /// The knob.
