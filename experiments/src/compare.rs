@@ -17,7 +17,7 @@ use crate::snapshot::Snapshot;
 use anyhow::{Context, bail};
 use motile_analysis::correlation::velocity_spectrum;
 use motile_analysis::stats::{GrowthFit, correlation_length, growth_phase, window_average};
-use motile_particle::units::{VISCOSITY, eta};
+use motile_particle::units::{VISCOSITY, continuum_growth_rate};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -40,11 +40,7 @@ pub struct NormCurve {
     pub theory_rate: f64,
 }
 
-/// Particle time and normalised velocity to mean-field units at volume fraction `nu`.
-pub fn particle_to_meanfield(t_p: f64, u_p_over_beta_l: f64, nu: f64) -> (f64, f64) {
-    let s = 8.0 * eta() * VISCOSITY / nu;
-    (t_p / s, u_p_over_beta_l * s)
-}
+pub use motile_particle::units::particle_to_meanfield;
 
 fn column(ts: &TimeSeries, prefix: &str, path: &Path) -> anyhow::Result<Vec<f64>> {
     let c = ts
@@ -94,7 +90,7 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 .zip(&u)
                 .map(|(t, u)| particle_to_meanfield(*t, *u, nu))
                 .unzip();
-            let zeta = nu / (24.0 * eta() * VISCOSITY);
+            let zeta = motile_particle::units::zeta(nu);
             Ok(NormCurve {
                 label: format!(
                     "particle L/l = {l}, nu = {nu:.3} ({}{})",
@@ -105,7 +101,7 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 t,
                 u,
                 t_end_own,
-                theory_rate: 0.2 / (1.0 + zeta / 15.0),
+                theory_rate: continuum_growth_rate(zeta),
             })
         }
         "meanfield" => {
@@ -130,7 +126,7 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 t_end_own: t.last().copied().unwrap_or(0.0),
                 t,
                 u: column(&ts, "u_l2", &ts_path)?,
-                theory_rate: 0.2 / (1.0 + cfg.zeta / 15.0) - cfg.diffusion * k * k,
+                theory_rate: continuum_growth_rate(cfg.zeta) - cfg.diffusion * k * k,
             })
         }
         other => bail!("{}: cannot compare a run of kind `{other}`", run.display()),
@@ -235,7 +231,7 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
             .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
         let nu = n as f64 / (l * l * l);
         particle = Some((l, nu));
-        let s = 8.0 * eta() * VISCOSITY / nu;
+        let s = motile_particle::units::meanfield_time_unit(nu);
         (1.0 / l, s * s)
     } else {
         (1.0, 1.0)
@@ -314,7 +310,7 @@ pub fn velocity_slice(
             let modes = ((2.0 * l) as usize).clamp(8, 64) & !1;
             let spec = velocity_spectrum(&f.points, &f.forces, l, VISCOSITY, modes, 1e-6)?;
             // u / (beta L) to mean-field units.
-            let s = 8.0 * eta() * VISCOSITY / nu / l;
+            let s = motile_particle::units::meanfield_time_unit(nu) / l;
             let g = [0, 1, 2].map(|c| spec.to_grid(c).into_iter().map(|v| v * s).collect());
             (modes, g, particle_to_meanfield(p.time, 0.0, nu).0)
         }

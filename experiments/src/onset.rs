@@ -13,7 +13,7 @@ use crate::rundir::TimeSeries;
 use anyhow::Context;
 use motile_analysis::stats::{GrowthFit, growth_phase};
 use motile_particle::Hydrodynamics;
-use motile_particle::units::{VISCOSITY, eta};
+use motile_particle::units::{continuum_growth_rate, meanfield_time_unit, zeta};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -71,8 +71,7 @@ pub struct OnsetPoint {
 /// The continuum's growth rate (M3, `D = 0`) in particle units at volume fraction `nu`:
 /// `(1/5)/(1 + zeta/15) nu/(8 eta mu)`, `zeta = nu/(24 eta mu)`.
 pub fn continuum_rate(nu: f64) -> f64 {
-    let zeta = nu / (24.0 * eta() * VISCOSITY);
-    0.2 / (1.0 + zeta / 15.0) * nu / (8.0 * eta() * VISCOSITY)
+    continuum_growth_rate(zeta(nu)) / meanfield_time_unit(nu)
 }
 
 /// The growth rate of a box-scale norm series: its growth phase if it has one (the criterion of
