@@ -943,12 +943,16 @@ fn drive(
             }
         }
     }
-    // The outputs due at t_end: the loop writes outputs before each step, so those of the
-    // final state come here (a diagnostic row and a snapshot whose schedules reach t_end).
+    // The final state: the loop writes outputs before each step, so those at t_end come here.
+    // A diagnostic row and a snapshot are always written at t_end, on their schedules or not
+    // (a t_end that is no multiple of the intervals still ends with its final state); an
+    // off-schedule output leaves the schedule as it was, so an extended run continues it.
+    // Nothing is written again when a finished run is resumed (no step taken here).
     let t = stepper.t;
-    let diag_due = t >= clock.next_diag - eps;
-    if diag_due || t >= clock.next_snap - eps {
-        rhs.with_entropy = diag_due;
+    if clock.steps > start_steps {
+        let diag_due = t >= clock.next_diag - eps;
+        let snap_due = t >= clock.next_snap - eps;
+        rhs.with_entropy = true;
         let (ev, report) = match stepper.diagnostics(&rhs) {
             Ok(r) => r,
             Err(e) => {
@@ -958,11 +962,13 @@ fn drive(
         };
         if diag_due {
             clock.next_diag += cfg.diagnostic_interval;
-            ts.push(row(t, clock.prev_dt, &report, clock.steps));
-            ts.write(&run.path().join("timeseries.csv"))?;
         }
-        if t >= clock.next_snap - eps {
-            write_field_snapshot(run, grid, &mut clock, cfg, t, ev)?;
+        ts.push(row(t, clock.prev_dt, &report, clock.steps));
+        ts.write(&run.path().join("timeseries.csv"))?;
+        let next_snap = clock.next_snap;
+        write_field_snapshot(run, grid, &mut clock, cfg, t, ev)?;
+        if !snap_due {
+            clock.next_snap = next_snap;
         }
     }
     write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;

@@ -89,6 +89,36 @@ fn a_short_run_writes_its_final_state() {
         (t_ckpt - 1.0).abs() < 1e-12,
         "final checkpoint at t = {t_ckpt}"
     );
+    // A t_end that is no multiple of the output intervals ends with its final state too.
+    let cfg = MeanFieldRunConfig { t_end: 0.9, ..cfg };
+    let out = dir.path().join("mf_unaligned");
+    let s = run_meanfield(&cfg, &out, false).unwrap();
+    let t = s.timeseries.column("t [mu/|sigma_a|]").unwrap();
+    let close = |a: &[f64], b: &[f64]| {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
+    };
+    assert!(
+        close(&t, &[0.0, 0.25, 0.5, 0.75, 0.9]),
+        "diagnostic times {t:?}"
+    );
+    let snaps = motile_experiments::rundir::RunDir::open(&out)
+        .unwrap()
+        .snapshots()
+        .unwrap();
+    let times: Vec<f64> = snaps.iter().map(|s| s.time()).collect();
+    assert!(close(&times, &[0.0, 0.5, 0.9]), "snapshot times {times:?}");
+    // Resuming the finished run writes nothing again.
+    motile_experiments::meanfield_run::resume_meanfield(&out, false).unwrap();
+    let again = motile_experiments::rundir::TimeSeries::read(&out.join("timeseries.csv")).unwrap();
+    assert_eq!(again.column("t [mu/|sigma_a|]").unwrap(), t);
+    assert_eq!(
+        motile_experiments::rundir::RunDir::open(&out)
+            .unwrap()
+            .snapshots()
+            .unwrap()
+            .len(),
+        3
+    );
 }
 
 #[test]
