@@ -8,6 +8,7 @@ pub mod analyze;
 pub mod checkpoint;
 pub mod compare;
 pub mod demo;
+pub mod estimate;
 pub mod failure;
 pub mod io;
 pub mod meanfield_run;

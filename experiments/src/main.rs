@@ -77,7 +77,8 @@ enum Command {
     /// compared in OUT/compare, a summary in OUT/scene.md. Running it again resumes what is
     /// unfinished and skips what is done.
     Run {
-        /// Built-in scene name (demo, dilute, concentrated, meanfield) or a scene file.
+        /// Built-in scene name (demo, dilute, paper-dilute, concentrated, meanfield) or a
+        /// scene file.
         scene: String,
         /// Output directory [default: runs/SCENE (the scene's name)].
         #[arg(long)]
@@ -88,6 +89,10 @@ enum Command {
         /// Print the scene's resolved runs and exit.
         #[arg(long)]
         dry_run: bool,
+        /// With --dry-run: also time a few steps of each run (at a proxy size when large)
+        /// and print its estimated cost (scenes that set `estimate` print it before running).
+        #[arg(long, requires = "dry_run")]
+        estimate: bool,
     },
     /// List the built-in scenes.
     Scenes,
@@ -479,6 +484,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             only,
             dry_run,
+            estimate,
         } => {
             let s = scene::load_scene(&scene)?;
             let out = out.unwrap_or_else(|| PathBuf::from("runs").join(&s.info.name));
@@ -492,8 +498,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     s.info.level.trim(),
                     s.info.cost
                 );
+                let scratch =
+                    std::env::temp_dir().join(format!("motile-estimate-{}", std::process::id()));
                 for (run, cfg) in &s.runs {
+                    if !only.is_empty() && !only.contains(run) {
+                        continue;
+                    }
                     println!("  {run}: {}", cfg.describe());
+                    if estimate {
+                        let e = motile_experiments::estimate::estimate(cfg, &scratch)?;
+                        println!("    estimated cost: {}", e.describe());
+                    }
                 }
                 return Ok(());
             }

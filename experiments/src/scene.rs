@@ -23,6 +23,7 @@
 
 use crate::analyze::{AnalyzeOptions, analyze_run};
 use crate::compare::{self, CompareReport};
+use crate::estimate;
 use crate::io::write_atomic;
 use crate::meanfield_run::{self, MeanFieldRunConfig};
 use crate::particle_run::{self, ParticleRunConfig};
@@ -33,9 +34,10 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The scenes shipped with motile: `(name, TOML text)`.
-pub const BUILTIN: [(&str, &str); 4] = [
+pub const BUILTIN: [(&str, &str); 5] = [
     ("demo", include_str!("../scenes/demo.toml")),
     ("dilute", include_str!("../scenes/dilute.toml")),
+    ("paper-dilute", include_str!("../scenes/paper-dilute.toml")),
     ("concentrated", include_str!("../scenes/concentrated.toml")),
     ("meanfield", include_str!("../scenes/meanfield.toml")),
 ];
@@ -64,6 +66,10 @@ pub struct SceneInfo {
     pub level: String,
     /// What it costs on the reference machine (2 cores).
     pub cost: String,
+    /// Time a few steps of each run and print its estimated cost before it starts
+    /// ([`crate::estimate`]). Default false.
+    #[serde(default)]
+    pub estimate: bool,
 }
 
 /// One `[[run]]` entry.
@@ -260,6 +266,15 @@ pub fn run_scene(
     }
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     write_atomic(&out.join("scene.toml"), scene.text.as_bytes())?;
+    if scene.info.estimate {
+        for (name, cfg) in &scene.runs {
+            if (!only.is_empty() && !only.contains(name)) || existing(&out.join(name), cfg)? {
+                continue;
+            }
+            let e = estimate::estimate(cfg, &out.join(".estimate"))?;
+            event(&format!("estimated cost of {name}: {}", e.describe()));
+        }
+    }
     let mut outcomes = Vec::new();
     for (name, cfg) in &scene.runs {
         if !only.is_empty() && !only.contains(name) {

@@ -16,7 +16,7 @@ fn every_builtin_scene_parses_and_states_its_level() {
     }
     let err = format!("{:#}", load_scene("no-such-scene").unwrap_err());
     assert!(
-        err.contains("demo, dilute, concentrated, meanfield"),
+        err.contains("demo, dilute, paper-dilute, concentrated, meanfield"),
         "{err}"
     );
 }
@@ -208,4 +208,71 @@ hydrodynamics = "sbt"
     ] {
         assert!(dir.path().join(f).exists(), "{f} missing");
     }
+}
+
+/// The cost estimate times real steps: a large particle run at a proxy size (same volume
+/// fraction), a small mean-field run at its own size, and counts the run's steps.
+#[test]
+fn cost_estimates_time_steps_at_a_proxy_size_and_count_the_run() {
+    use motile_experiments::estimate::{PROXY_RODS, estimate};
+    let text = r#"
+[scene]
+name = "est"
+version = 1
+description = "cost estimate test: a large particle run and a small mean-field run"
+level = "no hydrodynamics for the particles (the estimate's arithmetic is what is tested)"
+cost = "seconds"
+estimate = true
+[[run]]
+name = "p"
+model = "particle"
+[run.config]
+box_length = 32.0
+volume_fraction = 0.625
+dt = 0.01
+t_end = 3.0
+[[run]]
+name = "m"
+model = "meanfield"
+[run.config]
+grid = 16
+t_end = 10.0
+dt_max = 0.2
+diagnostic_interval = 1.0
+"#;
+    let s = parse_scene(text, "est").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let p = estimate(&s.runs[0].1, &dir.path().join("p")).unwrap();
+    assert_eq!(p.size, 20_480);
+    assert!(
+        p.measured_size.abs_diff(PROXY_RODS) < 100,
+        "proxy of {} rods",
+        p.measured_size
+    );
+    assert_eq!(p.steps, 300);
+    assert!(!p.steps_at_least);
+    let ratio =
+        (20_480.0 * 20_480f64.ln()) / (p.measured_size as f64 * (p.measured_size as f64).ln());
+    assert!(
+        p.measured_step_seconds > 0.0
+            && (p.step_seconds / p.measured_step_seconds - ratio).abs() < 1e-9 * ratio,
+        "{p:?}"
+    );
+    assert!(!dir.path().join("p").exists(), "scratch left behind");
+    let m = estimate(&s.runs[1].1, &dir.path().join("m")).unwrap();
+    // dt = min(dt_max, diagnostic_interval / 10) = 0.1: at least 100 steps, timed at 16^3.
+    assert_eq!((m.size, m.measured_size, m.steps), (4096, 4096, 100));
+    assert!(m.steps_at_least && m.step_seconds > 0.0, "{m:?}");
+    assert!(m.describe().contains("grid points"), "{}", m.describe());
+    // The scene prints them before it runs.
+    let mut lines = Vec::new();
+    let only = vec!["m".to_string()];
+    run_scene(&s, &dir.path().join("out"), &only, false, &mut |l| {
+        lines.push(l.to_string())
+    })
+    .unwrap();
+    assert!(
+        lines[0].starts_with("estimated cost of m: ") && lines.len() > 1,
+        "{lines:?}"
+    );
 }

@@ -1,0 +1,209 @@
+//! What a run will cost, from a step time measured before it starts: the run's config is run
+//! twice for a few steps (at a proxy size when the run is large: at most [`PROXY_RODS`] rods or
+//! a [`PROXY_GRID`]^3 grid), the difference of the two wall times over the difference of their
+//! step counts is the time of one step (setup and output cancel), scaled to the run's size as
+//! `N log N` (the fast sums, the FFTs and the contact solver's cell lists all scale so) and
+//! multiplied by the run's step count.
+
+use crate::meanfield_run::{self, MeanFieldRunConfig};
+use crate::particle_run::{self, ParticleRunConfig};
+use crate::scene::RunConfig;
+use anyhow::Context;
+use std::path::Path;
+use std::time::Instant;
+
+/// Largest particle count timed directly; larger runs are timed on a smaller box at the same
+/// volume fraction.
+pub const PROXY_RODS: usize = 10_000;
+/// Largest mean-field grid timed directly.
+pub const PROXY_GRID: usize = 64;
+
+/// A run's estimated cost.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CostEstimate {
+    /// What `size` counts: "rods" or "grid points".
+    pub unit: &'static str,
+    /// Size the step was timed at (rods or grid points).
+    pub measured_size: usize,
+    /// The run's size (rods or grid points).
+    pub size: usize,
+    /// Measured seconds per step at `measured_size`.
+    pub measured_step_seconds: f64,
+    /// Seconds per step scaled to `size` (`N log N`).
+    pub step_seconds: f64,
+    /// Steps of the run (a lower bound for mean-field runs, whose step the CFL condition may
+    /// shorten below `dt_max`).
+    pub steps: u64,
+    /// Whether `steps` is a lower bound.
+    pub steps_at_least: bool,
+}
+
+impl CostEstimate {
+    /// Estimated wall seconds of the whole run.
+    pub fn seconds(&self) -> f64 {
+        self.step_seconds * self.steps as f64
+    }
+
+    /// One line: the measurement, the scaling and the total.
+    pub fn describe(&self) -> String {
+        let scaled = if self.size == self.measured_size {
+            String::new()
+        } else {
+            format!(
+                " (timed at {} {}: {:.3} s, scaled as N log N)",
+                self.measured_size, self.unit, self.measured_step_seconds
+            )
+        };
+        format!(
+            "{:.3} s/step at {} {}{scaled} x {}{} steps = {}",
+            self.step_seconds,
+            self.size,
+            self.unit,
+            if self.steps_at_least { ">= " } else { "" },
+            self.steps,
+            human_duration(self.seconds())
+        )
+    }
+}
+
+/// Seconds as "42 s", "12.5 min", "3.2 h" or "4.1 days".
+pub fn human_duration(s: f64) -> String {
+    if s < 120.0 {
+        format!("{s:.0} s")
+    } else if s < 7200.0 {
+        format!("{:.1} min", s / 60.0)
+    } else if s < 172_800.0 {
+        format!("{:.1} h", s / 3600.0)
+    } else {
+        format!("{:.1} days", s / 86_400.0)
+    }
+}
+
+/// `N log N` ratio of `size` to `measured`.
+fn nlogn_ratio(size: usize, measured: usize) -> f64 {
+    let (n, m) = (size as f64, measured as f64);
+    n * n.ln() / (m * m.ln())
+}
+
+/// Measure and estimate `cfg`'s cost, timing its steps in scratch directories under `scratch`
+/// (removed afterwards).
+pub fn estimate(cfg: &RunConfig, scratch: &Path) -> anyhow::Result<CostEstimate> {
+    std::fs::create_dir_all(scratch)
+        .with_context(|| format!("{}: cannot create", scratch.display()))?;
+    let result = match cfg {
+        RunConfig::Particle(c) => estimate_particle(c, scratch),
+        RunConfig::MeanField(c) => estimate_meanfield(c, scratch),
+    };
+    let _ = std::fs::remove_dir_all(scratch);
+    result
+}
+
+/// Wall seconds and steps of `run` into a fresh `dir`.
+fn timed(dir: &Path, run: impl FnOnce(&Path) -> anyhow::Result<u64>) -> anyhow::Result<(f64, u64)> {
+    let _ = std::fs::remove_dir_all(dir);
+    let t0 = Instant::now();
+    let steps = run(dir)?;
+    Ok((t0.elapsed().as_secs_f64(), steps))
+}
+
+/// Seconds per step from a 2-step run and a longer one, lengthened (6, 30, 150, 750 steps)
+/// until the difference of their wall times is at least a quarter second, so that timer noise
+/// and setup do not decide the answer.
+fn step_time<F>(scratch: &Path, run: impl Fn(f64) -> F) -> anyhow::Result<f64>
+where
+    F: FnOnce(&Path) -> anyhow::Result<u64>,
+{
+    let a = timed(&scratch.join("a"), run(2.0))?;
+    let mut steps = 6.0;
+    loop {
+        let b = timed(&scratch.join("b"), run(steps))?;
+        anyhow::ensure!(
+            b.1 > a.1,
+            "cost estimate: the longer timing run took no more steps ({} against {})",
+            b.1,
+            a.1
+        );
+        if b.0 - a.0 >= 0.25 || steps >= 750.0 {
+            // Noise can still make the difference negative when steps are very cheap: then
+            // the longer run's own mean, setup included, bounds the step from above.
+            let d = (b.0 - a.0) / (b.1 - a.1) as f64;
+            return Ok(if d > 0.0 { d } else { b.0 / b.1 as f64 });
+        }
+        steps *= 5.0;
+    }
+}
+
+fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<CostEstimate> {
+    let size = c
+        .rods
+        .unwrap_or((c.volume_fraction * c.box_length.powi(3)).round() as usize);
+    let mut proxy = c.clone();
+    let from_file = !matches!(c.initial.as_str(), "random" | "perturbation");
+    if size > PROXY_RODS && !from_file {
+        let shrink = (PROXY_RODS as f64 / size as f64).cbrt();
+        proxy.box_length = c.box_length * shrink;
+        proxy.rods = c.rods.map(|_| PROXY_RODS);
+    }
+    let measured_size = proxy
+        .rods
+        .unwrap_or((proxy.volume_fraction * proxy.box_length.powi(3)).round() as usize);
+    proxy.snapshot_interval = 1e5;
+    proxy.checkpoint_interval = 1e5;
+    proxy.vtk = false;
+    let run = |steps: f64| {
+        let mut p = proxy.clone();
+        p.t_end = steps * c.dt;
+        move |dir: &Path| particle_run::run_particle(&p, dir, false).map(|s| s.steps)
+    };
+    let measured = step_time(scratch, run)?;
+    Ok(CostEstimate {
+        unit: "rods",
+        measured_size,
+        size,
+        measured_step_seconds: measured,
+        step_seconds: measured * nlogn_ratio(size, measured_size),
+        steps: (c.t_end / c.dt - 1e-9).ceil() as u64,
+        steps_at_least: false,
+    })
+}
+
+fn estimate_meanfield(c: &MeanFieldRunConfig, scratch: &Path) -> anyhow::Result<CostEstimate> {
+    let mut proxy = c.clone();
+    proxy.grid = c.grid.min(PROXY_GRID);
+    // The run's step is at most dt_max and a tenth of the diagnostic interval.
+    let dt = c.dt_max.min(0.1 * c.diagnostic_interval);
+    proxy.snapshot_interval = 1e5;
+    proxy.checkpoint_interval = 1e5;
+    let run = |steps: f64| {
+        let mut p = proxy.clone();
+        p.t_end = steps * dt;
+        move |dir: &Path| meanfield_run::run_meanfield(&p, dir, false).map(|s| s.steps)
+    };
+    let measured = step_time(scratch, run)?;
+    let (size, measured_size) = (c.grid.pow(3), proxy.grid.pow(3));
+    Ok(CostEstimate {
+        unit: "grid points",
+        measured_size,
+        size,
+        measured_step_seconds: measured,
+        step_seconds: measured * nlogn_ratio(size, measured_size),
+        steps: (c.t_end / dt - 1e-9).ceil() as u64,
+        steps_at_least: true,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nlogn_scaling_and_durations() {
+        assert!((nlogn_ratio(1000, 1000) - 1.0).abs() < 1e-15);
+        let r = nlogn_ratio(1_000_000, 1000);
+        assert!((r - 2000.0).abs() < 1e-9, "{r}");
+        assert_eq!(human_duration(42.0), "42 s");
+        assert_eq!(human_duration(750.0), "12.5 min");
+        assert_eq!(human_duration(3.0 * 3600.0), "3.0 h");
+        assert_eq!(human_duration(4.0 * 86_400.0), "4.0 days");
+    }
+}
