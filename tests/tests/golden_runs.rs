@@ -1,0 +1,185 @@
+//! Golden outputs of the run loop: a small slender-body particle run (125 rods with contacts,
+//! a perturbed start, snapshots, VTK and checkpoints every 5 of its 10 steps) and a mean-field
+//! run (8^3, adaptive steps, outputs at t = 0.25/0.5 to t = 1) write exactly the files they
+//! wrote before the run loop was made generic (hashes of every file but the log, the
+//! particle time series without its wall-clock column), fresh and when resumed from the
+//! mid-run checkpoints that the old code wrote (tests/data/golden/{particle,meanfield}: each
+//! run's directory as it stood just after its mid-run checkpoint).
+//!
+//! The hashes were recorded on x86_64 with AVX2 and FMA (rustfft and the compiler's vector
+//! code choose their kernels at run time); on a machine with other vector units the test
+//! says so and skips instead of comparing bits. They do not depend on the thread count
+//! (checked at 1 and 2 threads).
+
+use motile_experiments::meanfield_run::{
+    parse_config as mf_config, resume_meanfield, run_meanfield,
+};
+use motile_experiments::particle_run::{parse_config as p_config, resume_particle, run_particle};
+use std::path::{Path, PathBuf};
+
+/// `(file, FNV-1a 64)` of every file of the particle run, log excluded.
+const PARTICLE: [(&str, u64); 15] = [
+    ("checkpoints/ckpt_000000000.h5", 0x2559d8c59cd43560),
+    ("checkpoints/ckpt_000000000.h5.crc32", 0xe5ded1071c39f62e),
+    ("checkpoints/ckpt_000000005.h5", 0x3b18e4df1a6da583),
+    ("checkpoints/ckpt_000000005.h5.crc32", 0x1364faa84b7da4cd),
+    ("checkpoints/ckpt_000000010.h5", 0x53944958b5d02841),
+    ("checkpoints/ckpt_000000010.h5.crc32", 0x5439f79be40bed36),
+    ("config.toml", 0xcb6a1b2e4109c3c8),
+    ("rods.pvd", 0xdd3f77050fe4c5f7),
+    ("snapshots/snap_000000.h5", 0x91dccf280beaf970),
+    ("snapshots/snap_000001.h5", 0x20c72be061520fc2),
+    ("snapshots/snap_000002.h5", 0xdaee224a53fa003f),
+    ("timeseries.csv", 0xbf13aaf454245ab2),
+    ("vtk/rods_000000.vtp", 0x8748c0f8b5e80b72),
+    ("vtk/rods_000001.vtp", 0x5743968c092134b2),
+    ("vtk/rods_000002.vtp", 0x9bf88dc555aacd8e),
+];
+/// The same for the mean-field run.
+const MEANFIELD: [(&str, u64); 11] = [
+    ("checkpoints/ckpt_000000000.h5", 0x41601fb6bdd7c0e8),
+    ("checkpoints/ckpt_000000000.h5.crc32", 0xef17168d2178a150),
+    ("checkpoints/ckpt_000000008.h5", 0x89b342e78df2140e),
+    ("checkpoints/ckpt_000000008.h5.crc32", 0x1c86e06a1b3d6859),
+    ("checkpoints/ckpt_000000014.h5", 0x83c41d4adbf7d521),
+    ("checkpoints/ckpt_000000014.h5.crc32", 0x7afed7642c754cbb),
+    ("config.toml", 0x7de631c25f7cc365),
+    ("snapshots/snap_000000.h5", 0xd6f8c101a43c0a78),
+    ("snapshots/snap_000001.h5", 0xfb7783ee1f3d92d3),
+    ("snapshots/snap_000002.h5", 0x041ccf2fd2f86282),
+    ("timeseries.csv", 0x07c06242a2c18f9a),
+];
+
+fn data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/golden")
+}
+
+fn fnv(bytes: &[u8]) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
+fn files(dir: &Path, base: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            files(&p, base, out);
+        } else if p.file_name().unwrap() != "run.log" {
+            out.push(p.strip_prefix(base).unwrap().to_path_buf());
+        }
+    }
+}
+
+/// Hash of every file under `dir` but run.log; in timeseries.csv the wall-clock column
+/// (steps_per_second) is blanked.
+fn digest(dir: &Path) -> Vec<(String, u64)> {
+    let mut list = Vec::new();
+    files(dir, dir, &mut list);
+    list.sort();
+    list.iter()
+        .map(|rel| {
+            let bytes = std::fs::read(dir.join(rel)).unwrap();
+            let bytes = if rel == Path::new("timeseries.csv") {
+                let text = String::from_utf8(bytes).unwrap();
+                let mut lines = text.lines();
+                let header = lines.next().unwrap();
+                let clock = header
+                    .split(',')
+                    .position(|c| c.starts_with("steps_per_second"));
+                let mut kept = vec![header.to_string()];
+                for line in lines {
+                    let mut cells: Vec<&str> = line.split(',').collect();
+                    if let Some(k) = clock {
+                        cells[k] = "";
+                    }
+                    kept.push(cells.join(","));
+                }
+                kept.join("\n").into_bytes()
+            } else {
+                bytes
+            };
+            (rel.display().to_string(), fnv(&bytes))
+        })
+        .collect()
+}
+
+fn same_cpu_as_recorded() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            return true;
+        }
+    }
+    eprintln!(
+        "golden_runs: skipped: the hashes were recorded on x86_64 with AVX2 and FMA, this CPU differs (other FFT kernels, other bits)"
+    );
+    false
+}
+
+fn check(name: &str, got: &[(String, u64)], want: &[(&str, u64)]) {
+    if std::env::var("MOTILE_PRINT_GOLDEN").as_deref() == Ok("1") {
+        for (f, h) in got {
+            println!("    (\"{f}\", 0x{h:016x}),");
+        }
+        return;
+    }
+    let want: Vec<(String, u64)> = want.iter().map(|(f, h)| (f.to_string(), *h)).collect();
+    assert_eq!(
+        got, want,
+        "{name}: the run's files differ from the golden run's (left: now, right: recorded)"
+    );
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let dest = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &dest);
+        } else {
+            std::fs::copy(&p, &dest).unwrap();
+        }
+    }
+}
+
+#[test]
+fn particle_run_writes_the_golden_files_fresh_and_resumed_from_an_old_checkpoint() {
+    if !same_cpu_as_recorded() {
+        return;
+    }
+    let cfg_path = data().join("particle.toml");
+    let cfg = p_config(&std::fs::read_to_string(&cfg_path).unwrap(), &cfg_path).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let fresh = tmp.path().join("fresh");
+    run_particle(&cfg, &fresh, false).unwrap();
+    check("particle, fresh", &digest(&fresh), &PARTICLE);
+    let resumed = tmp.path().join("resumed");
+    copy_dir(&data().join("particle"), &resumed);
+    let s = resume_particle(&resumed, false).unwrap();
+    assert_eq!(s.steps, 5, "resumed from step 5 of 10");
+    check("particle, resumed", &digest(&resumed), &PARTICLE);
+}
+
+#[test]
+fn meanfield_run_writes_the_golden_files_fresh_and_resumed_from_an_old_checkpoint() {
+    if !same_cpu_as_recorded() {
+        return;
+    }
+    let cfg_path = data().join("meanfield.toml");
+    let cfg = mf_config(&std::fs::read_to_string(&cfg_path).unwrap(), &cfg_path).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let fresh = tmp.path().join("fresh");
+    run_meanfield(&cfg, &fresh, false).unwrap();
+    check("mean-field, fresh", &digest(&fresh), &MEANFIELD);
+    let resumed = tmp.path().join("resumed");
+    copy_dir(&data().join("meanfield"), &resumed);
+    let s = resume_meanfield(&resumed, false).unwrap();
+    assert_eq!(s.steps, 6, "resumed from step 8 of 14");
+    check("mean-field, resumed", &digest(&resumed), &MEANFIELD);
+}
