@@ -15,6 +15,7 @@ pub mod meanfield_run;
 pub mod onset;
 pub mod particle_run;
 pub mod plot;
+pub mod run;
 pub mod rundir;
 pub mod scene;
 pub mod snapshot;

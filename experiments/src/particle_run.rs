@@ -7,14 +7,14 @@
 //! from one continues the trajectory bit for bit. On a failed step the state before it is saved
 //! as `checkpoints/last_good.h5` and the error names it.
 
-use crate::checkpoint::{self, LAST_GOOD};
+use crate::checkpoint;
 use crate::io::IoError;
-use crate::rundir::{RunDir, TimeSeries, parse_run_config, range, read_run_config};
+use crate::run;
+use crate::rundir::{RunDir, parse_run_config, range};
 use crate::snapshot::{Kinematics, ParticleSnapshot, PointForces, Snapshot, read_snapshot};
 use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, FileBuilder};
-use indicatif::{ProgressBar, ProgressStyle};
 use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
 use motile_meanfield::initial::PerturbationField;
 use motile_particle::cells::CellList;
@@ -722,176 +722,264 @@ pub fn run_particle(
     out: &Path,
     progress: bool,
 ) -> anyhow::Result<RunSummary> {
-    cfg.validate().map_err(|e| anyhow::anyhow!("config: {e}"))?;
-    let rods = initial_rods(cfg)?;
-    let run = RunDir::create(out, "particle", cfg.seed, cfg)?;
-    run.log(&format!(
-        "particle run: {} rods, L/l = {}, dt = {}, t_end = {}",
-        rods.len(),
-        rods.box_length,
-        cfg.dt,
-        cfg.t_end
-    ))?;
-    drive(
-        cfg,
-        &run,
-        rods,
-        (Vec::new(), Vec::new(), Vec::new()),
-        0,
-        TimeSeries::new(&COLUMNS),
-        progress,
-    )
+    let (model, s) = run::start::<ParticleModel>(cfg, out, progress)?;
+    Ok(model.summary(&s))
 }
 
 /// Continue a run from its newest checkpoint.
 pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary> {
-    let run = RunDir::open(out)?;
-    let cfg: ParticleRunConfig = read_run_config(out, ParticleRunConfig::validate)?;
-    let (ckpt, (rods, warm, saved_step, time)) =
-        checkpoint::load_for_resume(&run, read_checkpoint)?;
-    // Steps count in units of the config's dt; a dt edited before resuming (the usual answer to
-    // a failed step) rebases the counter so the run continues from the checkpoint's time.
-    let step = (time / cfg.dt).round();
-    if (step * cfg.dt - time).abs() > 1e-9 * time.max(1.0) {
-        bail!(
-            "{}: the checkpoint's time t = {time} is not a whole number of steps of dt = {} (config.toml); choose a dt that divides it (for example {})",
-            ckpt.display(),
-            cfg.dt,
-            time / (time / cfg.dt).ceil()
-        );
-    }
-    let step = step as u64;
-    if step != saved_step {
-        run.log(&format!(
-            "dt changed to {}: step counter rebased from {saved_step} to {step} (t = {time})",
-            cfg.dt
-        ))?;
-    }
-    let t = time;
-    let mut ts =
-        TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
-    if ts.columns != COLUMNS {
-        bail!(
-            "{}: its columns ({}) are not the ones this version writes ({}); move it aside to resume (the time series then restarts at the checkpoint)",
-            out.join("timeseries.csv").display(),
-            ts.columns.join(", "),
-            COLUMNS.join(", ")
-        );
-    }
-    ts.rows.retain(|r| r[0] <= t + 0.5 * cfg.dt);
-    run.log(&format!(
-        "resuming from {} at step {step} (t = {t})",
-        ckpt.display()
-    ))?;
-    drive(&cfg, &run, rods, warm, step, ts, progress)
+    let (model, s) = run::resume::<ParticleModel>(out, progress)?;
+    Ok(model.summary(&s))
 }
 
-fn drive(
-    cfg: &ParticleRunConfig,
-    run: &RunDir,
-    mut rods: RodSet,
-    (warm, hydro_warm, sum_state): Restart,
-    start: u64,
-    mut ts: TimeSeries,
-    progress: bool,
-) -> anyhow::Result<RunSummary> {
-    let mut stepper = Stepper::new(mobility(cfg)?, cfg.contact.clone());
-    stepper.set_warm_start(warm);
-    stepper.mobility_mut().set_warm_state(hydro_warm);
-    stepper.mobility_mut().set_sum_state(&sum_state);
-    let mut warned_accuracy = false;
-    let total = cfg.total_steps();
-    let (diag, snap, ckpt) = (
-        cfg.every(cfg.diagnostic_interval),
-        cfg.every(cfg.snapshot_interval),
-        cfg.every(cfg.checkpoint_interval),
-    );
-    let bar = if progress {
-        ProgressBar::new(total)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} steps {msg} [{elapsed} < {eta}]")
-            .expect("template"),
-    );
-    bar.set_position(start);
-    let mut pvd: Vec<(f64, String)> = (0..=start / snap)
-        .map(|k| ((k * snap) as f64 * cfg.dt, format!("vtk/rods_{k:06}.vtp")))
-        .collect();
-    if start == 0 {
-        pvd.clear();
-        write_snapshot(cfg, run, &rods, 0, None, None, &mut pvd)?;
-        write_checkpoint(
-            &run.path()
-                .join("checkpoints")
-                .join(format!("ckpt_{:09}.h5", 0)),
-            &rods,
-            &[],
-            (&[], &stepper.mobility().sum_state()),
-            0,
-            0.0,
-        )?;
+/// The state before a step: what a failed step leaves to save as the last good state.
+struct BeforeStep {
+    rods: RodSet,
+    warm: WarmStart,
+    hydro: Vec<f64>,
+    sum_state: Vec<u32>,
+}
+
+/// The particle model as the run loop drives it ([`run::RunModel`]): rods, the stepper with
+/// its warm starts, and the output schedule in whole steps.
+pub struct ParticleModel {
+    cfg: ParticleRunConfig,
+    rods: RodSet,
+    stepper: Stepper,
+    step: u64,
+    total: u64,
+    /// Steps between time-series rows, snapshots and checkpoints.
+    every: (u64, u64, u64),
+    pvd: Vec<(f64, String)>,
+    warned_accuracy: bool,
+    before: Option<BeforeStep>,
+    window: (Instant, u64),
+    notes: Vec<String>,
+}
+
+impl std::fmt::Debug for ParticleModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ParticleModel")
+            .field("rods", &self.rods.len())
+            .field("step", &self.step)
+            .field("total", &self.total)
+            .finish_non_exhaustive()
     }
-    let t_start = Instant::now();
-    let mut last_ckpt = Instant::now();
-    let mut t_window = Instant::now();
-    let mut steps_in_window = 0u64;
-    for step in start + 1..=total {
-        let before = rods.clone();
-        let warm_before = stepper.warm_start().to_vec();
-        let hydro_before = stepper.mobility().warm_state();
-        let sum_before = stepper.mobility().sum_state();
-        let report = match stepper.step(&mut rods, cfg.dt) {
+}
+
+impl ParticleModel {
+    fn with_state(
+        cfg: &ParticleRunConfig,
+        rods: RodSet,
+        (warm, hydro_warm, sum_state): Restart,
+        step: u64,
+    ) -> anyhow::Result<Self> {
+        let mut stepper = Stepper::new(mobility(cfg)?, cfg.contact.clone());
+        stepper.set_warm_start(warm);
+        stepper.mobility_mut().set_warm_state(hydro_warm);
+        stepper.mobility_mut().set_sum_state(&sum_state);
+        let every = (
+            cfg.every(cfg.diagnostic_interval),
+            cfg.every(cfg.snapshot_interval),
+            cfg.every(cfg.checkpoint_interval),
+        );
+        // The VTK index of the snapshots written before `step`.
+        let pvd = (0..=step / every.1)
+            .map(|k| {
+                (
+                    (k * every.1) as f64 * cfg.dt,
+                    format!("vtk/rods_{k:06}.vtp"),
+                )
+            })
+            .collect();
+        Ok(Self {
+            cfg: cfg.clone(),
+            rods,
+            stepper,
+            step,
+            total: cfg.total_steps(),
+            every,
+            pvd,
+            warned_accuracy: false,
+            before: None,
+            window: (Instant::now(), 0),
+            notes: Vec::new(),
+        })
+    }
+
+    fn summary(self, s: &run::LoopSummary) -> RunSummary {
+        RunSummary {
+            steps: s.steps,
+            final_step: self.step,
+            seconds: s.seconds,
+            rods: self.rods,
+        }
+    }
+
+    fn checkpoint_to(&self, path: &Path) -> anyhow::Result<()> {
+        write_checkpoint(
+            path,
+            &self.rods,
+            self.stepper.warm_start(),
+            (
+                &self.stepper.mobility().warm_state(),
+                &self.stepper.mobility().sum_state(),
+            ),
+            self.step,
+            self.step as f64 * self.cfg.dt,
+        )?;
+        Ok(())
+    }
+}
+
+impl run::RunModel for ParticleModel {
+    type Config = ParticleRunConfig;
+    const MODEL: &'static str = "particle";
+
+    fn columns() -> &'static [&'static str] {
+        &COLUMNS
+    }
+
+    fn validate(cfg: &ParticleRunConfig) -> Result<(), String> {
+        cfg.validate()
+    }
+
+    fn seed(cfg: &ParticleRunConfig) -> u64 {
+        cfg.seed
+    }
+
+    fn new(cfg: &ParticleRunConfig) -> anyhow::Result<Self> {
+        let rods = initial_rods(cfg)?;
+        let mut m = Self::with_state(cfg, rods, (Vec::new(), Vec::new(), Vec::new()), 0)?;
+        m.notes.push(format!(
+            "particle run: {} rods, L/l = {}, dt = {}, t_end = {}",
+            m.rods.len(),
+            m.rods.box_length,
+            cfg.dt,
+            cfg.t_end
+        ));
+        Ok(m)
+    }
+
+    type Checkpoint = (RodSet, Restart, u64, f64);
+
+    fn read_checkpoint(_cfg: &ParticleRunConfig, path: &Path) -> anyhow::Result<Self::Checkpoint> {
+        read_checkpoint(path)
+    }
+
+    fn from_checkpoint(
+        cfg: &ParticleRunConfig,
+        (rods, warm, saved_step, time): Self::Checkpoint,
+        path: &Path,
+    ) -> anyhow::Result<Self> {
+        // Steps count in units of the config's dt; a dt edited before resuming (the usual
+        // answer to a failed step) rebases the counter so the run continues from the
+        // checkpoint's time.
+        let step = (time / cfg.dt).round();
+        if (step * cfg.dt - time).abs() > 1e-9 * time.max(1.0) {
+            bail!(
+                "{}: the checkpoint's time t = {time} is not a whole number of steps of dt = {} (config.toml); choose a dt that divides it (for example {})",
+                path.display(),
+                cfg.dt,
+                time / (time / cfg.dt).ceil()
+            );
+        }
+        let step = step as u64;
+        let mut m = Self::with_state(cfg, rods, warm, step)?;
+        if step != saved_step {
+            m.notes.push(format!(
+                "dt changed to {}: step counter rebased from {saved_step} to {step} (t = {time})",
+                cfg.dt
+            ));
+        }
+        Ok(m)
+    }
+
+    fn notes(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.notes)
+    }
+
+    fn keeps_row(&self, row: &[f64]) -> bool {
+        row[0] <= self.time() + 0.5 * self.cfg.dt
+    }
+
+    fn steps(&self) -> u64 {
+        self.step
+    }
+
+    fn time(&self) -> f64 {
+        self.step as f64 * self.cfg.dt
+    }
+
+    fn finished(&self) -> bool {
+        self.step >= self.total
+    }
+
+    fn progress(&self) -> (&'static str, u64, u64) {
+        (
+            "{bar:30} {pos}/{len} steps {msg} [{elapsed} < {eta}]",
+            self.total,
+            self.step,
+        )
+    }
+
+    fn checkpoint_policy(&self) -> (usize, f64) {
+        (self.cfg.checkpoints_kept, self.cfg.checkpoint_wall_seconds)
+    }
+
+    fn begin(&mut self, _io: &mut run::RunIo) -> anyhow::Result<bool> {
+        self.pvd.clear();
+        write_snapshot(&self.cfg, _io.run, &self.rods, 0, None, None, &mut self.pvd)?;
+        Ok(true)
+    }
+
+    fn checkpoint_due_before_step(&mut self) -> bool {
+        false
+    }
+
+    fn step(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
+        let step = self.step + 1;
+        let cfg = &self.cfg;
+        let before = BeforeStep {
+            rods: self.rods.clone(),
+            warm: self.stepper.warm_start().to_vec(),
+            hydro: self.stepper.mobility().warm_state(),
+            sum_state: self.stepper.mobility().sum_state(),
+        };
+        let report = match self.stepper.step(&mut self.rods, cfg.dt) {
             Ok(r) => r,
             Err(e) => {
-                let saved = run.path().join("checkpoints").join(LAST_GOOD);
-                write_checkpoint(
-                    &saved,
-                    &before,
-                    &warm_before,
-                    (&hydro_before, &sum_before),
-                    step - 1,
-                    (step - 1) as f64 * cfg.dt,
-                )?;
-                run.log(&format!("step {step} failed: {e}"))?;
-                bar.abandon();
-                return Err(crate::failure::RunFailure {
+                self.before = Some(before);
+                return Err(run::StepFailure::Step {
                     kind: (&e).into(),
                     step,
                     t: (step - 1) as f64 * cfg.dt,
-                    message: format!(
-                        "step {step} (t = {:.4}) failed: {e}. The state before it is saved in {}; `motile resume {}` continues from it (after editing {} if a setting caused the failure)",
-                        step as f64 * cfg.dt,
-                        saved.display(),
-                        run.path().display(),
-                        run.path().join("config.toml").display()
-                    ),
-                }
-                .into());
+                    what: format!("step {step} (t = {:.4}) failed: {e}", step as f64 * cfg.dt),
+                });
             }
         };
-        steps_in_window += 1;
+        self.step = step;
+        self.window.1 += 1;
         let t = step as f64 * cfg.dt;
-        if !warned_accuracy && report.hydro.sums > 0 && !report.hydro.sum_tolerance_met {
+        if !self.warned_accuracy && report.hydro.sums > 0 && !report.hydro.sum_tolerance_met {
             // Never silent: the finest level of the fast sum could not meet the tolerance.
-            warned_accuracy = true;
+            self.warned_accuracy = true;
             let msg = format!(
                 "warning: at step {step} (t = {t:.4}) the fast sum's estimated error is {:.1} times hydro.sum_tolerance = {:e} even at its finest setting; results carry that error (see docs/accuracy.md; `motile check-accuracy {}` measures it). Said once per run",
                 report.hydro.sum_error_ratio,
                 cfg.hydro.sum_tolerance,
-                run.path().display()
+                io.run.path().display()
             );
-            run.log(&msg)?;
-            bar.println(&msg);
+            io.log(&msg)?;
+            io.bar.println(&msg);
         }
+        let (diag, snap, _) = self.every;
         if step % diag == 0 {
-            let rate = steps_in_window as f64 / t_window.elapsed().as_secs_f64().max(1e-9);
-            t_window = Instant::now();
-            steps_in_window = 0;
+            let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
+            self.window = (Instant::now(), 0);
             let c = &report.contact;
-            let norms = velocity_norms(&stepper, &before)?;
-            ts.push(vec![
+            let norms = velocity_norms(&self.stepper, &before.rods)?;
+            io.push_row(vec![
                 t,
                 rate,
                 c.constraints as f64,
@@ -911,70 +999,66 @@ fn drive(
                 report.hydro.sum_error_ratio,
                 report.hydro.sum_level as f64,
                 norms.1,
-            ]);
-            ts.write(&run.path().join("timeseries.csv"))?;
-            bar.set_message(format!(
+            ])?;
+            io.bar.set_message(format!(
                 "t = {t:.3}, {rate:.1} steps/s, {} contacts, max overlap {:.1e}",
                 c.active, report.max_overlap
             ));
         }
         if step % snap == 0 {
             let kin = Kinematics {
-                velocities: stepper.velocities().v.clone(),
-                angular_velocities: stepper.velocities().w.clone(),
-                contact_forces: stepper.contact_forces().to_vec(),
+                velocities: self.stepper.velocities().v.clone(),
+                angular_velocities: self.stepper.velocities().w.clone(),
+                contact_forces: self.stepper.contact_forces().to_vec(),
             };
-            let forces = stepper.mobility().force_density().map(|fd| {
-                let (points, forces) = fd.point_forces(&before, &before.orientations());
+            let forces = self.stepper.mobility().force_density().map(|fd| {
+                let (points, forces) = fd.point_forces(&before.rods, &before.rods.orientations());
                 PointForces { points, forces }
             });
-            write_snapshot(cfg, run, &rods, step, Some(kin), forces, &mut pvd)?;
-        }
-        let stop = checkpoint::stop_requested();
-        if step % ckpt == 0
-            || step == total
-            || stop.is_some()
-            || last_ckpt.elapsed().as_secs_f64() >= cfg.checkpoint_wall_seconds
-        {
-            let dir = run.path().join("checkpoints");
-            let path = dir.join(format!("ckpt_{step:09}.h5"));
-            write_checkpoint(
-                &path,
-                &rods,
-                stepper.warm_start(),
-                (
-                    &stepper.mobility().warm_state(),
-                    &stepper.mobility().sum_state(),
-                ),
+            write_snapshot(
+                cfg,
+                io.run,
+                &self.rods,
                 step,
-                t,
+                Some(kin),
+                forces,
+                &mut self.pvd,
             )?;
-            checkpoint::prune(&dir, cfg.checkpoints_kept);
-            checkpoint::remove(&dir.join(LAST_GOOD));
-            last_ckpt = Instant::now();
-            if let Some(signal) = stop {
-                bar.abandon();
-                run.log(&format!("stopped by signal {signal} at step {step}"))?;
-                return Err(checkpoint::Interrupted {
-                    signal,
-                    at: format!("step {step} (t = {t:.4})"),
-                    checkpoint: path,
-                    run_dir: run.path().to_path_buf(),
-                }
-                .into());
-            }
         }
-        bar.set_position(step);
+        Ok(())
     }
-    bar.finish();
-    let seconds = t_start.elapsed().as_secs_f64();
-    run.log(&format!("finished at step {total} in {seconds:.1} s"))?;
-    Ok(RunSummary {
-        steps: total - start,
-        final_step: total,
-        seconds,
-        rods,
-    })
+
+    fn checkpoint_due_after_step(&self) -> bool {
+        self.step % self.every.2 == 0 || self.step == self.total
+    }
+
+    fn finish(
+        &mut self,
+        _io: &mut run::RunIo,
+        _took_steps: bool,
+    ) -> Result<bool, run::StepFailure> {
+        Ok(false)
+    }
+
+    fn write_checkpoint(&self, path: &Path) -> anyhow::Result<()> {
+        self.checkpoint_to(path)
+    }
+
+    fn write_last_good(&self, path: &Path) -> anyhow::Result<()> {
+        let b = self
+            .before
+            .as_ref()
+            .context("no failed step: nothing to save as the last good state")?;
+        write_checkpoint(
+            path,
+            &b.rods,
+            &b.warm,
+            (&b.hydro, &b.sum_state),
+            self.step,
+            self.step as f64 * self.cfg.dt,
+        )?;
+        Ok(())
+    }
 }
 
 /// `||u||_2 / (beta L)` of the step's force density (docs/MODEL.md §5, §6: the velocity spectrum on
