@@ -6,13 +6,13 @@
 //! variable-step SBDF2). Output times are reached by spreading the last one or two steps before
 //! them evenly, never by a tiny clipped step followed by a large ratio.
 
-use crate::checkpoint::{self, LAST_GOOD};
+use crate::checkpoint;
 use crate::io::write_atomic;
-use crate::rundir::{RunDir, TimeSeries, parse_run_config, read_run_config};
+use crate::run;
+use crate::rundir::{RunDir, TimeSeries, parse_run_config};
 use crate::snapshot::{FieldSnapshot, Snapshot, read_snapshot};
-use anyhow::{Context, bail};
+use anyhow::bail;
 use hdf5_pure::{AttrValue, FileBuilder};
-use indicatif::{ProgressBar, ProgressStyle};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::initial::{Perturbation, PerturbationField};
 use motile_meanfield::solver::{
@@ -640,7 +640,22 @@ fn write_checkpoint(
     Ok(())
 }
 
-fn read_checkpoint(path: &Path, stepper: &mut MeanFieldStepper, n: usize) -> anyhow::Result<Clock> {
+/// What a mean-field checkpoint holds: the stepper's state (time, Q and u coefficients, the
+/// SBDF2 history) and the driver's clock.
+#[derive(Clone, Debug)]
+pub struct MeanFieldCheckpoint {
+    /// Time.
+    pub t: f64,
+    /// Q's coefficients.
+    pub q_hat: [Vec<Complex64>; 6],
+    /// The previous step (SBDF2), absent before the first step.
+    pub history: Option<History>,
+    /// The velocity's coefficients (the fixed point's warm start).
+    pub u_hat: [Vec<Complex64>; 3],
+    clock: Clock,
+}
+
+fn read_checkpoint(path: &Path, n: usize) -> anyhow::Result<MeanFieldCheckpoint> {
     let f = checkpoint::H5Reader::open(path)?;
     let t = f.attr_f64("time")?;
     let n3 = (n / 2 + 1) * n * n;
@@ -661,61 +676,13 @@ fn read_checkpoint(path: &Path, stepper: &mut MeanFieldStepper, n: usize) -> any
     } else {
         None
     };
-    stepper.restore(
+    Ok(MeanFieldCheckpoint {
         t,
-        complex_unflat::<6>(&q, n3),
+        q_hat: complex_unflat::<6>(&q, n3),
         history,
-        complex_unflat::<3>(&u, n3),
-    );
-    Ok(Clock::from_slice(&f.f64s("clock")?))
-}
-
-/// Write a numbered checkpoint and keep only the newest two.
-fn write_regular_checkpoint(
-    dir: &Path,
-    stepper: &MeanFieldStepper,
-    clock: &Clock,
-    cfg: &MeanFieldRunConfig,
-) -> anyhow::Result<PathBuf> {
-    let path = dir.join(format!("ckpt_{:09}.h5", clock.steps));
-    write_checkpoint(&path, stepper, clock, cfg.grid)?;
-    checkpoint::prune(dir, cfg.checkpoints_kept);
-    // A newer checkpoint supersedes the state saved before an earlier failure.
-    checkpoint::remove(&dir.join(LAST_GOOD));
-    Ok(path)
-}
-
-/// Save the stepper's (good) state as `checkpoints/last_good.h5` after a failure evaluating
-/// the step from it, log the failure, and build the error that says how to go on.
-fn save_failure(
-    run: &RunDir,
-    stepper: &MeanFieldStepper,
-    clock: &Clock,
-    n: usize,
-    e: &MeanFieldError,
-    dt: f64,
-) -> anyhow::Error {
-    let saved = run.path().join("checkpoints").join(LAST_GOOD);
-    let t = stepper.t;
-    let step = clock.steps + 1;
-    if let Err(w) = write_checkpoint(&saved, stepper, clock, n) {
-        return anyhow::anyhow!(
-            "mean-field step {step} at t = {t:.4} failed: {e}; saving the state before it also failed: {w:#}"
-        );
-    }
-    let _ = run.log(&format!("step {step} at t = {t} (dt = {dt:e}) failed: {e}"));
-    crate::failure::RunFailure {
-        kind: e.into(),
-        step,
-        t,
-        message: format!(
-            "mean-field step {step} at t = {t:.4} (dt = {dt:.3e}) failed: {e}. The state before it is saved in {}; `motile resume {}` continues from it (after editing {} if a setting caused the failure)",
-            saved.display(),
-            run.path().display(),
-            run.path().join("config.toml").display()
-        ),
-    }
-    .into()
+        u_hat: complex_unflat::<3>(&u, n3),
+        clock: Clock::from_slice(&f.f64s("clock")?),
+    })
 }
 
 /// Run the mean-field model into `out`.
@@ -724,128 +691,230 @@ pub fn run_meanfield(
     out: &Path,
     progress: bool,
 ) -> anyhow::Result<MeanFieldSummary> {
-    cfg.validate().map_err(|e| anyhow::anyhow!("config: {e}"))?;
-    // The initial state (and any file it comes from) is checked before anything is written.
-    let q0 = initial_state(cfg)?;
-    let run = RunDir::create(out, "meanfield", cfg.seed, cfg)?;
-    let grid = SpectralGrid::new(cfg.grid);
-    let stepper = MeanFieldStepper::new(&grid, &q0, SBDF2);
-    if cfg.initial == "snapshot" {
-        run.log(&format!(
-            "initial state: Q of {} (a particle snapshot is smoothed with a Gaussian of {} box sides)",
-            cfg.snapshot, cfg.smoothing
-        ))?;
-    }
-    let dt = cfg.dt_max.min(0.1 * cfg.diagnostic_interval);
-    let clock = Clock {
-        dt,
-        prev_dt: dt,
-        next_diag: 0.0,
-        next_snap: 0.0,
-        next_ckpt: 0.0,
-        snap_index: 0,
-        steps: 0,
-    };
-    drive(
-        cfg,
-        &run,
-        &grid,
-        stepper,
-        clock,
-        TimeSeries::new(&COLUMNS),
-        progress,
-    )
+    let (model, s) = run::start::<MeanFieldModel>(cfg, out, progress)?;
+    Ok(model.summary(s))
 }
 
 /// Continue a mean-field run from its newest checkpoint.
 pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldSummary> {
-    let run = RunDir::open(out)?;
-    let cfg: MeanFieldRunConfig = read_run_config(out, MeanFieldRunConfig::validate)?;
-    let grid = SpectralGrid::new(cfg.grid);
-    // Placeholder state (isotropic); the checkpoint overwrites it.
-    let iso: [Vec<f64>; 6] = std::array::from_fn(|c| {
-        vec![if SYM[c].0 == SYM[c].1 { 1.0 / 3.0 } else { 0.0 }; grid.len()]
-    });
-    let mut stepper = MeanFieldStepper::new(&grid, &iso, SBDF2);
-    let (ckpt, clock) =
-        checkpoint::load_for_resume(&run, |p| read_checkpoint(p, &mut stepper, cfg.grid))?;
-    let mut ts =
-        TimeSeries::read(&out.join("timeseries.csv")).unwrap_or_else(|_| TimeSeries::new(&COLUMNS));
-    ts.rows
-        .retain(|r| r[0] < stepper.t - 1e-12 * cfg.t_end.max(1.0));
-    run.log(&format!(
-        "resuming from {} at t = {}",
-        ckpt.display(),
-        stepper.t
-    ))?;
-    drive(&cfg, &run, &grid, stepper, clock, ts, progress)
+    let (model, s) = run::resume::<MeanFieldModel>(out, progress)?;
+    Ok(model.summary(s))
 }
 
-fn drive(
-    cfg: &MeanFieldRunConfig,
-    run: &RunDir,
-    grid: &SpectralGrid,
-    mut stepper: MeanFieldStepper,
-    mut clock: Clock,
-    mut ts: TimeSeries,
-    progress: bool,
-) -> anyhow::Result<MeanFieldSummary> {
-    let t_tables = Instant::now();
-    let closure = closure_tables(cfg.closure_degree)?;
-    run.log(&format!(
-        "closure tables (degree {}) ready in {:.1} s",
-        cfg.closure_degree,
-        t_tables.elapsed().as_secs_f64()
-    ))?;
-    let params = MeanFieldParams {
-        zeta: cfg.zeta,
-        diffusion: cfg.diffusion,
-        fixed_point_tolerance: cfg.fixed_point_tolerance,
-        fixed_point_max_iterations: cfg.fixed_point_max_iterations,
-    };
-    let mut rhs = MeanFieldRhs {
-        grid,
-        closure: &closure,
-        params: &params,
-        with_entropy: false,
-    };
-    let bar = if progress {
-        ProgressBar::new(1000)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} t {msg} [{elapsed} < {eta}]").context("template")?,
-    );
-    let h = 1.0 / cfg.grid as f64;
-    let start_steps = clock.steps;
-    let t0 = Instant::now();
-    let mut last_ckpt = Instant::now();
-    let eps = 1e-9 * cfg.t_end;
-    let ckpt_dir = run.path().join("checkpoints");
-    while stepper.t < cfg.t_end - eps {
-        let t = stepper.t;
-        if t >= clock.next_ckpt - eps {
-            clock.next_ckpt += cfg.checkpoint_interval;
-            write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;
-            last_ckpt = Instant::now();
+/// The mean-field model as the run loop drives it ([`run::RunModel`]): the stepper, the
+/// closure tables, and the clock (step-size control and output schedule in time).
+pub struct MeanFieldModel {
+    cfg: MeanFieldRunConfig,
+    grid: SpectralGrid,
+    stepper: MeanFieldStepper,
+    closure: BinghamClosure,
+    params: MeanFieldParams,
+    clock: Clock,
+    notes: Vec<String>,
+}
+
+impl std::fmt::Debug for MeanFieldModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MeanFieldModel")
+            .field("grid", &self.cfg.grid)
+            .field("t", &self.stepper.t)
+            .field("clock", &self.clock)
+            .finish_non_exhaustive()
+    }
+}
+
+impl MeanFieldModel {
+    fn with_state(
+        cfg: &MeanFieldRunConfig,
+        grid: SpectralGrid,
+        stepper: MeanFieldStepper,
+        clock: Clock,
+        mut notes: Vec<String>,
+    ) -> anyhow::Result<Self> {
+        let t_tables = Instant::now();
+        let closure = closure_tables(cfg.closure_degree)?;
+        notes.push(format!(
+            "closure tables (degree {}) ready in {:.1} s",
+            cfg.closure_degree,
+            t_tables.elapsed().as_secs_f64()
+        ));
+        let params = MeanFieldParams {
+            zeta: cfg.zeta,
+            diffusion: cfg.diffusion,
+            fixed_point_tolerance: cfg.fixed_point_tolerance,
+            fixed_point_max_iterations: cfg.fixed_point_max_iterations,
+        };
+        Ok(Self {
+            cfg: cfg.clone(),
+            grid,
+            stepper,
+            closure,
+            params,
+            clock,
+            notes,
+        })
+    }
+
+    fn summary(self, s: run::LoopSummary) -> MeanFieldSummary {
+        MeanFieldSummary {
+            steps: s.steps,
+            seconds: s.seconds,
+            timeseries: s.timeseries,
+            q_hat: self.stepper.q_hat,
         }
-        let at_diag = t >= clock.next_diag - eps;
+    }
+
+    fn eps(&self) -> f64 {
+        1e-9 * self.cfg.t_end
+    }
+
+    /// A failed evaluation or step from the current (good) state.
+    fn failure(&self, e: &MeanFieldError, dt: f64) -> run::StepFailure {
+        let step = self.clock.steps + 1;
+        let t = self.stepper.t;
+        run::StepFailure::Step {
+            kind: e.into(),
+            step,
+            t,
+            what: format!("mean-field step {step} at t = {t:.4} (dt = {dt:.3e}) failed: {e}"),
+        }
+    }
+}
+
+impl run::RunModel for MeanFieldModel {
+    type Config = MeanFieldRunConfig;
+    type Checkpoint = MeanFieldCheckpoint;
+    const MODEL: &'static str = "meanfield";
+
+    fn columns() -> &'static [&'static str] {
+        &COLUMNS
+    }
+
+    fn validate(cfg: &MeanFieldRunConfig) -> Result<(), String> {
+        cfg.validate()
+    }
+
+    fn seed(cfg: &MeanFieldRunConfig) -> u64 {
+        cfg.seed
+    }
+
+    fn new(cfg: &MeanFieldRunConfig) -> anyhow::Result<Self> {
+        // The initial state (and any file it comes from) is checked before anything is written.
+        let q0 = initial_state(cfg)?;
+        let grid = SpectralGrid::new(cfg.grid);
+        let stepper = MeanFieldStepper::new(&grid, &q0, SBDF2);
+        let mut notes = Vec::new();
+        if cfg.initial == "snapshot" {
+            notes.push(format!(
+                "initial state: Q of {} (a particle snapshot is smoothed with a Gaussian of {} box sides)",
+                cfg.snapshot, cfg.smoothing
+            ));
+        }
+        let dt = cfg.dt_max.min(0.1 * cfg.diagnostic_interval);
+        let clock = Clock {
+            dt,
+            prev_dt: dt,
+            next_diag: 0.0,
+            next_snap: 0.0,
+            next_ckpt: 0.0,
+            snap_index: 0,
+            steps: 0,
+        };
+        Self::with_state(cfg, grid, stepper, clock, notes)
+    }
+
+    fn read_checkpoint(
+        cfg: &MeanFieldRunConfig,
+        path: &Path,
+    ) -> anyhow::Result<MeanFieldCheckpoint> {
+        read_checkpoint(path, cfg.grid)
+    }
+
+    fn from_checkpoint(
+        cfg: &MeanFieldRunConfig,
+        c: MeanFieldCheckpoint,
+        _path: &Path,
+    ) -> anyhow::Result<Self> {
+        let grid = SpectralGrid::new(cfg.grid);
+        // Placeholder state (isotropic); the checkpoint's replaces it.
+        let iso: [Vec<f64>; 6] = std::array::from_fn(|c| {
+            vec![if SYM[c].0 == SYM[c].1 { 1.0 / 3.0 } else { 0.0 }; grid.len()]
+        });
+        let mut stepper = MeanFieldStepper::new(&grid, &iso, SBDF2);
+        stepper.restore(c.t, c.q_hat, c.history, c.u_hat);
+        Self::with_state(cfg, grid, stepper, c.clock, Vec::new())
+    }
+
+    fn notes(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.notes)
+    }
+
+    fn keeps_row(&self, row: &[f64]) -> bool {
+        row[0] < self.stepper.t - 1e-12 * self.cfg.t_end.max(1.0)
+    }
+
+    fn steps(&self) -> u64 {
+        self.clock.steps
+    }
+
+    fn time(&self) -> f64 {
+        self.stepper.t
+    }
+
+    fn finished(&self) -> bool {
+        self.stepper.t >= self.cfg.t_end - self.eps()
+    }
+
+    fn progress(&self) -> (&'static str, u64, u64) {
+        (
+            "{bar:30} t {msg} [{elapsed} < {eta}]",
+            1000,
+            (1000.0 * self.stepper.t / self.cfg.t_end) as u64,
+        )
+    }
+
+    fn checkpoint_policy(&self) -> (usize, f64) {
+        (self.cfg.checkpoints_kept, self.cfg.checkpoint_wall_seconds)
+    }
+
+    fn begin(&mut self, _io: &mut run::RunIo) -> anyhow::Result<bool> {
+        // The first checkpoint and outputs come from the schedule, before the first step.
+        Ok(false)
+    }
+
+    fn checkpoint_due_before_step(&mut self) -> bool {
+        if self.stepper.t >= self.clock.next_ckpt - self.eps() {
+            self.clock.next_ckpt += self.cfg.checkpoint_interval;
+            true
+        } else {
+            false
+        }
+    }
+
+    fn step(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
+        let cfg = &self.cfg;
+        let eps = 1e-9 * cfg.t_end;
+        let t = self.stepper.t;
+        let at_diag = t >= self.clock.next_diag - eps;
         if at_diag {
-            clock.next_diag += cfg.diagnostic_interval;
+            self.clock.next_diag += cfg.diagnostic_interval;
         }
-        if t >= clock.next_snap - eps {
+        let mut rhs = MeanFieldRhs {
+            grid: &self.grid,
+            closure: &self.closure,
+            params: &self.params,
+            with_entropy: false,
+        };
+        if t >= self.clock.next_snap - eps {
             // The velocity of this Q (the stepper's is that of the previous step's state).
-            let ev = match rhs.eval(&stepper.q_hat, &stepper.u_hat) {
+            let ev = match rhs.eval(&self.stepper.q_hat, &self.stepper.u_hat) {
                 Ok(ev) => ev,
-                Err(e) => {
-                    bar.abandon();
-                    return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, 0.0));
-                }
+                Err(e) => return Err(self.failure(&e, 0.0)),
             };
-            write_field_snapshot(run, grid, &mut clock, cfg, t, ev)?;
+            write_field_snapshot(io.run, &self.grid, &mut self.clock, cfg, t, ev)?;
         }
         // Output time ahead: spread the remaining time over at most two equal steps.
+        let clock = &mut self.clock;
         let target = clock
             .next_diag
             .min(clock.next_snap)
@@ -854,64 +923,57 @@ fn drive(
         let remaining = target - t;
         debug_assert!(remaining > 0.0, "output clocks must be ahead of t");
         let k = (remaining / clock.dt).ceil().max(1.0);
-        let this_dt = if k <= 2.0 { remaining / k } else { clock.dt };
+        let mut this_dt = if k <= 2.0 { remaining / k } else { clock.dt };
         rhs.with_entropy = at_diag;
         // A failed step commits nothing (the stepper holds the state before it): retry it
         // with half the step, at most `step_retries` times, then give up.
-        let mut this_dt = this_dt;
         let mut retries = 0;
         let report = loop {
-            match stepper.step(&rhs, this_dt) {
+            match self.stepper.step(&rhs, this_dt) {
                 Ok(r) => break r,
                 // Only where a smaller step is the remedy: values that blew up in the update.
                 // The fixed point is solved at the state before the step, so a smaller step
                 // cannot change its outcome.
                 Err(e @ MeanFieldError::NonFinite(_)) if retries < cfg.step_retries => {
                     retries += 1;
-                    run.log(&format!(
+                    io.log(&format!(
                         "step {} at t = {t} with dt = {this_dt:e} failed ({e}); retry {retries} of {} with dt = {:e}",
-                        clock.steps + 1,
+                        self.clock.steps + 1,
                         cfg.step_retries,
                         0.5 * this_dt
                     ))?;
                     this_dt *= 0.5;
                 }
-                Err(e) => {
-                    bar.abandon();
-                    return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, this_dt));
-                }
+                Err(e) => return Err(self.failure(&e, this_dt)),
             }
         };
+        let cfg = &self.cfg;
+        let clock = &mut self.clock;
         clock.steps += 1;
         if report.min_eigenvalue < cfg.realizability_limit {
-            bar.abandon();
-            let last = checkpoint::newest_first(&ckpt_dir)
+            let last = checkpoint::newest_first(&io.run.path().join("checkpoints"))
                 .first()
                 .map(|p| p.display().to_string())
                 .unwrap_or_else(|| "none".into());
-            let msg = format!(
-                "Q lost realizability at step {} (t = {t:.4}): the smallest eigenvalue of Q/tr Q is {:.3e}, below realizability_limit = {} (the flow is under-resolved: raise grid or diffusion). The last good checkpoint is {last}",
-                clock.steps, report.min_eigenvalue, cfg.realizability_limit
-            );
-            run.log(&msg)?;
-            return Err(crate::failure::RunFailure {
+            return Err(run::StepFailure::Stop(crate::failure::RunFailure {
                 kind: crate::failure::FailureKind::Realizability,
                 step: clock.steps,
                 t,
-                message: msg,
-            }
-            .into());
+                message: format!(
+                    "Q lost realizability at step {} (t = {t:.4}): the smallest eigenvalue of Q/tr Q is {:.3e}, below realizability_limit = {} (the flow is under-resolved: raise grid or diffusion). The last good checkpoint is {last}",
+                    clock.steps, report.min_eigenvalue, cfg.realizability_limit
+                ),
+            }));
         }
         if at_diag {
-            ts.push(row(t, this_dt, &report, clock.steps));
-            ts.write(&run.path().join("timeseries.csv"))?;
-            bar.set_position((1000.0 * stepper.t / cfg.t_end) as u64);
-            bar.set_message(format!(
+            io.push_row(row(t, this_dt, &report, clock.steps))?;
+            io.bar.set_message(format!(
                 "{:.3} / {}, dt {:.2e}, ||u|| {:.3e}",
-                stepper.t, cfg.t_end, this_dt, report.u_l2
+                self.stepper.t, cfg.t_end, this_dt, report.u_l2
             ));
         }
         // Next step from the CFL condition (sum over axes), growth capped.
+        let h = 1.0 / cfg.grid as f64;
         let cfl_dt = if report.u_max > 0.0 {
             cfg.cfl * h / report.u_max
         } else {
@@ -924,64 +986,56 @@ fn drive(
         };
         clock.prev_dt = this_dt;
         clock.dt = cfl_dt.min(cfg.dt_max).min(cfg.max_step_ratio * base);
+        Ok(())
+    }
+
+    fn checkpoint_due_after_step(&self) -> bool {
         // Off-schedule checkpoints (wall clock, signal) store the state and step control as
         // they are, so resuming from one continues the same trajectory.
-        let stop = checkpoint::stop_requested();
-        if stop.is_some() || last_ckpt.elapsed().as_secs_f64() >= cfg.checkpoint_wall_seconds {
-            let path = write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;
-            last_ckpt = Instant::now();
-            if let Some(signal) = stop {
-                bar.abandon();
-                run.log(&format!("stopped by signal {signal} at t = {}", stepper.t))?;
-                return Err(checkpoint::Interrupted {
-                    signal,
-                    at: format!("step {} (t = {:.4})", clock.steps, stepper.t),
-                    checkpoint: path,
-                    run_dir: run.path().to_path_buf(),
-                }
-                .into());
+        false
+    }
+
+    fn finish(&mut self, io: &mut run::RunIo, took_steps: bool) -> Result<bool, run::StepFailure> {
+        // The final state: outputs are written before each step, so those at t_end come here.
+        // A diagnostic row and a snapshot are always written at t_end, on their schedules or
+        // not (a t_end that is no multiple of the intervals still ends with its final state);
+        // an off-schedule output leaves the schedule as it was, so an extended run continues
+        // it. Nothing is written again when a finished run is resumed (no step taken here).
+        if took_steps {
+            let eps = self.eps();
+            let t = self.stepper.t;
+            let diag_due = t >= self.clock.next_diag - eps;
+            let snap_due = t >= self.clock.next_snap - eps;
+            let rhs = MeanFieldRhs {
+                grid: &self.grid,
+                closure: &self.closure,
+                params: &self.params,
+                with_entropy: true,
+            };
+            let (ev, report) = match self.stepper.diagnostics(&rhs) {
+                Ok(r) => r,
+                Err(e) => return Err(self.failure(&e, 0.0)),
+            };
+            if diag_due {
+                self.clock.next_diag += self.cfg.diagnostic_interval;
+            }
+            io.push_row(row(t, self.clock.prev_dt, &report, self.clock.steps))?;
+            let next_snap = self.clock.next_snap;
+            write_field_snapshot(io.run, &self.grid, &mut self.clock, &self.cfg, t, ev)?;
+            if !snap_due {
+                self.clock.next_snap = next_snap;
             }
         }
+        // Always a final checkpoint (also when a finished run is resumed: the same state).
+        Ok(true)
     }
-    // The final state: the loop writes outputs before each step, so those at t_end come here.
-    // A diagnostic row and a snapshot are always written at t_end, on their schedules or not
-    // (a t_end that is no multiple of the intervals still ends with its final state); an
-    // off-schedule output leaves the schedule as it was, so an extended run continues it.
-    // Nothing is written again when a finished run is resumed (no step taken here).
-    let t = stepper.t;
-    if clock.steps > start_steps {
-        let diag_due = t >= clock.next_diag - eps;
-        let snap_due = t >= clock.next_snap - eps;
-        rhs.with_entropy = true;
-        let (ev, report) = match stepper.diagnostics(&rhs) {
-            Ok(r) => r,
-            Err(e) => {
-                bar.abandon();
-                return Err(save_failure(run, &stepper, &clock, cfg.grid, &e, 0.0));
-            }
-        };
-        if diag_due {
-            clock.next_diag += cfg.diagnostic_interval;
-        }
-        ts.push(row(t, clock.prev_dt, &report, clock.steps));
-        ts.write(&run.path().join("timeseries.csv"))?;
-        let next_snap = clock.next_snap;
-        write_field_snapshot(run, grid, &mut clock, cfg, t, ev)?;
-        if !snap_due {
-            clock.next_snap = next_snap;
-        }
+
+    fn write_checkpoint(&self, path: &Path) -> anyhow::Result<()> {
+        write_checkpoint(path, &self.stepper, &self.clock, self.cfg.grid)
     }
-    write_regular_checkpoint(&ckpt_dir, &stepper, &clock, cfg)?;
-    bar.finish();
-    let seconds = t0.elapsed().as_secs_f64();
-    run.log(&format!(
-        "finished at t = {} after {} steps in {seconds:.1} s",
-        stepper.t, clock.steps
-    ))?;
-    Ok(MeanFieldSummary {
-        steps: clock.steps - start_steps,
-        seconds,
-        timeseries: ts,
-        q_hat: stepper.q_hat,
-    })
+
+    fn write_last_good(&self, path: &Path) -> anyhow::Result<()> {
+        // A failed step commits nothing: the stepper holds the state before it.
+        write_checkpoint(path, &self.stepper, &self.clock, self.cfg.grid)
+    }
 }
