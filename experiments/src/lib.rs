@@ -1,24 +1,24 @@
-//! The `motile` command line's library: run directories, HDF5 snapshots, analysis of runs,
-//! figures. Physics lives in the model crates; this crate decides what to show and where to
-//! write it.
+//! The `motile` command line's library: what users and future back-ends touch. Physics lives in
+//! the model crates (`motile-particle`, `motile-meanfield`, `motile-analysis`); this crate
+//! drives them and decides what to show and where to write it. Its folders:
+//!
+//! - [`run`]: the run loop, written once ([`run::RunModel`], [`run::start`], [`run::resume`]),
+//!   its adapters for the particle and mean-field models, and typed failures;
+//! - [`io`]: run directories, verified checkpoints, HDF5 snapshots, VTK files, atomic writes;
+//! - [`report`]: analysis of finished runs, comparison of runs, figures, accuracy audits;
+//! - [`campaign`]: scenes (named sets of runs), the demo, studies of accuracy against cost,
+//!   stability and onset maps, cost estimates.
+//!
+//! The modules are also reachable under their short names at the crate root
+//! (`motile_experiments::scene`, `::particle_run`, ...), the paths the CLI and tests use.
 #![warn(missing_docs)]
 
-pub mod accuracy;
-pub mod analyze;
-pub mod checkpoint;
-pub mod compare;
-pub mod demo;
-pub mod estimate;
-pub mod failure;
+pub mod campaign;
 pub mod io;
-pub mod meanfield_run;
-pub mod onset;
-pub mod particle_run;
-pub mod plot;
+pub mod report;
 pub mod run;
-pub mod rundir;
-pub mod scene;
-pub mod snapshot;
-pub mod stability;
-pub mod study;
-pub mod vtk;
+
+pub use campaign::{demo, estimate, onset, scene, stability, study};
+pub use io::{checkpoint, rundir, snapshot, vtk};
+pub use report::{accuracy, analyze, compare, plot};
+pub use run::{failure, meanfield as meanfield_run, particle as particle_run};

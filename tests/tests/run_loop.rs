@@ -170,7 +170,7 @@ impl RunModel for Free {
         Ok(())
     }
     fn checkpoint_due_after_step(&self) -> bool {
-        self.step % self.cfg.checkpoint_every == 0 || self.step == self.cfg.steps
+        self.step.is_multiple_of(self.cfg.checkpoint_every) || self.step == self.cfg.steps
     }
     fn finish(&mut self, _io: &mut RunIo, _took_steps: bool) -> Result<bool, StepFailure> {
         Ok(false)

@@ -15,6 +15,10 @@
 //! ([`crate::meanfield_run`]); a test drives a third, free swimmers with an exact answer,
 //! through the same loop.
 
+pub mod failure;
+pub mod meanfield;
+pub mod particle;
+
 use crate::checkpoint::{self, LAST_GOOD};
 use crate::failure::{FailureKind, RunFailure};
 use crate::rundir::{RunDir, TimeSeries, read_run_config};

@@ -1,6 +1,12 @@
-//! Atomic file output: every file is written to a temporary sibling, flushed to disk, and
-//! renamed over the target, so a killed run leaves either the old file or the new one, never a
-//! truncated one.
+//! Files: run directories ([`rundir`]), verified checkpoints ([`checkpoint`]), HDF5 snapshots
+//! ([`snapshot`]), VTK for ParaView ([`vtk`]), and atomic output (here): every file is written
+//! to a temporary sibling, flushed to disk, and renamed over the target, so a killed run leaves
+//! either the old file or the new one, never a truncated one.
+
+pub mod checkpoint;
+pub mod rundir;
+pub mod snapshot;
+pub mod vtk;
 
 use std::fs;
 use std::io::Write;

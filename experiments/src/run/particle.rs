@@ -974,7 +974,7 @@ impl run::RunModel for ParticleModel {
             io.bar.println(&msg);
         }
         let (diag, snap, _) = self.every;
-        if step % diag == 0 {
+        if step.is_multiple_of(diag) {
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
             let c = &report.contact;
@@ -1005,7 +1005,7 @@ impl run::RunModel for ParticleModel {
                 c.active, report.max_overlap
             ));
         }
-        if step % snap == 0 {
+        if step.is_multiple_of(snap) {
             let kin = Kinematics {
                 velocities: self.stepper.velocities().v.clone(),
                 angular_velocities: self.stepper.velocities().w.clone(),
@@ -1029,7 +1029,7 @@ impl run::RunModel for ParticleModel {
     }
 
     fn checkpoint_due_after_step(&self) -> bool {
-        self.step % self.every.2 == 0 || self.step == self.total
+        self.step.is_multiple_of(self.every.2) || self.step == self.total
     }
 
     fn finish(

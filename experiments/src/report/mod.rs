@@ -1,0 +1,7 @@
+//! What a user sees of finished runs: their analysis (correlations, norms, statistics), the
+//! comparison of particle and mean-field runs in one unit system, figures, accuracy audits.
+
+pub mod accuracy;
+pub mod analyze;
+pub mod compare;
+pub mod plot;
