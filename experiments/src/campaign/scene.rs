@@ -37,8 +37,14 @@ use std::path::{Path, PathBuf};
 pub const BUILTIN: [(&str, &str); 5] = [
     ("demo", include_str!("../../scenes/demo.toml")),
     ("dilute", include_str!("../../scenes/dilute.toml")),
-    ("paper-dilute", include_str!("../../scenes/paper-dilute.toml")),
-    ("concentrated", include_str!("../../scenes/concentrated.toml")),
+    (
+        "paper-dilute",
+        include_str!("../../scenes/paper-dilute.toml"),
+    ),
+    (
+        "concentrated",
+        include_str!("../../scenes/concentrated.toml"),
+    ),
     ("meanfield", include_str!("../../scenes/meanfield.toml")),
 ];
 

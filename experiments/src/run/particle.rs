@@ -535,6 +535,56 @@ pub fn load_configuration(
     Ok(rods)
 }
 
+/// What a particle checkpoint holds: the rods (centres, quaternions, image counters), the step
+/// and time, and the solvers' warm starts, so a resumed run continues bit for bit.
+#[derive(Clone, Debug)]
+pub struct ParticleCheckpoint {
+    /// The rods.
+    pub rods: RodSet,
+    /// The contact multipliers of the last step, keyed by rod pair (the next solve's warm start).
+    pub contact_warm_start: WarmStart,
+    /// The slender-body solve's force densities (GMRES warm start); empty for other levels.
+    pub gmres_warm_start: Vec<f64>,
+    /// The fast sum's refinement level and calm count (docs/accuracy.md); empty without one.
+    pub sum_state: Vec<u32>,
+    /// Step number.
+    pub step: u64,
+    /// Time, 1/beta.
+    pub time: f64,
+}
+
+impl ParticleCheckpoint {
+    /// The checkpoint of `stepper` holding `rods` at `step`.
+    fn of(rods: &RodSet, stepper: &Stepper, step: u64, time: f64) -> Self {
+        Self {
+            rods: rods.clone(),
+            contact_warm_start: stepper.warm_start().to_vec(),
+            gmres_warm_start: stepper.mobility().warm_state(),
+            sum_state: stepper.mobility().sum_state(),
+            step,
+            time,
+        }
+    }
+
+    /// Write as HDF5 with a checksum sidecar.
+    pub fn write(&self, path: &Path) -> Result<(), IoError> {
+        write_checkpoint(
+            path,
+            &self.rods,
+            &self.contact_warm_start,
+            (&self.gmres_warm_start, &self.sum_state),
+            self.step,
+            self.time,
+        )
+    }
+
+    /// Read one written by [`ParticleCheckpoint::write`] (or by earlier versions: datasets
+    /// added since are optional).
+    pub fn read(path: &Path) -> anyhow::Result<Self> {
+        read_checkpoint(path)
+    }
+}
+
 fn write_checkpoint(
     path: &Path,
     rods: &RodSet,
@@ -590,11 +640,7 @@ fn write_checkpoint(
     checkpoint::write_verified(path, &bytes)
 }
 
-/// What a checkpoint restores besides the rods: contact multipliers, the hydrodynamic warm
-/// start and the fast sum's adaptive state.
-type Restart = (WarmStart, Vec<f64>, Vec<u32>);
-
-fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64, f64)> {
+fn read_checkpoint(path: &Path) -> anyhow::Result<ParticleCheckpoint> {
     let f = checkpoint::H5Reader::open(path)?;
     let step = f.attr_u64("step")?;
     let time = f.attr_f64("time")?;
@@ -643,7 +689,14 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<(RodSet, Restart, u64, f64)> {
     } else {
         Vec::new()
     };
-    Ok((rods, (warm, hydro, sum_state), step, time))
+    Ok(ParticleCheckpoint {
+        rods,
+        contact_warm_start: warm,
+        gmres_warm_start: hydro,
+        sum_state,
+        step,
+        time,
+    })
 }
 
 /// Columns of a particle run's `timeseries.csv`.
@@ -732,14 +785,6 @@ pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary>
     Ok(model.summary(&s))
 }
 
-/// The state before a step: what a failed step leaves to save as the last good state.
-struct BeforeStep {
-    rods: RodSet,
-    warm: WarmStart,
-    hydro: Vec<f64>,
-    sum_state: Vec<u32>,
-}
-
 /// The particle model as the run loop drives it ([`run::RunModel`]): rods, the stepper with
 /// its warm starts, and the output schedule in whole steps.
 pub struct ParticleModel {
@@ -752,7 +797,8 @@ pub struct ParticleModel {
     every: (u64, u64, u64),
     pvd: Vec<(f64, String)>,
     warned_accuracy: bool,
-    before: Option<BeforeStep>,
+    /// The state before a failed step (the last good state to save).
+    before: Option<ParticleCheckpoint>,
     window: (Instant, u64),
     notes: Vec<String>,
 }
@@ -771,7 +817,7 @@ impl ParticleModel {
     fn with_state(
         cfg: &ParticleRunConfig,
         rods: RodSet,
-        (warm, hydro_warm, sum_state): Restart,
+        (warm, hydro_warm, sum_state): (WarmStart, Vec<f64>, Vec<u32>),
         step: u64,
     ) -> anyhow::Result<Self> {
         let mut stepper = Stepper::new(mobility(cfg)?, cfg.contact.clone());
@@ -817,17 +863,8 @@ impl ParticleModel {
     }
 
     fn checkpoint_to(&self, path: &Path) -> anyhow::Result<()> {
-        write_checkpoint(
-            path,
-            &self.rods,
-            self.stepper.warm_start(),
-            (
-                &self.stepper.mobility().warm_state(),
-                &self.stepper.mobility().sum_state(),
-            ),
-            self.step,
-            self.step as f64 * self.cfg.dt,
-        )?;
+        let t = self.step as f64 * self.cfg.dt;
+        ParticleCheckpoint::of(&self.rods, &self.stepper, self.step, t).write(path)?;
         Ok(())
     }
 }
@@ -861,17 +898,18 @@ impl run::RunModel for ParticleModel {
         Ok(m)
     }
 
-    type Checkpoint = (RodSet, Restart, u64, f64);
+    type Checkpoint = ParticleCheckpoint;
 
     fn read_checkpoint(_cfg: &ParticleRunConfig, path: &Path) -> anyhow::Result<Self::Checkpoint> {
-        read_checkpoint(path)
+        ParticleCheckpoint::read(path)
     }
 
     fn from_checkpoint(
         cfg: &ParticleRunConfig,
-        (rods, warm, saved_step, time): Self::Checkpoint,
+        c: ParticleCheckpoint,
         path: &Path,
     ) -> anyhow::Result<Self> {
+        let (saved_step, time) = (c.step, c.time);
         // Steps count in units of the config's dt; a dt edited before resuming (the usual
         // answer to a failed step) rebases the counter so the run continues from the
         // checkpoint's time.
@@ -885,7 +923,8 @@ impl run::RunModel for ParticleModel {
             );
         }
         let step = step as u64;
-        let mut m = Self::with_state(cfg, rods, warm, step)?;
+        let warm = (c.contact_warm_start, c.gmres_warm_start, c.sum_state);
+        let mut m = Self::with_state(cfg, c.rods, warm, step)?;
         if step != saved_step {
             m.notes.push(format!(
                 "dt changed to {}: step counter rebased from {saved_step} to {step} (t = {time})",
@@ -940,12 +979,7 @@ impl run::RunModel for ParticleModel {
     fn step(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
         let step = self.step + 1;
         let cfg = &self.cfg;
-        let before = BeforeStep {
-            rods: self.rods.clone(),
-            warm: self.stepper.warm_start().to_vec(),
-            hydro: self.stepper.mobility().warm_state(),
-            sum_state: self.stepper.mobility().sum_state(),
-        };
+        let before = ParticleCheckpoint::of(&self.rods, &self.stepper, self.step, self.time());
         let report = match self.stepper.step(&mut self.rods, cfg.dt) {
             Ok(r) => r,
             Err(e) => {
@@ -1045,18 +1079,10 @@ impl run::RunModel for ParticleModel {
     }
 
     fn write_last_good(&self, path: &Path) -> anyhow::Result<()> {
-        let b = self
-            .before
+        self.before
             .as_ref()
-            .context("no failed step: nothing to save as the last good state")?;
-        write_checkpoint(
-            path,
-            &b.rods,
-            &b.warm,
-            (&b.hydro, &b.sum_state),
-            self.step,
-            self.step as f64 * self.cfg.dt,
-        )?;
+            .context("no failed step: nothing to save as the last good state")?
+            .write(path)?;
         Ok(())
     }
 }
