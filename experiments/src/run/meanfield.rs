@@ -1,10 +1,8 @@
 //! `motile meanfield run`: drives the mean-field stepper (docs/MODEL.md §4) and owns the run
 //! directory, the time-step control, the output schedule, snapshots and the closure-table cache.
 //!
-//! Time step: `dt = min(dt_max, cfl h / max(|u_x| + |u_y| + |u_z|))` (the sum over axes), its
-//! growth capped at `max_step_ratio` per step (below 1 + sqrt 2, the zero-stability limit of
-//! variable-step SBDF2). Output times are reached by spreading the last one or two steps before
-//! them evenly, never by a tiny clipped step followed by a large ratio.
+//! Time step: `motile_meanfield::control::StepControl` (CFL with the sum over axes, growth
+//! capped, output times reached in at most two equal steps).
 
 use crate::checkpoint;
 use crate::io::write_atomic;
@@ -14,6 +12,7 @@ use crate::snapshot::{FieldSnapshot, Snapshot, read_snapshot};
 use anyhow::bail;
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_meanfield::closure::BinghamClosure;
+use motile_meanfield::control::StepControl;
 use motile_meanfield::initial::{Perturbation, PerturbationField};
 use motile_meanfield::solver::{
     History, MeanFieldError, MeanFieldParams, MeanFieldRhs, MeanFieldStepReport, MeanFieldStepper,
@@ -709,6 +708,7 @@ pub struct MeanFieldModel {
     stepper: MeanFieldStepper,
     closure: BinghamClosure,
     params: MeanFieldParams,
+    control: StepControl,
     clock: Clock,
     notes: Vec<String>,
 }
@@ -750,6 +750,11 @@ impl MeanFieldModel {
             stepper,
             closure,
             params,
+            control: StepControl {
+                dt_max: cfg.dt_max,
+                cfl: cfg.cfl,
+                max_step_ratio: cfg.max_step_ratio,
+            },
             clock,
             notes,
         })
@@ -920,10 +925,8 @@ impl run::RunModel for MeanFieldModel {
             .min(clock.next_snap)
             .min(clock.next_ckpt)
             .min(cfg.t_end);
-        let remaining = target - t;
-        debug_assert!(remaining > 0.0, "output clocks must be ahead of t");
-        let k = (remaining / clock.dt).ceil().max(1.0);
-        let mut this_dt = if k <= 2.0 { remaining / k } else { clock.dt };
+        debug_assert!(target > t, "output clocks must be ahead of t");
+        let mut this_dt = self.control.toward(t, target, clock.dt);
         rhs.with_entropy = at_diag;
         // A failed step commits nothing (the stepper holds the state before it): retry it
         // with half the step, at most `step_retries` times, then give up.
@@ -974,18 +977,11 @@ impl run::RunModel for MeanFieldModel {
         }
         // Next step from the CFL condition (sum over axes), growth capped.
         let h = 1.0 / cfg.grid as f64;
-        let cfl_dt = if report.u_max > 0.0 {
-            cfg.cfl * h / report.u_max
-        } else {
-            cfg.dt_max
-        };
-        let base = if this_dt < clock.dt {
-            this_dt.max(clock.prev_dt.min(clock.dt))
-        } else {
-            this_dt
-        };
+        let next = self
+            .control
+            .next(this_dt, clock.dt, clock.prev_dt, report.u_max, h);
         clock.prev_dt = this_dt;
-        clock.dt = cfl_dt.min(cfg.dt_max).min(cfg.max_step_ratio * base);
+        clock.dt = next;
         Ok(())
     }
 
