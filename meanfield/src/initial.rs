@@ -168,6 +168,36 @@ pub fn frobenius(q: &[f64; 6]) -> f64 {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn particle_fields_have_unit_mean_concentration_and_refuse_too_few_rods() {
+        use super::{ParticleFieldError, from_particles};
+        // 400 rods on a 10-box, all along x: Q = diag(c, 0, 0) with mean c = 1.
+        let x: Vec<[f64; 3]> = (0..400)
+            .map(|k| {
+                let f = k as f64;
+                [
+                    (f * 0.618_034 % 1.0) * 10.0,
+                    (f * 0.414_214 % 1.0) * 10.0,
+                    (f * 0.732_051 % 1.0) * 10.0,
+                ]
+            })
+            .collect();
+        let p = vec![[1.0, 0.0, 0.0]; 400];
+        let q = from_particles(&x, &p, 10.0, 8, 0.15).unwrap();
+        let n3 = 512.0;
+        let mean_c: f64 = q[0].iter().sum::<f64>() / n3;
+        let off: f64 = q[1..].iter().flatten().map(|v| v.abs()).fold(0.0, f64::max);
+        assert!((mean_c - 1.0).abs() < 1e-9, "mean concentration {mean_c}");
+        assert!(off < 1e-12, "components other than Q_xx reach {off:e}");
+        // One rod, no smoothing: the band-limited delta has negative lobes.
+        let e = from_particles(&x[..1], &p[..1], 10.0, 8, 0.0).unwrap_err();
+        assert!(matches!(e, ParticleFieldError::NotPositive { .. }), "{e}");
+        assert_eq!(
+            from_particles(&[], &[], 10.0, 8, 0.1).unwrap_err(),
+            ParticleFieldError::NoRods
+        );
+    }
     use super::*;
 
     #[test]
@@ -194,4 +224,97 @@ mod tests {
         }
         assert!(peak <= 0.02 * (1.0 + 1e-9) && peak > 0.01, "peak {peak}");
     }
+}
+
+/// Why a particle configuration gives no mean-field state.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ParticleFieldError {
+    /// No rods.
+    #[error("a particle configuration without rods")]
+    NoRods,
+    /// The NUFFT refused the points or the modes.
+    #[error(transparent)]
+    Nufft(#[from] motile_analysis::nufft::NufftError),
+    /// The smoothed concentration is not positive somewhere: too few rods for the grid.
+    #[error(
+        "the smoothed concentration at grid point {index} is {value}: too few rods for this grid and smoothing = {smoothing}; smooth more"
+    )]
+    NotPositive {
+        /// Flat grid index.
+        index: usize,
+        /// The concentration there.
+        value: f64,
+        /// The smoothing used.
+        smoothing: f64,
+    },
+}
+
+/// The second-moment field of a particle configuration on the unit box's `n^3` grid
+/// (docs/MODEL.md §5-§6): `Q(x) = (1/N) sum_n p_n p_n delta(x - x_n / L)` (so that its mean
+/// trace, the concentration, is 1), its Fourier coefficients by a type-1 NUFFT on the modes of
+/// the grid's dealiased band (`|m_i| <= n/3`), each multiplied by `exp(-2 pi^2 |m|^2 sigma^2)`
+/// (a Gaussian of standard deviation `sigma` = `smoothing` box sides), back to the grid by an
+/// FFT. Components in [`SYM`] order.
+pub fn from_particles(
+    positions: &[[f64; 3]],
+    orientations: &[[f64; 3]],
+    box_length: f64,
+    n: usize,
+    smoothing: f64,
+) -> Result<[Vec<f64>; 6], ParticleFieldError> {
+    use motile_analysis::correlation::Spectrum;
+    use motile_analysis::nufft::{NufftPlan, mode_of};
+    use num_complex::Complex64;
+    let count = positions.len();
+    if count == 0 {
+        return Err(ParticleFieldError::NoRods);
+    }
+    let modes = 2 * (n / 3) + 1;
+    let mut plan = NufftPlan::new([modes; 3], 1e-10)?;
+    plan.set_points(positions, box_length)?;
+    let inv = 1.0 / count as f64;
+    let fields: Vec<Vec<Complex64>> = SYM
+        .iter()
+        .map(|&(i, j)| {
+            orientations
+                .iter()
+                .map(|p| Complex64::new(p[i] * p[j] * inv, 0.0))
+                .collect()
+        })
+        .collect();
+    let refs: Vec<&[Complex64]> = fields.iter().map(|f| f.as_slice()).collect();
+    let mut coef = plan.type1(&refs)?;
+    let s2 = 2.0 * PI.powi(2) * smoothing * smoothing;
+    for c in &mut coef {
+        for (idx, v) in c.iter_mut().enumerate() {
+            let m = [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+                .map(|i| mode_of(i, modes) as f64);
+            *v *= (-s2 * (m[0] * m[0] + m[1] * m[1] + m[2] * m[2])).exp();
+        }
+    }
+    // On the grid: the band's coefficients placed among n^3 modes.
+    let q: [Vec<f64>; 6] = std::array::from_fn(|c| {
+        let mut full = vec![Complex64::default(); n * n * n];
+        for (idx, v) in coef[c].iter().enumerate() {
+            let m = [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+                .map(|i| mode_of(i, modes));
+            let k = m.map(|v| (v + (n / 2) as i64) as usize);
+            full[(k[2] * n + k[1]) * n + k[0]] = *v;
+        }
+        Spectrum {
+            modes: n,
+            box_length: 1.0,
+            components: vec![full],
+            weights: vec![1.0],
+        }
+        .to_grid(0)
+    });
+    if let Some(index) = (0..n * n * n).find(|&i| q[0][i] + q[3][i] + q[5][i] <= 0.0) {
+        return Err(ParticleFieldError::NotPositive {
+            index,
+            value: q[0][index] + q[3][index] + q[5][index],
+            smoothing,
+        });
+    }
+    Ok(q)
 }

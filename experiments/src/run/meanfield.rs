@@ -374,73 +374,22 @@ pub fn snapshot_state(path: &Path, n: usize, smoothing: f64) -> anyhow::Result<[
     }))
 }
 
-/// The second-moment field of a particle configuration on the unit box's `n^3` grid (docs/MODEL.md
-/// §5-§6): `Q(x) = (1/N) sum_n p_n p_n delta(x - x_n / L)` (so that its mean trace, the
-/// concentration, is 1), its Fourier coefficients by a type-1 NUFFT on the modes of the grid's
-/// dealiased band (`|m_i| <= n/3`), each multiplied by `exp(-2 pi^2 |m|^2 sigma^2)` (a Gaussian
-/// of standard deviation `sigma` = `smoothing` box sides), back to the grid by an FFT.
+/// The second-moment field of a particle snapshot on the `n^3` grid, smoothed by a Gaussian of
+/// `smoothing` box sides ([`motile_meanfield::initial::from_particles`]); errors name the file.
 pub fn particle_state(
     snap: &crate::snapshot::ParticleSnapshot,
     n: usize,
     smoothing: f64,
     path: &Path,
 ) -> anyhow::Result<[Vec<f64>; 6]> {
-    use motile_analysis::correlation::Spectrum;
-    use motile_analysis::nufft::{NufftPlan, mode_of};
-    use num_complex::Complex64;
-    let count = snap.positions.len();
-    if count == 0 {
-        bail!("{}: a particle snapshot without rods", path.display());
-    }
-    let l = snap.box_length;
-    let modes = 2 * (n / 3) + 1;
-    let mut plan = NufftPlan::new([modes; 3], 1e-10)?;
-    plan.set_points(&snap.positions, l)?;
-    let inv = 1.0 / count as f64;
-    let fields: Vec<Vec<Complex64>> = SYM
-        .iter()
-        .map(|&(i, j)| {
-            snap.orientations
-                .iter()
-                .map(|p| Complex64::new(p[i] * p[j] * inv, 0.0))
-                .collect()
-        })
-        .collect();
-    let refs: Vec<&[Complex64]> = fields.iter().map(|f| f.as_slice()).collect();
-    let mut coef = plan.type1(&refs)?;
-    let s2 = 2.0 * std::f64::consts::PI.powi(2) * smoothing * smoothing;
-    for c in &mut coef {
-        for (idx, v) in c.iter_mut().enumerate() {
-            let m = [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
-                .map(|i| mode_of(i, modes) as f64);
-            *v *= (-s2 * (m[0] * m[0] + m[1] * m[1] + m[2] * m[2])).exp();
-        }
-    }
-    // On the run's grid: the band's coefficients placed among n^3 modes.
-    let q: [Vec<f64>; 6] = std::array::from_fn(|c| {
-        let mut full = vec![Complex64::default(); n * n * n];
-        for (idx, v) in coef[c].iter().enumerate() {
-            let m = [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
-                .map(|i| mode_of(i, modes));
-            let k = m.map(|v| (v + (n / 2) as i64) as usize);
-            full[(k[2] * n + k[1]) * n + k[0]] = *v;
-        }
-        Spectrum {
-            modes: n,
-            box_length: 1.0,
-            components: vec![full],
-            weights: vec![1.0],
-        }
-        .to_grid(0)
-    });
-    if let Some(i) = (0..n * n * n).find(|&i| q[0][i] + q[3][i] + q[5][i] <= 0.0) {
-        bail!(
-            "{}: the smoothed concentration at grid point {i} is {}: too few rods for this grid and smoothing = {smoothing}; smooth more",
-            path.display(),
-            q[0][i] + q[3][i] + q[5][i]
-        );
-    }
-    Ok(q)
+    motile_meanfield::initial::from_particles(
+        &snap.positions,
+        &snap.orientations,
+        snap.box_length,
+        n,
+        smoothing,
+    )
+    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
 /// Initial Q on the grid.
