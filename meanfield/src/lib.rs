@@ -12,3 +12,14 @@ pub mod control;
 pub mod eigen;
 pub mod initial;
 pub mod solver;
+
+/// What a user of the mean-field model needs, in one import: `use motile_meanfield::prelude::*;`.
+pub mod prelude {
+    pub use crate::closure::BinghamClosure;
+    pub use crate::control::StepControl;
+    pub use crate::initial::{Perturbation, PerturbationField, from_particles};
+    pub use crate::solver::{
+        MeanFieldError, MeanFieldParams, MeanFieldRhs, MeanFieldStepReport, MeanFieldStepper,
+        SBDF2, SpectralGrid,
+    };
+}

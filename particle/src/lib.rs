@@ -38,3 +38,19 @@ pub use level::Hydrodynamics;
 pub use mobility::{LocalDrag, Mobility};
 pub use rods::RodSet;
 pub use step::{StepError, StepReport, Stepper};
+
+/// What a user of the particle model needs, in one import: `use motile_particle::prelude::*;`.
+pub mod prelude {
+    pub use crate::contact::ContactParams;
+    pub use crate::dipole::Dipole;
+    pub use crate::gmres::GmresParams;
+    pub use crate::init::{nonoverlapping_with, random_nonoverlapping};
+    pub use crate::level::Hydrodynamics;
+    pub use crate::mobility::{LocalDrag, Mobility};
+    pub use crate::periodic::PeriodicStokes;
+    pub use crate::rods::RodSet;
+    pub use crate::slender::{SlenderBody, SlenderParams};
+    pub use crate::spectral_ewald::SpectralEwald;
+    pub use crate::step::{StepError, StepReport, Stepper};
+    pub use crate::units;
+}
