@@ -93,14 +93,17 @@ pub struct MeanFieldRunConfig {
 
 impl Default for MeanFieldRunConfig {
     fn default() -> Self {
+        // The model's and the step control's defaults come from the library (one source).
+        let model = MeanFieldParams::default();
+        let control = StepControl::default();
         Self {
             grid: 32,
-            zeta: 0.1421,
-            diffusion: 1e-4,
+            zeta: model.zeta,
+            diffusion: model.diffusion,
             t_end: 20.0,
-            dt_max: 0.05,
-            cfl: 0.5,
-            max_step_ratio: 1.5,
+            dt_max: control.dt_max,
+            cfl: control.cfl,
+            max_step_ratio: control.max_step_ratio,
             initial: "random".into(),
             snapshot: String::new(),
             smoothing: 0.02,
@@ -109,8 +112,8 @@ impl Default for MeanFieldRunConfig {
             mode_max: 4,
             wavevector: [1, 0, 0],
             seed: 1,
-            fixed_point_tolerance: 1e-8,
-            fixed_point_max_iterations: 50,
+            fixed_point_tolerance: model.fixed_point_tolerance,
+            fixed_point_max_iterations: model.fixed_point_max_iterations,
             closure_degree: 80,
             diagnostic_interval: 0.5,
             snapshot_interval: 5.0,
