@@ -1,0 +1,406 @@
+//! The particle run's config (`config.toml`): every key with its default and allowed range,
+//! validated with messages that name the field; the mobility it selects.
+
+use crate::rundir::{parse_run_config, range};
+use motile_particle::dipole::Dipole;
+use motile_particle::gmres::GmresParams;
+use motile_particle::slender::{SlenderBody, SlenderParams};
+use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::{ContactParams, Hydrodynamics, LocalDrag, Mobility};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Configuration of a particle run (`config.toml`), every field with its default.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ParticleRunConfig {
+    /// Box side L/l. Default 10; allowed [2, 1000].
+    pub box_length: f64,
+    /// Effective volume fraction nu = N l^3 / L^3 for a random start. Default 0.625 (dilute);
+    /// allowed (0, 6] (random sequential addition stalls a little above 5).
+    pub volume_fraction: f64,
+    /// Number of rods N for a random start; when set it replaces `volume_fraction`
+    /// (nu = N / (L/l)^3 must still lie in (0, 6]). Default: unset.
+    pub rods: Option<usize>,
+    /// Time step, 1/beta. Default 0.002; allowed (0, 0.05]. Larger steps leave larger
+    /// overlaps (of order (dt w)^2 l) and need a larger contact.margin.
+    pub dt: f64,
+    /// End time, 1/beta. Default 2.
+    pub t_end: f64,
+    /// Random seed of the initial configuration. Default 1.
+    pub seed: u64,
+    /// Hydrodynamic coupling: "none" (free swimming with local drag, no flow), "dipole" (point
+    /// stresslets moved by the periodic flow, docs/MODEL.md §2: one fast sum per step) or "sbt"
+    /// (slender-body theory, docs/MODEL.md §1: a GMRES solve per step, several fast sums each).
+    /// Default "none".
+    pub hydrodynamics: Hydrodynamics,
+    /// Settings of the hydrodynamic models.
+    pub hydro: HydroConfig,
+    /// "random" (isotropic), "perturbation" (orientations drawn from
+    /// `Psi = (1 + (15/2) Q'(x) : pp) / 4 pi` with `Q'` from `[perturbation]`: the mean-field
+    /// model's initial field, docs/MODEL.md §5), or a file: a particle snapshot (.h5) or a text table
+    /// with one rod per line, `x y z px py pz`.
+    pub initial: String,
+    /// The perturbation of `initial = "perturbation"`.
+    pub perturbation: PerturbationConfig,
+    /// Time between time-series rows, 1/beta. Default 0.02.
+    pub diagnostic_interval: f64,
+    /// Time between snapshots, 1/beta. Default 0.2.
+    pub snapshot_interval: f64,
+    /// Time between checkpoints, 1/beta. Default 0.5.
+    pub checkpoint_interval: f64,
+    /// Also checkpoint when this much wall-clock time has passed since the last one, seconds.
+    /// Default 900; allowed (0, 1e7].
+    pub checkpoint_wall_seconds: f64,
+    /// Regular checkpoints kept (older ones are deleted). Default 3; allowed [1, 1000].
+    pub checkpoints_kept: usize,
+    /// Write a VTK PolyData file (.vtp) with each snapshot, and a .pvd index. Default true.
+    pub vtk: bool,
+    /// Contact solver settings.
+    pub contact: ContactParams,
+}
+
+impl Default for ParticleRunConfig {
+    fn default() -> Self {
+        Self {
+            box_length: 10.0,
+            volume_fraction: 0.625,
+            rods: None,
+            dt: 0.002,
+            t_end: 2.0,
+            seed: 1,
+            hydrodynamics: Hydrodynamics::None,
+            hydro: HydroConfig::default(),
+            initial: "random".into(),
+            perturbation: PerturbationConfig::default(),
+            diagnostic_interval: 0.02,
+            snapshot_interval: 0.2,
+            checkpoint_interval: 0.5,
+            checkpoint_wall_seconds: 900.0,
+            checkpoints_kept: 3,
+            vtk: true,
+            contact: ContactParams::default(),
+        }
+    }
+}
+
+/// A perturbation of the isotropic state (`[perturbation]`), the same keys and function as a
+/// mean-field run's initial field (`initial`, `amplitude`, `mode_min`, `mode_max`, `seed`,
+/// `wavevector`), on the particle box scaled to the unit box.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PerturbationConfig {
+    /// "random" (modes with `|m|` in `[mode_min, mode_max]`, random traceless amplitudes and
+    /// phases) or "plane_wave" (`Q'_xy = amplitude cos(2 pi m . x / L)`). Default "random".
+    pub kind: String,
+    /// Largest component of `Q'`. Default 0.02; allowed (0, 0.1] (the distribution must stay
+    /// positive: `|Q'|_F < 2/15` everywhere, checked).
+    pub amplitude: f64,
+    /// Smallest integer wavenumber. Default 1.
+    pub mode_min: usize,
+    /// Largest integer wavenumber. Default 2.
+    pub mode_max: usize,
+    /// Seed of the amplitudes and phases (not of the rods: that is the run's `seed`). Default 1.
+    pub seed: u64,
+    /// Plane wave's integer wavevector. Default [1, 0, 0].
+    pub wavevector: [i64; 3],
+}
+
+impl Default for PerturbationConfig {
+    fn default() -> Self {
+        Self {
+            kind: "random".into(),
+            amplitude: 0.02,
+            mode_min: 1,
+            mode_max: 2,
+            seed: 1,
+            wavevector: [1, 0, 0],
+        }
+    }
+}
+
+impl PerturbationConfig {
+    /// The perturbation (the mean-field library's description of it).
+    pub fn perturbation(&self) -> motile_meanfield::initial::Perturbation {
+        use motile_meanfield::initial::Perturbation;
+        if self.kind == "plane_wave" {
+            Perturbation::PlaneWave {
+                amplitude: self.amplitude,
+                wavevector: self.wavevector,
+            }
+        } else {
+            Perturbation::Random {
+                amplitude: self.amplitude,
+                mode_min: self.mode_min,
+                mode_max: self.mode_max,
+                seed: self.seed,
+            }
+        }
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        if !["random", "plane_wave"].contains(&self.kind.as_str()) {
+            return Err(format!(
+                "perturbation.kind = \"{}\": allowed \"random\" or \"plane_wave\"",
+                self.kind
+            ));
+        }
+        range(
+            "perturbation.amplitude",
+            self.amplitude,
+            0.0,
+            0.1,
+            true,
+            "largest component of Q'",
+        )?;
+        if self.mode_min < 1 || self.mode_min > self.mode_max || self.mode_max > 16 {
+            return Err(format!(
+                "perturbation.mode_min = {}, mode_max = {}: need 1 <= mode_min <= mode_max <= 16",
+                self.mode_min, self.mode_max
+            ));
+        }
+        if self.kind == "plane_wave" && self.wavevector == [0, 0, 0] {
+            return Err("perturbation.wavevector = [0, 0, 0]: a plane wave needs m != 0".into());
+        }
+        Ok(())
+    }
+}
+
+/// Settings of the hydrodynamic models (`[hydro]`).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct HydroConfig {
+    /// Relative tolerance of the periodic RPY / stresslet sums (spectral Ewald): the largest
+    /// error of each output over all rods, and its L2 norm, at most this fraction of the
+    /// output's (docs/accuracy.md). Default 1e-4; allowed [1e-10, 1e-1]. Smaller costs more
+    /// real-space pairs and Fourier modes; force-free (swimming) data cost more than random
+    /// forces at the same tolerance, since their flows are weaker than their forces.
+    pub sum_tolerance: f64,
+    /// Quadrature nodes per rod for "sbt", even (Gauss-Legendre on each half rod). Default 4;
+    /// allowed 2..=64. Cost grows linearly; error falls fast (see BENCHMARKS.md).
+    pub quadrature_points: usize,
+    /// GMRES relative residual tolerance for "sbt". Default 1e-5; allowed [1e-14, 1e-1].
+    pub gmres_tolerance: f64,
+    /// GMRES iteration cap; a solve that reaches it stops the run. Default 100; allowed
+    /// [1, 10000].
+    pub gmres_max_iterations: usize,
+    /// GMRES restart length. Default 40; allowed [1, 1000].
+    pub gmres_restart: usize,
+    /// RPY radius a (rod lengths). Default (sqrt 3/2)(b/2) = 0.0866; allowed (0, 0.5].
+    pub rpy_radius: f64,
+}
+
+impl Default for HydroConfig {
+    /// The library's defaults ([`SlenderParams`], [`GmresParams`]): one source for each.
+    fn default() -> Self {
+        let s = SlenderParams::default();
+        Self {
+            sum_tolerance: 1e-4,
+            quadrature_points: s.quadrature_points,
+            gmres_tolerance: s.gmres.tol,
+            gmres_max_iterations: s.gmres.max_iterations,
+            gmres_restart: s.gmres.restart,
+            rpy_radius: s.rpy_radius,
+        }
+    }
+}
+
+impl HydroConfig {
+    fn validate(&self) -> Result<(), String> {
+        range(
+            "hydro.sum_tolerance",
+            self.sum_tolerance,
+            1e-10,
+            1e-1,
+            false,
+            "relative",
+        )?;
+        range(
+            "hydro.gmres_tolerance",
+            self.gmres_tolerance,
+            1e-14,
+            1e-1,
+            false,
+            "relative",
+        )?;
+        range(
+            "hydro.rpy_radius",
+            self.rpy_radius,
+            0.0,
+            0.5,
+            true,
+            "rod lengths",
+        )?;
+        let q = self.quadrature_points;
+        if !(2..=64).contains(&q) || q % 2 == 1 {
+            return Err(format!(
+                "hydro.quadrature_points = {q} must be even and in [2, 64] (nodes per rod)"
+            ));
+        }
+        for (name, v, hi) in [
+            (
+                "hydro.gmres_max_iterations",
+                self.gmres_max_iterations,
+                10_000,
+            ),
+            ("hydro.gmres_restart", self.gmres_restart, 1000),
+        ] {
+            if !(1..=hi).contains(&v) {
+                return Err(format!(
+                    "{name} = {v} is outside the allowed range [1, {hi}] (iterations)"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ParticleRunConfig {
+    /// Make a relative `initial` file name relative to `base` (the folder of the config file
+    /// it came from) instead of the working directory.
+    pub fn resolve_paths(&mut self, base: &Path) {
+        if !["random", "perturbation"].contains(&self.initial.as_str())
+            && Path::new(&self.initial).is_relative()
+        {
+            let p = base.join(&self.initial);
+            self.initial = std::path::absolute(&p)
+                .unwrap_or(p)
+                .to_string_lossy()
+                .into_owned();
+        }
+    }
+
+    /// Check every field; the message names the field, the value, the range and the unit.
+    pub fn validate(&self) -> Result<(), String> {
+        range(
+            "box_length",
+            self.box_length,
+            2.0,
+            1000.0,
+            false,
+            "rod lengths",
+        )?;
+        range(
+            "volume_fraction",
+            self.volume_fraction,
+            0.0,
+            6.0,
+            true,
+            "N l^3 / L^3",
+        )?;
+        range("dt", self.dt, 0.0, 0.05, true, "1/beta")?;
+        self.perturbation.validate()?;
+        range("t_end", self.t_end, 0.0, 1e9, true, "1/beta")?;
+        for (name, v) in [
+            ("diagnostic_interval", self.diagnostic_interval),
+            ("snapshot_interval", self.snapshot_interval),
+            ("checkpoint_interval", self.checkpoint_interval),
+        ] {
+            range(name, v, self.dt, 1e9, false, "1/beta, at least dt")?;
+        }
+        range(
+            "checkpoint_wall_seconds",
+            self.checkpoint_wall_seconds,
+            0.0,
+            1e7,
+            true,
+            "seconds of wall-clock time",
+        )?;
+        range(
+            "checkpoints_kept",
+            self.checkpoints_kept as f64,
+            1.0,
+            1000.0,
+            false,
+            "files",
+        )?;
+        range(
+            "contact.margin",
+            self.contact.margin,
+            0.0,
+            1.0,
+            true,
+            "rod lengths",
+        )?;
+        range(
+            "contact.tolerance",
+            self.contact.tolerance,
+            0.0,
+            1e-2,
+            true,
+            "rod lengths",
+        )?;
+        range(
+            "contact.max_iterations",
+            self.contact.max_iterations as f64,
+            1.0,
+            1e7,
+            false,
+            "iterations",
+        )?;
+        range(
+            "contact.overlap_tolerance",
+            self.contact.overlap_tolerance,
+            0.0,
+            0.1,
+            true,
+            "rod lengths",
+        )?;
+        self.hydro.validate()?;
+        if let Some(n) = self.rods {
+            let nu = n as f64 / self.box_length.powi(3);
+            if n == 0 || nu > 6.0 {
+                return Err(format!(
+                    "rods = {n} in a box of L/l = {} gives nu = N l^3/L^3 = {nu}, outside the allowed range (0, 6]",
+                    self.box_length
+                ));
+            }
+        }
+        if self.contact.margin < 2.5 * self.dt {
+            return Err(format!(
+                "contact.margin = {} is smaller than the distance two rods close in one step (2 U dt = {}): raise it above {}",
+                self.contact.margin,
+                2.0 * self.dt,
+                2.5 * self.dt
+            ));
+        }
+        Ok(())
+    }
+
+    /// Steps between events of an interval.
+    pub(crate) fn every(&self, interval: f64) -> u64 {
+        ((interval / self.dt).round() as u64).max(1)
+    }
+
+    /// Total steps.
+    pub fn total_steps(&self) -> u64 {
+        (self.t_end / self.dt).round() as u64
+    }
+}
+
+/// Parse a `config.toml` (with or without the `[motile]` header table).
+pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig> {
+    parse_run_config(text, path, ParticleRunConfig::validate)
+}
+
+/// The mobility named by `hydrodynamics` (validated).
+pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
+    let h = &cfg.hydro;
+    let sum = || SpectralEwald::new(h.sum_tolerance).map(Box::new);
+    Ok(match cfg.hydrodynamics {
+        Hydrodynamics::Dipole => Box::new(Dipole::new(sum()?)),
+        Hydrodynamics::Sbt => Box::new(SlenderBody::new(
+            SlenderParams {
+                quadrature_points: h.quadrature_points,
+                rpy_radius: h.rpy_radius,
+                gmres: GmresParams {
+                    tol: h.gmres_tolerance,
+                    restart: h.gmres_restart,
+                    max_iterations: h.gmres_max_iterations,
+                },
+            },
+            sum()?,
+        )),
+        Hydrodynamics::None => Box::new(LocalDrag::default()),
+    })
+}

@@ -1,0 +1,454 @@
+//! The particle model's adapter of the run loop ([`crate::run`]): `motile particle run` and
+//! resume. [`ParticleModel`] steps the model's [`Stepper`] and writes its outputs on a schedule
+//! of whole steps: time-series rows (the step's report and the flow's norms), snapshots (HDF5 +
+//! VTK). Its config is in `config.rs`, its initial states and checkpoint codec in `state.rs`:
+//! checkpoints hold the exact rod state (centres, quaternions, image counters), the step and
+//! the solvers' warm starts, so resuming continues the trajectory bit for bit.
+
+mod config;
+mod state;
+
+pub use config::*;
+pub use state::*;
+
+use crate::run;
+use crate::rundir::RunDir;
+use crate::snapshot::{Kinematics, ParticleSnapshot, PointForces};
+use crate::vtk::{write_pvd, write_rods_vtp};
+use anyhow::{Context, bail};
+use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
+use motile_particle::contact::WarmStart;
+use motile_particle::units::{DIAMETER, ROD_LENGTH, SWIM_SPEED, VISCOSITY};
+use motile_particle::{RodSet, Stepper};
+use std::path::Path;
+use std::time::Instant;
+
+/// Columns of a particle run's `timeseries.csv`.
+pub const COLUMNS: [&str; 19] = [
+    "t [1/beta]",
+    "steps_per_second [1/s]",
+    "constraints [1]",
+    "active_contacts [1]",
+    "solver_iterations [1]",
+    "solver_residual [l]",
+    "max_overlap [l]",
+    "mean_speed [beta l]",
+    "polar_order [1]",
+    "gmres_iterations [1]",
+    "gmres_residual [1]",
+    "velocity_norm [beta L]",
+    "max_speed [beta l]",
+    "max_rotation_rate [beta]",
+    "contact_corrections [1]",
+    "projections [1]",
+    "sum_error_estimate [tol]",
+    "sum_level [1]",
+    "velocity_norm_box [beta L]",
+];
+
+/// What a run did.
+#[derive(Clone, Debug)]
+pub struct RunSummary {
+    /// Steps taken in this invocation.
+    pub steps: u64,
+    /// Final step number.
+    pub final_step: u64,
+    /// Wall seconds.
+    pub seconds: f64,
+    /// Final rods.
+    pub rods: RodSet,
+}
+
+/// Start a new particle run in `out`.
+pub fn run_particle(
+    cfg: &ParticleRunConfig,
+    out: &Path,
+    progress: bool,
+) -> anyhow::Result<RunSummary> {
+    let (model, s) = run::start::<ParticleModel>(cfg, out, progress)?;
+    Ok(model.summary(&s))
+}
+
+/// Continue a run from its newest checkpoint.
+pub fn resume_particle(out: &Path, progress: bool) -> anyhow::Result<RunSummary> {
+    let (model, s) = run::resume::<ParticleModel>(out, progress)?;
+    Ok(model.summary(&s))
+}
+
+/// The particle model as the run loop drives it ([`run::RunModel`]): rods, the stepper with
+/// its warm starts, and the output schedule in whole steps.
+pub struct ParticleModel {
+    cfg: ParticleRunConfig,
+    rods: RodSet,
+    stepper: Stepper,
+    step: u64,
+    total: u64,
+    /// Steps between time-series rows, snapshots and checkpoints.
+    every: (u64, u64, u64),
+    pvd: Vec<(f64, String)>,
+    warned_accuracy: bool,
+    /// The state before a failed step (the last good state to save).
+    before: Option<ParticleCheckpoint>,
+    window: (Instant, u64),
+    notes: Vec<String>,
+}
+
+impl std::fmt::Debug for ParticleModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ParticleModel")
+            .field("rods", &self.rods.len())
+            .field("step", &self.step)
+            .field("total", &self.total)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ParticleModel {
+    fn with_state(
+        cfg: &ParticleRunConfig,
+        rods: RodSet,
+        (warm, hydro_warm, sum_state): (WarmStart, Vec<f64>, Vec<u32>),
+        step: u64,
+    ) -> anyhow::Result<Self> {
+        let mut stepper = Stepper::new(mobility(cfg)?, cfg.contact.clone());
+        stepper.set_warm_start(warm);
+        stepper.mobility_mut().set_warm_state(hydro_warm);
+        stepper.mobility_mut().set_sum_state(&sum_state);
+        let every = (
+            cfg.every(cfg.diagnostic_interval),
+            cfg.every(cfg.snapshot_interval),
+            cfg.every(cfg.checkpoint_interval),
+        );
+        // The VTK index of the snapshots written before `step`.
+        let pvd = (0..=step / every.1)
+            .map(|k| {
+                (
+                    (k * every.1) as f64 * cfg.dt,
+                    format!("vtk/rods_{k:06}.vtp"),
+                )
+            })
+            .collect();
+        Ok(Self {
+            cfg: cfg.clone(),
+            rods,
+            stepper,
+            step,
+            total: cfg.total_steps(),
+            every,
+            pvd,
+            warned_accuracy: false,
+            before: None,
+            window: (Instant::now(), 0),
+            notes: Vec::new(),
+        })
+    }
+
+    fn summary(self, s: &run::LoopSummary) -> RunSummary {
+        RunSummary {
+            steps: s.steps,
+            final_step: self.step,
+            seconds: s.seconds,
+            rods: self.rods,
+        }
+    }
+
+    fn checkpoint_to(&self, path: &Path) -> anyhow::Result<()> {
+        let t = self.step as f64 * self.cfg.dt;
+        ParticleCheckpoint::of(&self.rods, &self.stepper, self.step, t).write(path)?;
+        Ok(())
+    }
+}
+
+impl run::RunModel for ParticleModel {
+    type Config = ParticleRunConfig;
+    const MODEL: &'static str = "particle";
+
+    fn columns() -> &'static [&'static str] {
+        &COLUMNS
+    }
+
+    fn validate(cfg: &ParticleRunConfig) -> Result<(), String> {
+        cfg.validate()
+    }
+
+    fn seed(cfg: &ParticleRunConfig) -> u64 {
+        cfg.seed
+    }
+
+    fn new(cfg: &ParticleRunConfig) -> anyhow::Result<Self> {
+        let rods = initial_rods(cfg)?;
+        let mut m = Self::with_state(cfg, rods, (Vec::new(), Vec::new(), Vec::new()), 0)?;
+        m.notes.push(format!(
+            "particle run: {} rods, L/l = {}, dt = {}, t_end = {}",
+            m.rods.len(),
+            m.rods.box_length,
+            cfg.dt,
+            cfg.t_end
+        ));
+        Ok(m)
+    }
+
+    type Checkpoint = ParticleCheckpoint;
+
+    fn read_checkpoint(_cfg: &ParticleRunConfig, path: &Path) -> anyhow::Result<Self::Checkpoint> {
+        ParticleCheckpoint::read(path)
+    }
+
+    fn from_checkpoint(
+        cfg: &ParticleRunConfig,
+        c: ParticleCheckpoint,
+        path: &Path,
+    ) -> anyhow::Result<Self> {
+        let (saved_step, time) = (c.step, c.time);
+        // Steps count in units of the config's dt; a dt edited before resuming (the usual
+        // answer to a failed step) rebases the counter so the run continues from the
+        // checkpoint's time.
+        let step = (time / cfg.dt).round();
+        if (step * cfg.dt - time).abs() > 1e-9 * time.max(1.0) {
+            bail!(
+                "{}: the checkpoint's time t = {time} is not a whole number of steps of dt = {} (config.toml); choose a dt that divides it (for example {})",
+                path.display(),
+                cfg.dt,
+                time / (time / cfg.dt).ceil()
+            );
+        }
+        let step = step as u64;
+        let warm = (c.contact_warm_start, c.gmres_warm_start, c.sum_state);
+        let mut m = Self::with_state(cfg, c.rods, warm, step)?;
+        if step != saved_step {
+            m.notes.push(format!(
+                "dt changed to {}: step counter rebased from {saved_step} to {step} (t = {time})",
+                cfg.dt
+            ));
+        }
+        Ok(m)
+    }
+
+    fn notes(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.notes)
+    }
+
+    fn keeps_row(&self, row: &[f64]) -> bool {
+        row[0] <= self.time() + 0.5 * self.cfg.dt
+    }
+
+    fn steps(&self) -> u64 {
+        self.step
+    }
+
+    fn time(&self) -> f64 {
+        self.step as f64 * self.cfg.dt
+    }
+
+    fn finished(&self) -> bool {
+        self.step >= self.total
+    }
+
+    fn progress(&self) -> (&'static str, u64, u64) {
+        (
+            "{bar:30} {pos}/{len} steps {msg} [{elapsed} < {eta}]",
+            self.total,
+            self.step,
+        )
+    }
+
+    fn checkpoint_policy(&self) -> (usize, f64) {
+        (self.cfg.checkpoints_kept, self.cfg.checkpoint_wall_seconds)
+    }
+
+    fn begin(&mut self, _io: &mut run::RunIo) -> anyhow::Result<bool> {
+        self.pvd.clear();
+        write_snapshot(&self.cfg, _io.run, &self.rods, 0, None, None, &mut self.pvd)?;
+        Ok(true)
+    }
+
+    fn checkpoint_due_before_step(&mut self) -> bool {
+        false
+    }
+
+    fn step(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
+        let step = self.step + 1;
+        let cfg = &self.cfg;
+        let before = ParticleCheckpoint::of(&self.rods, &self.stepper, self.step, self.time());
+        let report = match self.stepper.step(&mut self.rods, cfg.dt) {
+            Ok(r) => r,
+            Err(e) => {
+                self.before = Some(before);
+                return Err(run::StepFailure::Step {
+                    kind: (&e).into(),
+                    step,
+                    t: (step - 1) as f64 * cfg.dt,
+                    what: format!("step {step} (t = {:.4}) failed: {e}", step as f64 * cfg.dt),
+                });
+            }
+        };
+        self.step = step;
+        self.window.1 += 1;
+        let t = step as f64 * cfg.dt;
+        if !self.warned_accuracy && report.hydro.sums > 0 && !report.hydro.sum_tolerance_met {
+            // Never silent: the finest level of the fast sum could not meet the tolerance.
+            self.warned_accuracy = true;
+            let msg = format!(
+                "warning: at step {step} (t = {t:.4}) the fast sum's estimated error is {:.1} times hydro.sum_tolerance = {:e} even at its finest setting; results carry that error (see docs/accuracy.md; `motile check-accuracy {}` measures it). Said once per run",
+                report.hydro.sum_error_ratio,
+                cfg.hydro.sum_tolerance,
+                io.run.path().display()
+            );
+            io.log(&msg)?;
+            io.bar.println(&msg);
+        }
+        let (diag, snap, _) = self.every;
+        if step.is_multiple_of(diag) {
+            let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
+            self.window = (Instant::now(), 0);
+            let c = &report.contact;
+            let norms = velocity_norms(&self.stepper, &before.rods)?;
+            io.push_row(vec![
+                t,
+                rate,
+                c.constraints as f64,
+                c.active as f64,
+                c.iterations as f64,
+                c.residual,
+                report.max_overlap,
+                report.mean_speed,
+                report.polar_order,
+                report.hydro.gmres_iterations as f64,
+                report.hydro.gmres_residual,
+                norms.0,
+                report.max_speed,
+                report.max_rotation_rate,
+                report.correction_active as f64,
+                report.projections as f64,
+                report.hydro.sum_error_ratio,
+                report.hydro.sum_level as f64,
+                norms.1,
+            ])?;
+            io.bar.set_message(format!(
+                "t = {t:.3}, {rate:.1} steps/s, {} contacts, max overlap {:.1e}",
+                c.active, report.max_overlap
+            ));
+        }
+        if step.is_multiple_of(snap) {
+            let kin = Kinematics {
+                velocities: self.stepper.velocities().v.clone(),
+                angular_velocities: self.stepper.velocities().w.clone(),
+                contact_forces: self.stepper.contact_forces().to_vec(),
+            };
+            let forces = self.stepper.mobility().force_density().map(|fd| {
+                let (points, forces) = fd.point_forces(&before.rods, &before.rods.orientations());
+                PointForces { points, forces }
+            });
+            write_snapshot(
+                cfg,
+                io.run,
+                &self.rods,
+                step,
+                Some(kin),
+                forces,
+                &mut self.pvd,
+            )?;
+        }
+        Ok(())
+    }
+
+    fn checkpoint_due_after_step(&self) -> bool {
+        self.step.is_multiple_of(self.every.2) || self.step == self.total
+    }
+
+    fn finish(
+        &mut self,
+        _io: &mut run::RunIo,
+        _took_steps: bool,
+    ) -> Result<bool, run::StepFailure> {
+        Ok(false)
+    }
+
+    fn write_checkpoint(&self, path: &Path) -> anyhow::Result<()> {
+        self.checkpoint_to(path)
+    }
+
+    fn write_last_good(&self, path: &Path) -> anyhow::Result<()> {
+        self.before
+            .as_ref()
+            .context("no failed step: nothing to save as the last good state")?
+            .write(path)?;
+        Ok(())
+    }
+}
+
+/// `||u||_2 / (beta L)` of the step's force density (docs/MODEL.md §5, §6: the velocity spectrum on
+/// `floor(L/2)` modes per dimension, doublet neglected); 0 for models without flow.
+/// The flow's volume-averaged L2 norm from the velocity spectrum of the force density, over
+/// the analysis modes and over the box-scale modes alone (every `|m_i| <= 1`: wavelengths of
+/// one box and more, where the instability begins), both in units of `beta L`.
+fn velocity_norms(stepper: &Stepper, at: &RodSet) -> anyhow::Result<(f64, f64)> {
+    let Some(fd) = stepper.mobility().force_density() else {
+        return Ok((0.0, 0.0));
+    };
+    let (points, forces) = fd.point_forces(at, &at.orientations());
+    let l = at.box_length;
+    let modes = CorrelationOptions::default().modes_for(l);
+    let spectrum = velocity_spectrum(&points, &forces, l, VISCOSITY, modes, 1e-6)?;
+    let power = spectrum.power();
+    let box_scale: f64 = power
+        .iter()
+        .enumerate()
+        .filter(|(idx, _)| {
+            [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+                .iter()
+                .all(|&i| motile_analysis::nufft::mode_of(i, modes).abs() <= 1)
+        })
+        .map(|(_, p)| p)
+        .sum();
+    let unit = SWIM_SPEED / ROD_LENGTH * l;
+    Ok((spectrum.l2_norm() / unit, box_scale.sqrt() / unit))
+}
+
+fn write_snapshot(
+    cfg: &ParticleRunConfig,
+    run: &RunDir,
+    rods: &RodSet,
+    step: u64,
+    kin: Option<Kinematics>,
+    forces: Option<PointForces>,
+    pvd: &mut Vec<(f64, String)>,
+) -> anyhow::Result<()> {
+    let k = (step / cfg.every(cfg.snapshot_interval)) as usize;
+    let t = step as f64 * cfg.dt;
+    let p = rods.orientations();
+    let speed: Vec<f64> = match &kin {
+        Some(k) => k
+            .velocities
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .collect(),
+        None => vec![0.0; rods.len()],
+    };
+    let snap = ParticleSnapshot {
+        time: t,
+        step,
+        box_length: rods.box_length,
+        positions: rods.x.clone(),
+        orientations: p.clone(),
+        image_counts: rods.image.clone(),
+        forces,
+        kinematics: kin,
+    };
+    snap.write(&run.snapshot_path(k))?;
+    if cfg.vtk {
+        let name = format!("vtk/rods_{k:06}.vtp");
+        write_rods_vtp(
+            &run.path().join(&name),
+            &rods.x,
+            &p,
+            ROD_LENGTH,
+            DIAMETER / 2.0,
+            &speed,
+        )?;
+        pvd.retain(|(_, f)| *f != name);
+        pvd.push((t, name));
+        write_pvd(&run.path().join("rods.pvd"), pvd)?;
+    }
+    Ok(())
+}

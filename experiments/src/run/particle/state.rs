@@ -1,0 +1,324 @@
+//! The particle run's state and files: initial configurations (random, perturbed, or read from
+//! a snapshot or a text table, checked for overlaps) and the checkpoint codec.
+
+use super::config::ParticleRunConfig;
+use crate::checkpoint;
+use crate::io::IoError;
+use crate::snapshot::{Snapshot, read_snapshot};
+use anyhow::{Context, bail};
+use hdf5_pure::{AttrValue, FileBuilder};
+use motile_meanfield::initial::PerturbationField;
+use motile_particle::cells::CellList;
+use motile_particle::contact::WarmStart;
+use motile_particle::geometry::{axpy, quat_from_axis, segment_distance};
+use motile_particle::init::{nonoverlapping_with, perturbed_orientation, random_nonoverlapping};
+use motile_particle::units::{DIAMETER, ROD_LENGTH};
+use motile_particle::{RodSet, Stepper};
+use std::path::Path;
+
+/// Load an initial configuration from a snapshot (.h5) or a text table, validated: unit
+/// orientations, and no two rods overlapping by more than `overlap_tolerance` (rod lengths;
+/// a run's own snapshots carry overlaps up to `contact.overlap_tolerance`, and rods at exactly
+/// one diameter are in contact, not overlapping).
+pub fn load_configuration(
+    path: &Path,
+    box_length: f64,
+    overlap_tolerance: f64,
+) -> anyhow::Result<RodSet> {
+    let (x, p, l): (Vec<[f64; 3]>, Vec<[f64; 3]>, f64) = if path
+        .extension()
+        .is_some_and(|e| e == "h5")
+    {
+        match read_snapshot(path)? {
+            Snapshot::Particle(s) => (s.positions, s.orientations, s.box_length),
+            Snapshot::Field(_) => bail!(
+                "{}: a mean-field snapshot, not a particle configuration",
+                path.display()
+            ),
+        }
+    } else {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        let mut x = Vec::new();
+        let mut p = Vec::new();
+        for (k, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let v: Result<Vec<f64>, _> = line.split_whitespace().map(str::parse::<f64>).collect();
+            let v = v.map_err(|e| anyhow::anyhow!("{}: line {}: {e}", path.display(), k + 1))?;
+            if v.len() != 6 || !v.iter().all(|c| c.is_finite()) {
+                bail!(
+                    "{}: line {}: expected 6 finite numbers `x y z px py pz`, got {:?}",
+                    path.display(),
+                    k + 1,
+                    line
+                );
+            }
+            let n = (v[3] * v[3] + v[4] * v[4] + v[5] * v[5]).sqrt();
+            if (n - 1.0).abs() > 1e-6 {
+                bail!(
+                    "{}: line {}: orientation ({}, {}, {}) is not a unit vector (|p| = {n})",
+                    path.display(),
+                    k + 1,
+                    v[3],
+                    v[4],
+                    v[5]
+                );
+            }
+            x.push([v[0], v[1], v[2]]);
+            p.push([v[3], v[4], v[5]]);
+        }
+        (x, p, box_length)
+    };
+    if x.is_empty() {
+        bail!("{}: no rods", path.display());
+    }
+    // Centres are wrapped into the box, but one far outside it means the file was written for
+    // another box size.
+    if let Some(i) = x
+        .iter()
+        .position(|c| c.iter().any(|&v| v < -l || v >= 2.0 * l))
+    {
+        bail!(
+            "{}: rod {i} at {:?} lies more than a box length outside the box [0, {l})^3: was the file written for another box_length?",
+            path.display(),
+            x[i]
+        );
+    }
+    let wrapped: Vec<[f64; 3]> = x
+        .iter()
+        .map(|c| {
+            c.map(|v| v - l * (v / l).floor())
+                .map(|v| if v >= l { 0.0 } else { v })
+        })
+        .collect();
+    let rods = RodSet {
+        box_length: l,
+        q: p.iter().map(|p| quat_from_axis(*p)).collect(),
+        image: vec![[0; 3]; x.len()],
+        x: wrapped,
+    };
+    // No two rods may overlap.
+    let reach = ROD_LENGTH + DIAMETER;
+    let cells = CellList::build(&rods.x, l, reach);
+    let po = rods.orientations();
+    let bad = cells.map_pairs(&rods.x, reach, |i, j, d| {
+        let (_, _, dist) = segment_distance(
+            rods.x[i as usize],
+            po[i as usize],
+            axpy(rods.x[i as usize], 1.0, d),
+            po[j as usize],
+            ROD_LENGTH,
+        );
+        (dist < DIAMETER - overlap_tolerance).then_some((i.min(j), i.max(j), dist))
+    });
+    if let Some((i, j, dist)) = bad.iter().min_by_key(|b| (b.0, b.1)) {
+        bail!(
+            "{}: rods {i} and {j} overlap by {:.2e} (centerline distance {dist:.4} < diameter {DIAMETER}), more than contact.overlap_tolerance = {overlap_tolerance}; {} such pairs in all",
+            path.display(),
+            DIAMETER - dist,
+            bad.len()
+        );
+    }
+    Ok(rods)
+}
+
+/// What a particle checkpoint holds: the rods (centres, quaternions, image counters), the step
+/// and time, and the solvers' warm starts, so a resumed run continues bit for bit.
+#[derive(Clone, Debug)]
+pub struct ParticleCheckpoint {
+    /// The rods.
+    pub rods: RodSet,
+    /// The contact multipliers of the last step, keyed by rod pair (the next solve's warm start).
+    pub contact_warm_start: WarmStart,
+    /// The slender-body solve's force densities (GMRES warm start); empty for other levels.
+    pub gmres_warm_start: Vec<f64>,
+    /// The fast sum's refinement level and calm count (docs/accuracy.md); empty without one.
+    pub sum_state: Vec<u32>,
+    /// Step number.
+    pub step: u64,
+    /// Time, 1/beta.
+    pub time: f64,
+}
+
+impl ParticleCheckpoint {
+    /// The checkpoint of `stepper` holding `rods` at `step`.
+    pub(super) fn of(rods: &RodSet, stepper: &Stepper, step: u64, time: f64) -> Self {
+        Self {
+            rods: rods.clone(),
+            contact_warm_start: stepper.warm_start().to_vec(),
+            gmres_warm_start: stepper.mobility().warm_state(),
+            sum_state: stepper.mobility().sum_state(),
+            step,
+            time,
+        }
+    }
+
+    /// Write as HDF5 with a checksum sidecar.
+    pub fn write(&self, path: &Path) -> Result<(), IoError> {
+        write_checkpoint(
+            path,
+            &self.rods,
+            &self.contact_warm_start,
+            (&self.gmres_warm_start, &self.sum_state),
+            self.step,
+            self.time,
+        )
+    }
+
+    /// Read one written by [`ParticleCheckpoint::write`] (or by earlier versions: datasets
+    /// added since are optional).
+    pub fn read(path: &Path) -> anyhow::Result<Self> {
+        read_checkpoint(path)
+    }
+}
+
+fn write_checkpoint(
+    path: &Path,
+    rods: &RodSet,
+    warm: &[((u32, u32), f64)],
+    (hydro, sum_state): (&[f64], &[u32]),
+    step: u64,
+    time: f64,
+) -> Result<(), IoError> {
+    let n = rods.len() as u64;
+    let mut b = FileBuilder::new();
+    b.set_attr(
+        "kind",
+        AttrValue::VarLenString("particle_checkpoint".into()),
+    );
+    b.set_attr("step", AttrValue::U64(step));
+    b.set_attr("time", AttrValue::F64(time));
+    b.set_attr("box_length", AttrValue::F64(rods.box_length));
+    let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();
+    b.create_dataset("positions")
+        .with_f64_data(&flat(&rods.x))
+        .with_shape(&[n, 3]);
+    b.create_dataset("quaternions")
+        .with_f64_data(&rods.q.iter().flatten().copied().collect::<Vec<_>>())
+        .with_shape(&[n, 4]);
+    b.create_dataset("image_counts")
+        .with_i64_data(&rods.image.iter().flatten().copied().collect::<Vec<_>>())
+        .with_shape(&[n, 3]);
+    // The contact multipliers of the last step (the next solve's warm start).
+    let pairs: Vec<i64> = warm
+        .iter()
+        .flat_map(|((a, b), _)| [*a as i64, *b as i64])
+        .collect();
+    let lambda: Vec<f64> = warm.iter().map(|w| w.1).collect();
+    b.create_dataset("warm_pairs")
+        .with_i64_data(&pairs)
+        .with_shape(&[warm.len() as u64, 2]);
+    b.create_dataset("warm_lambda")
+        .with_f64_data(&lambda)
+        .with_shape(&[warm.len() as u64]);
+    // The hydrodynamic solver's warm start (slender-body force densities), possibly empty.
+    b.create_dataset("gmres_warm_start")
+        .with_f64_data(hydro)
+        .with_shape(&[hydro.len() as u64]);
+    // The fast sum's refinement level and calm count (docs/accuracy.md), possibly empty.
+    let sum_state: Vec<i64> = sum_state.iter().map(|&v| v as i64).collect();
+    b.create_dataset("sum_state")
+        .with_i64_data(&sum_state)
+        .with_shape(&[sum_state.len() as u64]);
+    let bytes = b.finish().map_err(|e| IoError::Hdf5 {
+        path: path.into(),
+        message: e.to_string(),
+    })?;
+    checkpoint::write_verified(path, &bytes)
+}
+
+fn read_checkpoint(path: &Path) -> anyhow::Result<ParticleCheckpoint> {
+    let f = checkpoint::H5Reader::open(path)?;
+    let step = f.attr_u64("step")?;
+    let time = f.attr_f64("time")?;
+    let box_length = f.attr_f64("box_length")?;
+    let read = |name: &str| f.f64s(name);
+    let x = read("positions")?;
+    let q = read("quaternions")?;
+    let im = f.i64s("image_counts")?;
+    let n = x.len() / 3;
+    if q.len() != 4 * n || im.len() != 3 * n {
+        bail!(
+            "{}: datasets disagree on the number of rods",
+            path.display()
+        );
+    }
+    let rods = RodSet {
+        box_length,
+        x: x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        q: q.chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect(),
+        image: im.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    };
+    let pairs = f.i64s("warm_pairs")?;
+    let lambda = read("warm_lambda")?;
+    if pairs.len() != 2 * lambda.len() {
+        bail!(
+            "{}: warm_pairs and warm_lambda disagree in length",
+            path.display()
+        );
+    }
+    let warm = pairs
+        .chunks_exact(2)
+        .zip(lambda)
+        .map(|(p, l)| ((p[0] as u32, p[1] as u32), l))
+        .collect();
+    // Absent in checkpoints of runs without hydrodynamics written before it existed.
+    let hydro = if f.has("gmres_warm_start") {
+        f.f64s("gmres_warm_start")?
+    } else {
+        Vec::new()
+    };
+    // Absent in checkpoints written before the accuracy contract: the sum starts at level 0.
+    let sum_state = if f.has("sum_state") {
+        f.i64s("sum_state")?.into_iter().map(|v| v as u32).collect()
+    } else {
+        Vec::new()
+    };
+    Ok(ParticleCheckpoint {
+        rods,
+        contact_warm_start: warm,
+        gmres_warm_start: hydro,
+        sum_state,
+        step,
+        time,
+    })
+}
+
+/// The rods a run starts from: random (seeded), drawn from a perturbation, or read from
+/// `initial`.
+pub fn initial_rods(cfg: &ParticleRunConfig) -> anyhow::Result<RodSet> {
+    if cfg.initial == "perturbation" {
+        let n = cfg
+            .rods
+            .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
+        let field = PerturbationField::new(&cfg.perturbation.perturbation());
+        let peak = field.max_norm();
+        if peak >= 2.0 / 15.0 {
+            bail!(
+                "perturbation.amplitude = {}: |Q'| reaches {peak:.3}, the orientation distribution (1 + (15/2) Q':pp)/4 pi turns negative beyond 2/15 = 0.133; lower the amplitude",
+                cfg.perturbation.amplitude
+            );
+        }
+        let l = cfg.box_length;
+        return Ok(nonoverlapping_with(n, l, cfg.seed, 200_000, |x, rng| {
+            perturbed_orientation(&field.eval(x.map(|c| c / l)), rng)
+        })?);
+    }
+    if cfg.initial == "random" {
+        let n = cfg
+            .rods
+            .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
+        Ok(random_nonoverlapping(n, cfg.box_length, cfg.seed, 200_000)?)
+    } else {
+        load_configuration(
+            Path::new(&cfg.initial),
+            cfg.box_length,
+            cfg.contact.overlap_tolerance,
+        )
+    }
+}
