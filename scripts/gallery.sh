@@ -15,6 +15,8 @@ copy runs/demo/compare/velocity_slice demo_velocity_slice png  # heat maps: PNG 
 copy runs/dilute/compare/velocity_norm dilute_velocity_norm
 copy runs/dilute/compare/velocity_correlation dilute_velocity_correlation
 copy runs/dilute/compare/velocity_slice dilute_velocity_slice png
+copy runs/paper-dilute/compare/velocity_norm paper_dilute_velocity_norm
+copy runs/paper-dilute/compare/velocity_correlation paper_dilute_velocity_correlation
 copy runs/concentrated/compare/correlation_Q concentrated_correlation_Q
 copy runs/concentrated/compare/msd concentrated_msd
 copy runs/concentrated/compare/orientation concentrated_orientation

@@ -10,6 +10,7 @@ pub mod correlation;
 pub mod fft3;
 pub mod kernel;
 pub mod nufft;
+pub mod params;
 pub mod quadrature;
 pub mod stats;
 

@@ -19,6 +19,7 @@
 use crate::closure::BinghamClosure;
 use crate::eigen::{Sym3, sym3_eigen_sorted};
 use motile_analysis::fft3::RealFft3;
+use motile_analysis::params::{InvalidParameter, check_range};
 use num_complex::Complex64;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -50,6 +51,44 @@ pub struct MeanFieldParams {
     pub fixed_point_tolerance: f64,
     /// Iteration cap of the fixed point (default 50).
     pub fixed_point_max_iterations: usize,
+}
+
+impl MeanFieldParams {
+    /// Check every field (the error names it, its value, the allowed range and the unit).
+    pub fn validate(&self) -> Result<(), InvalidParameter> {
+        check_range(
+            "zeta",
+            self.zeta,
+            0.0,
+            10.0,
+            false,
+            "sigma_b/mu, dimensionless",
+        )?;
+        check_range(
+            "diffusion",
+            self.diffusion,
+            0.0,
+            1.0,
+            false,
+            "L^2 |sigma_a|/mu",
+        )?;
+        check_range(
+            "fixed_point_tolerance",
+            self.fixed_point_tolerance,
+            0.0,
+            1e-2,
+            true,
+            "relative change of u",
+        )?;
+        check_range(
+            "fixed_point_max_iterations",
+            self.fixed_point_max_iterations as f64,
+            1.0,
+            1e4,
+            false,
+            "iterations",
+        )
+    }
 }
 
 impl Default for MeanFieldParams {

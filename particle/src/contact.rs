@@ -20,6 +20,7 @@
 
 use crate::geometry::{Vec3, axpy, cross, dot, scale, sub};
 use crate::mobility::Mobility;
+use motile_analysis::params::{InvalidParameter, check_range};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -41,6 +42,31 @@ pub struct ContactParams {
     /// `(dt w)^2 l / 2` for rods turning at rate `w`, corrected at the next step rather than
     /// accumulated: 1.6e-3 l was the largest in 1000 steps at nu = 5, dt = 0.002.
     pub overlap_tolerance: f64,
+}
+
+impl ContactParams {
+    /// Check every field (the error names it, its value, the allowed range and the unit).
+    /// `margin` must also exceed `2.5 U dt` for the run's step: checked where `dt` is known.
+    pub fn validate(&self) -> Result<(), InvalidParameter> {
+        check_range("margin", self.margin, 0.0, 1.0, true, "rod lengths")?;
+        check_range("tolerance", self.tolerance, 0.0, 1e-2, true, "rod lengths")?;
+        check_range(
+            "max_iterations",
+            self.max_iterations as f64,
+            1.0,
+            1e7,
+            false,
+            "iterations",
+        )?;
+        check_range(
+            "overlap_tolerance",
+            self.overlap_tolerance,
+            0.0,
+            0.1,
+            true,
+            "rod lengths",
+        )
+    }
 }
 
 impl Default for ContactParams {

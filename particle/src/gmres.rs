@@ -5,6 +5,8 @@
 //! It stops when `||b - A x|| <= tol ||b||` and returns what it did ([`GmresInfo`]), or a
 //! structured error. Dot products are serial, so results do not depend on the thread count.
 
+use motile_analysis::params::{InvalidParameter, check_range};
+
 /// A linear operator applied matrix-free.
 pub trait LinOp {
     /// Error of one application.
@@ -25,6 +27,25 @@ pub struct GmresParams {
     pub restart: usize,
     /// Cap on the total number of iterations (operator applications).
     pub max_iterations: usize,
+}
+
+impl GmresParams {
+    /// Check every field (the error names it, its value, the allowed range and the unit).
+    pub fn validate(&self) -> Result<(), InvalidParameter> {
+        check_range("tol", self.tol, 1e-14, 1e-1, false, "relative")?;
+        for (name, v, hi) in [
+            ("max_iterations", self.max_iterations, 10_000),
+            ("restart", self.restart, 1000),
+        ] {
+            if !(1..=hi).contains(&v) {
+                return Err(InvalidParameter {
+                    name: name.into(),
+                    problem: format!("{v} is outside the allowed range [1, {hi}] (iterations)"),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for GmresParams {

@@ -30,6 +30,7 @@ use crate::mobility::{
 use crate::periodic::{PeriodicStokes, RpyGeometry, SumError};
 use crate::rods::RodSet;
 use crate::units::{DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
+use motile_analysis::params::{InvalidParameter, check_range};
 use motile_analysis::quadrature::gauss_legendre;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -41,7 +42,7 @@ pub struct SlenderParams {
     pub quadrature_points: usize,
     /// RPY radius `a`. Default `(sqrt 3 / 2)(b / 2)`.
     pub rpy_radius: f64,
-    /// GMRES settings (relative tolerance default 1e-6).
+    /// GMRES settings (defaults: [`GmresParams::default`]).
     pub gmres: GmresParams,
 }
 
@@ -52,6 +53,22 @@ impl Default for SlenderParams {
             rpy_radius: default_rpy_radius(),
             gmres: GmresParams::default(),
         }
+    }
+}
+
+impl SlenderParams {
+    /// Check every field, GMRES's as `gmres.NAME` (the error names it, its value, the allowed
+    /// range and the unit).
+    pub fn validate(&self) -> Result<(), InvalidParameter> {
+        check_range("rpy_radius", self.rpy_radius, 0.0, 0.5, true, "rod lengths")?;
+        let q = self.quadrature_points;
+        if !(2..=64).contains(&q) || q % 2 == 1 {
+            return Err(InvalidParameter {
+                name: "quadrature_points".into(),
+                problem: format!("{q} must be even and in [2, 64] (nodes per rod)"),
+            });
+        }
+        self.gmres.validate().map_err(|e| e.in_table("gmres"))
     }
 }
 

@@ -235,11 +235,7 @@ pub fn read_run_config<C: serde::de::DeserializeOwned>(
 /// A number for a message: plain, or in exponent form when it is small (`1e-10`, not
 /// `0.0000000001`).
 pub fn compact(v: f64) -> String {
-    if v != 0.0 && v.abs() < 1e-4 {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
+    motile_analysis::params::compact(v)
 }
 
 /// Check that `v` lies in `[lo, hi]` (`(lo, hi]` if `lo_open`): the message names the field,
@@ -252,19 +248,7 @@ pub fn range(
     lo_open: bool,
     unit: &str,
 ) -> Result<(), String> {
-    let ok = v.is_finite() && (if lo_open { v > lo } else { v >= lo }) && v <= hi;
-    if ok {
-        Ok(())
-    } else {
-        let l = if lo_open { "(" } else { "[" };
-        let c = compact;
-        Err(format!(
-            "{name} = {} is outside the allowed range {l}{}, {}] ({unit})",
-            c(v),
-            c(lo),
-            c(hi)
-        ))
-    }
+    motile_analysis::params::check_range(name, v, lo, hi, lo_open, unit).map_err(|e| e.to_string())
 }
 
 /// Numbered checkpoints (`ckpt_*`) in a directory, oldest first; empty if there is none.

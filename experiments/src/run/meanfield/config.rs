@@ -141,6 +141,25 @@ impl MeanFieldRunConfig {
         }
     }
 
+    /// The model's parameters.
+    pub fn model_params(&self) -> MeanFieldParams {
+        MeanFieldParams {
+            zeta: self.zeta,
+            diffusion: self.diffusion,
+            fixed_point_tolerance: self.fixed_point_tolerance,
+            fixed_point_max_iterations: self.fixed_point_max_iterations,
+        }
+    }
+
+    /// The step-size control's settings.
+    pub fn step_control(&self) -> StepControl {
+        StepControl {
+            dt_max: self.dt_max,
+            cfl: self.cfl,
+            max_step_ratio: self.max_step_ratio,
+        }
+    }
+
     /// Check every field; the message names the field, the value, the allowed range and the
     /// unit (time in mu/|sigma_a|, lengths in box sides).
     pub fn validate(&self) -> Result<(), String> {
@@ -152,33 +171,10 @@ impl MeanFieldRunConfig {
                 self.grid
             ));
         }
-        chk(
-            "zeta",
-            self.zeta,
-            0.0,
-            10.0,
-            false,
-            "sigma_b/mu, dimensionless",
-        )?;
-        chk(
-            "diffusion",
-            self.diffusion,
-            0.0,
-            1.0,
-            false,
-            "L^2 |sigma_a|/mu",
-        )?;
+        // The model's and the step control's own checks (one source for each range).
+        self.model_params().validate().map_err(|e| e.to_string())?;
+        self.step_control().validate().map_err(|e| e.to_string())?;
         chk("t_end", self.t_end, 0.0, 1e6, true, time)?;
-        chk("dt_max", self.dt_max, 0.0, 1.0, true, time)?;
-        chk("cfl", self.cfl, 0.0, 2.0, true, "dimensionless")?;
-        chk(
-            "max_step_ratio",
-            self.max_step_ratio,
-            1.0,
-            2.4,
-            true,
-            "dimensionless; SBDF2 is zero-stable below 1 + sqrt 2",
-        )?;
         chk("smoothing", self.smoothing, 0.0, 0.5, false, "box sides")?;
         chk(
             "amplitude",
@@ -187,14 +183,6 @@ impl MeanFieldRunConfig {
             0.3,
             true,
             "dimensionless, |Q'| of a trace-1 Q",
-        )?;
-        chk(
-            "fixed_point_tolerance",
-            self.fixed_point_tolerance,
-            0.0,
-            1e-2,
-            true,
-            "relative change of u",
         )?;
         chk(
             "diagnostic_interval",
@@ -243,14 +231,6 @@ impl MeanFieldRunConfig {
             0.0,
             false,
             "eigenvalue of Q/tr Q",
-        )?;
-        chk(
-            "fixed_point_max_iterations",
-            self.fixed_point_max_iterations as f64,
-            1.0,
-            1e4,
-            false,
-            "iterations",
         )?;
         if !(1..=1000).contains(&self.checkpoints_kept) {
             return Err(format!(

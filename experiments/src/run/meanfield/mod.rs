@@ -153,23 +153,14 @@ impl MeanFieldModel {
             cfg.closure_degree,
             t_tables.elapsed().as_secs_f64()
         ));
-        let params = MeanFieldParams {
-            zeta: cfg.zeta,
-            diffusion: cfg.diffusion,
-            fixed_point_tolerance: cfg.fixed_point_tolerance,
-            fixed_point_max_iterations: cfg.fixed_point_max_iterations,
-        };
+        let params = cfg.model_params();
         Ok(Self {
             cfg: cfg.clone(),
             grid,
             stepper,
             closure,
             params,
-            control: StepControl {
-                dt_max: cfg.dt_max,
-                cfl: cfg.cfl,
-                max_step_ratio: cfg.max_step_ratio,
-            },
+            control: cfg.step_control(),
             clock,
             notes,
         })

@@ -206,6 +206,19 @@ impl Default for HydroConfig {
 }
 
 impl HydroConfig {
+    /// The slender-body model's settings.
+    pub fn slender(&self) -> SlenderParams {
+        SlenderParams {
+            quadrature_points: self.quadrature_points,
+            rpy_radius: self.rpy_radius,
+            gmres: GmresParams {
+                tol: self.gmres_tolerance,
+                restart: self.gmres_restart,
+                max_iterations: self.gmres_max_iterations,
+            },
+        }
+    }
+
     fn validate(&self) -> Result<(), String> {
         range(
             "hydro.sum_tolerance",
@@ -215,42 +228,16 @@ impl HydroConfig {
             false,
             "relative",
         )?;
-        range(
-            "hydro.gmres_tolerance",
-            self.gmres_tolerance,
-            1e-14,
-            1e-1,
-            false,
-            "relative",
-        )?;
-        range(
-            "hydro.rpy_radius",
-            self.rpy_radius,
-            0.0,
-            0.5,
-            true,
-            "rod lengths",
-        )?;
-        let q = self.quadrature_points;
-        if !(2..=64).contains(&q) || q % 2 == 1 {
-            return Err(format!(
-                "hydro.quadrature_points = {q} must be even and in [2, 64] (nodes per rod)"
-            ));
-        }
-        for (name, v, hi) in [
-            (
-                "hydro.gmres_max_iterations",
-                self.gmres_max_iterations,
-                10_000,
-            ),
-            ("hydro.gmres_restart", self.gmres_restart, 1000),
-        ] {
-            if !(1..=hi).contains(&v) {
-                return Err(format!(
-                    "{name} = {v} is outside the allowed range [1, {hi}] (iterations)"
-                ));
-            }
-        }
+        // The slender-body model's own checks, under this table's key names.
+        self.slender().validate().map_err(|e| {
+            let key = match e.name.as_str() {
+                "gmres.tol" => "gmres_tolerance".to_string(),
+                "gmres.restart" => "gmres_restart".to_string(),
+                "gmres.max_iterations" => "gmres_max_iterations".to_string(),
+                other => other.to_string(),
+            };
+            e.renamed(&key).in_table("hydro").to_string()
+        })?;
         Ok(())
     }
 }
@@ -314,38 +301,9 @@ impl ParticleRunConfig {
             false,
             "files",
         )?;
-        range(
-            "contact.margin",
-            self.contact.margin,
-            0.0,
-            1.0,
-            true,
-            "rod lengths",
-        )?;
-        range(
-            "contact.tolerance",
-            self.contact.tolerance,
-            0.0,
-            1e-2,
-            true,
-            "rod lengths",
-        )?;
-        range(
-            "contact.max_iterations",
-            self.contact.max_iterations as f64,
-            1.0,
-            1e7,
-            false,
-            "iterations",
-        )?;
-        range(
-            "contact.overlap_tolerance",
-            self.contact.overlap_tolerance,
-            0.0,
-            0.1,
-            true,
-            "rod lengths",
-        )?;
+        self.contact
+            .validate()
+            .map_err(|e| e.in_table("contact").to_string())?;
         self.hydro.validate()?;
         if let Some(n) = self.rods {
             let nu = n as f64 / self.box_length.powi(3);
@@ -389,18 +347,7 @@ pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobili
     let sum = || SpectralEwald::new(h.sum_tolerance).map(Box::new);
     Ok(match cfg.hydrodynamics {
         Hydrodynamics::Dipole => Box::new(Dipole::new(sum()?)),
-        Hydrodynamics::Sbt => Box::new(SlenderBody::new(
-            SlenderParams {
-                quadrature_points: h.quadrature_points,
-                rpy_radius: h.rpy_radius,
-                gmres: GmresParams {
-                    tol: h.gmres_tolerance,
-                    restart: h.gmres_restart,
-                    max_iterations: h.gmres_max_iterations,
-                },
-            },
-            sum()?,
-        )),
+        Hydrodynamics::Sbt => Box::new(SlenderBody::new(h.slender(), sum()?)),
         Hydrodynamics::None => Box::new(LocalDrag::default()),
     })
 }
