@@ -12,6 +12,7 @@ use motile_particle::geometry::{Vec3, dot, sub};
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::rpy_reference::EwaldReference;
 use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::units::DEFAULT_DIAMETER;
 use std::path::Path;
 
 fn short_run(hydrodynamics: &str, box_length: f64, out: &Path) -> ParticleRunConfig {
@@ -71,7 +72,7 @@ fn the_audit_of_a_slender_body_run_matches_a_direct_computation() {
     let pf = snap.forces.expect("force data");
     let geo = RpyGeometry {
         box_length: snap.box_length,
-        radius: cfg.hydro.rpy_radius,
+        radius: cfg.hydro.slender(cfg.diameter).rpy_radius,
         group: 4,
     };
     let idx: Vec<usize> = a
@@ -112,7 +113,7 @@ fn the_audit_of_a_dipole_run_matches_a_direct_computation() {
         panic!("particle snapshot")
     };
     let (x, p, l) = (&snap.positions, &snap.orientations, snap.box_length);
-    let sigma = vec![stresslet_strength(); x.len()];
+    let sigma = vec![stresslet_strength(DEFAULT_DIAMETER); x.len()];
     let fast = SpectralEwald::new(1e-3)
         .unwrap()
         .stresslets(l, x, p, &sigma)

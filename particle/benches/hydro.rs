@@ -18,6 +18,7 @@ use motile_particle::init::random_nonoverlapping;
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::slender::{SlenderBody, SlenderParams};
 use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::units::DEFAULT_DIAMETER;
 use motile_particle::{ContactParams, Mobility, Stepper};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -91,12 +92,15 @@ fn bench(c: &mut Criterion) {
             ))
         }),
         ("dipole_nu0.625_L50", 50.0, || {
-            Box::new(Dipole::new(Box::new(SpectralEwald::new(1e-4).unwrap())))
+            Box::new(Dipole::new(
+                Box::new(SpectralEwald::new(1e-4).unwrap()),
+                DEFAULT_DIAMETER,
+            ))
         }),
     ];
     for (name, l, make) in cases {
         let n = (0.625 * l * l * l) as usize;
-        let mut rods = random_nonoverlapping(n, l, 1, 1_000_000).unwrap();
+        let mut rods = random_nonoverlapping(n, l, DEFAULT_DIAMETER, 1, 1_000_000).unwrap();
         let mut warm = Stepper::new(make(), ContactParams::default());
         for _ in 0..3 {
             pool.install(|| warm.step(&mut rods, 0.002).unwrap());

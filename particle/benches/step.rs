@@ -5,11 +5,13 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use motile_particle::init::random_nonoverlapping;
+use motile_particle::units::DEFAULT_DIAMETER;
 use motile_particle::{ContactParams, LocalDrag, Stepper};
 use std::time::Duration;
 
 fn bench(c: &mut Criterion) {
-    let mut rods = random_nonoverlapping(78_125, 25.0, 1, 1_000_000).expect("nu = 5 at L = 25");
+    let mut rods = random_nonoverlapping(78_125, 25.0, DEFAULT_DIAMETER, 1, 1_000_000)
+        .expect("nu = 5 at L = 25");
     let mut warm = Stepper::new(Box::new(LocalDrag::default()), ContactParams::default());
     for _ in 0..20 {
         warm.step(&mut rods, 0.002).expect("relaxation step");

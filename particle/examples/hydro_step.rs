@@ -6,6 +6,7 @@ use motile_particle::dipole::Dipole;
 use motile_particle::init::random_nonoverlapping;
 use motile_particle::slender::{SlenderBody, SlenderParams};
 use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::units::DEFAULT_DIAMETER;
 use motile_particle::{ContactParams, Mobility, Stepper};
 use std::time::Instant;
 
@@ -31,10 +32,10 @@ fn main() {
         .build()
         .unwrap();
     pool.install(|| {
-        let mut rods = random_nonoverlapping(n, l, 1, 1_000_000).expect("initial configuration");
+        let mut rods = random_nonoverlapping(n, l, DEFAULT_DIAMETER, 1, 1_000_000).expect("initial configuration");
         let sum = Box::new(SpectralEwald::new(tol).unwrap());
         let mob: Box<dyn Mobility> = match model.as_str() {
-            "dipole" => Box::new(Dipole::new(sum)),
+            "dipole" => Box::new(Dipole::new(sum, DEFAULT_DIAMETER)),
             _ => Box::new(SlenderBody::new(SlenderParams::default(), sum)),
         };
         let mut s = Stepper::new(mob, ContactParams::default());

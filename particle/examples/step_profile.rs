@@ -3,6 +3,7 @@
 //! with the solver's iterations: `step_profile [--threads N] [--steps S] [--box L]`.
 
 use motile_particle::init::random_nonoverlapping;
+use motile_particle::units::DEFAULT_DIAMETER;
 use motile_particle::{ContactParams, LocalDrag, Stepper};
 use std::time::Instant;
 
@@ -25,7 +26,7 @@ fn main() {
         .unwrap();
     pool.install(|| {
         let t = Instant::now();
-        let mut rods = random_nonoverlapping(n, l, 1, 1_000_000).expect("initial configuration");
+        let mut rods = random_nonoverlapping(n, l, DEFAULT_DIAMETER, 1, 1_000_000).expect("initial configuration");
         println!("init: {n} rods at nu = 5, L/l = {l}: {:.2} s", t.elapsed().as_secs_f64());
         let mut s = Stepper::new(Box::new(LocalDrag::default()), ContactParams::default());
         let mut total = [0.0; 5];

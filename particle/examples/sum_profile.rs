@@ -7,6 +7,7 @@
 
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::units::DEFAULT_DIAMETER;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
@@ -76,7 +77,7 @@ fn main() {
     let (y, f) = if rods {
         // Swimming rods: centres, orientations, the isolated pusher's force density.
         let (s, w) = motile_particle::slender::half_rod_rule(4, 1.0);
-        let c = 1.0 / (2.0 * motile_particle::units::eta());
+        let c = 1.0 / (2.0 * motile_particle::units::eta(DEFAULT_DIAMETER));
         let mut y = Vec::new();
         let mut f = Vec::new();
         for _ in 0..n / 4 {

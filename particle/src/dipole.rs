@@ -21,15 +21,16 @@ use crate::units::{ROD_LENGTH, SWIM_SPEED, eta};
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// Stresslet strength of one rod, `U l^2/(8 eta)`.
-pub fn stresslet_strength() -> f64 {
-    SWIM_SPEED * ROD_LENGTH * ROD_LENGTH / (8.0 * eta())
+/// Stresslet strength of one rod of diameter `b`, `U l^2/(8 eta)`.
+pub fn stresslet_strength(diameter: f64) -> f64 {
+    SWIM_SPEED * ROD_LENGTH * ROD_LENGTH / (8.0 * eta(diameter))
 }
 
 /// The dipole mobility; owns the periodic sum.
 #[derive(Debug)]
 pub struct Dipole {
     sum: Box<dyn PeriodicStokes>,
+    diameter: f64,
     local: LocalDrag,
     report: HydroReport,
     s: Vec<f64>,
@@ -38,12 +39,13 @@ pub struct Dipole {
 }
 
 impl Dipole {
-    /// A dipole mobility on the given periodic sum.
-    pub fn new(sum: Box<dyn PeriodicStokes>) -> Self {
+    /// A dipole mobility for rods of diameter `b` on the given periodic sum.
+    pub fn new(sum: Box<dyn PeriodicStokes>, diameter: f64) -> Self {
         let (s, w) = crate::slender::half_rod_rule(4, ROD_LENGTH);
         Self {
             sum,
-            local: LocalDrag::default(),
+            diameter,
+            local: LocalDrag::new(diameter),
             report: HydroReport::default(),
             s,
             w,
@@ -57,13 +59,17 @@ impl Mobility for Dipole {
         "dipole"
     }
 
+    fn diameter(&self) -> f64 {
+        self.diameter
+    }
+
     fn free_velocities(
         &mut self,
         rods: &RodSet,
         p: &[Vec3],
         out: &mut RodVelocities,
     ) -> Result<(), MobilityError> {
-        let sigma = vec![stresslet_strength(); rods.len()];
+        let sigma = vec![stresslet_strength(self.diameter); rods.len()];
         let t = Instant::now();
         let field = self.sum.stresslets(rods.box_length, &rods.x, p, &sigma)?;
         self.report = HydroReport {
@@ -83,7 +89,7 @@ impl Mobility for Dipole {
                 let pdot = [0, 1, 2].map(|d| gp[d] - c * pn[d]);
                 *w = cross(*pn, pdot);
             });
-        let c = SWIM_SPEED / (2.0 * eta());
+        let c = SWIM_SPEED / (2.0 * eta(self.diameter));
         self.density = p
             .iter()
             .flat_map(|pn| self.s.iter().map(move |sj| pn.map(|v| c * sj.signum() * v)))

@@ -3,9 +3,10 @@
 //! its centerline stays at least `b` from every other), with a cell grid so each trial costs
 //! O(1).
 
+use crate::cells::CellList;
 use crate::geometry::{Vec3, axpy, min_image, quat_from_axis, segment_distance, sub};
 use crate::rods::RodSet;
-use crate::units::{DIAMETER, ROD_LENGTH};
+use crate::units::ROD_LENGTH;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
@@ -28,8 +29,13 @@ pub enum InitError {
         box_length: f64,
     },
     /// Box smaller than a rod plus its diameter.
-    #[error("box side L/l = {0} is too small: it must exceed l + b = 1.2 rod lengths")]
-    BoxTooSmall(f64),
+    #[error("box side L/l = {box_length} is too small: it must exceed l + b = {reach} rod lengths")]
+    BoxTooSmall {
+        /// Box side.
+        box_length: f64,
+        /// `l + b`.
+        reach: f64,
+    },
 }
 
 /// A unit vector uniform on the sphere.
@@ -40,15 +46,17 @@ pub fn isotropic_orientation<R: Rng>(rng: &mut R) -> Vec3 {
     [s * phi.cos(), s * phi.sin(), z]
 }
 
-/// `n` rods at uniform random positions with isotropic orientations and no overlap, by random
-/// sequential addition; fails after `max_trials` consecutive rejected trials for one rod.
+/// `n` rods of diameter `diameter` at uniform random positions with isotropic orientations and
+/// no overlap, by random sequential addition; fails after `max_trials` consecutive rejected
+/// trials for one rod.
 pub fn random_nonoverlapping(
     n: usize,
     box_length: f64,
+    diameter: f64,
     seed: u64,
     max_trials: usize,
 ) -> Result<RodSet, InitError> {
-    nonoverlapping_with(n, box_length, seed, max_trials, |_, rng| {
+    nonoverlapping_with(n, box_length, diameter, seed, max_trials, |_, rng| {
         isotropic_orientation(rng)
     })
 }
@@ -79,13 +87,14 @@ pub fn perturbed_orientation<R: Rng>(q: &[f64; 6], rng: &mut R) -> Vec3 {
 pub fn nonoverlapping_with(
     n: usize,
     box_length: f64,
+    diameter: f64,
     seed: u64,
     max_trials: usize,
     mut orientation: impl FnMut(&Vec3, &mut ChaCha8Rng) -> Vec3,
 ) -> Result<RodSet, InitError> {
-    let reach = ROD_LENGTH + DIAMETER;
+    let reach = ROD_LENGTH + diameter;
     if box_length <= reach {
-        return Err(InitError::BoxTooSmall(box_length));
+        return Err(InitError::BoxTooSmall { box_length, reach });
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nc = ((box_length / reach).floor() as usize).max(1);
@@ -122,7 +131,7 @@ pub fn nonoverlapping_with(
                             }
                             let (_, _, dist) =
                                 segment_distance(x, p, axpy(x, 1.0, d), ps[j], ROD_LENGTH);
-                            if dist < DIAMETER {
+                            if dist < diameter {
                                 ok = false;
                                 break 'search;
                             }
@@ -149,10 +158,33 @@ pub fn nonoverlapping_with(
     }
     Ok(RodSet {
         box_length,
+        diameter,
         q: ps.iter().map(|p| quat_from_axis(*p)).collect(),
         image: vec![[0; 3]; n],
         x: xs,
     })
+}
+
+/// Pairs of `rods` whose centerlines are closer than `b - tolerance` (they overlap by more than
+/// `tolerance`): `(i, j, distance)` with `i < j`, sorted by pair. A configuration a run may
+/// start from has none (its contact solver leaves overlaps up to its own residual).
+pub fn overlapping_pairs(rods: &RodSet, tolerance: f64) -> Vec<(u32, u32, f64)> {
+    let reach = ROD_LENGTH + rods.diameter;
+    let cells = CellList::build(&rods.x, rods.box_length, reach);
+    let p = rods.orientations();
+    let mut bad = cells.map_pairs(&rods.x, reach, |i, j, d| {
+        let (iu, ju) = (i as usize, j as usize);
+        let (_, _, dist) = segment_distance(
+            rods.x[iu],
+            p[iu],
+            axpy(rods.x[iu], 1.0, d),
+            p[ju],
+            ROD_LENGTH,
+        );
+        (dist < rods.diameter - tolerance).then_some((i.min(j), i.max(j), dist))
+    });
+    bad.sort_by_key(|b| (b.0, b.1));
+    bad
 }
 
 #[cfg(test)]
@@ -185,5 +217,54 @@ mod tests {
                 5.0 * se
             );
         }
+    }
+
+    /// The overlap test uses the rods' own diameter: two parallel rods 0.15 l apart overlap
+    /// as rods of diameter l/5 and do not as rods of diameter l/10; random sequential addition
+    /// with either diameter leaves no overlap of its own kind, and thinner rods pack closer.
+    #[test]
+    fn overlaps_and_placement_follow_the_rods_diameter() {
+        let pair = |b: f64| RodSet {
+            box_length: 5.0,
+            diameter: b,
+            x: vec![[1.0, 1.0, 1.0], [1.0, 1.15, 1.0]],
+            q: vec![quat_from_axis([1.0, 0.0, 0.0]); 2],
+            image: vec![[0; 3]; 2],
+        };
+        let thick = overlapping_pairs(&pair(0.2), 0.0);
+        assert_eq!(thick.len(), 1, "b = 0.2 at distance 0.15: {thick:?}");
+        assert!((thick[0].2 - 0.15).abs() < 1e-12, "{thick:?}");
+        assert!(
+            overlapping_pairs(&pair(0.2), 0.06).is_empty(),
+            "0.05 < 0.06 tolerated"
+        );
+        assert!(
+            overlapping_pairs(&pair(0.1), 0.0).is_empty(),
+            "b = 0.1 at 0.15 is apart"
+        );
+        // The closest centerlines among pairs nearer than 0.3 l.
+        let closest = |r: &RodSet| {
+            let mut probe = r.clone();
+            probe.diameter = 0.3;
+            overlapping_pairs(&probe, 0.0)
+                .iter()
+                .map(|o| o.2)
+                .fold(f64::INFINITY, f64::min)
+        };
+        let mut gaps = Vec::new();
+        for b in [0.05, 0.2] {
+            let r = random_nonoverlapping(1500, 7.0, b, 3, 100_000).unwrap();
+            assert_eq!(r.diameter, b);
+            assert!(overlapping_pairs(&r, 0.0).is_empty(), "b = {b}");
+            let gap = closest(&r);
+            assert!(gap >= b, "b = {b}: closest centerlines {gap}");
+            gaps.push(gap);
+        }
+        assert!(
+            gaps[0] < 0.2,
+            "thin rods (b = 0.05) come closer than 0.2 l: {gaps:?}"
+        );
+        let err = random_nonoverlapping(10, 1.1, 0.2, 3, 10).unwrap_err();
+        assert!(err.to_string().contains("l + b = 1.2"), "{err}");
     }
 }

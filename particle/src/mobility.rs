@@ -14,7 +14,7 @@
 
 use crate::geometry::{Vec3, axpy, dot, scale, sub};
 use crate::rods::RodSet;
-use crate::units::{ROD_LENGTH, SWIM_SPEED, eta};
+use crate::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -121,6 +121,9 @@ pub enum MobilityError {
 pub trait Mobility: Send + Sync + std::fmt::Debug {
     /// Name as in the config (`"none"`, `"dipole"`, `"sbt"`).
     fn name(&self) -> &'static str;
+    /// The rod diameter `b` its drag coefficients (`eta`) were built for: the stepper refuses
+    /// rods of another diameter.
+    fn diameter(&self) -> f64;
     /// Velocities without contact forces, written into `out`.
     fn free_velocities(
         &mut self,
@@ -192,22 +195,38 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
 /// Free swimming with local slender-body drag (`hydrodynamics = "none"`).
 #[derive(Clone, Debug)]
 pub struct LocalDrag {
+    diameter: f64,
     trans: f64,
     rot: f64,
 }
 
-impl Default for LocalDrag {
-    fn default() -> Self {
+impl LocalDrag {
+    /// Local drag of rods of diameter `b`: `(eta/l)(I + pp)`, `(12 eta/l^3)(I - pp)` with
+    /// `eta = ln(2l/b)/(4 pi mu)`.
+    pub fn new(diameter: f64) -> Self {
+        let e = eta(diameter);
         Self {
-            trans: eta() / ROD_LENGTH,
-            rot: 12.0 * eta() / ROD_LENGTH.powi(3),
+            diameter,
+            trans: e / ROD_LENGTH,
+            rot: 12.0 * e / ROD_LENGTH.powi(3),
         }
+    }
+}
+
+impl Default for LocalDrag {
+    /// Rods of the default diameter `l/5`.
+    fn default() -> Self {
+        Self::new(DEFAULT_DIAMETER)
     }
 }
 
 impl Mobility for LocalDrag {
     fn name(&self) -> &'static str {
         "none"
+    }
+
+    fn diameter(&self) -> f64 {
+        self.diameter
     }
 
     fn free_velocities(

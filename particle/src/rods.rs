@@ -4,17 +4,25 @@
 use crate::geometry::{Quat, Vec3, quat_axis};
 use serde::{Deserialize, Serialize};
 
-/// N rigid rods in a periodic cube.
+/// N rigid rods of one shape (length `l = 1`, diameter `b`) in a periodic cube.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RodSet {
     /// Box side L (rod lengths).
     pub box_length: f64,
+    /// Rod diameter `b` (rod lengths): contacts keep centerlines `b` apart; the mobilities take
+    /// their `eta` from the same `b` (check with [`crate::units::check_diameter`]).
+    #[serde(default = "default_diameter")]
+    pub diameter: f64,
     /// Centres in `[0, L)^3`.
     pub x: Vec<Vec3>,
     /// Unit quaternions; the orientation is `p = q z q*`.
     pub q: Vec<Quat>,
     /// Periodic images crossed since the start: unwrapped centre = `x + L * image`.
     pub image: Vec<[i64; 3]>,
+}
+
+fn default_diameter() -> f64 {
+    crate::units::DEFAULT_DIAMETER
 }
 
 impl RodSet {

@@ -29,7 +29,7 @@ use crate::mobility::{
 };
 use crate::periodic::{PeriodicStokes, RpyGeometry, SumError};
 use crate::rods::RodSet;
-use crate::units::{DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
+use crate::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, check_diameter, eta};
 use motile_analysis::params::{InvalidParameter, check_range};
 use motile_analysis::quadrature::gauss_legendre;
 use rayon::prelude::*;
@@ -38,9 +38,12 @@ use std::time::Instant;
 /// Settings of the slender-body model.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SlenderParams {
+    /// Rod diameter `b` (rod lengths), which sets `eta = ln(2l/b)/(4 pi mu)` in (P2)-(P4).
+    /// Default `l/5`.
+    pub diameter: f64,
     /// Quadrature nodes per rod, even (Gauss-Legendre on each half). Default 4.
     pub quadrature_points: usize,
-    /// RPY radius `a`. Default `(sqrt 3 / 2)(b / 2)`.
+    /// RPY radius `a`. Default `(sqrt 3 / 2)(b / 2)` ([`default_rpy_radius`]).
     pub rpy_radius: f64,
     /// GMRES settings (defaults: [`GmresParams::default`]).
     pub gmres: GmresParams,
@@ -48,9 +51,17 @@ pub struct SlenderParams {
 
 impl Default for SlenderParams {
     fn default() -> Self {
+        Self::for_diameter(DEFAULT_DIAMETER)
+    }
+}
+
+impl SlenderParams {
+    /// The defaults for rods of diameter `b`: the RPY radius follows `b`.
+    pub fn for_diameter(diameter: f64) -> Self {
         Self {
+            diameter,
             quadrature_points: 4,
-            rpy_radius: default_rpy_radius(),
+            rpy_radius: default_rpy_radius(diameter),
             gmres: GmresParams::default(),
         }
     }
@@ -60,6 +71,7 @@ impl SlenderParams {
     /// Check every field, GMRES's as `gmres.NAME` (the error names it, its value, the allowed
     /// range and the unit).
     pub fn validate(&self) -> Result<(), InvalidParameter> {
+        check_diameter(self.diameter)?;
         check_range("rpy_radius", self.rpy_radius, 0.0, 0.5, true, "rod lengths")?;
         let q = self.quadrature_points;
         if !(2..=64).contains(&q) || q % 2 == 1 {
@@ -72,9 +84,9 @@ impl SlenderParams {
     }
 }
 
-/// `a = (sqrt 3 / 2)(b / 2)`.
-pub fn default_rpy_radius() -> f64 {
-    3f64.sqrt() / 2.0 * DIAMETER / 2.0
+/// `a = (sqrt 3 / 2)(b / 2)` for rods of diameter `b`.
+pub fn default_rpy_radius(diameter: f64) -> f64 {
+    3f64.sqrt() / 2.0 * diameter / 2.0
 }
 
 /// Nodes and weights of Gauss-Legendre on each half of `[-l/2, l/2]`, `m` nodes in all.
@@ -122,6 +134,8 @@ struct P4<'a> {
     p: &'a [Vec3],
     s: &'a [f64],
     w: &'a [f64],
+    /// `eta` of the rods' diameter.
+    eta: f64,
     seconds: f64,
     /// The sums' accuracy, folded as they run.
     accuracy: HydroReport,
@@ -179,7 +193,7 @@ impl LinOp for P4<'_> {
         let u = self.flow(x)?;
         let m = self.s.len();
         let (s, w, p) = (self.s, self.w, self.p);
-        let e = eta();
+        let e = self.eta;
         let l = ROD_LENGTH;
         out.par_chunks_exact_mut(3 * m)
             .zip(x.par_chunks_exact(3 * m))
@@ -222,7 +236,7 @@ impl SlenderBody {
             warm_free: Vec::new(),
             density: Vec::new(),
             report: HydroReport::default(),
-            local: LocalDrag::default(),
+            local: LocalDrag::new(params.diameter),
             flow: Vec::new(),
             predicted_exactly: false,
         }
@@ -265,6 +279,7 @@ impl SlenderBody {
             p,
             s: &self.s,
             w: &self.w,
+            eta: eta(self.params.diameter),
             seconds: 0.0,
             accuracy: HydroReport::default(),
             cache: None,
@@ -306,7 +321,7 @@ impl SlenderBody {
     fn rhs(&self, p: &[Vec3], ft: Option<&[(Vec3, Vec3)]>) -> Vec<f64> {
         let m = self.s.len();
         let l = ROD_LENGTH;
-        let c = SWIM_SPEED / (2.0 * eta());
+        let c = SWIM_SPEED / (2.0 * eta(self.params.diameter));
         (0..p.len() * m * 3)
             .into_par_iter()
             .map(|k| {
@@ -373,6 +388,10 @@ impl SlenderBody {
 impl Mobility for SlenderBody {
     fn name(&self) -> &'static str {
         "sbt"
+    }
+
+    fn diameter(&self) -> f64 {
+        self.params.diameter
     }
 
     fn free_velocities(

@@ -19,7 +19,7 @@ use crate::geometry::{
 };
 use crate::mobility::{Mobility, RodVelocities};
 use crate::rods::RodSet;
-use crate::units::{DIAMETER, ROD_LENGTH};
+use crate::units::ROD_LENGTH;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -80,6 +80,18 @@ pub enum StepError {
     /// A velocity or position became NaN or infinite.
     #[error("rod {0} has a non-finite velocity or position")]
     NonFinite(usize),
+    /// The rods' diameter is not the one the mobility was built for.
+    #[error(
+        "the rods have diameter {rods} l but the {mobility_name} mobility was built for {mobility} l: build both from one diameter"
+    )]
+    DiameterMismatch {
+        /// The rods' diameter.
+        rods: f64,
+        /// The mobility's.
+        mobility: f64,
+        /// The mobility's name.
+        mobility_name: &'static str,
+    },
 }
 
 /// Advances a [`RodSet`]; owns the mobility, the contact solver and scratch memory only.
@@ -103,6 +115,10 @@ struct TranslationOnly<'a>(&'a dyn Mobility);
 impl Mobility for TranslationOnly<'_> {
     fn name(&self) -> &'static str {
         "translation-only"
+    }
+
+    fn diameter(&self) -> f64 {
+        self.0.diameter()
     }
 
     fn free_velocities(
@@ -143,7 +159,7 @@ fn true_overlap(
             let d = min_image(sub(rods.x[j], rods.x[i]), rods.box_length);
             let (_, _, dist) =
                 segment_distance(rods.x[i], p[i], axpy(rods.x[i], 1.0, d), p[j], ROD_LENGTH);
-            (DIAMETER - dist, (i.min(j) as u32, i.max(j) as u32))
+            (rods.diameter - dist, (i.min(j) as u32, i.max(j) as u32))
         })
         .reduce(
             || (0.0, (0, 0)),
@@ -157,20 +173,22 @@ fn true_overlap(
         )
 }
 
-/// The constraint between rods `i` and `j` (centres `x`, axes `p`; `d`: minimum-image vector
-/// from `x_i` to `x_j`), if their centerlines are closer than `b + margin`.
+/// The constraint between rods `i` and `j` of diameter `b` (centres `x`, axes `p`; `d`:
+/// minimum-image vector from `x_i` to `x_j`), if their centerlines are closer than
+/// `b + margin`.
 pub fn constraint(
     x: &[Vec3],
     p: &[Vec3],
     i: u32,
     j: u32,
     d: Vec3,
+    diameter: f64,
     margin: f64,
 ) -> Option<Constraint> {
     let (iu, ju) = (i as usize, j as usize);
     let xj = axpy(x[iu], 1.0, d);
     let (s, t, dist) = segment_distance(x[iu], p[iu], xj, p[ju], ROD_LENGTH);
-    let phi = dist - DIAMETER;
+    let phi = dist - diameter;
     if phi >= margin {
         return None;
     }
@@ -204,7 +222,7 @@ pub fn constraints(
         .iter()
         .filter_map(|&(i, j)| {
             let d = min_image(sub(rods.x[j as usize], rods.x[i as usize]), rods.box_length);
-            constraint(&rods.x, p, i, j, d, margin)
+            constraint(&rods.x, p, i, j, d, rods.diameter, margin)
         })
         .collect()
 }
@@ -264,10 +282,18 @@ impl Stepper {
     /// and forces are mapped back to the caller's numbering.
     pub fn step(&mut self, rods: &mut RodSet, dt: f64) -> Result<StepReport, StepError> {
         let n = rods.len();
+        let b = rods.diameter;
+        if b != self.mobility.diameter() {
+            return Err(StepError::DiameterMismatch {
+                rods: b,
+                mobility: self.mobility.diameter(),
+                mobility_name: self.mobility.name(),
+            });
+        }
         let mut seconds = [0.0; 5];
         let t0 = Instant::now();
         let p = rods.orientations();
-        let reach = ROD_LENGTH + DIAMETER + self.contact.margin;
+        let reach = ROD_LENGTH + b + self.contact.margin;
         let cells = CellList::build(&rods.x, rods.box_length, reach);
         let order = cells.order();
         let xs = gather(order, &rods.x);
@@ -276,7 +302,9 @@ impl Stepper {
         seconds[0] = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let margin = self.contact.margin;
-        let cons = sorted.map_pairs(&xs, reach, |i, j, d| constraint(&xs, &ps, i, j, d, margin));
+        let cons = sorted.map_pairs(&xs, reach, |i, j, d| {
+            constraint(&xs, &ps, i, j, d, b, margin)
+        });
         seconds[1] = t1.elapsed().as_secs_f64();
         let t2 = Instant::now();
         if self.velocities.v.len() != n {
@@ -409,7 +437,7 @@ impl Stepper {
                 .par_iter()
                 .filter_map(|c| {
                     let d = min_image(sub(xs[c.j as usize], xs[c.i as usize]), rods.box_length);
-                    constraint(&xs, &ps, c.i, c.j, d, self.contact.margin)
+                    constraint(&xs, &ps, c.i, c.j, d, b, self.contact.margin)
                 })
                 .collect();
             let zero = vec![[0.0; 3]; n];

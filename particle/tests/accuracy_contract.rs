@@ -15,6 +15,7 @@ use motile_particle::periodic::{PeriodicStokes, RpyGeometry, SumReport};
 use motile_particle::rpy_reference::EwaldReference;
 use motile_particle::slender::half_rod_rule;
 use motile_particle::spectral_ewald::{EwaldParams, SpectralEwald, SumOutput};
+use motile_particle::units::DEFAULT_DIAMETER;
 use motile_particle::units::eta;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -60,7 +61,7 @@ fn rods(n: usize, l: f64, touching: bool, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
 /// random forces.
 fn rod_points(x: &[Vec3], p: &[Vec3], swimming: bool, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
     let (s, w) = half_rod_rule(4, 1.0);
-    let c = 1.0 / (2.0 * eta());
+    let c = 1.0 / (2.0 * eta(DEFAULT_DIAMETER));
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut y, mut f) = (Vec::new(), Vec::new());
     for (xn, pn) in x.iter().zip(p) {

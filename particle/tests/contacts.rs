@@ -10,12 +10,13 @@ use motile_particle::init::random_nonoverlapping;
 use motile_particle::mobility::{LocalDrag, Mobility};
 use motile_particle::rods::RodSet;
 use motile_particle::step::{Stepper, constraints};
-use motile_particle::units::{DIAMETER, eta};
+use motile_particle::units::{DEFAULT_DIAMETER, eta};
 
 fn rods(box_length: f64, x: Vec<Vec3>, p: Vec<Vec3>) -> RodSet {
     let n = x.len();
     RodSet {
         box_length,
+        diameter: motile_particle::units::DEFAULT_DIAMETER,
         x,
         q: p.iter().map(|p| quat_from_axis(*p)).collect(),
         image: vec![[0; 3]; n],
@@ -57,25 +58,27 @@ fn isolated_rod_swims_u_t_along_p_without_rotation() {
     );
 }
 
-#[test]
-fn head_on_rods_stop_touching_with_the_propulsion_balancing_force() {
-    // Rods on the x axis swimming towards each other, tips 0.4 apart.
+/// Rods on the x axis swimming towards each other, tips 0.4 apart, come to rest touching:
+/// centerlines `b` apart, pushed apart by the propulsion-balancing force `U l / (2 eta(b))`.
+/// `b` is a run parameter: checked at the default `l/5` and at `l/10`.
+fn head_on_rods_come_to_rest_touching(b: f64) -> (f64, f64) {
     let gap = 0.4;
-    let half = 0.5 + (DIAMETER + gap) / 2.0;
+    let half = 0.5 + (b + gap) / 2.0;
     let mut r = rods(
         10.0,
         vec![[5.0 - half, 5.0, 5.0], [5.0 + half, 5.0, 5.0]],
         vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]],
     );
-    let mut s = stepper();
+    r.diameter = b;
+    let mut s = Stepper::new(Box::new(LocalDrag::new(b)), ContactParams::default());
     let dt = 0.005;
     for _ in 0..200 {
         s.step(&mut r, dt).unwrap();
     }
     let (_, _, dist) = segment_distance(r.x[0], r.p(0), r.x[1], r.p(1), 1.0);
     assert!(
-        (dist - DIAMETER).abs() < 1e-9,
-        "rods should touch: centerline distance {dist}, diameter {DIAMETER}"
+        (dist - b).abs() < 1e-9,
+        "rods should touch: centerline distance {dist}, diameter {b}"
     );
     let v = s.velocities();
     assert!(
@@ -84,10 +87,10 @@ fn head_on_rods_stop_touching_with_the_propulsion_balancing_force() {
         v.v
     );
     let f = s.contact_forces();
-    let lambda = 1.0 / (2.0 * eta());
+    let lambda = 1.0 / (2.0 * eta(b));
     assert!(
         (f[0][0] + lambda).abs() < 1e-7,
-        "contact force {:?}, expected -U l/(2 eta) = {:.6} along x",
+        "b = {b}: contact force {:?}, expected -U l/(2 eta) = {:.6} along x",
         f[0],
         -lambda
     );
@@ -96,7 +99,31 @@ fn head_on_rods_stop_touching_with_the_propulsion_balancing_force() {
         "forces not equal and opposite: {:?}",
         f
     );
+    (dist, lambda)
+}
+
+#[test]
+fn head_on_rods_stop_touching_with_the_propulsion_balancing_force() {
+    let (_, lambda) = head_on_rods_come_to_rest_touching(DEFAULT_DIAMETER);
     assert!((lambda - 2.7288).abs() < 1e-4);
+    // Thinner rods: ln(20)/(4 pi) = 0.238393, force 1/(2 eta) = 2.0974.
+    let (dist, lambda) = head_on_rods_come_to_rest_touching(0.1);
+    assert!(
+        (dist - 0.1).abs() < 1e-9 && (lambda - 2.0974).abs() < 1e-4,
+        "{dist} {lambda}"
+    );
+}
+
+#[test]
+fn a_stepper_refuses_rods_of_another_diameter() {
+    let mut r = rods(6.0, vec![[1.0, 1.0, 1.0]], vec![[1.0, 0.0, 0.0]]);
+    r.diameter = 0.1;
+    let e = stepper().step(&mut r, 0.01).unwrap_err();
+    assert!(
+        matches!(e, motile_particle::StepError::DiameterMismatch { .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("diameter 0.1"), "{e}");
 }
 
 #[test]
@@ -120,7 +147,7 @@ fn rods_meeting_at_an_angle_never_overlap() {
             let d = motile_particle::geometry::min_image(sub(r.x[1], r.x[0]), 12.0);
             let xb = [r.x[0][0] + d[0], r.x[0][1] + d[1], r.x[0][2] + d[2]];
             let (_, _, dist) = segment_distance(r.x[0], r.p(0), xb, r.p(1), 1.0);
-            min_sep = min_sep.min(dist - DIAMETER);
+            min_sep = min_sep.min(dist - DEFAULT_DIAMETER);
         }
         let tol = ContactParams::default().overlap_tolerance;
         assert!(
@@ -276,7 +303,7 @@ fn bbpgd_agrees_with_projected_gauss_seidel() {
 
 #[test]
 fn dense_suspension_never_overlaps_and_contact_forces_balance() {
-    let r0 = random_nonoverlapping(2560, 8.0, 7, 100_000).unwrap(); // nu = 5
+    let r0 = random_nonoverlapping(2560, 8.0, DEFAULT_DIAMETER, 7, 100_000).unwrap(); // nu = 5
     let mut r = r0.clone();
     let mut s = stepper();
     let mut worst: f64 = 0.0;
@@ -314,7 +341,7 @@ fn dense_suspension_never_overlaps_and_contact_forces_balance() {
 
 #[test]
 fn trajectories_are_bit_identical_for_one_and_two_threads() {
-    let r0 = random_nonoverlapping(1500, 7.0, 3, 100_000).unwrap();
+    let r0 = random_nonoverlapping(1500, 7.0, DEFAULT_DIAMETER, 3, 100_000).unwrap();
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -335,7 +362,7 @@ fn trajectories_are_bit_identical_for_one_and_two_threads() {
 
 #[test]
 fn initialiser_reports_unreachable_densities() {
-    let e = random_nonoverlapping(50_000, 6.0, 1, 2000)
+    let e = random_nonoverlapping(50_000, 6.0, DEFAULT_DIAMETER, 1, 2000)
         .unwrap_err()
         .to_string();
     assert!(
@@ -343,7 +370,7 @@ fn initialiser_reports_unreachable_densities() {
         "{e}"
     );
     assert!(
-        random_nonoverlapping(1, 1.0, 1, 10)
+        random_nonoverlapping(1, 1.0, DEFAULT_DIAMETER, 1, 10)
             .unwrap_err()
             .to_string()
             .contains("too small")
@@ -352,7 +379,7 @@ fn initialiser_reports_unreachable_densities() {
 
 #[test]
 fn iteration_cap_gives_a_structured_error() {
-    let r0 = random_nonoverlapping(2560, 8.0, 11, 100_000).unwrap();
+    let r0 = random_nonoverlapping(2560, 8.0, DEFAULT_DIAMETER, 11, 100_000).unwrap();
     let mut r = r0.clone();
     let mut s = stepper();
     for _ in 0..20 {
@@ -392,6 +419,10 @@ struct Turning {
 impl Mobility for Turning {
     fn name(&self) -> &'static str {
         "turning"
+    }
+
+    fn diameter(&self) -> f64 {
+        self.drag.diameter()
     }
 
     fn free_velocities(
@@ -439,7 +470,7 @@ fn nearly_parallel_rods_turning_into_each_other_are_projected_apart() {
     let a = omega * dt;
     let p0 = [a.cos(), a.sin(), 0.0];
     let (_, _, free_dist) = segment_distance(r.x[0], p0, r.x[1], p1, 1.0);
-    let free_overlap = DIAMETER - free_dist;
+    let free_overlap = DEFAULT_DIAMETER - free_dist;
     assert!(
         free_overlap > 2.0 * ContactParams::default().overlap_tolerance,
         "premise: free overlap {free_overlap:.3e}"
@@ -449,7 +480,7 @@ fn nearly_parallel_rods_turning_into_each_other_are_projected_apart() {
     let d = sub(r.x[1], r.x[0]);
     let (_, _, dist) =
         segment_distance(r.x[0], p[0], [0, 1, 2].map(|k| r.x[0][k] + d[k]), p[1], 1.0);
-    let overlap = DIAMETER - dist;
+    let overlap = DEFAULT_DIAMETER - dist;
     let turned = p[0][1].atan2(p[0][0]);
     eprintln!(
         "free overlap {free_overlap:.2e} l; projections {}, overlap after the step {overlap:.2e} l, rod 0 turned {turned:.4} (free {:.4})",

@@ -14,11 +14,13 @@ use motile_particle::mobility::{Mobility, RodVelocities};
 use motile_particle::rods::RodSet;
 use motile_particle::slender::{SlenderBody, SlenderParams};
 use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::units::DEFAULT_DIAMETER;
 
 fn rods(box_length: f64, x: Vec<Vec3>, p: Vec<Vec3>) -> RodSet {
     let n = x.len();
     RodSet {
         box_length,
+        diameter: motile_particle::units::DEFAULT_DIAMETER,
         x,
         q: p.iter().map(|p| quat_from_axis(*p)).collect(),
         image: vec![[0; 3]; n],
@@ -101,8 +103,9 @@ fn net_force_torque(mob: &SlenderBody, r: &RodSet) -> (f64, f64) {
 
 #[test]
 fn force_density_is_force_and_torque_free_and_stable_under_the_sum_tolerance() {
-    let r = random_nonoverlapping(625, 10.0, 5, 1000).unwrap();
-    let f0 = motile_particle::units::SWIM_SPEED / (2.0 * motile_particle::units::eta());
+    let r = random_nonoverlapping(625, 10.0, DEFAULT_DIAMETER, 5, 1000).unwrap();
+    let f0 =
+        motile_particle::units::SWIM_SPEED / (2.0 * motile_particle::units::eta(DEFAULT_DIAMETER));
     let mut reference = sbt(4, 1e-10, 1e-11);
     free(&mut reference, &r);
     let fref: Vec<Vec3> = reference.force_density().unwrap().f.to_vec();
@@ -142,7 +145,7 @@ fn force_density_is_force_and_torque_free_and_stable_under_the_sum_tolerance() {
 fn gmres_needs_fewer_than_twenty_iterations_at_nu_0625_and_5() {
     for (nu, l) in [(0.625, 12.0), (5.0, 8.0)] {
         let n = (nu * l * l * l) as usize;
-        let r = random_nonoverlapping(n, l, 9, 100_000).unwrap();
+        let r = random_nonoverlapping(n, l, DEFAULT_DIAMETER, 9, 100_000).unwrap();
         let mut mob = sbt(4, 1e-6, 1e-6);
         free(&mut mob, &r);
         let rep = mob.report();
@@ -185,7 +188,10 @@ fn two_distant_rods_approach_the_dipole_model_like_d_to_the_minus_four() {
         let x2 = [0, 1, 2].map(|k| c[k] + d * dir[k]);
         let r = rods(l, vec![c, x2], vec![p1, p2]);
         let vs = free(&mut sbt(8, 1e-10, 1e-12), &r);
-        let mut dip = Dipole::new(Box::new(SpectralEwald::new(1e-10).unwrap()));
+        let mut dip = Dipole::new(
+            Box::new(SpectralEwald::new(1e-10).unwrap()),
+            DEFAULT_DIAMETER,
+        );
         let vd = free(&mut dip, &r);
         let induced = norm(sub(vs.v[0], p1));
         let dv = norm(sub(vs.v[0], vd.v[0]));
@@ -218,7 +224,7 @@ fn two_distant_rods_approach_the_dipole_model_like_d_to_the_minus_four() {
 
 #[test]
 fn quadrature_convergence_in_m_for_a_dense_configuration() {
-    let r = random_nonoverlapping(625, 5.0, 13, 100_000).unwrap();
+    let r = random_nonoverlapping(625, 5.0, DEFAULT_DIAMETER, 13, 100_000).unwrap();
     let fine = free(&mut sbt(32, 1e-8, 1e-9), &r);
     let rel = |v: &[Vec3], w: &[Vec3]| {
         let num: f64 = v
@@ -263,7 +269,7 @@ fn quadrature_convergence_in_m_for_a_dense_configuration() {
 
 #[test]
 fn slender_body_velocities_are_bit_identical_for_one_and_two_threads() {
-    let r = random_nonoverlapping(500, 8.0, 17, 1000).unwrap();
+    let r = random_nonoverlapping(500, 8.0, DEFAULT_DIAMETER, 17, 1000).unwrap();
     let run = |t: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(t)

@@ -7,6 +7,7 @@
 use motile_experiments::particle_run::{ParticleRunConfig, resume_particle, run_particle};
 use motile_experiments::rundir::TimeSeries;
 use motile_experiments::snapshot::{Snapshot, read_snapshot};
+use motile_particle::units::DEFAULT_DIAMETER;
 
 fn small(model: &str) -> ParticleRunConfig {
     ParticleRunConfig {
@@ -158,7 +159,7 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
     let nu = (0.625f64 * 216.0).round() / 216.0;
     let c = &report.curves[0];
     for k in 0..t.len() {
-        let (tm, um) = particle_to_meanfield(t[k], u[k], nu);
+        let (tm, um) = particle_to_meanfield(t[k], u[k], nu, DEFAULT_DIAMETER);
         assert!(
             (c.t[k] - tm).abs() < 1e-12 && (c.u[k] - um).abs() < 1e-12,
             "row {k}"
@@ -193,7 +194,7 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
         .iter()
         .map(|tp| {
             let k = t.iter().position(|t| (t - tp).abs() < 1e-9).unwrap();
-            let um = particle_to_meanfield(t[k], u_all[k], nu).1;
+            let um = particle_to_meanfield(t[k], u_all[k], nu, DEFAULT_DIAMETER).1;
             um * um
         })
         .collect();

@@ -171,39 +171,92 @@ fn bad_configs_name_the_field_and_the_range() {
     }
 }
 
+/// The rod diameter is a run parameter: a run of thin rods (b = l/10) at nu = 5 records its
+/// diameter and the RPY radius that follows from it in config.toml, keeps its rods at least
+/// b apart (within the overlap tolerance) and closer than thicker rods could be, and the
+/// overlap check of an initial file uses the run's diameter.
+#[test]
+fn thin_rods_are_a_run_parameter() {
+    let dir = tempfile::tempdir().unwrap();
+    let thin = ParticleRunConfig {
+        diameter: 0.1,
+        hydrodynamics: motile_particle::Hydrodynamics::Sbt,
+        t_end: 0.1,
+        ..small()
+    };
+    let out = dir.path().join("thin");
+    let done = run_particle(&thin, &out, false).unwrap();
+    let text = std::fs::read_to_string(out.join("config.toml")).unwrap();
+    let written = parse_config(&text, &out.join("config.toml")).unwrap();
+    assert_eq!(written.diameter, 0.1, "{text}");
+    let a = written.hydro.rpy_radius.expect("resolved");
+    assert!(
+        (a - 3f64.sqrt() / 4.0 * 0.1).abs() < 1e-15,
+        "rpy_radius {a}"
+    );
+    assert_eq!(done.rods.diameter, 0.1);
+    let tol = thin.contact.overlap_tolerance;
+    assert!(
+        motile_particle::init::overlapping_pairs(&done.rods, tol).is_empty(),
+        "thin rods overlap by more than {tol}"
+    );
+    let mut probe = done.rods.clone();
+    probe.diameter = 0.2;
+    let close = motile_particle::init::overlapping_pairs(&probe, 0.0);
+    assert!(
+        !close.is_empty(),
+        "at nu = 5 some thin rods come closer than 0.2 l"
+    );
+    let f = dir.path().join("pair.txt");
+    std::fs::write(&f, "1 1 1 1 0 0\n1 1.15 1 1 0 0\n").unwrap();
+    assert!(load_configuration(&f, 8.0, 0.1, 5e-3).is_ok());
+    let e = load_configuration(&f, 8.0, 0.2, 5e-3)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("< diameter 0.2"), "{e}");
+}
+
 #[test]
 fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("rods.txt");
     std::fs::write(&f, "1 1 1 1 0 0\n1.0 1.1 1.0 1 0 0\n5 5 5 0 0 1\n").unwrap();
-    let e = load_configuration(&f, 8.0, 5e-3).unwrap_err().to_string();
+    let e = load_configuration(&f, 8.0, 0.2, 5e-3)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("rods 0 and 1 overlap") && e.contains("rods.txt"),
         "{e}"
     );
     std::fs::write(&f, "1 1 1 1 0 0\n2 2 2 0.5 0 0\n").unwrap();
-    let e = load_configuration(&f, 8.0, 5e-3).unwrap_err().to_string();
+    let e = load_configuration(&f, 8.0, 0.2, 5e-3)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("line 2") && e.contains("not a unit vector"),
         "{e}"
     );
     std::fs::write(&f, "1 1 1 1 0\n").unwrap();
-    let e = load_configuration(&f, 8.0, 5e-3).unwrap_err().to_string();
+    let e = load_configuration(&f, 8.0, 0.2, 5e-3)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("line 1") && e.contains("expected 6 finite numbers"),
         "{e}"
     );
     std::fs::write(&f, "1 1 1 1 0 0\n3 3 3 0 1 0\n").unwrap();
-    let rods = load_configuration(&f, 8.0, 5e-3).unwrap();
+    let rods = load_configuration(&f, 8.0, 0.2, 5e-3).unwrap();
     assert_eq!(rods.len(), 2);
     // Parallel rods one diameter apart are in contact, not overlapping; an overlap within the
     // tolerance (what a run's own steps leave) is accepted, one beyond it is not.
     for (gap, ok) in [(0.2, true), (0.2 - 4e-3, true), (0.2 - 6e-3, false)] {
         std::fs::write(&f, format!("1 1 1 1 0 0\n1 {} 1 1 0 0\n", 1.0 + gap)).unwrap();
-        let r = load_configuration(&f, 8.0, 5e-3);
+        let r = load_configuration(&f, 8.0, 0.2, 5e-3);
         assert_eq!(r.is_ok(), ok, "axes {gap} apart: {:?}", r.err());
     }
-    let e = load_configuration(&f, 8.0, 5e-3).unwrap_err().to_string();
+    let e = load_configuration(&f, 8.0, 0.2, 5e-3)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("more than contact.overlap_tolerance = 0.005"),
         "{e}"
@@ -220,7 +273,7 @@ fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
     )
     .unwrap();
     let snap = first.join("snapshots/snap_000000.h5");
-    let loaded = load_configuration(&snap, 99.0, 5e-3).unwrap();
+    let loaded = load_configuration(&snap, 99.0, 0.2, 5e-3).unwrap();
     assert_eq!(
         loaded.box_length, 6.0,
         "the snapshot's box wins over the config's"

@@ -13,7 +13,7 @@ use crate::rundir::TimeSeries;
 use anyhow::Context;
 use motile_analysis::stats::{GrowthFit, growth_phase};
 use motile_particle::Hydrodynamics;
-use motile_particle::units::{continuum_growth_rate, meanfield_time_unit, zeta};
+use motile_particle::units::{DEFAULT_DIAMETER, continuum_growth_rate, meanfield_time_unit, zeta};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -68,10 +68,10 @@ pub struct OnsetPoint {
     pub seconds: f64,
 }
 
-/// The continuum's growth rate (M3, `D = 0`) in particle units at volume fraction `nu`:
-/// `(1/5)/(1 + zeta/15) nu/(8 eta mu)`, `zeta = nu/(24 eta mu)`.
-pub fn continuum_rate(nu: f64) -> f64 {
-    continuum_growth_rate(zeta(nu)) / meanfield_time_unit(nu)
+/// The continuum's growth rate (M3, `D = 0`) in particle units at volume fraction `nu` for
+/// rods of diameter `b`: `(1/5)/(1 + zeta/15) nu/(8 eta mu)`, `zeta = nu/(24 eta mu)`.
+pub fn continuum_rate(nu: f64, diameter: f64) -> f64 {
+    continuum_growth_rate(zeta(nu, diameter)) / meanfield_time_unit(nu, diameter)
 }
 
 /// The growth rate of a box-scale norm series: its growth phase if it has one (the criterion of
@@ -188,7 +188,7 @@ fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow
         opts.hydrodynamics, opts.amplitude
     );
     for p in points {
-        let c = continuum_rate(p.nu) / p.nu;
+        let c = continuum_rate(p.nu, DEFAULT_DIAMETER) / p.nu;
         let (rate, err, r2, gf, t0, t1) = p.fit.as_ref().map_or(
             (f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN),
             |g| {
@@ -249,7 +249,7 @@ fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow
         });
     }
     for &nu in &opts.fractions {
-        let c = continuum_rate(nu) / nu;
+        let c = continuum_rate(nu, DEFAULT_DIAMETER) / nu;
         series.push(Series {
             label: format!("continuum (M3, D = 0), nu = {nu}"),
             points: vec![(x_lo, c), (x_hi, c)],
@@ -274,7 +274,7 @@ mod tests {
     #[test]
     fn continuum_rate_is_the_linear_theory_in_particle_units() {
         // nu = 0.625: zeta = 0.1421, gamma = 0.2/(1 + zeta/15) = 0.19812, times nu/(8 eta).
-        let r = continuum_rate(0.625);
+        let r = continuum_rate(0.625, DEFAULT_DIAMETER);
         assert!((r - 0.19812 * 0.625 / (8.0 * 0.183234)).abs() < 1e-4, "{r}");
     }
 

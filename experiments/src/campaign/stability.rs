@@ -38,7 +38,7 @@ pub fn classify(result: &anyhow::Result<()>) -> usize {
         Some(FailureKind::NonFinite) => 4,
         Some(FailureKind::Realizability) => 5,
         Some(FailureKind::FixedPoint) => 6,
-        None => 7,
+        Some(FailureKind::Setup) | None => 7,
     }
 }
 
@@ -314,6 +314,7 @@ mod tests {
             (FailureKind::NonFinite, 4),
             (FailureKind::Realizability, 5),
             (FailureKind::FixedPoint, 6),
+            (FailureKind::Setup, 7),
         ];
         for (kind, k) in kinds {
             let e: anyhow::Error = RunFailure {

@@ -163,7 +163,7 @@ pub fn audit(run_dir: &Path, snapshot: Option<usize>, targets: usize) -> anyhow:
     let mut fast = SpectralEwald::new(tol)?;
     match cfg.hydrodynamics {
         Hydrodynamics::Sbt => audit_sbt(&cfg, path, &snap, targets, &mut fast),
-        Hydrodynamics::Dipole => audit_dipole(path, &snap, targets, &mut fast),
+        Hydrodynamics::Dipole => audit_dipole(path, &snap, cfg.diameter, targets, &mut fast),
         Hydrodynamics::None => unreachable!("refused above: no flow, no sums"),
     }
     .map(|mut a| {
@@ -200,7 +200,7 @@ fn audit_sbt(
     let l = snap.box_length;
     let geo = RpyGeometry {
         box_length: l,
-        radius: cfg.hydro.rpy_radius,
+        radius: cfg.hydro.slender(cfg.diameter).rpy_radius,
         group: m,
     };
     let t = Instant::now();
@@ -277,13 +277,14 @@ fn audit_sbt(
 fn audit_dipole(
     path: PathBuf,
     snap: &ParticleSnapshot,
+    diameter: f64,
     targets: usize,
     fast: &mut SpectralEwald,
 ) -> anyhow::Result<Audit> {
     let (x, p) = (&snap.positions, &snap.orientations);
     let n = x.len();
     let l = snap.box_length;
-    let sigma = vec![stresslet_strength(); n];
+    let sigma = vec![stresslet_strength(diameter); n];
     let t = Instant::now();
     let field = fast.stresslets(l, x, p, &sigma)?;
     let t_fast = t.elapsed().as_secs_f64();

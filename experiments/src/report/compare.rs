@@ -17,7 +17,7 @@ use crate::snapshot::Snapshot;
 use anyhow::{Context, bail};
 use motile_analysis::correlation::velocity_spectrum;
 use motile_analysis::stats::{GrowthFit, correlation_length, growth_phase, window_average};
-use motile_particle::units::{VISCOSITY, continuum_growth_rate};
+use motile_particle::units::{DEFAULT_DIAMETER, VISCOSITY, continuum_growth_rate};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -88,9 +88,9 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
             let (t, u) = t
                 .iter()
                 .zip(&u)
-                .map(|(t, u)| particle_to_meanfield(*t, *u, nu))
+                .map(|(t, u)| particle_to_meanfield(*t, *u, nu, cfg.diameter))
                 .unzip();
-            let zeta = motile_particle::units::zeta(nu);
+            let zeta = motile_particle::units::zeta(nu, cfg.diameter);
             Ok(NormCurve {
                 label: format!(
                     "particle L/l = {l}, nu = {nu:.3} ({}{})",
@@ -199,9 +199,8 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
     };
     let report = analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
     let slice = match snaps.last() {
-        Some(last) => {
-            velocity_slice(last).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?
-        }
+        Some(last) => velocity_slice(last, pcfg.as_ref().map_or(DEFAULT_DIAMETER, |c| c.diameter))
+            .map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?,
         None => None,
     };
     let traj = (report.kind == "particle").then(|| TrajectoryCurve {
@@ -231,7 +230,7 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
             .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
         let nu = n as f64 / (l * l * l);
         particle = Some((l, nu));
-        let s = motile_particle::units::meanfield_time_unit(nu);
+        let s = motile_particle::units::meanfield_time_unit(nu, cfg.diameter);
         (1.0 / l, s * s)
     } else {
         (1.0, 1.0)
@@ -297,8 +296,10 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
 /// `(n, values)` with `values[y n + x]`. Particle runs: the velocity field of the snapshot's
 /// force density on `min(2 L/l, 64)` modes per side (docs/MODEL.md §6, doublet neglected); mean-field
 /// runs: the snapshot's grid. `None` if the snapshot has no flow.
+/// `diameter`: the particle run's rod diameter, which sets the time unit of the conversion.
 pub fn velocity_slice(
     snap: &Snapshot,
+    diameter: f64,
 ) -> Result<Option<(usize, Vec<f64>, f64)>, motile_analysis::nufft::NufftError> {
     let (n, grid, time): (usize, [Vec<f64>; 3], f64) = match snap {
         Snapshot::Particle(p) => {
@@ -310,9 +311,9 @@ pub fn velocity_slice(
             let modes = ((2.0 * l) as usize).clamp(8, 64) & !1;
             let spec = velocity_spectrum(&f.points, &f.forces, l, VISCOSITY, modes, 1e-6)?;
             // u / (beta L) to mean-field units.
-            let s = motile_particle::units::meanfield_time_unit(nu) / l;
+            let s = motile_particle::units::meanfield_time_unit(nu, diameter) / l;
             let g = [0, 1, 2].map(|c| spec.to_grid(c).into_iter().map(|v| v * s).collect());
-            (modes, g, particle_to_meanfield(p.time, 0.0, nu).0)
+            (modes, g, particle_to_meanfield(p.time, 0.0, nu, diameter).0)
         }
         Snapshot::Field(f) => (f.grid, f.u.clone(), f.time),
     };
@@ -687,7 +688,7 @@ mod tests {
     fn conversions_are_the_model_ones() {
         // nu = 0.625: 8 eta / nu = 2.3454...
         let s = 8.0 * 0.183_233_6 / 0.625;
-        let (t, u) = particle_to_meanfield(10.0, 0.01, 0.625);
+        let (t, u) = particle_to_meanfield(10.0, 0.01, 0.625, DEFAULT_DIAMETER);
         assert!(
             (t - 10.0 / s).abs() < 1e-5 && (u - 0.01 * s).abs() < 1e-7,
             "{t} {u}"

@@ -21,6 +21,9 @@ pub enum FailureKind {
     Realizability,
     /// Mean field: the Stokes fixed point did not converge.
     FixedPoint,
+    /// The step was given inconsistent inputs (rods and mobility of different diameters): a
+    /// setup error, not a numerical failure.
+    Setup,
 }
 
 impl From<&StepError> for FailureKind {
@@ -32,6 +35,7 @@ impl From<&StepError> for FailureKind {
                 Self::Hydrodynamics
             }
             StepError::NonFinite(_) => Self::NonFinite,
+            StepError::DiameterMismatch { .. } => Self::Setup,
         }
     }
 }

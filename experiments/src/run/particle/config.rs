@@ -4,7 +4,7 @@
 use crate::rundir::{parse_run_config, range};
 use motile_particle::dipole::Dipole;
 use motile_particle::gmres::GmresParams;
-use motile_particle::slender::{SlenderBody, SlenderParams};
+use motile_particle::slender::{SlenderBody, SlenderParams, default_rpy_radius};
 use motile_particle::spectral_ewald::SpectralEwald;
 use motile_particle::{ContactParams, Hydrodynamics, LocalDrag, Mobility};
 use serde::{Deserialize, Serialize};
@@ -29,6 +29,10 @@ pub struct ParticleRunConfig {
     pub t_end: f64,
     /// Random seed of the initial configuration. Default 1.
     pub seed: u64,
+    /// Rod diameter b (rod lengths). Default 0.2 (the source paper's l/5); allowed (0, 0.5].
+    /// Sets the contact distance and the slender-body coefficient eta = ln(2l/b)/(4 pi mu), so
+    /// also zeta = nu/(24 eta) and the time unit of the comparison with the mean-field model.
+    pub diameter: f64,
     /// Hydrodynamic coupling: "none" (free swimming with local drag, no flow), "dipole" (point
     /// stresslets moved by the periodic flow, docs/MODEL.md §2: one fast sum per step) or "sbt"
     /// (slender-body theory, docs/MODEL.md §1: a GMRES solve per step, several fast sums each).
@@ -69,6 +73,7 @@ impl Default for ParticleRunConfig {
             dt: 0.002,
             t_end: 2.0,
             seed: 1,
+            diameter: motile_particle::units::DEFAULT_DIAMETER,
             hydrodynamics: Hydrodynamics::None,
             hydro: HydroConfig::default(),
             initial: "random".into(),
@@ -186,8 +191,9 @@ pub struct HydroConfig {
     pub gmres_max_iterations: usize,
     /// GMRES restart length. Default 40; allowed [1, 1000].
     pub gmres_restart: usize,
-    /// RPY radius a (rod lengths). Default (sqrt 3/2)(b/2) = 0.0866; allowed (0, 0.5].
-    pub rpy_radius: f64,
+    /// RPY radius a (rod lengths). Default (sqrt 3/2)(b/2) of the run's diameter b (0.0866 at
+    /// b = 0.2), filled in when the config is read; allowed (0, 0.5].
+    pub rpy_radius: Option<f64>,
 }
 
 impl Default for HydroConfig {
@@ -200,17 +206,20 @@ impl Default for HydroConfig {
             gmres_tolerance: s.gmres.tol,
             gmres_max_iterations: s.gmres.max_iterations,
             gmres_restart: s.gmres.restart,
-            rpy_radius: s.rpy_radius,
+            rpy_radius: None,
         }
     }
 }
 
 impl HydroConfig {
-    /// The slender-body model's settings.
-    pub fn slender(&self) -> SlenderParams {
+    /// The slender-body model's settings for rods of diameter `diameter`.
+    pub fn slender(&self, diameter: f64) -> SlenderParams {
         SlenderParams {
+            diameter,
             quadrature_points: self.quadrature_points,
-            rpy_radius: self.rpy_radius,
+            rpy_radius: self
+                .rpy_radius
+                .unwrap_or_else(|| default_rpy_radius(diameter)),
             gmres: GmresParams {
                 tol: self.gmres_tolerance,
                 restart: self.gmres_restart,
@@ -219,7 +228,7 @@ impl HydroConfig {
         }
     }
 
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self, diameter: f64) -> Result<(), String> {
         range(
             "hydro.sum_tolerance",
             self.sum_tolerance,
@@ -229,7 +238,7 @@ impl HydroConfig {
             "relative",
         )?;
         // The slender-body model's own checks, under this table's key names.
-        self.slender().validate().map_err(|e| {
+        self.slender(diameter).validate().map_err(|e| {
             let key = match e.name.as_str() {
                 "gmres.tol" => "gmres_tolerance".to_string(),
                 "gmres.restart" => "gmres_restart".to_string(),
@@ -243,6 +252,14 @@ impl HydroConfig {
 }
 
 impl ParticleRunConfig {
+    /// The config with every default that depends on another key filled in (the RPY radius
+    /// from the diameter), as `config.toml` records it.
+    pub fn resolved(&self) -> Self {
+        let mut cfg = self.clone();
+        cfg.hydro.rpy_radius = Some(cfg.hydro.slender(cfg.diameter).rpy_radius);
+        cfg
+    }
+
     /// Make a relative `initial` file name relative to `base` (the folder of the config file
     /// it came from) instead of the working directory.
     pub fn resolve_paths(&mut self, base: &Path) {
@@ -276,6 +293,7 @@ impl ParticleRunConfig {
             "N l^3 / L^3",
         )?;
         range("dt", self.dt, 0.0, 0.05, true, "1/beta")?;
+        motile_particle::units::check_diameter(self.diameter).map_err(|e| e.to_string())?;
         self.perturbation.validate()?;
         range("t_end", self.t_end, 0.0, 1e9, true, "1/beta")?;
         for (name, v) in [
@@ -304,7 +322,7 @@ impl ParticleRunConfig {
         self.contact
             .validate()
             .map_err(|e| e.in_table("contact").to_string())?;
-        self.hydro.validate()?;
+        self.hydro.validate(self.diameter)?;
         if let Some(n) = self.rods {
             let nu = n as f64 / self.box_length.powi(3);
             if n == 0 || nu > 6.0 {
@@ -338,7 +356,7 @@ impl ParticleRunConfig {
 
 /// Parse a `config.toml` (with or without the `[motile]` header table).
 pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig> {
-    parse_run_config(text, path, ParticleRunConfig::validate)
+    parse_run_config(text, path, ParticleRunConfig::validate).map(|c| c.resolved())
 }
 
 /// The mobility named by `hydrodynamics` (validated).
@@ -346,8 +364,8 @@ pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobili
     let h = &cfg.hydro;
     let sum = || SpectralEwald::new(h.sum_tolerance).map(Box::new);
     Ok(match cfg.hydrodynamics {
-        Hydrodynamics::Dipole => Box::new(Dipole::new(sum()?)),
-        Hydrodynamics::Sbt => Box::new(SlenderBody::new(h.slender(), sum()?)),
-        Hydrodynamics::None => Box::new(LocalDrag::default()),
+        Hydrodynamics::Dipole => Box::new(Dipole::new(sum()?, cfg.diameter)),
+        Hydrodynamics::Sbt => Box::new(SlenderBody::new(h.slender(cfg.diameter), sum()?)),
+        Hydrodynamics::None => Box::new(LocalDrag::new(cfg.diameter)),
     })
 }

@@ -18,7 +18,7 @@ use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
 use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
 use motile_particle::contact::WarmStart;
-use motile_particle::units::{DIAMETER, ROD_LENGTH, SWIM_SPEED, VISCOSITY};
+use motile_particle::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
 use motile_particle::{RodSet, Stepper};
 use std::path::Path;
 use std::time::Instant;
@@ -65,7 +65,7 @@ pub fn run_particle(
     out: &Path,
     progress: bool,
 ) -> anyhow::Result<RunSummary> {
-    let (model, s) = run::start::<ParticleModel>(cfg, out, progress)?;
+    let (model, s) = run::start::<ParticleModel>(&cfg.resolved(), out, progress)?;
     Ok(model.summary(&s))
 }
 
@@ -190,8 +190,8 @@ impl run::RunModel for ParticleModel {
 
     type Checkpoint = ParticleCheckpoint;
 
-    fn read_checkpoint(_cfg: &ParticleRunConfig, path: &Path) -> anyhow::Result<Self::Checkpoint> {
-        ParticleCheckpoint::read(path)
+    fn read_checkpoint(cfg: &ParticleRunConfig, path: &Path) -> anyhow::Result<Self::Checkpoint> {
+        ParticleCheckpoint::read(path, cfg.diameter)
     }
 
     fn from_checkpoint(
@@ -443,7 +443,7 @@ fn write_snapshot(
             &rods.x,
             &p,
             ROD_LENGTH,
-            DIAMETER / 2.0,
+            rods.diameter / 2.0,
             &speed,
         )?;
         pvd.retain(|(_, f)| *f != name);

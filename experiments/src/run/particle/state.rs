@@ -8,21 +8,23 @@ use crate::snapshot::{Snapshot, read_snapshot};
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_meanfield::initial::PerturbationField;
-use motile_particle::cells::CellList;
 use motile_particle::contact::WarmStart;
-use motile_particle::geometry::{axpy, quat_from_axis, segment_distance};
-use motile_particle::init::{nonoverlapping_with, perturbed_orientation, random_nonoverlapping};
-use motile_particle::units::{DIAMETER, ROD_LENGTH};
+use motile_particle::geometry::quat_from_axis;
+use motile_particle::init::{
+    nonoverlapping_with, overlapping_pairs, perturbed_orientation, random_nonoverlapping,
+};
 use motile_particle::{RodSet, Stepper};
 use std::path::Path;
 
-/// Load an initial configuration from a snapshot (.h5) or a text table, validated: unit
-/// orientations, and no two rods overlapping by more than `overlap_tolerance` (rod lengths;
+/// Load an initial configuration of rods of diameter `diameter` from a snapshot (.h5) or a
+/// text table, validated: unit orientations, and no two rods overlapping by more than
+/// `overlap_tolerance` (rod lengths;
 /// a run's own snapshots carry overlaps up to `contact.overlap_tolerance`, and rods at exactly
 /// one diameter are in contact, not overlapping).
 pub fn load_configuration(
     path: &Path,
     box_length: f64,
+    diameter: f64,
     overlap_tolerance: f64,
 ) -> anyhow::Result<RodSet> {
     let (x, p, l): (Vec<[f64; 3]>, Vec<[f64; 3]>, f64) = if path
@@ -96,29 +98,18 @@ pub fn load_configuration(
         .collect();
     let rods = RodSet {
         box_length: l,
+        diameter,
         q: p.iter().map(|p| quat_from_axis(*p)).collect(),
         image: vec![[0; 3]; x.len()],
         x: wrapped,
     };
     // No two rods may overlap.
-    let reach = ROD_LENGTH + DIAMETER;
-    let cells = CellList::build(&rods.x, l, reach);
-    let po = rods.orientations();
-    let bad = cells.map_pairs(&rods.x, reach, |i, j, d| {
-        let (_, _, dist) = segment_distance(
-            rods.x[i as usize],
-            po[i as usize],
-            axpy(rods.x[i as usize], 1.0, d),
-            po[j as usize],
-            ROD_LENGTH,
-        );
-        (dist < DIAMETER - overlap_tolerance).then_some((i.min(j), i.max(j), dist))
-    });
-    if let Some((i, j, dist)) = bad.iter().min_by_key(|b| (b.0, b.1)) {
+    let bad = overlapping_pairs(&rods, overlap_tolerance);
+    if let Some(&(i, j, dist)) = bad.first() {
         bail!(
-            "{}: rods {i} and {j} overlap by {:.2e} (centerline distance {dist:.4} < diameter {DIAMETER}), more than contact.overlap_tolerance = {overlap_tolerance}; {} such pairs in all",
+            "{}: rods {i} and {j} overlap by {:.2e} (centerline distance {dist:.4} < diameter {diameter}), more than contact.overlap_tolerance = {overlap_tolerance}; {} such pairs in all",
             path.display(),
-            DIAMETER - dist,
+            diameter - dist,
             bad.len()
         );
     }
@@ -169,9 +160,9 @@ impl ParticleCheckpoint {
     }
 
     /// Read one written by [`ParticleCheckpoint::write`] (or by earlier versions: datasets
-    /// added since are optional).
-    pub fn read(path: &Path) -> anyhow::Result<Self> {
-        read_checkpoint(path)
+    /// added since are optional), for rods of diameter `diameter` (the run's config keeps it).
+    pub fn read(path: &Path, diameter: f64) -> anyhow::Result<Self> {
+        read_checkpoint(path, diameter)
     }
 }
 
@@ -230,7 +221,7 @@ fn write_checkpoint(
     checkpoint::write_verified(path, &bytes)
 }
 
-fn read_checkpoint(path: &Path) -> anyhow::Result<ParticleCheckpoint> {
+fn read_checkpoint(path: &Path, diameter: f64) -> anyhow::Result<ParticleCheckpoint> {
     let f = checkpoint::H5Reader::open(path)?;
     let step = f.attr_u64("step")?;
     let time = f.attr_f64("time")?;
@@ -248,6 +239,7 @@ fn read_checkpoint(path: &Path) -> anyhow::Result<ParticleCheckpoint> {
     }
     let rods = RodSet {
         box_length,
+        diameter,
         x: x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         q: q.chunks_exact(4)
             .map(|c| [c[0], c[1], c[2], c[3]])
@@ -305,19 +297,31 @@ pub fn initial_rods(cfg: &ParticleRunConfig) -> anyhow::Result<RodSet> {
             );
         }
         let l = cfg.box_length;
-        return Ok(nonoverlapping_with(n, l, cfg.seed, 200_000, |x, rng| {
-            perturbed_orientation(&field.eval(x.map(|c| c / l)), rng)
-        })?);
+        return Ok(nonoverlapping_with(
+            n,
+            l,
+            cfg.diameter,
+            cfg.seed,
+            200_000,
+            |x, rng| perturbed_orientation(&field.eval(x.map(|c| c / l)), rng),
+        )?);
     }
     if cfg.initial == "random" {
         let n = cfg
             .rods
             .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
-        Ok(random_nonoverlapping(n, cfg.box_length, cfg.seed, 200_000)?)
+        Ok(random_nonoverlapping(
+            n,
+            cfg.box_length,
+            cfg.diameter,
+            cfg.seed,
+            200_000,
+        )?)
     } else {
         load_configuration(
             Path::new(&cfg.initial),
             cfg.box_length,
+            cfg.diameter,
             cfg.contact.overlap_tolerance,
         )
     }
