@@ -194,7 +194,7 @@ pub fn particle_coefficients(
 pub const SYM_PAIRS: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
 
 /// Index of the `k = 0` mode in a cube of `modes^3`.
-pub fn zero_mode(modes: usize) -> usize {
+pub(crate) fn zero_mode(modes: usize) -> usize {
     let c = modes / 2;
     (c * modes + c) * modes + c
 }

@@ -29,7 +29,7 @@ use crate::quadrature::gauss_legendre;
 use std::f64::consts::PI;
 
 /// Widest kernel supported (tolerance 1e-15).
-pub const MAX_WIDTH: usize = 16;
+pub(crate) const MAX_WIDTH: usize = 16;
 
 /// `ceil(y)` as an integer without a libm call (baseline x86-64 has no rounding instruction).
 #[inline(always)]
@@ -66,7 +66,7 @@ pub(crate) use with_kernel_width;
 
 /// The kernel function on `[-1, 1]`.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Shape {
+pub(crate) enum Shape {
     /// `psi_0(c; z) / psi_0(c; 0)` from its normalised-Legendre coefficients (even degrees
     /// `0, 2, 4, ...`).
     Prolate {
@@ -75,7 +75,8 @@ pub enum Shape {
         /// Coefficients of `sqrt(2k + 1/2) P_{2k}(z)`, scaled so that `phi(0) = 1`.
         legendre: Vec<f64>,
     },
-    /// `exp(beta (sqrt(1 - z^2) - 1))`.
+    /// `exp(beta (sqrt(1 - z^2) - 1))`: only the tests' comparison constructs it.
+    #[cfg_attr(not(test), allow(dead_code))]
     ExponentialSemicircle {
         /// Shape parameter.
         beta: f64,
@@ -84,7 +85,7 @@ pub enum Shape {
 
 /// A spreading kernel of a given width, with its piecewise-polynomial evaluation table.
 #[derive(Clone, Debug)]
-pub struct SpreadKernel {
+pub(crate) struct SpreadKernel {
     /// Width in fine-grid points.
     pub width: usize,
     /// The function.
@@ -97,7 +98,7 @@ pub struct SpreadKernel {
 
 /// Width of the prolate kernel for relative tolerance `tol` at upsampling 2 in three
 /// dimensions: `ceil(ln(0.353 / tol) / (pi sqrt(1/2)) + 1)`, clamped to `2..=MAX_WIDTH`.
-pub fn prolate_width(tol: f64) -> usize {
+pub(crate) fn prolate_width(tol: f64) -> usize {
     let rate = PI * (0.5f64).sqrt();
     (((0.353 / tol).ln() / rate + 1.0).ceil() as usize).clamp(2, MAX_WIDTH)
 }
@@ -207,7 +208,7 @@ fn legendre_even_sum(a: &[f64], z: f64) -> f64 {
 impl SpreadKernel {
     /// The prolate kernel for a requested relative tolerance (upsampling factor 2), width from
     /// [`prolate_width`].
-    pub fn for_tolerance(tol: f64) -> Self {
+    pub(crate) fn for_tolerance(tol: f64) -> Self {
         let width = prolate_width(tol);
         let c = PI * width as f64 * 0.75 - 0.1;
         Self::new(
@@ -221,7 +222,8 @@ impl SpreadKernel {
 
     /// The exponential-of-semicircle kernel with FINUFFT's parameters to 2025 (width
     /// `ceil(log10(1/tol)) + 1`, `beta = 2.30 w`, small-width tweaks): the comparison.
-    pub fn exponential_semicircle(tol: f64) -> Self {
+    #[cfg(test)]
+    pub(crate) fn exponential_semicircle(tol: f64) -> Self {
         let width = ((1.0 / tol).log10().ceil() as usize + 1).clamp(2, MAX_WIDTH);
         let beta_over_w = match width {
             2 => 2.20,
@@ -238,7 +240,7 @@ impl SpreadKernel {
     }
 
     /// Kernel with explicit width and shape.
-    pub fn new(width: usize, shape: Shape) -> Self {
+    pub(crate) fn new(width: usize, shape: Shape) -> Self {
         assert!(
             (2..=MAX_WIDTH).contains(&width),
             "kernel width {width} outside 2..=16"
@@ -255,7 +257,7 @@ impl SpreadKernel {
     }
 
     /// `phi(z)`, evaluated directly.
-    pub fn phi(&self, z: f64) -> f64 {
+    pub(crate) fn phi(&self, z: f64) -> f64 {
         // The edge value is the limit from inside (a point exactly at the support's edge gets
         // the value the fitted polynomial gives it).
         if z.abs() > 1.0 {
@@ -269,7 +271,8 @@ impl SpreadKernel {
 
     /// Kernel values at the `w` grid points a point at fine-grid coordinate `g` touches, the
     /// leftmost being `ceil(g - w/2)` (returned). Slow twin of [`Self::eval`].
-    pub fn eval_exact(&self, g: f64, out: &mut [f64]) -> i64 {
+    #[cfg(test)]
+    pub(crate) fn eval_exact(&self, g: f64, out: &mut [f64]) -> i64 {
         let half = self.width as f64 / 2.0;
         let i0 = (g - half).ceil();
         for (j, o) in out.iter_mut().enumerate().take(self.width) {
@@ -281,14 +284,14 @@ impl SpreadKernel {
     /// Kernel values at the `w` grid points touched from fine-grid coordinate `g`; returns the
     /// leftmost index `ceil(g - w/2)`. Horner's rule on the fitted polynomials.
     #[inline(always)]
-    pub fn eval(&self, g: f64, out: &mut [f64; MAX_WIDTH]) -> i64 {
+    pub(crate) fn eval(&self, g: f64, out: &mut [f64; MAX_WIDTH]) -> i64 {
         crate::kernel::with_kernel_width!(self.width, self.eval_w(g, out))
     }
 
     /// [`Self::eval`] with the width as a compile-time constant (must equal `self.width`), so
     /// the loops unroll; the spreading loops call this directly.
     #[inline(always)]
-    pub fn eval_w<const W: usize>(&self, g: f64, out: &mut [f64; MAX_WIDTH]) -> i64 {
+    pub(crate) fn eval_w<const W: usize>(&self, g: f64, out: &mut [f64; MAX_WIDTH]) -> i64 {
         debug_assert_eq!(W, self.width);
         let y = g - W as f64 / 2.0;
         let i0 = ceil_i64(y);
@@ -310,7 +313,7 @@ impl SpreadKernel {
 
     /// `(w/2) * integral_{-1}^{1} phi(z) cos(alpha z) dz`: the kernel's Fourier transform in
     /// fine-grid units, for `alpha = k * (2 pi / nf) * (w / 2)`.
-    pub fn fourier_transform(&self, k: &[f64], nf: usize) -> Vec<f64> {
+    pub(crate) fn fourier_transform(&self, k: &[f64], nf: usize) -> Vec<f64> {
         let (z, wq) = gauss_legendre(2 * self.width + 200);
         let half = self.width as f64 / 2.0;
         let phi: Vec<f64> = z.iter().map(|&z| self.phi(z)).collect();

@@ -5,10 +5,11 @@
 //! Everything here is pure computation: functions take data and return data. Parallel work runs
 //! on the caller's rayon pool and gives bit-identical results for any pool size.
 #![warn(missing_docs)]
+#![warn(unreachable_pub)]
 
 pub mod correlation;
 pub mod fft3;
-pub mod kernel;
+mod kernel;
 pub mod nufft;
 pub mod params;
 pub mod quadrature;

@@ -5,7 +5,7 @@
 //! `m_d` in `-floor(M_d/2) ..= ceil(M_d/2) - 1`, modes stored with axis 0 fastest and the most
 //! negative mode first. Type 2 is the adjoint of type 1.
 //!
-//! Method: spread with the prolate kernel ([`crate::kernel`]) onto a fine grid upsampled by 2, FFT,
+//! Method: spread with the prolate kernel (the `kernel` module) onto a fine grid upsampled by 2, FFT,
 //! divide by the kernel's Fourier transform; type 2 runs the same steps backwards.
 //!
 //! Determinism: points are sorted once (stable counting sort by slab and bin). The fine grid

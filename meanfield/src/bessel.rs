@@ -3,7 +3,7 @@
 //! the asymptotic expansion above (its smallest term is below `e^{-2a}`).
 
 /// `[e^{-a} I_0(a), e^{-a} I_1(a), e^{-a} I_2(a)]` for `a >= 0`.
-pub fn scaled_i012(a: f64) -> [f64; 3] {
+pub(crate) fn scaled_i012(a: f64) -> [f64; 3] {
     debug_assert!(a >= 0.0);
     if a <= 25.0 {
         let h = 0.5 * a;

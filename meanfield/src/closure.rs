@@ -6,7 +6,7 @@
 //! coordinates `mu_1 = x`, `mu_2 = (1 - x) y`, `(x, y)` in `[0, 1]^2` (a polynomial map, so the
 //! tabulated functions stay smooth; no division by zero at isotropy). The tables accept the
 //! eigenvalues in any order, but are most accurate per degree with the largest first
-//! ([`crate::eigen::sym3_eigen_sorted`], which the closure field uses). Three functions are tabulated, `S_1111`, `S_2222`, `S_1122`; the others follow
+//! (`eigen::sym3_eigen_sorted`, which the closure field uses). Three functions are tabulated, `S_1111`, `S_2222`, `S_1122`; the others follow
 //! from `sum_j S_iijj = mu_i`. Nodes are Chebyshev points of the first kind, interior to the
 //! triangle, so the exponent `B`, which diverges on the edges, is only ever solved inside.
 

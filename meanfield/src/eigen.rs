@@ -2,10 +2,10 @@
 //! repeated and nearly repeated eigenvalues (where closed-form cubic roots lose digits).
 
 /// Symmetric 3x3 matrix.
-pub type Sym3 = [[f64; 3]; 3];
+pub(crate) type Sym3 = [[f64; 3]; 3];
 
 /// Eigenvalues `w` and orthonormal eigenvectors (columns of `r`): `a = r diag(w) r^T`.
-pub fn sym3_eigen(a: &Sym3) -> ([f64; 3], Sym3) {
+pub(crate) fn sym3_eigen(a: &Sym3) -> ([f64; 3], Sym3) {
     let mut m = *a;
     let mut r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     for _sweep in 0..50 {
@@ -50,7 +50,7 @@ pub fn sym3_eigen(a: &Sym3) -> ([f64; 3], Sym3) {
 /// away from the corner where the exponent's singular edges meet): at degree 20 the worst
 /// error of `S:E` over random `Q` is 6.7e-6 against 1.3e-5 for the arbitrary order of the
 /// Jacobi sweeps (`closure_field_is_accurate_at_low_degree` in `solver.rs`).
-pub fn sym3_eigen_sorted(a: &Sym3) -> ([f64; 3], Sym3) {
+pub(crate) fn sym3_eigen_sorted(a: &Sym3) -> ([f64; 3], Sym3) {
     let (w, r) = sym3_eigen(a);
     let mut order = [0usize, 1, 2];
     order.sort_by(|&i, &j| w[j].total_cmp(&w[i]));

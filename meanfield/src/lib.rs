@@ -1,15 +1,16 @@
 //! The mean-field model of docs/MODEL.md §4: the orientation tensor Q with the Bingham closure.
 //! The Bingham distribution's moments and its inversion ([`bingham`]), the tabulated fast closure
-//! ([`closure`], eigenvalues sorted largest first by [`eigen`]), the pseudo-spectral Stokes
+//! ([`closure`], eigenvalues sorted largest first by the `eigen` module), the pseudo-spectral Stokes
 //! fixed point and SBDF2 stepping ([`solver`]), its step-size control ([`control`]), and initial perturbations of the isotropic state
 //! shared with the particle model ([`initial`]).
 #![warn(missing_docs)]
+#![warn(unreachable_pub)]
 
-pub mod bessel;
+mod bessel;
 pub mod bingham;
 pub mod closure;
 pub mod control;
-pub mod eigen;
+mod eigen;
 pub mod initial;
 pub mod solver;
 

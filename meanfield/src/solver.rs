@@ -28,7 +28,7 @@ use std::f64::consts::PI;
 pub const SYM: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
 
 /// Index into [`SYM`] of the pair `(i, j)`.
-pub fn sym_index(i: usize, j: usize) -> usize {
+pub(crate) fn sym_index(i: usize, j: usize) -> usize {
     let (a, b) = if i <= j { (i, j) } else { (j, i) };
     match (a, b) {
         (0, 0) => 0,

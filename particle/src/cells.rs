@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 /// Cell list over particle centres in a periodic cube.
 #[derive(Clone, Debug, Default)]
-pub struct CellList {
+pub(crate) struct CellList {
     n: usize,
     box_length: f64,
     /// `start[c]..start[c + 1]` index `members` for cell `c`.
@@ -20,7 +20,7 @@ pub struct CellList {
 
 impl CellList {
     /// Sort `x` (centres in `[0, L)^3`) into cells of side at least `cutoff`.
-    pub fn build(x: &[Vec3], box_length: f64, cutoff: f64) -> Self {
+    pub(crate) fn build(x: &[Vec3], box_length: f64, cutoff: f64) -> Self {
         let n = ((box_length / cutoff).floor() as usize).max(1);
         let cell = |p: &Vec3| -> usize {
             let idx = p.map(|c| ((c / box_length * n as f64) as usize).min(n - 1));
@@ -49,17 +49,18 @@ impl CellList {
     }
 
     /// Cells per dimension.
-    pub fn cells_per_side(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn cells_per_side(&self) -> usize {
         self.n
     }
 
     /// Particle indices in cell order (a spatially coherent ordering).
-    pub fn order(&self) -> &[u32] {
+    pub(crate) fn order(&self) -> &[u32] {
         &self.members
     }
 
     /// The same cells over particles renumbered in cell order (`order()[k]` becomes `k`).
-    pub fn renumbered(&self) -> Self {
+    pub(crate) fn renumbered(&self) -> Self {
         Self {
             n: self.n,
             box_length: self.box_length,
@@ -69,8 +70,10 @@ impl CellList {
     }
 
     /// Every pair `(i, j)`, `i < j`, whose centres are closer than `cutoff` (minimum image),
-    /// sorted. `cutoff` must not exceed the cell side used to build the list.
-    pub fn pairs(&self, x: &[Vec3], cutoff: f64) -> Vec<(u32, u32)> {
+    /// sorted. `cutoff` must not exceed the cell side used to build the list. (The tests'
+    /// comparison with brute force; the step uses [`Self::map_pairs`].)
+    #[cfg(test)]
+    pub(crate) fn pairs(&self, x: &[Vec3], cutoff: f64) -> Vec<(u32, u32)> {
         let mut pairs = self.map_pairs(x, cutoff, |i, j, _| Some((i.min(j), i.max(j))));
         pairs.par_sort_unstable();
         pairs
@@ -79,7 +82,7 @@ impl CellList {
     /// `f(i, j, d)` for every unordered pair closer than `cutoff`, with `d` the minimum-image
     /// vector from `i` to `j`, keeping the `Some` results. Each pair is visited once (half
     /// stencil), in an order fixed by the cells, so the output is the same for any thread count.
-    pub fn map_pairs<T: Send>(
+    pub(crate) fn map_pairs<T: Send>(
         &self,
         x: &[Vec3],
         cutoff: f64,

@@ -138,7 +138,7 @@ pub enum ContactError {
 const CHUNK: usize = 4096;
 
 /// Sum of `f(k)` for `k` in `0..n`, in fixed chunks: the same bits for any thread count.
-pub fn det_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
+pub(crate) fn det_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
     let partial: Vec<f64> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| (c * CHUNK..((c + 1) * CHUNK).min(n)).map(&f).sum())

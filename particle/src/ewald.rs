@@ -530,7 +530,7 @@ pub fn rpy_fourier_free_series(r: f64, xi: f64, a: f64) -> (f64, f64) {
 /// for `xi r < 0.05`, closed form beyond) with cubic Lagrange interpolation, the far form
 /// evaluated exactly. No erfc or exp per pair.
 #[derive(Clone, Debug)]
-pub struct RealSpaceTable {
+pub(crate) struct RealSpaceTable {
     inv_h: f64,
     n: usize,
     /// `1/(8 pi)`, `(2a^2/3)/(8 pi)`, `2a^2/(8 pi)`: the far form's coefficients.
@@ -543,7 +543,7 @@ pub struct RealSpaceTable {
 
 impl RealSpaceTable {
     /// Table of the split RPY tensor with parameters `xi`, `a` up to `cutoff`.
-    pub fn new(cutoff: f64, xi: f64, a: f64) -> Self {
+    pub(crate) fn new(cutoff: f64, xi: f64, a: f64) -> Self {
         let n = 4096;
         let h = cutoff / n as f64;
         let g = (0..=n)
@@ -569,9 +569,9 @@ impl RealSpaceTable {
         }
     }
 
-    /// `(A_R, B_R)` at `0 < r <= cutoff`.
-    #[inline]
-    pub fn eval(&self, r: f64) -> (f64, f64) {
+    /// `(A_R, B_R)` at `0 < r <= cutoff` (the tests' view of [`Self::eval_a_b_r2`]).
+    #[cfg(test)]
+    pub(crate) fn eval(&self, r: f64) -> (f64, f64) {
         let (a, b_r2) = self.eval_a_b_r2(r, 1.0 / r);
         (a, b_r2 * r * r)
     }
@@ -579,7 +579,7 @@ impl RealSpaceTable {
     /// `(A_R, B_R / r^2)` given `r` and `1/r`: the pair sums apply `A f + (B / r^2)(r . f) r`
     /// and need no unit vector.
     #[inline]
-    pub fn eval_a_b_r2(&self, r: f64, inv: f64) -> (f64, f64) {
+    pub(crate) fn eval_a_b_r2(&self, r: f64, inv: f64) -> (f64, f64) {
         let (i, w) = lagrange4(r * self.inv_h, self.n);
         let g = &self.g[i..i + 4];
         let af = w[0] * g[0][0] + w[1] * g[1][0] + w[2] * g[2][0] + w[3] * g[3][0];
@@ -600,7 +600,7 @@ impl RealSpaceTable {
 /// zero (where the subtraction loses digits) use the closed form. `A` itself is not needed by
 /// [`stresslet_from_derivatives`] and is returned as 0.
 #[derive(Clone, Debug)]
-pub struct StressletTable {
+pub(crate) struct StressletTable {
     inv_h: f64,
     n: usize,
     xi: f64,
@@ -611,7 +611,7 @@ pub struct StressletTable {
 
 impl StressletTable {
     /// Table for splitting parameter `xi` up to `cutoff`.
-    pub fn new(cutoff: f64, xi: f64) -> Self {
+    pub(crate) fn new(cutoff: f64, xi: f64) -> Self {
         let n = 4096;
         let h = cutoff / n as f64;
         let r_direct = 0.05 / xi + 3.0 * h;
@@ -640,7 +640,7 @@ impl StressletTable {
 
     /// `[0, A', A'', C, C', C'']` of the real-space part at `0 < r <= cutoff`.
     #[inline]
-    pub fn eval(&self, r: f64) -> [f64; 6] {
+    pub(crate) fn eval(&self, r: f64) -> [f64; 6] {
         if r < self.r_direct {
             let mut d = stokeslet_real_derivatives(r, self.xi);
             d[0] = 0.0;

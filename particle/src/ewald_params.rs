@@ -41,21 +41,21 @@ use std::f64::consts::PI;
 /// Cost of one real-space pair relative to one grid point of the Fourier stage (its six
 /// real FFTs and the multiplication); calibrated at 1e5 points, tolerance 1e-4, where the
 /// measured total is flat within the machine's noise from 0.09 to 0.2 (grids 100-108).
-pub const PAIR_COST: f64 = 0.14;
+pub(crate) const PAIR_COST: f64 = 0.14;
 
 /// The same for a stresslet pair (velocity and gradient from a table) against its Fourier
 /// side (nine transforms instead of six, six fields spread, the gradient gathered);
 /// calibrated at 78 125 centres, tolerance 1e-4 (flat from 0.15 to 0.45: grids 100-120).
-pub const STRESSLET_PAIR_COST: f64 = 0.3;
+pub(crate) const STRESSLET_PAIR_COST: f64 = 0.3;
 
 /// Share of `tol Phi_n` per source left by the Fourier cutoff.
-pub const FOURIER_SHARE: f64 = 0.3;
+pub(crate) const FOURIER_SHARE: f64 = 0.3;
 /// Share left by the real-space cutoff.
-pub const REAL_SHARE: f64 = 0.3;
+pub(crate) const REAL_SHARE: f64 = 0.3;
 /// Share left by the Gaussian window (aliasing and truncation) for velocities.
-pub const WINDOW_SHARE: f64 = 0.3;
+pub(crate) const WINDOW_SHARE: f64 = 0.3;
 /// The same for gradients (the window's derivative amplifies its truncation).
-pub const GRADIENT_WINDOW_SHARE: f64 = 0.1;
+pub(crate) const GRADIENT_WINDOW_SHARE: f64 = 0.1;
 
 /// Constants `(C_max, C_2)` of the error estimate at internal tolerance `tol` (see the module
 /// doc): the largest error over the targets is within `C_max tol max_t model_t` and the L2 norm
@@ -67,7 +67,7 @@ pub const GRADIENT_WINDOW_SHARE: f64 = 0.1;
 /// 0.69 (1e-10); with it they stay within 0.44-0.69 (`tests/accuracy_contract.rs`,
 /// `error_estimates_bound_the_measured_errors`). Stresslet velocities get smaller constants:
 /// their parameters are set by the gradient's stricter needs.
-pub fn error_model_constants(output: SumOutput, tol: f64) -> (f64, f64) {
+pub(crate) fn error_model_constants(output: SumOutput, tol: f64) -> (f64, f64) {
     let g = (1.0 / tol).ln().sqrt() / (1e10f64).ln().sqrt();
     let (c_max, c_2) = match output {
         SumOutput::RpyVelocity | SumOutput::StressletGradient => (1.25, 0.6),
@@ -77,7 +77,7 @@ pub fn error_model_constants(output: SumOutput, tol: f64) -> (f64, f64) {
 }
 
 /// Range of the error model's weight, in grid spacings: `w(r) = 1 / (1 + (r / (W h))^2)`.
-pub const ERROR_MODEL_RANGE: f64 = 2.0;
+pub(crate) const ERROR_MODEL_RANGE: f64 = 2.0;
 
 /// What a sum returns: the derivative order of the Stokeslet sum behind it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -118,7 +118,7 @@ impl SumOutput {
 
 /// `I_n(c) / I_n(0)`, `I_n(c) = int_c^inf t^n (1 + t^2) exp(-t^2) dt`: the fraction of the
 /// output's self-term spectrum beyond `k = 2 xi c` (closed forms).
-pub fn fourier_tail(output: SumOutput, c: f64) -> f64 {
+pub(crate) fn fourier_tail(output: SumOutput, c: f64) -> f64 {
     let e = (-c * c).exp();
     let sp = PI.sqrt();
     let erfc = libm::erfc(c);
@@ -133,7 +133,7 @@ pub fn fourier_tail(output: SumOutput, c: f64) -> f64 {
 /// `xi r = c`, relative to `Phi_n`: for `G = A I + C x x`, `|A| + |C| r^2` (`n = 0`),
 /// `|A'| + 2|C| r + |C'| r^2` (`n = 1`), `|A''| + 2|C| + 4|C'| r + |C''| r^2` (`n = 2`).
 /// Scale free: evaluated at `xi = 1`.
-pub fn real_tail(output: SumOutput, c: f64) -> f64 {
+pub(crate) fn real_tail(output: SumOutput, c: f64) -> f64 {
     let [a, a1, a2, cc, c1, c2] = stokeslet_real_derivatives(c, 1.0);
     let m = match output.order() {
         0 => a.abs() + cc.abs() * c * c,
@@ -163,7 +163,7 @@ fn cutoff_for(tail: impl Fn(f64) -> f64, target: f64) -> f64 {
 
 /// `c_F` and `c_R` for internal tolerance `tol` and the outputs asked for (the largest over
 /// them), and the window's tolerance (the smallest).
-pub fn cutoffs(tol: f64, outputs: &[SumOutput]) -> (f64, f64, f64) {
+pub(crate) fn cutoffs(tol: f64, outputs: &[SumOutput]) -> (f64, f64, f64) {
     let mut c_f: f64 = 0.5;
     let mut c_r: f64 = 0.5;
     let mut window = f64::INFINITY;

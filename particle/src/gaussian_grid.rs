@@ -29,7 +29,7 @@ use std::f64::consts::PI;
 const SORT_BIN: usize = 4;
 
 /// Largest supported support (grid points per axis of one Gaussian).
-pub const MAX_SUPPORT: usize = 24;
+pub(crate) const MAX_SUPPORT: usize = 24;
 
 /// The window for relative tolerance `tol` with `c = sqrt(ln(1/tol))`: support `P`, shape
 /// `m` and the grid's oversampling `r` (the grid has at least `r k_max L / pi` points per
@@ -46,7 +46,7 @@ pub const MAX_SUPPORT: usize = 24;
 /// `P^3` per point, a finer grid `r^3` per grid point), or the one with the least `r`. From
 /// 1e-2 to 1e-12 this gives `P` = 5, 6, 8, 12, 15, 18, 22 at 1e-2, 1e-3, 1e-4, 1e-6, 1e-8,
 /// 1e-10, 1e-12, with `r` 1.04-1.10 and `eta` 0.63-1.07.
-pub fn window_for(tol: f64) -> (usize, f64, f64) {
+pub(crate) fn window_for(tol: f64) -> (usize, f64, f64) {
     let c2 = (1.0 / tol).ln();
     let c = c2.sqrt();
     let m = std::f64::consts::SQRT_2 * erfc_inv(tol / 10.0);
@@ -84,7 +84,7 @@ fn erfc_inv(y: f64) -> f64 {
 
 /// A planned Gaussian grid: box, grid size, support, window, FFT plan.
 #[derive(Debug, Clone)]
-pub struct GaussianGrid {
+pub(crate) struct GaussianGrid {
     l: f64,
     m: usize,
     p: usize,
@@ -101,7 +101,7 @@ pub struct GaussianGrid {
 /// Points prepared for one sum: sorted by slab, with their first grid index and window values
 /// along each axis.
 #[derive(Debug, Clone, Default)]
-pub struct GridPoints {
+pub(crate) struct GridPoints {
     /// Original index of each sorted point.
     perm: Vec<u32>,
     /// First grid index of the support per axis, in `0..M`.
@@ -131,7 +131,7 @@ impl GridPoints {
 impl GaussianGrid {
     /// A grid of `m^3` points on a box of side `l`, splitting parameter `xi`, support `p`,
     /// window `shape` standard deviations wide at the support's edge.
-    pub fn new(l: f64, xi: f64, m: usize, p: usize, shape: f64) -> Self {
+    pub(crate) fn new(l: f64, xi: f64, m: usize, p: usize, shape: f64) -> Self {
         let p = p.clamp(2, MAX_SUPPORT).min(m);
         let h = l / m as f64;
         let w = p as f64 * h / 2.0;
@@ -151,30 +151,16 @@ impl GaussianGrid {
         }
     }
 
-    /// Grid points per axis.
-    pub fn size(&self) -> usize {
-        self.m
-    }
-
-    /// Support per axis.
-    pub fn support(&self) -> usize {
-        self.p
-    }
-
-    /// The window's `eta`.
-    pub fn eta(&self) -> f64 {
-        self.eta
-    }
-
     /// Sort `points` by slab and evaluate their windows (fast Gaussian gridding: two
-    /// exponentials per axis, the rest by products).
-    pub fn prepare(&self, points: &[Vec3]) -> GridPoints {
+    /// exponentials per axis, the rest by products). The sums use [`Self::prepare_reusing`].
+    #[cfg(test)]
+    pub(crate) fn prepare(&self, points: &[Vec3]) -> GridPoints {
         self.prepare_reusing(points, GridPoints::default())
     }
 
     /// [`Self::prepare`] writing into the buffers of earlier prepared points (fresh buffers of
     /// this size were page-faulted anew on every call: most of the preparation's time).
-    pub fn prepare_reusing(&self, points: &[Vec3], old: GridPoints) -> GridPoints {
+    pub(crate) fn prepare_reusing(&self, points: &[Vec3], old: GridPoints) -> GridPoints {
         let (m, p, h) = (self.m, self.p, self.h);
         // Slabs at least P planes thick: a footprint reaches P planes.
         let bounds = slabs::bounds(self.m, self.p);
@@ -273,7 +259,11 @@ impl GaussianGrid {
     /// row), in two phases: the even slabs in parallel, then the odd ones. Every slab is at
     /// least `P` planes thick, so slabs of one phase never write the same plane; each grid
     /// value receives its contributions in an order fixed by the sort.
-    pub fn spread<const NF: usize>(&mut self, pts: &GridPoints, fields: [&[f64]; NF]) -> Spread {
+    pub(crate) fn spread<const NF: usize>(
+        &mut self,
+        pts: &GridPoints,
+        fields: [&[f64]; NF],
+    ) -> Spread {
         let (m, p) = (self.m, self.p);
         let xb = m + p;
         let plane = m * xb * NF;
@@ -307,7 +297,11 @@ impl GaussianGrid {
 
     /// Gather `NF` fields back to the points: `h^3 sum_grid G(x_m) g(y - x_m)` per field,
     /// results in the points' own order.
-    pub fn gather<const NF: usize>(&mut self, pts: &GridPoints, field: Field) -> [Vec<f64>; NF] {
+    pub(crate) fn gather<const NF: usize>(
+        &mut self,
+        pts: &GridPoints,
+        field: Field,
+    ) -> [Vec<f64>; NF] {
         let (m, p) = (self.m, self.p);
         let work = field.0.check(m, p, NF).data;
         let plane = m * (m + p) * NF;
@@ -328,7 +322,7 @@ impl GaussianGrid {
     /// du_2/dx_2]` (`3 + 3 i + m` is `du_i/dx_m`), the gradient from the derivative of the
     /// window (`g_1'(d) = -2 alpha d g_1(d)`), which equals multiplying the spectrum by `i k`
     /// and costs no extra transforms.
-    pub fn gather_gradient(&mut self, pts: &GridPoints, field: Field) -> [Vec<f64>; 12] {
+    pub(crate) fn gather_gradient(&mut self, pts: &GridPoints, field: Field) -> [Vec<f64>; 12] {
         let (m, p) = (self.m, self.p);
         let work = field.0.check(m, p, 3).data;
         let plane = m * (m + p) * 3;
@@ -357,7 +351,7 @@ impl GaussianGrid {
     /// inverse FFTs of the `O` outputs (unnormalised, `sum_k c(k) exp(+i k x)`). `g` sees the
     /// spectra `sum_grid G exp(-i k x)`; `k = 0` and the unpaired Nyquist modes are dropped.
     /// `g` must map real fields to real fields (Hermitian in, Hermitian out).
-    pub fn convolve<const I: usize, const O: usize>(
+    pub(crate) fn convolve<const I: usize, const O: usize>(
         &mut self,
         spread: Spread,
         g: impl Fn(Vec3, f64, f64, [Complex64; I]) -> [Complex64; O] + Sync,
@@ -468,11 +462,13 @@ impl Interleaved {
 /// What [`GaussianGrid::spread`] leaves: the extra x points hold contributions that wrap
 /// around the box (folded back by [`GaussianGrid::convolve`]).
 #[derive(Debug, Clone)]
-pub struct Spread(Interleaved);
+pub(crate) struct Spread(Interleaved);
 
 impl Spread {
-    /// The fields as plain periodic grids (axis 0 fastest), padding folded back.
-    pub fn to_grids(&self) -> Vec<Vec<f64>> {
+    /// The fields as plain periodic grids (axis 0 fastest), padding folded back (for the tests'
+    /// slow twins).
+    #[cfg(test)]
+    pub(crate) fn to_grids(&self) -> Vec<Vec<f64>> {
         let Interleaved { m, p, nf, ref data } = self.0;
         let xb = m + p;
         (0..nf)
@@ -493,12 +489,13 @@ impl Spread {
 /// What [`GaussianGrid::convolve`] returns for the gather: the extra x points are periodic
 /// copies.
 #[derive(Debug, Clone)]
-pub struct Field(Interleaved);
+pub(crate) struct Field(Interleaved);
 
 impl Field {
     /// Plain periodic grids (axis 0 fastest) of one grid `m^3`, as a field for the gather of a
-    /// grid with support `p`.
-    pub fn from_grids(grids: &[Vec<f64>], m: usize, p: usize) -> Self {
+    /// grid with support `p` (for the tests' slow twins).
+    #[cfg(test)]
+    pub(crate) fn from_grids(grids: &[Vec<f64>], m: usize, p: usize) -> Self {
         let (nf, xb) = (grids.len(), m + p);
         let mut data = vec![0.0; m * m * xb * nf];
         for (r, row) in data.chunks_mut(xb * nf).enumerate() {

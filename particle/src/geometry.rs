@@ -164,7 +164,7 @@ pub fn segment_distance(xa: Vec3, pa: Vec3, xb: Vec3, pb: Vec3, len: f64) -> (f6
 }
 
 /// A position wrapped into `[0, L)` (a coordinate that rounds to `L` becomes 0).
-pub fn wrap_position(y: Vec3, l: f64) -> Vec3 {
+pub(crate) fn wrap_position(y: Vec3, l: f64) -> Vec3 {
     y.map(|c| {
         let f = c - l * (c / l).floor();
         if f >= l { 0.0 } else { f }
@@ -174,7 +174,7 @@ pub fn wrap_position(y: Vec3, l: f64) -> Vec3 {
 /// `floor(x)` for `|x| < 2^62` without a call (the baseline x86-64 target has no rounding
 /// instruction, and `f64::floor` is a library call there).
 #[inline]
-pub fn floor_i64(x: f64) -> i64 {
+pub(crate) fn floor_i64(x: f64) -> i64 {
     let i = x as i64;
     i - i64::from(x < i as f64)
 }

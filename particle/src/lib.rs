@@ -10,14 +10,21 @@
 //!
 //! State ([`rods::RodSet`]) is plain data; [`step::Stepper`] owns only the mobility, the solver
 //! and scratch memory, and returns a [`step::StepReport`] instead of printing.
+//!
+//! The public surface: the [`prelude`] (what a run needs), the modules of the model's parts
+//! (rods and geometry, contacts, mobilities, periodic sums with their slow twins
+//! [`rpy_reference`] and the kernels of [`ewald`], GMRES, initial states, units). The fast sum's
+//! machinery (cell lists, parameter choice, Gaussian gridding, slab scheduling) is private:
+//! it is reached through [`spectral_ewald::SpectralEwald`] and its [`spectral_ewald::EwaldParams`].
 #![warn(missing_docs)]
+#![warn(unreachable_pub)]
 
-pub mod cells;
+mod cells;
 pub mod contact;
 pub mod dipole;
 pub mod ewald;
-pub mod ewald_params;
-pub mod gaussian_grid;
+mod ewald_params;
+mod gaussian_grid;
 pub mod geometry;
 pub mod gmres;
 pub mod init;
@@ -44,7 +51,7 @@ pub mod prelude {
     pub use crate::contact::ContactParams;
     pub use crate::dipole::Dipole;
     pub use crate::gmres::GmresParams;
-    pub use crate::init::{nonoverlapping_with, random_nonoverlapping};
+    pub use crate::init::{nonoverlapping_with, overlapping_pairs, random_nonoverlapping};
     pub use crate::level::Hydrodynamics;
     pub use crate::mobility::{LocalDrag, Mobility};
     pub use crate::periodic::PeriodicStokes;

@@ -1,7 +1,7 @@
 //! Fast periodic Stokes sums by spectral Ewald (docs/MODEL.md §1, §2): the Hasimoto split of
 //! [`crate::ewald`], the short-ranged real-space part summed over neighbours from a point cell
 //! list (`point_cells.rs`), the smooth Fourier part by Gaussian gridding
-//! ([`crate::gaussian_grid`]: spread the sources onto a uniform grid, real FFTs, a diagonal
+//! (the `gaussian_grid` module: spread the sources onto a uniform grid, real FFTs, a diagonal
 //! multiplication, FFTs back, gather). `O(N log N)`.
 //!
 //! **The accuracy contract** (`docs/accuracy.md`). For every output a sum returns (RPY
