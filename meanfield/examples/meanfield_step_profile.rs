@@ -1,5 +1,5 @@
 //! Times mean-field steps at one grid size and splits the time by stage:
-//! `cargo run --release -p motile-meanfield --example meanfield_step_profile -- --grid 64 --threads 2 --steps 3`. Closure tables are built first (not timed).
+//! `cargo run --release -p motile-meanfield --example meanfield_step_profile -- --grid 64 --threads 2 --steps 3 [--degree 80]`. Closure tables are built first (not timed).
 //!
 //! FFTs per step (complex 3D transforms): 6 (Q to the grid) + 12 per fixed-point iteration
 //! (6 strain components back, 6 stress components forward) + 6 (final strain) + 9 (grad u)
@@ -26,12 +26,15 @@ fn main() {
     let n = arg("--grid", 32.0) as usize;
     let threads = arg("--threads", 2.0) as usize;
     let steps = arg("--steps", 3.0) as usize;
+    let degree = arg("--degree", DEFAULT_DEGREE as f64) as usize;
     // The tables `motile meanfield run` cached, if present (building them takes ~10 s).
     let cached = std::env::var_os("HOME")
-        .map(|h| std::path::PathBuf::from(h).join(".cache/motile/bingham_degree80.bin"))
+        .map(|h| {
+            std::path::PathBuf::from(h).join(format!(".cache/motile/bingham_degree{degree}.bin"))
+        })
         .and_then(|p| std::fs::read(p).ok())
-        .and_then(|b| BinghamClosure::from_bytes(&b, DEFAULT_DEGREE));
-    let closure = cached.unwrap_or_else(|| BinghamClosure::new(DEFAULT_DEGREE).expect("tables"));
+        .and_then(|b| BinghamClosure::from_bytes(&b, degree));
+    let closure = cached.unwrap_or_else(|| BinghamClosure::new(degree).expect("tables"));
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -81,7 +84,7 @@ fn main() {
         // Q to the grid, 12 per fixed-point iteration, u and grad u, grad Q, the products back.
         let ffts = 6.0 + 12.0 * k + 3.0 + 9.0 + 18.0 + 6.0;
         println!(
-            "{n}^3, {threads} threads: step {step_s:.3} s; fixed-point iterations {k:.1}; closure evaluation {closure_s:.3} s, S:E contraction {contract_s:.4} s per iteration; one FFT {:.2} ms x {ffts:.0} FFTs = {:.3} s ({:.0}% of the step); step / FFT time = {:.2}",
+            "{n}^3, {threads} threads, closure degree {degree}: step {step_s:.3} s; fixed-point iterations {k:.1}; closure evaluation {closure_s:.3} s, S:E contraction {contract_s:.4} s per iteration; one FFT {:.2} ms x {ffts:.0} FFTs = {:.3} s ({:.0}% of the step); step / FFT time = {:.2}",
             one_fft * 1e3,
             ffts * one_fft,
             100.0 * ffts * one_fft / step_s,

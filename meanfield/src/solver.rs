@@ -131,6 +131,17 @@ pub struct RhsReport {
     pub residual: f64,
 }
 
+/// What a row of the half spectrum (fixed axis-1 and axis-2 indices) shares.
+#[derive(Clone, Copy, Debug)]
+struct RowWavenumbers {
+    /// The row's index, `i2 n + i1`.
+    row: usize,
+    /// `(2 pi m_1)^2` and `(2 pi m_2)^2`.
+    k_sq: [f64; 2],
+    /// Whether the row survives the 2/3 rule.
+    keep: bool,
+}
+
 /// Spectral grid on the unit cube: wavenumbers, real-to-complex transforms, dealiasing.
 ///
 /// Coefficients are stored as the half spectrum of real fields: index
@@ -225,16 +236,58 @@ impl SpectralGrid {
     }
 
     /// `sum_k |c_k|^2` over the full spectrum (the mean square of the field, by Parseval).
+    /// Summed in fixed blocks of rows, so the result does not depend on the thread count.
     pub fn norm_sqr(&self, c: &[Complex64]) -> f64 {
-        c.iter()
-            .enumerate()
-            .map(|(idx, v)| self.weight(idx) * v.norm_sqr())
-            .sum()
+        self.sum_rows(|row, a| self.weight_of(a) * c[row * self.h + a].norm_sqr())
     }
 
-    fn kept(&self, idx: usize) -> bool {
-        let [a, b, d] = self.idx3(idx);
-        3 * a <= self.n && self.keep[b] && self.keep[d]
+    /// Weight of the axis-0 index `a` ([`Self::weight`]).
+    fn weight_of(&self, a: usize) -> f64 {
+        if a == 0 || a == self.n / 2 { 1.0 } else { 2.0 }
+    }
+
+    /// `sum over stored coefficients of f(row, a)` (`row = i2 n + i1`, `a` the axis-0 index), in
+    /// parallel over fixed blocks of rows and then in block order: deterministic.
+    fn sum_rows(&self, f: impl Fn(usize, usize) -> f64 + Sync + Send) -> f64 {
+        const ROWS: usize = 64;
+        let rows = self.n * self.n;
+        let blocks: Vec<f64> = (0..rows.div_ceil(ROWS))
+            .into_par_iter()
+            .map(|b| {
+                let mut acc = 0.0;
+                for row in b * ROWS..((b + 1) * ROWS).min(rows) {
+                    for a in 0..self.h {
+                        acc += f(row, a);
+                    }
+                }
+                acc
+            })
+            .collect();
+        blocks.iter().sum()
+    }
+
+    /// `f(k_row, a, value)` for every stored coefficient, in parallel by rows: `k_row` holds
+    /// the first-derivative wavenumbers of axes 1 and 2 and whether the row survives the 2/3
+    /// rule, `a` is the axis-0 index.
+    fn for_each_row<T: Send>(
+        &self,
+        data: &mut [T],
+        f: impl Fn(RowWavenumbers, usize, &mut T) + Sync + Send,
+    ) {
+        let n = self.n;
+        data.par_chunks_mut(self.h)
+            .enumerate()
+            .for_each(|(row, line)| {
+                let (b, d) = (row % n, row / n);
+                let k = RowWavenumbers {
+                    row,
+                    k_sq: [self.k2[b], self.k2[d]],
+                    keep: self.keep[b] && self.keep[d],
+                };
+                for (a, v) in line.iter_mut().enumerate() {
+                    f(k, a, v);
+                }
+            });
     }
 
     /// Fourier coefficients of a real field (forward FFT / n^3), dealiased if asked.
@@ -248,8 +301,9 @@ impl SpectralGrid {
     pub fn forward_into(&self, f: &[f64], dealias: bool, c: &mut [Complex64]) {
         self.fft.forward(f, c);
         let scale = 1.0 / self.len() as f64;
-        c.par_iter_mut().enumerate().for_each(|(idx, v)| {
-            *v = if !dealias || self.kept(idx) {
+        let n = self.n;
+        self.for_each_row(c, |k, a, v| {
+            *v = if !dealias || (k.keep && 3 * a <= n) {
                 *v * scale
             } else {
                 Complex64::default()
@@ -265,27 +319,71 @@ impl SpectralGrid {
         g
     }
 
+    /// [`Self::inverse`] into `out`, with `work` (spectral length) as scratch.
+    pub fn inverse_into(&self, c: &[Complex64], work: &mut [Complex64], out: &mut [f64]) {
+        work.par_iter_mut().zip(c).for_each(|(w, v)| *w = *v);
+        self.fft.inverse(work, out);
+    }
+
     /// Grid values of `d_dir f` from the coefficients of `f`.
     pub fn inverse_derivative(&self, c: &[Complex64], dir: usize) -> Vec<f64> {
-        let mut work = self.derivative(c, dir);
+        let mut work = vec![Complex64::default(); self.spectral_len()];
         let mut g = vec![0.0; self.len()];
-        self.fft.inverse(&mut work, &mut g);
+        self.inverse_derivative_into(c, dir, &mut work, &mut g);
         g
+    }
+
+    /// [`Self::inverse_derivative`] into `out`, with `work` (spectral length) as scratch.
+    pub fn inverse_derivative_into(
+        &self,
+        c: &[Complex64],
+        dir: usize,
+        work: &mut [Complex64],
+        out: &mut [f64],
+    ) {
+        let h = self.h;
+        let k1 = &self.k1;
+        work.par_chunks_mut(h)
+            .zip(c.par_chunks(h))
+            .enumerate()
+            .for_each(|(row, (w, line))| {
+                let kr = [0.0, self.k1[row % self.n], self.k1[row / self.n]];
+                for (a, (w, v)) in w.iter_mut().zip(line).enumerate() {
+                    let k = if dir == 0 { k1[a] } else { kr[dir] };
+                    *w = v * Complex64::new(0.0, k);
+                }
+            });
+        self.fft.inverse(work, out);
     }
 
     /// Grid values of the symmetric gradient `(d_j u_i + d_i u_j) / 2` of velocity
     /// coefficients `u`, component `(i, j)`.
     pub fn inverse_strain(&self, u: &[Vec<Complex64>; 3], i: usize, j: usize) -> Vec<f64> {
-        let mut work: Vec<Complex64> = (0..self.spectral_len())
-            .into_par_iter()
-            .map(|idx| {
-                let k = self.k_vector(idx);
-                Complex64::new(0.0, 0.5) * (u[i][idx] * k[j] + u[j][idx] * k[i])
-            })
-            .collect();
+        let mut work = vec![Complex64::default(); self.spectral_len()];
         let mut g = vec![0.0; self.len()];
-        self.fft.inverse(&mut work, &mut g);
+        self.inverse_strain_into(u, i, j, &mut work, &mut g);
         g
+    }
+
+    /// [`Self::inverse_strain`] into `out`, with `work` (spectral length) as scratch.
+    pub fn inverse_strain_into(
+        &self,
+        u: &[Vec<Complex64>; 3],
+        i: usize,
+        j: usize,
+        work: &mut [Complex64],
+        out: &mut [f64],
+    ) {
+        let h = self.h;
+        work.par_chunks_mut(h).enumerate().for_each(|(row, w)| {
+            let kr = [0.0, self.k1[row % self.n], self.k1[row / self.n]];
+            let (ui, uj) = (&u[i][row * h..], &u[j][row * h..]);
+            for (a, w) in w.iter_mut().enumerate() {
+                let k = [self.k1[a], kr[1], kr[2]];
+                *w = Complex64::new(0.0, 0.5) * (ui[a] * k[j] + uj[a] * k[i]);
+            }
+        });
+        self.fft.inverse(work, out);
     }
 
     /// Coefficients of `d_dir f`.
@@ -343,40 +441,60 @@ impl SpectralGrid {
     pub fn stokes(&self, sigma: &[Vec<Complex64>; 6]) -> [Vec<Complex64>; 3] {
         let mut u: [Vec<Complex64>; 3] =
             std::array::from_fn(|_| vec![Complex64::default(); self.spectral_len()]);
-        let (u0, rest) = u.split_at_mut(1);
-        let (u1, u2) = rest.split_at_mut(1);
-        u0[0]
-            .par_iter_mut()
-            .zip(u1[0].par_iter_mut())
-            .zip(u2[0].par_iter_mut())
-            .enumerate()
-            .for_each(|(idx, ((a, b), c))| {
-                let kk = self.k_squared(idx);
-                if kk == 0.0 {
-                    return;
-                }
-                let k = self.k_vector(idx);
-                let s = |i: usize, j: usize| sigma[sym_index(i, j)][idx];
-                let f: [Complex64; 3] = std::array::from_fn(|i| {
-                    Complex64::new(0.0, 1.0) * (k[0] * s(i, 0) + k[1] * s(i, 1) + k[2] * s(i, 2))
-                });
-                let kf = k[0] * f[0] + k[1] * f[1] + k[2] * f[2];
-                let k1sq = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
-                let proj = |i: usize| (f[i] - kf * (k[i] / k1sq.max(1e-300))) / kk;
-                *a = proj(0);
-                *b = proj(1);
-                *c = proj(2);
-            });
+        self.stokes_into(sigma, &mut u);
         u
+    }
+
+    /// [`Self::stokes`] into `u` (three spectral-length buffers).
+    pub fn stokes_into(&self, sigma: &[Vec<Complex64>; 6], u: &mut [Vec<Complex64>; 3]) {
+        let h = self.h;
+        let [u0, u1, u2] = u;
+        u0.par_chunks_mut(h)
+            .zip(u1.par_chunks_mut(h))
+            .zip(u2.par_chunks_mut(h))
+            .enumerate()
+            .for_each(|(row, ((l0, l1), l2))| {
+                let (b, d) = (row % self.n, row / self.n);
+                let kr = [self.k1[b], self.k1[d]];
+                for a in 0..h {
+                    let idx = row * h + a;
+                    let kk = self.k2[a] + self.k2[b] + self.k2[d];
+                    if kk == 0.0 {
+                        l0[a] = Complex64::default();
+                        l1[a] = Complex64::default();
+                        l2[a] = Complex64::default();
+                        continue;
+                    }
+                    let k = [self.k1[a], kr[0], kr[1]];
+                    let s = |i: usize, j: usize| sigma[sym_index(i, j)][idx];
+                    let f: [Complex64; 3] = std::array::from_fn(|i| {
+                        Complex64::new(0.0, 1.0)
+                            * (k[0] * s(i, 0) + k[1] * s(i, 1) + k[2] * s(i, 2))
+                    });
+                    let kf = k[0] * f[0] + k[1] * f[1] + k[2] * f[2];
+                    let k1sq = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
+                    let proj = |i: usize| (f[i] - kf * (k[i] / k1sq.max(1e-300))) / kk;
+                    l0[a] = proj(0);
+                    l1[a] = proj(1);
+                    l2[a] = proj(2);
+                }
+            });
     }
 }
 
-/// The closure at every grid point, for one Q: rotation `R` and eigenframe fourth moments
-/// (scaled by the concentration `tr Q`).
+/// Points per block of the closure evaluation (one table product per block) and of the
+/// contraction's parallel loop: fixed, so results do not depend on the thread count.
+const BLOCK: usize = 512;
+
+/// The closure at every grid point, for one Q: the lab-frame fourth moment `c S_ijkl`
+/// (`c = tr Q`) as a symmetric 6x6 matrix over the stored components (21 numbers per point),
+/// so each contraction with a new `E` is one small matrix-vector product.
 #[derive(Debug, Clone, Default)]
 pub struct ClosureField {
-    r: Vec<Sym3>,
-    s: Vec<Sym3>,
+    /// `c S_(ij)(kl)` for `(i, j) = SYM[a]`, `(k, l) = SYM[b]`, `a <= b`, row by row
+    /// (`a = 0`: entries 0-5, `a = 1`: 6-10, ...). `S:E` weighs the off-diagonal components of
+    /// `E` twice.
+    s: Vec<[f64; 21]>,
     /// Smallest eigenvalue of `Q / tr Q` over the grid (realizability).
     pub min_eigenvalue: f64,
     /// Largest eigenvalue of `Q / tr Q` over the grid.
@@ -386,69 +504,118 @@ pub struct ClosureField {
     pub entropy: f64,
 }
 
+/// The lab-frame fourth moment of an eigenframe one: `S_ijkl` from the rotation `r` (columns
+/// the eigenvectors) and the eigenframe moments `s[a][b] = S'_aabb` (the only non-zero ones
+/// with their permutations, `S'` being fully symmetric):
+/// `S = sum_ab s_ab P^a P^b + sum_{a<b} s_ab Q^ab Q^ab` with `P^a_ij = r_ia r_ja` and
+/// `Q^ab_ij = r_ia r_jb + r_ib r_ja`.
+fn lab_fourth(r: &Sym3, s: &Sym3) -> [f64; 21] {
+    let mut p = [[0.0; 6]; 3];
+    let mut q = [[0.0; 6]; 3];
+    for (c, &(i, j)) in SYM.iter().enumerate() {
+        for a in 0..3 {
+            p[a][c] = r[i][a] * r[j][a];
+        }
+        q[0][c] = r[i][0] * r[j][1] + r[i][1] * r[j][0];
+        q[1][c] = r[i][0] * r[j][2] + r[i][2] * r[j][0];
+        q[2][c] = r[i][1] * r[j][2] + r[i][2] * r[j][1];
+    }
+    // (s P)_b = sum_a s_ab P^a.
+    let mut sp = [[0.0; 6]; 3];
+    for b in 0..3 {
+        for c in 0..6 {
+            sp[b][c] = s[0][b] * p[0][c] + s[1][b] * p[1][c] + s[2][b] * p[2][c];
+        }
+    }
+    let qs = [s[0][1], s[0][2], s[1][2]];
+    let mut out = [0.0; 21];
+    let mut k = 0;
+    for c in 0..6 {
+        for d in c..6 {
+            out[k] = p[0][c] * sp[0][d]
+                + p[1][c] * sp[1][d]
+                + p[2][c] * sp[2][d]
+                + qs[0] * q[0][c] * q[0][d]
+                + qs[1] * q[1][c] * q[1][d]
+                + qs[2] * q[2][c] * q[2][d];
+            k += 1;
+        }
+    }
+    out
+}
+
+/// `S:E` at one point from its stored tensor `m` and the six components of `E`.
+#[inline(always)]
+fn contract_point(m: &[f64; 21], e: [f64; 6]) -> [f64; 6] {
+    let w = [e[0], 2.0 * e[1], 2.0 * e[2], e[3], 2.0 * e[4], e[5]];
+    [
+        m[0] * w[0] + m[1] * w[1] + m[2] * w[2] + m[3] * w[3] + m[4] * w[4] + m[5] * w[5],
+        m[1] * w[0] + m[6] * w[1] + m[7] * w[2] + m[8] * w[3] + m[9] * w[4] + m[10] * w[5],
+        m[2] * w[0] + m[7] * w[1] + m[11] * w[2] + m[12] * w[3] + m[13] * w[4] + m[14] * w[5],
+        m[3] * w[0] + m[8] * w[1] + m[12] * w[2] + m[15] * w[3] + m[16] * w[4] + m[17] * w[5],
+        m[4] * w[0] + m[9] * w[1] + m[13] * w[2] + m[16] * w[3] + m[18] * w[4] + m[19] * w[5],
+        m[5] * w[0] + m[10] * w[1] + m[14] * w[2] + m[17] * w[3] + m[19] * w[4] + m[20] * w[5],
+    ]
+}
+
 impl ClosureField {
     /// Evaluate the closure for grid values `q` (six components); the entropy (a diagnostic)
-    /// only if asked.
+    /// only if asked. Per block of points: the eigen-decompositions of `Q / tr Q`, one table
+    /// product, the lab-frame tensors.
     pub fn new(closure: &BinghamClosure, q: &[Vec<f64>; 6], with_entropy: bool) -> Self {
         let n = q[0].len();
-        // Eigen-decomposition of Q / tr Q at every point, eigenvalues in descending order.
-        let eig: Vec<(Sym3, [f64; 3], f64)> = (0..n)
-            .into_par_iter()
-            .map(|p| {
-                let a: Sym3 =
-                    std::array::from_fn(|i| std::array::from_fn(|j| q[sym_index(i, j)][p]));
-                let c = a[0][0] + a[1][1] + a[2][2];
-                let an: Sym3 = a.map(|row| row.map(|v| v / c));
-                // Largest eigenvalue first: the tables' most accurate order.
-                let (w, r) = sym3_eigen_sorted(&an);
-                (r, w, c)
-            })
-            .collect();
-        // Table evaluation in blocks (one matrix product per block).
-        const BLOCK: usize = 512;
-        let blocks: Vec<(Vec<Sym3>, Vec<f64>)> = eig
-            .par_chunks(BLOCK)
+        let mut s = vec![[0.0; 21]; n];
+        let stats: Vec<(f64, f64, f64)> = s
+            .par_chunks_mut(BLOCK)
+            .enumerate()
             .map_init(
                 || {
                     (
                         crate::closure::BatchScratch::default(),
                         Vec::new(),
                         Vec::new(),
+                        Vec::new(),
+                        Vec::new(),
                     )
                 },
-                |(scratch, f, h), chunk| {
-                    let mus: Vec<[f64; 3]> = chunk.iter().map(|e| e.1).collect();
-                    closure.evaluate_batch_into(&mus, with_entropy, scratch, f, h);
-                    let s = f
-                        .iter()
-                        .zip(chunk)
-                        .map(|(f, e)| f.map(|row| row.map(|v| v * e.2)))
-                        .collect();
-                    let h = h
-                        .iter()
-                        .zip(chunk)
-                        .map(|(h, e)| e.2 * e.2.max(1e-300).ln() + e.2 * h)
-                        .collect();
-                    (s, h)
+                |(scratch, fourth, entropy, mus, frames), (b, out)| {
+                    mus.clear();
+                    frames.clear();
+                    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                    for p in b * BLOCK..b * BLOCK + out.len() {
+                        let a: Sym3 =
+                            std::array::from_fn(|i| std::array::from_fn(|j| q[sym_index(i, j)][p]));
+                        let c = a[0][0] + a[1][1] + a[2][2];
+                        let an: Sym3 = a.map(|row| row.map(|v| v / c));
+                        // Largest eigenvalue first: the tables' most accurate order.
+                        let (w, r) = sym3_eigen_sorted(&an);
+                        lo = lo.min(w[2]);
+                        hi = hi.max(w[0]);
+                        mus.push(w);
+                        frames.push((r, c));
+                    }
+                    closure.evaluate_batch_into(mus, with_entropy, scratch, fourth, entropy);
+                    let mut h = 0.0;
+                    for (k, o) in out.iter_mut().enumerate() {
+                        let (r, c) = frames[k];
+                        *o = lab_fourth(&r, &fourth[k].map(|row| row.map(|v| v * c)));
+                        if with_entropy {
+                            h += c * c.max(1e-300).ln() + c * entropy[k];
+                        }
+                    }
+                    (lo, hi, h)
                 },
             )
             .collect();
-        let min_eigenvalue = eig
-            .iter()
-            .map(|e| e.1.iter().copied().fold(f64::INFINITY, f64::min))
-            .fold(f64::INFINITY, f64::min);
-        let max_eigenvalue = eig
-            .iter()
-            .map(|e| e.1.iter().copied().fold(f64::NEG_INFINITY, f64::max))
-            .fold(f64::NEG_INFINITY, f64::max);
+        let min_eigenvalue = stats.iter().map(|t| t.0).fold(f64::INFINITY, f64::min);
+        let max_eigenvalue = stats.iter().map(|t| t.1).fold(f64::NEG_INFINITY, f64::max);
         let entropy = if with_entropy {
-            blocks.iter().flat_map(|b| b.1.iter()).sum::<f64>() / n as f64
+            stats.iter().map(|t| t.2).sum::<f64>() / n as f64
         } else {
             f64::NAN
         };
         Self {
-            r: eig.iter().map(|e| e.0).collect(),
-            s: blocks.into_iter().flat_map(|b| b.0).collect(),
+            s,
             min_eigenvalue,
             max_eigenvalue,
             entropy,
@@ -457,52 +624,52 @@ impl ClosureField {
 
     /// `(S:E)` at every point for grid values `e` (six components).
     pub fn contract(&self, e: &[Vec<f64>; 6]) -> [Vec<f64>; 6] {
-        let n = self.r.len();
-        let vals: Vec<[f64; 6]> = (0..n)
-            .into_par_iter()
-            .map(|p| {
-                let r = &self.r[p];
-                let s = &self.s[p];
-                let em = |i: usize, j: usize| e[sym_index(i, j)][p];
-                // E' = R^T E R
-                let mut ep = [[0.0; 3]; 3];
-                for a in 0..3 {
-                    for b in a..3 {
-                        let mut acc = 0.0;
-                        for i in 0..3 {
-                            for j in 0..3 {
-                                acc += r[i][a] * em(i, j) * r[j][b];
-                            }
-                        }
-                        ep[a][b] = acc;
-                        ep[b][a] = acc;
-                    }
-                }
-                // T' = S':E' (only S'_aabb and its permutations are non-zero).
-                let mut tp = [[0.0; 3]; 3];
-                for a in 0..3 {
-                    tp[a][a] = (0..3).map(|c| s[a][c] * ep[c][c]).sum();
-                    for b in 0..3 {
-                        if a != b {
-                            tp[a][b] = 2.0 * s[a][b] * ep[a][b];
-                        }
-                    }
-                }
-                // back: R T' R^T
-                std::array::from_fn(|c| {
-                    let (i, j) = SYM[c];
-                    let mut acc = 0.0;
-                    for a in 0..3 {
-                        for b in 0..3 {
-                            acc += r[i][a] * tp[a][b] * r[j][b];
-                        }
-                    }
-                    acc
-                })
-            })
-            .collect();
-        std::array::from_fn(|c| vals.iter().map(|v| v[c]).collect())
+        let mut out: [Vec<f64>; 6] = std::array::from_fn(|_| vec![0.0; self.s.len()]);
+        self.contract_into(e, &mut out);
+        out
     }
+
+    /// [`Self::contract`] into caller-owned grids (each as long as the field).
+    pub fn contract_into(&self, e: &[Vec<f64>; 6], out: &mut [Vec<f64>; 6]) {
+        let s = &self.s;
+        for_each_block6(out, BLOCK, |start, [o0, o1, o2, o3, o4, o5]| {
+            let end = start + o0.len();
+            let m = &s[start..end];
+            let ec: [&[f64]; 6] = std::array::from_fn(|d| &e[d][start..end]);
+            for k in 0..m.len() {
+                let t = contract_point(
+                    &m[k],
+                    [ec[0][k], ec[1][k], ec[2][k], ec[3][k], ec[4][k], ec[5][k]],
+                );
+                o0[k] = t[0];
+                o1[k] = t[1];
+                o2[k] = t[2];
+                o3[k] = t[3];
+                o4[k] = t[4];
+                o5[k] = t[5];
+            }
+        });
+    }
+}
+
+/// `f(start, blocks)` over the six grids `out` cut into blocks of `block` points, in parallel:
+/// each call gets the block starting at point `start` of every grid.
+fn for_each_block6(
+    out: &mut [Vec<f64>; 6],
+    block: usize,
+    f: impl Fn(usize, [&mut [f64]; 6]) + Sync + Send,
+) {
+    let [o0, o1, o2, o3, o4, o5] = out;
+    o0.par_chunks_mut(block)
+        .zip(o1.par_chunks_mut(block))
+        .zip(o2.par_chunks_mut(block))
+        .zip(o3.par_chunks_mut(block))
+        .zip(o4.par_chunks_mut(block))
+        .zip(o5.par_chunks_mut(block))
+        .enumerate()
+        .for_each(|(b, (((((c0, c1), c2), c3), c4), c5))| {
+            f(b * block, [c0, c1, c2, c3, c4, c5]);
+        });
 }
 
 /// Everything one right-hand-side evaluation produces.
@@ -538,16 +705,24 @@ pub struct RhsEval {
 const FLOW_FLOOR: f64 = 1e-14;
 
 fn rel_change(grid: &SpectralGrid, a: &[Vec<Complex64>; 3], b: &[Vec<Complex64>; 3]) -> f64 {
-    let mut num = 0.0;
-    let mut den = 0.0;
-    for c in 0..3 {
-        for (idx, (x, y)) in a[c].iter().zip(&b[c]).enumerate() {
-            let w = grid.weight(idx);
-            num += w * (x - y).norm_sqr();
-            den += w * x.norm_sqr();
-        }
-    }
+    let h = grid.h;
+    let num = grid.sum_rows(|row, i| {
+        let w = grid.weight_of(i);
+        (0..3)
+            .map(|c| w * (a[c][row * h + i] - b[c][row * h + i]).norm_sqr())
+            .sum()
+    });
+    let den = grid.sum_rows(|row, i| {
+        let w = grid.weight_of(i);
+        (0..3).map(|c| w * a[c][row * h + i].norm_sqr()).sum()
+    });
     (num / den.max(FLOW_FLOOR * FLOW_FLOOR)).sqrt()
+}
+
+/// Whether every coefficient of every component is finite (checked in parallel).
+fn all_finite(c: &[Vec<Complex64>]) -> bool {
+    c.iter()
+        .all(|v| v.par_iter().all(|z| z.re.is_finite() && z.im.is_finite()))
 }
 
 /// The mean-field right-hand side: grid, closure tables, parameters.
@@ -566,10 +741,19 @@ pub struct MeanFieldRhs<'a> {
 impl MeanFieldRhs<'_> {
     /// Grid values of `E` from velocity coefficients.
     pub fn strain(&self, u: &[Vec<Complex64>; 3]) -> [Vec<f64>; 6] {
-        std::array::from_fn(|c| {
+        let g = self.grid;
+        let mut work = vec![Complex64::default(); g.spectral_len()];
+        let mut e: [Vec<f64>; 6] = std::array::from_fn(|_| vec![0.0; g.len()]);
+        self.strain_into(u, &mut work, &mut e);
+        e
+    }
+
+    /// [`Self::strain`] into `e`, with `work` (spectral length) as scratch.
+    fn strain_into(&self, u: &[Vec<Complex64>; 3], work: &mut [Complex64], e: &mut [Vec<f64>; 6]) {
+        for (c, ec) in e.iter_mut().enumerate() {
             let (i, j) = SYM[c];
-            self.grid.inverse_strain(u, i, j)
-        })
+            self.grid.inverse_strain_into(u, i, j, work, ec);
+        }
     }
 
     /// Evaluate the explicit right-hand side at `q_hat`, the velocity fixed point started
@@ -580,30 +764,40 @@ impl MeanFieldRhs<'_> {
         u_guess: &[Vec<Complex64>; 3],
     ) -> Result<RhsEval, MeanFieldError> {
         let g = self.grid;
-        let q: [Vec<f64>; 6] = std::array::from_fn(|c| g.inverse(&q_hat[c]));
+        let (len, slen) = (g.len(), g.spectral_len());
+        let grid_fields = || -> [Vec<f64>; 6] { std::array::from_fn(|_| vec![0.0; len]) };
+        let mut work = vec![Complex64::default(); slen];
+        let mut q = grid_fields();
+        for (c, qc) in q.iter_mut().enumerate() {
+            g.inverse_into(&q_hat[c], &mut work, qc);
+        }
         let closure = ClosureField::new(self.closure, &q, self.with_entropy);
         let zeta = self.params.zeta;
         let mut u = u_guess.clone();
+        let mut u_new: [Vec<Complex64>; 3] =
+            std::array::from_fn(|_| vec![Complex64::default(); slen]);
+        let mut e = grid_fields();
+        let mut se = grid_fields();
+        let mut sigma: [Vec<Complex64>; 6] =
+            std::array::from_fn(|_| vec![Complex64::default(); slen]);
         let mut report = RhsReport::default();
         loop {
             report.iterations += 1;
-            let e = self.strain(&u);
-            let se = if zeta != 0.0 {
-                closure.contract(&e)
-            } else {
-                std::array::from_fn(|_| vec![0.0; g.len()])
-            };
-            let sigma: [Vec<Complex64>; 6] = std::array::from_fn(|c| {
-                let s: Vec<f64> = q[c]
-                    .iter()
-                    .zip(&se[c])
-                    .map(|(q, s)| -q + zeta * s)
-                    .collect();
-                g.forward(&s, true)
-            });
-            let u_new = g.stokes(&sigma);
+            self.strain_into(&u, &mut work, &mut e);
+            if zeta != 0.0 {
+                closure.contract_into(&e, &mut se);
+            }
+            for c in 0..6 {
+                // The stress -Q + zeta S:E, formed in place of S:E.
+                se[c]
+                    .par_iter_mut()
+                    .zip(&q[c])
+                    .for_each(|(s, q)| *s = -q + zeta * *s);
+                g.forward_into(&se[c], true, &mut sigma[c]);
+            }
+            g.stokes_into(&sigma, &mut u_new);
             report.residual = rel_change(g, &u_new, &u);
-            u = u_new;
+            std::mem::swap(&mut u, &mut u_new);
             if zeta == 0.0 || report.residual <= self.params.fixed_point_tolerance {
                 break;
             }
@@ -618,39 +812,47 @@ impl MeanFieldRhs<'_> {
             }
         }
         // Velocity and gradients on the grid; E from the gradient (no extra transforms).
-        let ug: [Vec<f64>; 3] = std::array::from_fn(|i| g.inverse(&u[i]));
-        let grad_u: [[Vec<f64>; 3]; 3] =
-            std::array::from_fn(|i| std::array::from_fn(|k| g.inverse_derivative(&u[i], k)));
-        let e: [Vec<f64>; 6] = std::array::from_fn(|c| {
+        let mut ug: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; len]);
+        for (i, ui) in ug.iter_mut().enumerate() {
+            g.inverse_into(&u[i], &mut work, ui);
+        }
+        let mut grad_u: [[Vec<f64>; 3]; 3] =
+            std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; len]));
+        for (i, row) in grad_u.iter_mut().enumerate() {
+            for (k, gik) in row.iter_mut().enumerate() {
+                g.inverse_derivative_into(&u[i], k, &mut work, gik);
+            }
+        }
+        for (c, ec) in e.iter_mut().enumerate() {
             let (i, j) = SYM[c];
-            grad_u[i][j]
-                .iter()
+            ec.par_iter_mut()
+                .zip(&grad_u[i][j])
                 .zip(&grad_u[j][i])
-                .map(|(a, b)| 0.5 * (a + b))
-                .collect()
-        });
-        let se = closure.contract(&e);
-        let nonlinear: [Vec<Complex64>; 6] = std::array::from_fn(|c| {
+                .for_each(|((e, a), b)| *e = 0.5 * (a + b));
+        }
+        // S:E of the converged flow: the Q equation's -2 S:E term, whatever zeta.
+        closure.contract_into(&e, &mut se);
+        let mut nonlinear: [Vec<Complex64>; 6] =
+            std::array::from_fn(|_| vec![Complex64::default(); slen]);
+        let mut dq: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; len]);
+        let mut vals = vec![0.0; len];
+        for (c, nc) in nonlinear.iter_mut().enumerate() {
             let (i, j) = SYM[c];
-            let dq: [Vec<f64>; 3] = std::array::from_fn(|k| g.inverse_derivative(&q_hat[c], k));
-            let vals: Vec<f64> = (0..g.len())
-                .into_par_iter()
-                .map(|p| {
-                    let adv = ug[0][p] * dq[0][p] + ug[1][p] * dq[1][p] + ug[2][p] * dq[2][p];
-                    let mut stretch = 0.0;
-                    for k in 0..3 {
-                        stretch += grad_u[i][k][p] * q[sym_index(k, j)][p]
-                            + q[sym_index(i, k)][p] * grad_u[j][k][p];
-                    }
-                    -adv + stretch - 2.0 * se[c][p]
-                })
-                .collect();
-            g.forward(&vals, true)
-        });
-        if nonlinear
-            .iter()
-            .any(|c| c.iter().any(|v| !v.re.is_finite() || !v.im.is_finite()))
-        {
+            for (k, dqk) in dq.iter_mut().enumerate() {
+                g.inverse_derivative_into(&q_hat[c], k, &mut work, dqk);
+            }
+            vals.par_iter_mut().enumerate().for_each(|(p, v)| {
+                let adv = ug[0][p] * dq[0][p] + ug[1][p] * dq[1][p] + ug[2][p] * dq[2][p];
+                let mut stretch = 0.0;
+                for k in 0..3 {
+                    stretch += grad_u[i][k][p] * q[sym_index(k, j)][p]
+                        + q[sym_index(i, k)][p] * grad_u[j][k][p];
+                }
+                *v = -adv + stretch - 2.0 * se[c][p];
+            });
+            g.forward_into(&vals, true, nc);
+        }
+        if !all_finite(&nonlinear) {
             return Err(MeanFieldError::NonFinite("the right-hand side"));
         }
         Ok(RhsEval {
@@ -797,26 +999,24 @@ impl MeanFieldStepper {
         let ([a0, a1, a2], [b0, b1]) = (scheme.coefficients)(w);
         let d = rhs.params.diffusion;
         let g = rhs.grid;
+        let prev = self.prev.as_ref().filter(|_| scheme.steps == 2);
+        let h = g.h;
         let new: [Vec<Complex64>; 6] = std::array::from_fn(|c| {
-            (0..g.spectral_len())
-                .into_par_iter()
-                .map(|idx| {
-                    let mut r = -a1 * self.q_hat[c][idx] + dt * b0 * ev.nonlinear[c][idx];
-                    if let Some(h) = &self.prev
-                        && scheme.steps == 2
-                    {
-                        r += -a2 * h.q_hat[c][idx] + dt * b1 * h.nonlinear[c][idx];
-                    }
-                    r / (a0 + dt * d * g.k_squared(idx))
-                })
-                .collect()
+            let mut out = vec![Complex64::default(); g.spectral_len()];
+            g.for_each_row(&mut out, |k, a, v| {
+                let idx = k.row * h + a;
+                let mut r = -a1 * self.q_hat[c][idx] + dt * b0 * ev.nonlinear[c][idx];
+                if let Some(hist) = prev {
+                    r += -a2 * hist.q_hat[c][idx] + dt * b1 * hist.nonlinear[c][idx];
+                }
+                let kk = g.k2[a] + k.k_sq[0] + k.k_sq[1];
+                *v = r / (a0 + dt * d * kk);
+            });
+            out
         });
         // Nothing is committed unless the new state is finite: on an error the stepper still
         // holds the last good state, for the caller to save.
-        if new
-            .iter()
-            .any(|c| c.iter().any(|v| !v.re.is_finite() || !v.im.is_finite()))
-        {
+        if !all_finite(&new) {
             return Err(MeanFieldError::NonFinite("Q after the step"));
         }
         let report = state_report(rhs, &ev);
@@ -850,17 +1050,34 @@ fn state_report(rhs: &MeanFieldRhs, ev: &RhsEval) -> MeanFieldStepReport {
     let npts = g.len() as f64;
     let u_l2 = ev.u.iter().map(|c| g.norm_sqr(c)).sum::<f64>().sqrt();
     let ug = &ev.u_grid;
-    let u_max = (0..g.len())
-        .map(|p| ug[0][p].abs() + ug[1][p].abs() + ug[2][p].abs())
-        .fold(0.0, f64::max);
+    let u_max = ug[0]
+        .par_iter()
+        .zip(&ug[1])
+        .zip(&ug[2])
+        .map(|((a, b), c)| a.abs() + b.abs() + c.abs())
+        .reduce(|| 0.0, f64::max);
     let w = |c: usize| if SYM[c].0 == SYM[c].1 { 1.0 } else { 2.0 };
+    // <E:E>, <E:Q>, <E:S:E> summed in fixed chunks, then in chunk order: deterministic.
+    const CHUNK: usize = 4096;
+    let chunks: Vec<[f64; 3]> = (0..g.len().div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|b| {
+            let mut acc = [0.0; 3];
+            for c in 0..6 {
+                for p in b * CHUNK..((b + 1) * CHUNK).min(g.len()) {
+                    acc[0] += w(c) * ev.e[c][p] * ev.e[c][p];
+                    acc[1] += w(c) * ev.e[c][p] * ev.q[c][p];
+                    acc[2] += w(c) * ev.e[c][p] * ev.se[c][p];
+                }
+            }
+            acc
+        })
+        .collect();
     let (mut ee, mut eq, mut ese) = (0.0, 0.0, 0.0);
-    for c in 0..6 {
-        for p in 0..g.len() {
-            ee += w(c) * ev.e[c][p] * ev.e[c][p];
-            eq += w(c) * ev.e[c][p] * ev.q[c][p];
-            ese += w(c) * ev.e[c][p] * ev.se[c][p];
-        }
+    for a in &chunks {
+        ee += a[0];
+        eq += a[1];
+        ese += a[2];
     }
     let energy_residual = (2.0 * ee + rhs.params.zeta * ese - eq) / eq.abs().max(1e-300);
     MeanFieldStepReport {
@@ -922,26 +1139,8 @@ mod tests {
                 continue;
             }
             // A random rotation from a random unit quaternion.
-            let v: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
-            let nv = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-            let [w, x, y, z] = v.map(|c| c / nv);
-            let r = [
-                [
-                    1.0 - 2.0 * (y * y + z * z),
-                    2.0 * (x * y - w * z),
-                    2.0 * (x * z + w * y),
-                ],
-                [
-                    2.0 * (x * y + w * z),
-                    1.0 - 2.0 * (x * x + z * z),
-                    2.0 * (y * z - w * x),
-                ],
-                [
-                    2.0 * (x * z - w * y),
-                    2.0 * (y * z + w * x),
-                    1.0 - 2.0 * (x * x + y * y),
-                ],
-            ];
+            let r =
+                crate::eigen::tests::rotation(std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
             let c = rng.random_range(0.5..1.5);
             for (k, &(i, j)) in SYM.iter().enumerate() {
                 q[k].push(c * (0..3).map(|a| r[i][a] * mu[a] * r[j][a]).sum::<f64>());

@@ -18,6 +18,7 @@ use motile_experiments::meanfield_run::{
     parse_config as mf_config, resume_meanfield, run_meanfield,
 };
 use motile_experiments::particle_run::{parse_config as p_config, resume_particle, run_particle};
+use motile_experiments::snapshot::{Snapshot, read_snapshot};
 use std::path::{Path, PathBuf};
 
 /// `(file, FNV-1a 64)` of every file of the particle run, log excluded.
@@ -42,19 +43,20 @@ const PARTICLE: [(&str, u64); 15] = [
 /// wrote it (no `diameter` key): a run resumed from tests/data/golden keeps that file, and every
 /// other file it writes is the same as before.
 const PARTICLE_CONFIG_BEFORE_DIAMETER: u64 = 0xcb6a1b2e4109c3c8;
-/// The same for the mean-field run.
+/// The same for the mean-field run, recorded after the closed-form eigen-decomposition, the
+/// lab-frame contraction and the deterministic parallel sums (issue 18) changed its round-off.
 const MEANFIELD: [(&str, u64); 11] = [
     ("checkpoints/ckpt_000000000.h5", 0x41601fb6bdd7c0e8),
     ("checkpoints/ckpt_000000000.h5.crc32", 0xef17168d2178a150),
-    ("checkpoints/ckpt_000000008.h5", 0x89b342e78df2140e),
-    ("checkpoints/ckpt_000000008.h5.crc32", 0x1c86e06a1b3d6859),
-    ("checkpoints/ckpt_000000014.h5", 0x83c41d4adbf7d521),
-    ("checkpoints/ckpt_000000014.h5.crc32", 0x7afed7642c754cbb),
+    ("checkpoints/ckpt_000000008.h5", 0x1acf900d032c6610),
+    ("checkpoints/ckpt_000000008.h5.crc32", 0x0f61f241de8fa874),
+    ("checkpoints/ckpt_000000014.h5", 0x2c2c00b8c234ec27),
+    ("checkpoints/ckpt_000000014.h5.crc32", 0x522dfcbf2b94a708),
     ("config.toml", 0x7de631c25f7cc365),
-    ("snapshots/snap_000000.h5", 0xd6f8c101a43c0a78),
-    ("snapshots/snap_000001.h5", 0xfb7783ee1f3d92d3),
-    ("snapshots/snap_000002.h5", 0x041ccf2fd2f86282),
-    ("timeseries.csv", 0x07c06242a2c18f9a),
+    ("snapshots/snap_000000.h5", 0x94f033b5a4230ffb),
+    ("snapshots/snap_000001.h5", 0x54c59383f80e3e4f),
+    ("snapshots/snap_000002.h5", 0x4207b0b5d9393556),
+    ("timeseries.csv", 0x47b1536b9d6a26f4),
 ];
 
 fn data() -> PathBuf {
@@ -184,6 +186,49 @@ fn particle_run_writes_the_golden_files_fresh_and_resumed_from_an_old_checkpoint
     check("particle, resumed", &digest(&resumed), &old);
 }
 
+/// Largest difference between two runs' time series, per column relative to the column's
+/// largest value, over the rows both have (every column but the wall clock and the solver
+/// residuals).
+fn series_difference(a: &Path, b: &Path) -> (f64, String) {
+    let read = |p: &Path| {
+        let text = std::fs::read_to_string(p.join("timeseries.csv")).unwrap();
+        let mut lines = text.lines();
+        let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+        let rows: Vec<Vec<f64>> = lines
+            .map(|l| {
+                l.split(',')
+                    .map(|c| c.parse().unwrap_or(f64::NAN))
+                    .collect()
+            })
+            .collect();
+        (header, rows)
+    };
+    let ((ha, ra), (hb, rb)) = (read(a), read(b));
+    assert_eq!(ha, hb, "columns");
+    assert_eq!(ra.len(), rb.len(), "rows");
+    let mut worst = (0.0f64, String::new());
+    for (c, name) in ha.iter().enumerate() {
+        // The wall clock, and the residuals, which are round-off and fixed-point tolerance
+        // themselves (their digits are not the run's).
+        if name.starts_with("steps_per_second") || name.contains("residual") {
+            continue;
+        }
+        let scale = ra.iter().map(|r| r[c].abs()).fold(1e-300, f64::max);
+        for (x, y) in ra.iter().zip(&rb) {
+            let d = (x[c] - y[c]).abs() / scale;
+            if d > worst.0 {
+                worst = (d, name.clone());
+            }
+        }
+    }
+    worst
+}
+
+/// The mean-field run's files are pinned fresh. Resumed from the mid-run checkpoint that the
+/// code before the run loop was shared wrote (tests/data/golden/meanfield, also before the
+/// round-off changes of issue 18), the run reads it and ends where the fresh run ends: its
+/// time series agrees with the fresh one to 1e-10 of each column's scale, the last snapshot's
+/// Q to 1e-12 (measured: 2.8e-14 and 5.6e-17, with the same fixed-point iteration counts).
 #[test]
 fn meanfield_run_writes_the_golden_files_fresh_and_resumed_from_an_old_checkpoint() {
     if !same_cpu_as_recorded() {
@@ -199,5 +244,22 @@ fn meanfield_run_writes_the_golden_files_fresh_and_resumed_from_an_old_checkpoin
     copy_dir(&data().join("meanfield"), &resumed);
     let s = resume_meanfield(&resumed, false).unwrap();
     assert_eq!(s.steps, 6, "resumed from step 8 of 14");
-    check("mean-field, resumed", &digest(&resumed), &MEANFIELD);
+    let (worst, column) = series_difference(&fresh, &resumed);
+    eprintln!(
+        "mean-field resumed from the old checkpoint: time series within {worst:.2e} ({column})"
+    );
+    assert!(
+        worst <= 1e-10,
+        "resumed from the old checkpoint, the time series differs from the fresh run's by {worst:.2e} of its scale in {column}"
+    );
+    let q = |dir: &Path| match read_snapshot(&dir.join("snapshots/snap_000002.h5")).unwrap() {
+        Snapshot::Field(f) => f.q,
+        _ => panic!("a mean-field snapshot"),
+    };
+    let (qa, qb) = (q(&fresh), q(&resumed));
+    let dq = (0..6)
+        .flat_map(|c| qa[c].iter().zip(&qb[c]).map(|(a, b)| (a - b).abs()))
+        .fold(0.0, f64::max);
+    eprintln!("last snapshot's Q within {dq:.2e}");
+    assert!(dq <= 1e-12, "last snapshot's Q differs by {dq:.2e}");
 }
