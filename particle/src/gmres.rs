@@ -3,9 +3,11 @@
 //! The operator is matrix-free behind [`LinOp`]; the solver keeps the Arnoldi basis as scratch,
 //! orthogonalises by modified Gram-Schmidt, and tracks the residual through Givens rotations.
 //! It stops when `||b - A x|| <= tol ||b||` and returns what it did ([`GmresInfo`]), or a
-//! structured error. Dot products are serial, so results do not depend on the thread count.
+//! structured error. Vector operations run in parallel; dot products are summed in fixed
+//! chunks and then in chunk order, so results do not depend on the thread count.
 
 use motile_analysis::params::{InvalidParameter, check_range};
+use rayon::prelude::*;
 
 /// A linear operator applied matrix-free.
 pub trait LinOp {
@@ -95,8 +97,10 @@ pub enum GmresError<E> {
     Operator(E),
 }
 
+/// `a . b`, summed in fixed chunks in parallel and then in chunk order: the same bits for any
+/// thread count (and, below one chunk, the plain sequential sum).
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    crate::contact::det_sum(a.len(), |i| a[i] * b[i])
 }
 
 fn norm(a: &[f64]) -> f64 {
@@ -126,9 +130,9 @@ pub fn gmres<O: LinOp>(
     loop {
         // r = b - A x
         op.apply(x, &mut w).map_err(GmresError::Operator)?;
-        for i in 0..n {
-            r[i] = b[i] - w[i];
-        }
+        r.par_iter_mut()
+            .zip(b.par_iter().zip(&w))
+            .for_each(|(r, (b, w))| *r = b - w);
         let beta = norm(&r);
         let rel = beta / bnorm;
         if !rel.is_finite() {
@@ -151,7 +155,7 @@ pub fn gmres<O: LinOp>(
             });
         }
         basis.clear();
-        basis.push(r.iter().map(|c| c / beta).collect());
+        basis.push(r.par_iter().map(|c| c / beta).collect());
         let mut h = vec![vec![0.0; m]; m + 1];
         let (mut cs, mut sn) = (vec![0.0; m], vec![0.0; m]);
         let mut g = vec![0.0; m + 1];
@@ -160,12 +164,11 @@ pub fn gmres<O: LinOp>(
         while k < m && info.iterations < params.max_iterations {
             op.apply(&basis[k], &mut w).map_err(GmresError::Operator)?;
             info.iterations += 1;
+            // Modified Gram-Schmidt: each projection in parallel, in basis order.
             for (j, v) in basis.iter().enumerate() {
                 let hj = dot(&w, v);
                 h[j][k] = hj;
-                for i in 0..n {
-                    w[i] -= hj * v[i];
-                }
+                w.par_iter_mut().zip(v).for_each(|(w, v)| *w -= hj * v);
             }
             let hn = norm(&w);
             h[k + 1][k] = hn;
@@ -192,7 +195,7 @@ pub fn gmres<O: LinOp>(
             if est <= params.tol || hn == 0.0 {
                 break;
             }
-            basis.push(w.iter().map(|c| c / hn).collect());
+            basis.push(w.par_iter().map(|c| c / hn).collect());
         }
         // Solve the upper-triangular system and update x.
         let mut y = vec![0.0; k];
@@ -200,11 +203,12 @@ pub fn gmres<O: LinOp>(
             let s: f64 = (i + 1..k).map(|j| h[i][j] * y[j]).sum();
             y[i] = (g[i] - s) / h[i][i];
         }
-        for (j, yj) in y.iter().enumerate() {
-            for i in 0..n {
-                x[i] += yj * basis[j][i];
+        // x += sum_j y_j v_j, the terms added in basis order at every entry.
+        x.par_iter_mut().enumerate().for_each(|(i, xi)| {
+            for (yj, v) in y.iter().zip(&basis) {
+                *xi += yj * v[i];
             }
-        }
+        });
     }
 }
 
