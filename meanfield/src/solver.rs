@@ -672,9 +672,28 @@ fn for_each_block6(
         });
 }
 
+/// Wall-clock seconds of the phases of one right-hand side (for scaling studies; not part of
+/// any result).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RhsTiming {
+    /// Q to the grid (6 transforms).
+    pub q_to_grid: f64,
+    /// The closure field: eigen-decompositions, tables, lab-frame tensors.
+    pub closure: f64,
+    /// The Stokes fixed point: per iteration 6 strain transforms, the contraction, 6 stress
+    /// transforms, the Stokes solve and the change of u.
+    pub fixed_point: f64,
+    /// u and grad u on the grid (12 transforms), E and its contraction.
+    pub gradients: f64,
+    /// The explicit terms: grad Q (18 transforms), the products, 6 transforms back.
+    pub nonlinear: f64,
+}
+
 /// Everything one right-hand-side evaluation produces.
 #[derive(Debug, Clone)]
 pub struct RhsEval {
+    /// Where the evaluation's time went.
+    pub timing: RhsTiming,
     /// Coefficients of the explicit terms `-u.grad Q + grad u Q + Q grad u^T - 2 S:E`.
     pub nonlinear: [Vec<Complex64>; 6],
     /// Converged velocity coefficients.
@@ -765,13 +784,21 @@ impl MeanFieldRhs<'_> {
     ) -> Result<RhsEval, MeanFieldError> {
         let g = self.grid;
         let (len, slen) = (g.len(), g.spectral_len());
+        let mut timing = RhsTiming::default();
+        let mut clock = std::time::Instant::now();
+        let mut lap = |t: &mut f64| {
+            *t = clock.elapsed().as_secs_f64();
+            clock = std::time::Instant::now();
+        };
         let grid_fields = || -> [Vec<f64>; 6] { std::array::from_fn(|_| vec![0.0; len]) };
         let mut work = vec![Complex64::default(); slen];
         let mut q = grid_fields();
         for (c, qc) in q.iter_mut().enumerate() {
             g.inverse_into(&q_hat[c], &mut work, qc);
         }
+        lap(&mut timing.q_to_grid);
         let closure = ClosureField::new(self.closure, &q, self.with_entropy);
+        lap(&mut timing.closure);
         let zeta = self.params.zeta;
         let mut u = u_guess.clone();
         let mut u_new: [Vec<Complex64>; 3] =
@@ -811,6 +838,7 @@ impl MeanFieldRhs<'_> {
                 });
             }
         }
+        lap(&mut timing.fixed_point);
         // Velocity and gradients on the grid; E from the gradient (no extra transforms).
         let mut ug: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; len]);
         for (i, ui) in ug.iter_mut().enumerate() {
@@ -832,6 +860,7 @@ impl MeanFieldRhs<'_> {
         }
         // S:E of the converged flow: the Q equation's -2 S:E term, whatever zeta.
         closure.contract_into(&e, &mut se);
+        lap(&mut timing.gradients);
         let mut nonlinear: [Vec<Complex64>; 6] =
             std::array::from_fn(|_| vec![Complex64::default(); slen]);
         let mut dq: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; len]);
@@ -855,7 +884,9 @@ impl MeanFieldRhs<'_> {
         if !all_finite(&nonlinear) {
             return Err(MeanFieldError::NonFinite("the right-hand side"));
         }
+        lap(&mut timing.nonlinear);
         Ok(RhsEval {
+            timing,
             nonlinear,
             u,
             e,
@@ -927,6 +958,8 @@ pub struct MeanFieldStepper {
     prev: Option<History>,
     /// Last velocity (warm start of the fixed point).
     pub u_hat: [Vec<Complex64>; 3],
+    /// Where the last step's time went: the right-hand side's phases and the update (seconds).
+    pub last_timing: (RhsTiming, f64),
 }
 
 /// What a step did, and diagnostics of the state it started from (volume averages over the
@@ -963,6 +996,7 @@ impl MeanFieldStepper {
             q_hat: std::array::from_fn(|c| grid.forward(&q[c], false)),
             prev: None,
             u_hat: std::array::from_fn(|_| vec![Complex64::default(); grid.spectral_len()]),
+            last_timing: Default::default(),
         }
     }
 
@@ -992,6 +1026,7 @@ impl MeanFieldStepper {
         dt: f64,
     ) -> Result<MeanFieldStepReport, MeanFieldError> {
         let ev = rhs.eval(&self.q_hat, &self.u_hat)?;
+        let update_clock = std::time::Instant::now();
         let (scheme, w) = match (&self.prev, self.scheme.steps) {
             (Some(h), 2) => (self.scheme, dt / h.dt),
             _ => (SBDF1, 1.0),
@@ -1028,6 +1063,7 @@ impl MeanFieldStepper {
         });
         self.u_hat = ev.u;
         self.t += dt;
+        self.last_timing = (ev.timing, update_clock.elapsed().as_secs_f64());
         Ok(report)
     }
 
