@@ -87,7 +87,10 @@ fn killed_twenty_times_and_resumed_gives_the_uninterrupted_run() {
     let mut kills = 0;
     let mut finished = false;
     for attempt in 0..200 {
-        let args: Vec<&str> = if attempt == 0 {
+        // A kill before the run wrote its config (on a loaded machine, process start and the
+        // closure tables can take longer than the shortest wait) leaves no run to resume:
+        // start it again.
+        let args: Vec<&str> = if attempt == 0 || !d.join("killed/config.toml").exists() {
             vec!["meanfield", "run", "mf.toml", "--out", "killed"]
         } else {
             vec!["resume", "killed"]
@@ -108,7 +111,9 @@ fn killed_twenty_times_and_resumed_gives_the_uninterrupted_run() {
                 break;
             }
             kills += 1;
-            assert_no_damaged_file(&d.join("killed"), &format!("after kill {kills}"));
+            if d.join("killed").exists() {
+                assert_no_damaged_file(&d.join("killed"), &format!("after kill {kills}"));
+            }
         } else {
             let out = child.wait_with_output().unwrap();
             assert!(

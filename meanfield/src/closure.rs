@@ -272,6 +272,14 @@ impl BinghamClosure {
         [[s11, s12, s13], [s12, s22, s23], [s13, s23, s33]]
     }
 
+    /// The Chebyshev coefficients of the tables `S_1111`, `S_2222`, `S_1122` and the entropy's
+    /// regular part, each `(d+1)^2` with index `i (d+1) + j` (`i` the degree in the collapsed
+    /// coordinate `x`, `j` in `y`).
+    #[cfg(feature = "gpu")]
+    pub(crate) fn coefficients(&self) -> &[Vec<f64>; 4] {
+        &self.coef
+    }
+
     /// Polynomial degree per direction.
     pub fn degree(&self) -> usize {
         self.degree

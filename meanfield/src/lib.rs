@@ -11,6 +11,8 @@ pub mod bingham;
 pub mod closure;
 pub mod control;
 mod eigen;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod initial;
 pub mod solver;
 

@@ -51,6 +51,10 @@ pub struct MeanFieldParams {
     pub fixed_point_tolerance: f64,
     /// Iteration cap of the fixed point (default 50).
     pub fixed_point_max_iterations: usize,
+    /// Run exactly this many fixed-point iterations whatever the change (`None`, the default:
+    /// iterate to the tolerance). For comparisons between implementations, whose round-off
+    /// could otherwise stop them one iteration apart.
+    pub fixed_point_iterations: Option<usize>,
 }
 
 impl MeanFieldParams {
@@ -80,6 +84,16 @@ impl MeanFieldParams {
             true,
             "relative change of u",
         )?;
+        if let Some(k) = self.fixed_point_iterations {
+            check_range(
+                "fixed_point_iterations",
+                k as f64,
+                1.0,
+                1e4,
+                false,
+                "iterations",
+            )?;
+        }
         check_range(
             "fixed_point_max_iterations",
             self.fixed_point_max_iterations as f64,
@@ -91,6 +105,29 @@ impl MeanFieldParams {
     }
 }
 
+impl MeanFieldParams {
+    /// Whether the Stokes fixed point stops after the iteration `report` describes: the
+    /// pinned count reached, or the change within the tolerance (at once when `zeta = 0`, where
+    /// the stress does not depend on the flow); an error when the cap is reached or the change
+    /// is not finite. The CPU and GPU steppers share it.
+    pub fn fixed_point_done(&self, report: &RhsReport) -> Result<bool, MeanFieldError> {
+        if let Some(k) = self.fixed_point_iterations {
+            return Ok(report.iterations >= k);
+        }
+        if self.zeta == 0.0 || report.residual <= self.fixed_point_tolerance {
+            return Ok(true);
+        }
+        if report.iterations >= self.fixed_point_max_iterations || !report.residual.is_finite() {
+            return Err(MeanFieldError::FixedPoint {
+                iterations: report.iterations,
+                residual: report.residual,
+                tolerance: self.fixed_point_tolerance,
+            });
+        }
+        Ok(false)
+    }
+}
+
 impl Default for MeanFieldParams {
     fn default() -> Self {
         Self {
@@ -98,6 +135,7 @@ impl Default for MeanFieldParams {
             diffusion: 1e-4,
             fixed_point_tolerance: 1e-8,
             fixed_point_max_iterations: 50,
+            fixed_point_iterations: None,
         }
     }
 }
@@ -198,6 +236,13 @@ impl SpectralGrid {
             k2,
             keep,
         }
+    }
+
+    /// The wavenumber tables per FFT index: `2 pi m` with the Nyquist mode zeroed (first
+    /// derivatives), `(2 pi m)^2`, and whether the index survives the 2/3 rule.
+    #[cfg(feature = "gpu")]
+    pub(crate) fn wavenumber_tables(&self) -> (&[f64], &[f64], &[bool]) {
+        (&self.k1, &self.k2, &self.keep)
     }
 
     /// Grid points in total, `n^3`.
@@ -825,17 +870,8 @@ impl MeanFieldRhs<'_> {
             g.stokes_into(&sigma, &mut u_new);
             report.residual = rel_change(g, &u_new, &u);
             std::mem::swap(&mut u, &mut u_new);
-            if zeta == 0.0 || report.residual <= self.params.fixed_point_tolerance {
+            if self.params.fixed_point_done(&report)? {
                 break;
-            }
-            if report.iterations >= self.params.fixed_point_max_iterations
-                || !report.residual.is_finite()
-            {
-                return Err(MeanFieldError::FixedPoint {
-                    iterations: report.iterations,
-                    residual: report.residual,
-                    tolerance: self.params.fixed_point_tolerance,
-                });
             }
         }
         lap(&mut timing.fixed_point);

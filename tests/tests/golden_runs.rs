@@ -44,7 +44,8 @@ const PARTICLE: [(&str, u64); 15] = [
 /// other file it writes is the same as before.
 const PARTICLE_CONFIG_BEFORE_DIAMETER: u64 = 0xcb6a1b2e4109c3c8;
 /// The same for the mean-field run, recorded after the closed-form eigen-decomposition, the
-/// lab-frame contraction and the deterministic parallel sums (issue 18) changed its round-off.
+/// lab-frame contraction and the deterministic parallel sums (issue 18) changed its round-off;
+/// its config.toml has the `device` key since.
 const MEANFIELD: [(&str, u64); 11] = [
     ("checkpoints/ckpt_000000000.h5", 0x41601fb6bdd7c0e8),
     ("checkpoints/ckpt_000000000.h5.crc32", 0xef17168d2178a150),
@@ -52,7 +53,7 @@ const MEANFIELD: [(&str, u64); 11] = [
     ("checkpoints/ckpt_000000008.h5.crc32", 0x0f61f241de8fa874),
     ("checkpoints/ckpt_000000014.h5", 0x2c2c00b8c234ec27),
     ("checkpoints/ckpt_000000014.h5.crc32", 0x522dfcbf2b94a708),
-    ("config.toml", 0x7de631c25f7cc365),
+    ("config.toml", 0x80257f39c44e4144),
     ("snapshots/snap_000000.h5", 0x94f033b5a4230ffb),
     ("snapshots/snap_000001.h5", 0x54c59383f80e3e4f),
     ("snapshots/snap_000002.h5", 0x4207b0b5d9393556),

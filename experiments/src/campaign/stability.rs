@@ -38,7 +38,7 @@ pub fn classify(result: &anyhow::Result<()>) -> usize {
         Some(FailureKind::NonFinite) => 4,
         Some(FailureKind::Realizability) => 5,
         Some(FailureKind::FixedPoint) => 6,
-        Some(FailureKind::Setup) | None => 7,
+        Some(FailureKind::Setup | FailureKind::Device) | None => 7,
     }
 }
 

@@ -21,6 +21,8 @@ pub enum FailureKind {
     Realizability,
     /// Mean field: the Stokes fixed point did not converge.
     FixedPoint,
+    /// The GPU failed (a driver, compiler or cuFFT error), not the model.
+    Device,
     /// The step was given inconsistent inputs (rods and mobility of different diameters): a
     /// setup error, not a numerical failure.
     Setup,

@@ -106,13 +106,104 @@ pub fn run_meanfield(
     progress: bool,
 ) -> anyhow::Result<MeanFieldSummary> {
     let (model, s) = run::start::<MeanFieldModel>(cfg, out, progress)?;
-    Ok(model.summary(s))
+    model.summary(s)
 }
 
 /// Continue a mean-field run from its newest checkpoint.
 pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldSummary> {
     let (model, s) = run::resume::<MeanFieldModel>(out, progress)?;
-    Ok(model.summary(s))
+    model.summary(s)
+}
+
+/// Where the steps run: the CPU stepper, which always holds the configuration's time, and, with
+/// `device = "gpu"`, the GPU stepper that holds the state itself (downloaded into the CPU
+/// stepper's form for snapshots, diagnostics and checkpoints).
+struct Engine {
+    cpu: MeanFieldStepper,
+    #[cfg(feature = "gpu")]
+    gpu: Option<motile_meanfield::gpu::GpuMeanField>,
+}
+
+/// A failed step: the model's own failure, or the device's.
+enum EngineError {
+    Model(MeanFieldError),
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
+    Device(String),
+}
+
+impl Engine {
+    /// The CPU stepper, or (`device = "gpu"`) the GPU stepper started from its state.
+    fn new(
+        cfg: &MeanFieldRunConfig,
+        cpu: MeanFieldStepper,
+        grid: &SpectralGrid,
+        closure: &BinghamClosure,
+        params: &MeanFieldParams,
+    ) -> anyhow::Result<Self> {
+        let _ = (grid, closure, params);
+        if cfg.device == Device::Gpu {
+            #[cfg(feature = "gpu")]
+            {
+                let gpu = motile_meanfield::gpu::GpuMeanField::new(
+                    grid,
+                    closure,
+                    params,
+                    cpu.t,
+                    &cpu.q_hat,
+                    cpu.history(),
+                    &cpu.u_hat,
+                )
+                .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
+                return Ok(Self {
+                    cpu,
+                    gpu: Some(gpu),
+                });
+            }
+            #[cfg(not(feature = "gpu"))]
+            anyhow::bail!(
+                "device = \"gpu\": this motile was built without GPU support; build it with `cargo install --path experiments --features gpu` (CUDA is loaded when a run starts: the build needs nothing but cargo)"
+            );
+        }
+        Ok(Self {
+            cpu,
+            #[cfg(feature = "gpu")]
+            gpu: None,
+        })
+    }
+
+    fn t(&self) -> f64 {
+        self.cpu.t
+    }
+
+    /// One step; nothing is committed when it fails.
+    fn step(&mut self, rhs: &MeanFieldRhs, dt: f64) -> Result<MeanFieldStepReport, EngineError> {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = self.gpu.as_mut() {
+            return match g.step(dt, rhs.with_entropy) {
+                Ok(r) => {
+                    self.cpu.t = g.t;
+                    Ok(r)
+                }
+                Err(motile_meanfield::gpu::GpuError::Step(e)) => Err(EngineError::Model(e)),
+                Err(e) => Err(EngineError::Device(e.to_string())),
+            };
+        }
+        self.cpu.step(rhs, dt).map_err(EngineError::Model)
+    }
+
+    /// The state in the CPU stepper's form (downloaded from the device with `device = "gpu"`).
+    fn synced(&self) -> anyhow::Result<std::borrow::Cow<'_, MeanFieldStepper>> {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &self.gpu {
+            let (t, q_hat, history, u_hat) = g
+                .state()
+                .map_err(|e| anyhow::anyhow!("downloading the state from the GPU: {e}"))?;
+            let mut s = self.cpu.clone();
+            s.restore(t, q_hat, history, u_hat);
+            return Ok(std::borrow::Cow::Owned(s));
+        }
+        Ok(std::borrow::Cow::Borrowed(&self.cpu))
+    }
 }
 
 /// The mean-field model as the run loop drives it ([`run::RunModel`]): the stepper, the
@@ -120,7 +211,7 @@ pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldS
 pub struct MeanFieldModel {
     cfg: MeanFieldRunConfig,
     grid: SpectralGrid,
-    stepper: MeanFieldStepper,
+    stepper: Engine,
     closure: BinghamClosure,
     params: MeanFieldParams,
     control: StepControl,
@@ -132,7 +223,7 @@ impl std::fmt::Debug for MeanFieldModel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("MeanFieldModel")
             .field("grid", &self.cfg.grid)
-            .field("t", &self.stepper.t)
+            .field("t", &self.stepper.t())
             .field("clock", &self.clock)
             .finish_non_exhaustive()
     }
@@ -154,6 +245,10 @@ impl MeanFieldModel {
             t_tables.elapsed().as_secs_f64()
         ));
         let params = cfg.model_params();
+        let stepper = Engine::new(cfg, stepper, &grid, &closure, &params)?;
+        if cfg.device == Device::Gpu {
+            notes.push("steps run on the GPU (device = \"gpu\")".into());
+        }
         Ok(Self {
             cfg: cfg.clone(),
             grid,
@@ -166,13 +261,14 @@ impl MeanFieldModel {
         })
     }
 
-    fn summary(self, s: run::LoopSummary) -> MeanFieldSummary {
-        MeanFieldSummary {
+    fn summary(self, s: run::LoopSummary) -> anyhow::Result<MeanFieldSummary> {
+        let q_hat = self.stepper.synced()?.into_owned().q_hat;
+        Ok(MeanFieldSummary {
             steps: s.steps,
             seconds: s.seconds,
             timeseries: s.timeseries,
-            q_hat: self.stepper.q_hat,
-        }
+            q_hat,
+        })
     }
 
     fn eps(&self) -> f64 {
@@ -181,14 +277,23 @@ impl MeanFieldModel {
 
     /// A failed evaluation or step from the current (good) state.
     fn failure(&self, e: &MeanFieldError, dt: f64) -> run::StepFailure {
+        self.failed(e.into(), &e.to_string(), dt)
+    }
+
+    fn failed(&self, kind: crate::failure::FailureKind, e: &str, dt: f64) -> run::StepFailure {
         let step = self.clock.steps + 1;
-        let t = self.stepper.t;
+        let t = self.stepper.t();
         run::StepFailure::Step {
-            kind: e.into(),
+            kind,
             step,
             t,
             what: format!("mean-field step {step} at t = {t:.4} (dt = {dt:.3e}) failed: {e}"),
         }
+    }
+
+    /// A failure to read the state back from the device.
+    fn device_failure(&self, e: anyhow::Error) -> run::StepFailure {
+        self.failed(crate::failure::FailureKind::Device, &format!("{e:#}"), 0.0)
     }
 }
 
@@ -261,7 +366,7 @@ impl run::RunModel for MeanFieldModel {
     }
 
     fn keeps_row(&self, row: &[f64]) -> bool {
-        row[0] < self.stepper.t - 1e-12 * self.cfg.t_end.max(1.0)
+        row[0] < self.stepper.t() - 1e-12 * self.cfg.t_end.max(1.0)
     }
 
     fn steps(&self) -> u64 {
@@ -269,18 +374,18 @@ impl run::RunModel for MeanFieldModel {
     }
 
     fn time(&self) -> f64 {
-        self.stepper.t
+        self.stepper.t()
     }
 
     fn finished(&self) -> bool {
-        self.stepper.t >= self.cfg.t_end - self.eps()
+        self.stepper.t() >= self.cfg.t_end - self.eps()
     }
 
     fn progress(&self) -> (&'static str, u64, u64) {
         (
             "{bar:30} t {msg} [{elapsed} < {eta}]",
             1000,
-            (1000.0 * self.stepper.t / self.cfg.t_end) as u64,
+            (1000.0 * self.stepper.t() / self.cfg.t_end) as u64,
         )
     }
 
@@ -294,7 +399,7 @@ impl run::RunModel for MeanFieldModel {
     }
 
     fn checkpoint_due_before_step(&mut self) -> bool {
-        if self.stepper.t >= self.clock.next_ckpt - self.eps() {
+        if self.stepper.t() >= self.clock.next_ckpt - self.eps() {
             self.clock.next_ckpt += self.cfg.checkpoint_interval;
             true
         } else {
@@ -305,7 +410,7 @@ impl run::RunModel for MeanFieldModel {
     fn step(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
         let cfg = &self.cfg;
         let eps = 1e-9 * cfg.t_end;
-        let t = self.stepper.t;
+        let t = self.stepper.t();
         let at_diag = t >= self.clock.next_diag - eps;
         if at_diag {
             self.clock.next_diag += cfg.diagnostic_interval;
@@ -318,7 +423,8 @@ impl run::RunModel for MeanFieldModel {
         };
         if t >= self.clock.next_snap - eps {
             // The velocity of this Q (the stepper's is that of the previous step's state).
-            let ev = match rhs.eval(&self.stepper.q_hat, &self.stepper.u_hat) {
+            let state = self.stepper.synced().map_err(|e| self.device_failure(e))?;
+            let ev = match rhs.eval(&state.q_hat, &state.u_hat) {
                 Ok(ev) => ev,
                 Err(e) => return Err(self.failure(&e, 0.0)),
             };
@@ -343,7 +449,9 @@ impl run::RunModel for MeanFieldModel {
                 // Only where a smaller step is the remedy: values that blew up in the update.
                 // The fixed point is solved at the state before the step, so a smaller step
                 // cannot change its outcome.
-                Err(e @ MeanFieldError::NonFinite(_)) if retries < cfg.step_retries => {
+                Err(EngineError::Model(e @ MeanFieldError::NonFinite(_)))
+                    if retries < cfg.step_retries =>
+                {
                     retries += 1;
                     io.log(&format!(
                         "step {} at t = {t} with dt = {this_dt:e} failed ({e}); retry {retries} of {} with dt = {:e}",
@@ -353,7 +461,10 @@ impl run::RunModel for MeanFieldModel {
                     ))?;
                     this_dt *= 0.5;
                 }
-                Err(e) => return Err(self.failure(&e, this_dt)),
+                Err(EngineError::Model(e)) => return Err(self.failure(&e, this_dt)),
+                Err(EngineError::Device(e)) => {
+                    return Err(self.failed(crate::failure::FailureKind::Device, &e, this_dt));
+                }
             }
         };
         let cfg = &self.cfg;
@@ -378,7 +489,10 @@ impl run::RunModel for MeanFieldModel {
             io.push_row(row(t, this_dt, &report, clock.steps))?;
             io.bar.set_message(format!(
                 "{:.3} / {}, dt {:.2e}, ||u|| {:.3e}",
-                self.stepper.t, cfg.t_end, this_dt, report.u_l2
+                self.stepper.t(),
+                cfg.t_end,
+                this_dt,
+                report.u_l2
             ));
         }
         // Next step from the CFL condition (sum over axes), growth capped.
@@ -405,7 +519,7 @@ impl run::RunModel for MeanFieldModel {
         // it. Nothing is written again when a finished run is resumed (no step taken here).
         if took_steps {
             let eps = self.eps();
-            let t = self.stepper.t;
+            let t = self.stepper.t();
             let diag_due = t >= self.clock.next_diag - eps;
             let snap_due = t >= self.clock.next_snap - eps;
             let rhs = MeanFieldRhs {
@@ -414,7 +528,8 @@ impl run::RunModel for MeanFieldModel {
                 params: &self.params,
                 with_entropy: true,
             };
-            let (ev, report) = match self.stepper.diagnostics(&rhs) {
+            let state = self.stepper.synced().map_err(|e| self.device_failure(e))?;
+            let (ev, report) = match state.diagnostics(&rhs) {
                 Ok(r) => r,
                 Err(e) => return Err(self.failure(&e, 0.0)),
             };
@@ -433,11 +548,11 @@ impl run::RunModel for MeanFieldModel {
     }
 
     fn write_checkpoint(&self, path: &Path) -> anyhow::Result<()> {
-        write_checkpoint(path, &self.stepper, &self.clock, self.cfg.grid)
+        write_checkpoint(path, &*self.stepper.synced()?, &self.clock, self.cfg.grid)
     }
 
     fn write_last_good(&self, path: &Path) -> anyhow::Result<()> {
         // A failed step commits nothing: the stepper holds the state before it.
-        write_checkpoint(path, &self.stepper, &self.clock, self.cfg.grid)
+        write_checkpoint(path, &*self.stepper.synced()?, &self.clock, self.cfg.grid)
     }
 }

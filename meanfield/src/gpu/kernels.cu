@@ -1,0 +1,558 @@
+// CUDA kernels of the mean-field step on the GPU (meanfield/src/gpu), compiled at run time by
+// NVRTC. Each kernel is the device twin of a CPU loop in solver.rs and closure.rs, with the
+// same formulas in the same order where it matters; the parity tests compare a GPU step with
+// the CPU step to 1e-12. Layouts as on the CPU: a grid field is n^3 doubles, index
+// (i2 n + i1) n + i0 with i0 fastest; a half spectrum is n n h complex values, h = n/2 + 1,
+// index (i2 n + i1) h + i0. Symmetric tensors store xx, xy, xz, yy, yz, zz.
+
+#define REDUCE_THREADS 256
+
+__device__ __constant__ int SYM_I[6] = {0, 0, 0, 1, 1, 2};
+__device__ __constant__ int SYM_J[6] = {0, 1, 2, 1, 2, 2};
+
+__device__ int sym_index(int i, int j) {
+    int a = i < j ? i : j;
+    int b = i < j ? j : i;
+    if (a == 0) return b;          // 00 -> 0, 01 -> 1, 02 -> 2
+    if (a == 1) return b + 2;      // 11 -> 3, 12 -> 4
+    return 5;                      // 22
+}
+
+__device__ double2 times_i(double2 z, double k) {
+    // i k z
+    return make_double2(-k * z.y, k * z.x);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Spectral loops.
+
+// After a forward transform: scale by 1/n^3, and zero the modes the 2/3 rule drops.
+extern "C" __global__ void scale_dealias(double2* c, long long count, int n, double scale,
+                                         const int* keep, int dealias) {
+    long long t = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (t >= count) return;
+    int h = n / 2 + 1;
+    long long s = t % ((long long)n * n * h);
+    int a = (int)(s % h);
+    long long row = s / h;
+    int b = (int)(row % n), d = (int)(row / n);
+    bool kept = !dealias || (3 * a <= n && keep[b] && keep[d]);
+    double2 v = c[t];
+    c[t] = kept ? make_double2(v.x * scale, v.y * scale) : make_double2(0.0, 0.0);
+}
+
+// The six strain spectra (i/2)(k_j u_i + k_i u_j) of velocity spectra u (three components).
+extern "C" __global__ void strain_spectra(const double2* u, double2* out, int n, const double* k1) {
+    int h = n / 2 + 1;
+    long long S = (long long)n * n * h;
+    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (s >= S) return;
+    int a = (int)(s % h);
+    long long row = s / h;
+    double k[3] = {k1[a], k1[row % n], k1[row / n]};
+    for (int c = 0; c < 6; c++) {
+        int i = SYM_I[c], j = SYM_J[c];
+        double2 ui = u[i * S + s], uj = u[j * S + s];
+        // 0.5 i (u_i k_j + u_j k_i)
+        double2 w = make_double2(ui.x * k[j] + uj.x * k[i], ui.y * k[j] + uj.y * k[i]);
+        out[c * S + s] = make_double2(-0.5 * w.y, 0.5 * w.x);
+    }
+}
+
+// Derivative spectra: out[(m * 3 + dir) S + s] = i k_dir c[m S + s] for `comps` inputs.
+extern "C" __global__ void derivative_spectra(const double2* c, double2* out, int comps, int n,
+                                              const double* k1) {
+    int h = n / 2 + 1;
+    long long S = (long long)n * n * h;
+    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (s >= S) return;
+    int a = (int)(s % h);
+    long long row = s / h;
+    double k[3] = {k1[a], k1[row % n], k1[row / n]};
+    for (int m = 0; m < comps; m++) {
+        double2 v = c[m * S + s];
+        for (int dir = 0; dir < 3; dir++) out[(m * 3 + dir) * S + s] = times_i(v, k[dir]);
+    }
+}
+
+// Zero-mean Stokes velocity u = (I - kk/k^2)/k^2 . (i k . sigma) of six stress spectra.
+extern "C" __global__ void stokes(const double2* sigma, double2* u, int n, const double* k1,
+                                  const double* k2) {
+    int h = n / 2 + 1;
+    long long S = (long long)n * n * h;
+    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (s >= S) return;
+    int a = (int)(s % h);
+    long long row = s / h;
+    int b = (int)(row % n), d = (int)(row / n);
+    double kk = k2[a] + k2[b] + k2[d];
+    if (kk == 0.0) {
+        for (int i = 0; i < 3; i++) u[i * S + s] = make_double2(0.0, 0.0);
+        return;
+    }
+    double k[3] = {k1[a], k1[b], k1[d]};
+    double2 f[3];
+    for (int i = 0; i < 3; i++) {
+        double2 sum = make_double2(0.0, 0.0);
+        for (int j = 0; j < 3; j++) {
+            double2 sij = sigma[sym_index(i, j) * S + s];
+            sum.x += k[j] * sij.x;
+            sum.y += k[j] * sij.y;
+        }
+        f[i] = make_double2(-sum.y, sum.x); // i * sum
+    }
+    double2 kf = make_double2(k[0] * f[0].x + k[1] * f[1].x + k[2] * f[2].x,
+                              k[0] * f[0].y + k[1] * f[1].y + k[2] * f[2].y);
+    double k1sq = fmax(k[0] * k[0] + k[1] * k[1] + k[2] * k[2], 1e-300);
+    for (int i = 0; i < 3; i++) {
+        double c = k[i] / k1sq;
+        u[i * S + s] = make_double2((f[i].x - kf.x * c) / kk, (f[i].y - kf.y * c) / kk);
+    }
+}
+
+// Variable-step IMEX update (SBDF1 when `two` is 0), six components:
+// out = (-a1 q + dt b0 N [- a2 q_prev + dt b1 N_prev]) / (a0 + dt D |k|^2).
+extern "C" __global__ void imex_update(const double2* q, const double2* nl, const double2* q_prev,
+                                       const double2* nl_prev, double2* out, int n,
+                                       const double* k2, double a0, double a1, double a2,
+                                       double b0, double b1, double dt, double diffusion,
+                                       int two) {
+    int h = n / 2 + 1;
+    long long S = (long long)n * n * h;
+    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (s >= S) return;
+    int a = (int)(s % h);
+    long long row = s / h;
+    double kk = k2[a] + k2[row % n] + k2[row / n];
+    double den = a0 + dt * diffusion * kk;
+    for (int c = 0; c < 6; c++) {
+        long long i = c * S + s;
+        double2 r = make_double2(-a1 * q[i].x + dt * b0 * nl[i].x, -a1 * q[i].y + dt * b0 * nl[i].y);
+        if (two) {
+            r.x += -a2 * q_prev[i].x + dt * b1 * nl_prev[i].x;
+            r.y += -a2 * q_prev[i].y + dt * b1 * nl_prev[i].y;
+        }
+        out[i] = make_double2(r.x / den, r.y / den);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Deterministic block reductions: each block sums its fixed range in a fixed tree order and
+// writes one partial per block; the host adds the partials in block order.
+
+__device__ void block_sum(double* shared, double v, double* out) {
+    int t = threadIdx.x;
+    shared[t] = v;
+    __syncthreads();
+    for (int w = REDUCE_THREADS / 2; w > 0; w /= 2) {
+        if (t < w) shared[t] += shared[t + w];
+        __syncthreads();
+    }
+    if (t == 0) *out = shared[0];
+    __syncthreads();
+}
+
+__device__ void block_max(double* shared, double v, double* out) {
+    int t = threadIdx.x;
+    shared[t] = v;
+    __syncthreads();
+    for (int w = REDUCE_THREADS / 2; w > 0; w /= 2) {
+        if (t < w) shared[t] = fmax(shared[t], shared[t + w]);
+        __syncthreads();
+    }
+    if (t == 0) *out = shared[0];
+    __syncthreads();
+}
+
+__device__ double spectral_weight(long long s, int n) {
+    int h = n / 2 + 1;
+    int a = (int)(s % h);
+    return (a == 0 || a == n / 2) ? 1.0 : 2.0;
+}
+
+// Partials of sum w |a - b|^2 and sum w |a|^2 over three spectra (the fixed point's change).
+extern "C" __global__ void change_partials(const double2* a, const double2* b, int n,
+                                           double* partial) {
+    __shared__ double shared[REDUCE_THREADS];
+    int h = n / 2 + 1;
+    long long S = (long long)n * n * h;
+    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    double num = 0.0, den = 0.0;
+    if (s < S) {
+        double w = spectral_weight(s, n);
+        for (int c = 0; c < 3; c++) {
+            double2 x = a[c * S + s], y = b[c * S + s];
+            double dx = x.x - y.x, dy = x.y - y.y;
+            num += w * (dx * dx + dy * dy);
+            den += w * (x.x * x.x + x.y * x.y);
+        }
+    }
+    block_sum(shared, num, &partial[2 * blockIdx.x]);
+    block_sum(shared, den, &partial[2 * blockIdx.x + 1]);
+}
+
+// Partials of sum w |u|^2 over three spectra (||u||_2^2 by Parseval).
+extern "C" __global__ void norm_partials(const double2* u, int n, double* partial) {
+    __shared__ double shared[REDUCE_THREADS];
+    int h = n / 2 + 1;
+    long long S = (long long)n * n * h;
+    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    double v = 0.0;
+    if (s < S) {
+        double w = spectral_weight(s, n);
+        for (int c = 0; c < 3; c++) {
+            double2 x = u[c * S + s];
+            v += w * (x.x * x.x + x.y * x.y);
+        }
+    }
+    block_sum(shared, v, &partial[blockIdx.x]);
+}
+
+// Partials of the step report: max(|u_x| + |u_y| + |u_z|), <E:E>, <E:Q>, <E:S:E> (weighted
+// sums over the six components), and the count of non-finite values of `check` (count doubles).
+extern "C" __global__ void report_partials(const double* ug, const double* e, const double* q,
+                                           const double* se, long long N, double* partial) {
+    __shared__ double shared[REDUCE_THREADS];
+    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    double umax = 0.0, ee = 0.0, eq = 0.0, ese = 0.0;
+    if (p < N) {
+        umax = fabs(ug[p]) + fabs(ug[N + p]) + fabs(ug[2 * N + p]);
+        for (int c = 0; c < 6; c++) {
+            double w = (SYM_I[c] == SYM_J[c]) ? 1.0 : 2.0;
+            double ec = e[c * N + p];
+            ee += w * ec * ec;
+            eq += w * ec * q[c * N + p];
+            ese += w * ec * se[c * N + p];
+        }
+    }
+    block_max(shared, umax, &partial[4 * blockIdx.x]);
+    block_sum(shared, ee, &partial[4 * blockIdx.x + 1]);
+    block_sum(shared, eq, &partial[4 * blockIdx.x + 2]);
+    block_sum(shared, ese, &partial[4 * blockIdx.x + 3]);
+}
+
+// Partials of the number of non-finite entries among `count` doubles.
+extern "C" __global__ void nonfinite_partials(const double* v, long long count, double* partial) {
+    __shared__ double shared[REDUCE_THREADS];
+    long long t = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    double bad = (t < count && !isfinite(v[t])) ? 1.0 : 0.0;
+    block_sum(shared, bad, &partial[blockIdx.x]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Pointwise grid loops.
+
+// E_c = (g_ij + g_ji) / 2 from the velocity gradient g[(i * 3 + k) N + p] = d_k u_i.
+extern "C" __global__ void strain_from_gradient(const double* g, double* e, long long N) {
+    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (p >= N) return;
+    for (int c = 0; c < 6; c++) {
+        int i = SYM_I[c], j = SYM_J[c];
+        e[c * N + p] = 0.5 * (g[(i * 3 + j) * N + p] + g[(j * 3 + i) * N + p]);
+    }
+}
+
+// S:E from the stored lab-frame tensors (21 per point, rows of the upper triangle); with
+// `stress` set, out = -q + zeta S:E (the active stress), else out = S:E.
+extern "C" __global__ void contract(const double* s21, const double* e, const double* q,
+                                    double zeta, double* out, long long N, int stress) {
+    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (p >= N) return;
+    const double* m = s21 + 21 * p;
+    double w[6] = {e[p], 2.0 * e[N + p], 2.0 * e[2 * N + p], e[3 * N + p], 2.0 * e[4 * N + p],
+                   e[5 * N + p]};
+    double t[6];
+    t[0] = m[0] * w[0] + m[1] * w[1] + m[2] * w[2] + m[3] * w[3] + m[4] * w[4] + m[5] * w[5];
+    t[1] = m[1] * w[0] + m[6] * w[1] + m[7] * w[2] + m[8] * w[3] + m[9] * w[4] + m[10] * w[5];
+    t[2] = m[2] * w[0] + m[7] * w[1] + m[11] * w[2] + m[12] * w[3] + m[13] * w[4] + m[14] * w[5];
+    t[3] = m[3] * w[0] + m[8] * w[1] + m[12] * w[2] + m[15] * w[3] + m[16] * w[4] + m[17] * w[5];
+    t[4] = m[4] * w[0] + m[9] * w[1] + m[13] * w[2] + m[16] * w[3] + m[18] * w[4] + m[19] * w[5];
+    t[5] = m[5] * w[0] + m[10] * w[1] + m[14] * w[2] + m[17] * w[3] + m[19] * w[4] + m[20] * w[5];
+    for (int c = 0; c < 6; c++) out[c * N + p] = stress ? -q[c * N + p] + zeta * t[c] : t[c];
+}
+
+// The explicit terms -u.grad Q + (grad u) Q + Q (grad u)^T - 2 S:E at every point, six
+// components: ug velocity (3 N), g[(i * 3 + k) N] = d_k u_i, dq[(c * 3 + k) N] = d_k Q_c.
+extern "C" __global__ void explicit_terms(const double* ug, const double* g, const double* q,
+                                          const double* dq, const double* se, double* out,
+                                          long long N) {
+    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (p >= N) return;
+    for (int c = 0; c < 6; c++) {
+        int i = SYM_I[c], j = SYM_J[c];
+        double adv = ug[p] * dq[(c * 3 + 0) * N + p] + ug[N + p] * dq[(c * 3 + 1) * N + p] +
+                     ug[2 * N + p] * dq[(c * 3 + 2) * N + p];
+        double stretch = 0.0;
+        for (int k = 0; k < 3; k++) {
+            stretch += g[(i * 3 + k) * N + p] * q[sym_index(k, j) * N + p] +
+                       q[sym_index(i, k) * N + p] * g[(j * 3 + k) * N + p];
+        }
+        out[c * N + p] = -adv + stretch - 2.0 * se[c * N + p];
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The closure field: eigen-decomposition of Q / tr Q (closed form as eigen.rs, Jacobi sweeps
+// for nearly isotropic matrices), the Chebyshev tables, the lab-frame tensor (as lab_fourth).
+
+__device__ void cross3(const double* a, const double* b, double* out) {
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+__device__ double dot3(const double* a, const double* b) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+// Cyclic Jacobi rotations (the slow twin, eigen.rs sym3_eigen): w eigenvalues, r columns.
+__device__ void jacobi3(const double am[3][3], double w[3], double r[3][3]) {
+    double m[3][3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            m[i][j] = am[i][j];
+            r[i][j] = i == j ? 1.0 : 0.0;
+        }
+    const int P[3] = {0, 0, 1}, Q[3] = {1, 2, 2};
+    for (int sweep = 0; sweep < 50; sweep++) {
+        double off = fabs(m[0][1]) + fabs(m[0][2]) + fabs(m[1][2]);
+        double scale = fabs(m[0][0]) + fabs(m[1][1]) + fabs(m[2][2]);
+        if (off <= 1e-300 || off <= 2.220446049250313e-16 * 1e-3 * scale) break;
+        for (int r_ = 0; r_ < 3; r_++) {
+            int p = P[r_], q = Q[r_];
+            if (m[p][q] == 0.0) continue;
+            double theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+            double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+            if (theta == 0.0) t = 1.0;
+            double c = 1.0 / sqrt(t * t + 1.0);
+            double s = t * c;
+            for (int k = 0; k < 3; k++) {
+                double mkp = m[k][p], mkq = m[k][q];
+                m[k][p] = c * mkp - s * mkq;
+                m[k][q] = s * mkp + c * mkq;
+            }
+            for (int k = 0; k < 3; k++) {
+                double mpk = m[p][k], mqk = m[q][k];
+                m[p][k] = c * mpk - s * mqk;
+                m[q][k] = s * mpk + c * mqk;
+            }
+            for (int k = 0; k < 3; k++) {
+                double rkp = r[k][p], rkq = r[k][q];
+                r[k][p] = c * rkp - s * rkq;
+                r[k][q] = s * rkp + c * rkq;
+            }
+        }
+    }
+    w[0] = m[0][0];
+    w[1] = m[1][1];
+    w[2] = m[2][2];
+}
+
+// Eigenvalues descending, eigenvector columns permuted with them (stable for ties).
+__device__ void sort_desc(double w[3], double r[3][3]) {
+    int o[3] = {0, 1, 2};
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 2 - a; b++)
+            if (w[o[b + 1]] > w[o[b]]) {
+                int t = o[b];
+                o[b] = o[b + 1];
+                o[b + 1] = t;
+            }
+    double w2[3], r2[3][3];
+    for (int c = 0; c < 3; c++) {
+        w2[c] = w[o[c]];
+        for (int i = 0; i < 3; i++) r2[i][c] = r[i][o[c]];
+    }
+    for (int c = 0; c < 3; c++) {
+        w[c] = w2[c];
+        for (int i = 0; i < 3; i++) r[i][c] = r2[i][c];
+    }
+}
+
+__device__ void eigen_sorted(const double a[3][3], double w[3], double r[3][3]) {
+    double c = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
+    double b0 = a[0][0] - c, b1 = a[1][1] - c, b2 = a[2][2] - c;
+    double off2 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+    double p2 = (b0 * b0 + b1 * b1 + b2 * b2 + 2.0 * off2) / 6.0;
+    double scale = fabs(a[0][0]) + fabs(a[1][1]) + fabs(a[2][2]) + sqrt(off2);
+    if (isnan(p2) || p2 <= 0.0 || sqrt(6.0 * p2) <= 1e-9 * scale) {
+        jacobi3(a, w, r);
+        sort_desc(w, r);
+        return;
+    }
+    double p = sqrt(p2);
+    double det = b0 * (b1 * b2 - a[1][2] * a[1][2]) - a[0][1] * (a[0][1] * b2 - a[1][2] * a[0][2]) +
+                 a[0][2] * (a[0][1] * a[1][2] - b1 * a[0][2]);
+    double rr = fmin(fmax(det / (2.0 * p * p2), -1.0), 1.0);
+    double phi = acos(rr) / 3.0;
+    double l1 = c + 2.0 * p * cos(phi);
+    double l3 = c + 2.0 * p * cos(phi + 2.0943951023931953);
+    double l2 = 3.0 * c - l1 - l3;
+    bool largest = l1 - l2 >= l2 - l3;
+    double iso = largest ? l1 : l3;
+    double rows[3][3] = {{a[0][0] - iso, a[0][1], a[0][2]},
+                         {a[0][1], a[1][1] - iso, a[1][2]},
+                         {a[0][2], a[1][2], a[2][2] - iso}};
+    double cr[3][3];
+    cross3(rows[0], rows[1], cr[0]);
+    cross3(rows[0], rows[2], cr[1]);
+    cross3(rows[1], rows[2], cr[2]);
+    double nr[3] = {dot3(cr[0], cr[0]), dot3(cr[1], cr[1]), dot3(cr[2], cr[2])};
+    int k = (nr[0] >= nr[1] && nr[0] >= nr[2]) ? 0 : (nr[1] >= nr[2] ? 1 : 2);
+    if (isnan(nr[k]) || nr[k] <= 0.0) {
+        jacobi3(a, w, r);
+        sort_desc(w, r);
+        return;
+    }
+    double v[3], inv = 1.0 / sqrt(nr[k]);
+    for (int d = 0; d < 3; d++) v[d] = cr[k][d] * inv;
+    double axis[3] = {0.0, 0.0, 0.0};
+    if (fabs(v[0]) <= fabs(v[1]) && fabs(v[0]) <= fabs(v[2])) axis[0] = 1.0;
+    else if (fabs(v[1]) <= fabs(v[2])) axis[1] = 1.0;
+    else axis[2] = 1.0;
+    double u[3], wv[3];
+    cross3(v, axis, u);
+    double un = 1.0 / sqrt(dot3(u, u));
+    for (int d = 0; d < 3; d++) u[d] *= un;
+    cross3(v, u, wv);
+    double au[3], aw[3], av[3];
+    for (int i = 0; i < 3; i++) {
+        au[i] = dot3(a[i], u);
+        aw[i] = dot3(a[i], wv);
+        av[i] = dot3(a[i], v);
+    }
+    double muu = dot3(u, au), mww = dot3(wv, aw), muw = dot3(u, aw);
+    double e1 = muu, e2 = mww, t1[3], t2[3];
+    for (int d = 0; d < 3; d++) {
+        t1[d] = u[d];
+        t2[d] = wv[d];
+    }
+    if (muw != 0.0) {
+        double theta = (mww - muu) / (2.0 * muw);
+        double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+        double cs = 1.0 / sqrt(t * t + 1.0);
+        double sn = t * cs;
+        e1 = muu - t * muw;
+        e2 = mww + t * muw;
+        for (int d = 0; d < 3; d++) {
+            t1[d] = cs * u[d] - sn * wv[d];
+            t2[d] = sn * u[d] + cs * wv[d];
+        }
+    }
+    double lv = dot3(v, av);
+    double hi = e1, lo = e2;
+    const double* vh = t1;
+    const double* vl = t2;
+    if (e1 < e2) {
+        hi = e2;
+        lo = e1;
+        vh = t2;
+        vl = t1;
+    }
+    const double* cols[3];
+    if (largest) {
+        w[0] = lv; w[1] = hi; w[2] = lo;
+        cols[0] = v; cols[1] = vh; cols[2] = vl;
+    } else {
+        w[0] = hi; w[1] = lo; w[2] = lv;
+        cols[0] = vh; cols[1] = vl; cols[2] = v;
+    }
+    for (int cidx = 0; cidx < 3; cidx++)
+        for (int i = 0; i < 3; i++) r[i][cidx] = cols[cidx][i];
+    sort_desc(w, r);
+}
+
+// One point of the closure field: s21 the lab-frame tensor, lo/hi the extreme eigenvalues of
+// Q / tr Q, ent the entropy density c ln c + c h(Q/c) (when asked). coef: four tables of
+// (deg + 1)^2 Chebyshev coefficients, [f][i (x)][j (y)]: S_1111, S_2222, S_1122 and the
+// entropy's regular part.
+__device__ void closure_point(const double* q, long long N, long long p, const double* coef,
+                              int deg, int with_entropy, double* s21, double* lo, double* hi,
+                              double* ent) {
+    double a[3][3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) a[i][j] = q[sym_index(i, j) * N + p];
+    double c = a[0][0] + a[1][1] + a[2][2];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) a[i][j] /= c;
+    double w[3], r[3][3];
+    eigen_sorted(a, w, r);
+    *lo = w[2];
+    *hi = w[0];
+    // Collapsed coordinates (closure.rs collapsed) and the tables.
+    double x = fmin(fmax(w[0], 0.0), 1.0);
+    double y = x < 1.0 ? fmin(fmax(w[1] / (1.0 - x), 0.0), 1.0) : 0.5;
+    double sx = 2.0 * x - 1.0, sy = 2.0 * y - 1.0;
+    int n1 = deg + 1;
+    int tables = with_entropy ? 4 : 3;
+    double f[4] = {0.0, 0.0, 0.0, 0.0};
+    double txa = 1.0, txb = sx;
+    for (int i = 0; i < n1; i++) {
+        double tx = i == 0 ? 1.0 : txb;
+        if (i > 0) {
+            double t = 2.0 * sx * txb - txa;
+            txa = txb;
+            txb = t;
+        }
+        double rowv[4] = {0.0, 0.0, 0.0, 0.0};
+        double tya = 1.0, tyb = sy;
+        for (int j = 0; j < n1; j++) {
+            double ty = j == 0 ? 1.0 : tyb;
+            if (j > 0) {
+                double t = 2.0 * sy * tyb - tya;
+                tya = tyb;
+                tyb = t;
+            }
+            for (int t3 = 0; t3 < tables; t3++) rowv[t3] += ty * coef[(t3 * n1 + i) * n1 + j];
+        }
+        for (int t3 = 0; t3 < tables; t3++) f[t3] += tx * rowv[t3];
+    }
+    if (with_entropy) {
+        // h = table - (1/2) sum ln mu_i (closure.rs log_singularity).
+        double sing = 0.5 * (log(fmax(w[0], 1e-300)) + log(fmax(w[1], 1e-300)) +
+                             log(fmax(w[2], 1e-300)));
+        *ent = c * log(fmax(c, 1e-300)) + c * (f[3] - sing);
+    }
+    // The full S_iijj from the three tabulated ones and sum_j S_iijj = mu_i, scaled by c.
+    double s11 = f[0], s22 = f[1], s12 = f[2];
+    double s13 = w[0] - s11 - s12;
+    double s23 = w[1] - s22 - s12;
+    double s33 = w[2] - s13 - s23;
+    double s[3][3] = {{s11 * c, s12 * c, s13 * c}, {s12 * c, s22 * c, s23 * c}, {s13 * c, s23 * c, s33 * c}};
+    // Lab frame: S = sum_ab s_ab P^a P^b + sum_{a<b} s_ab Q^ab Q^ab.
+    double P[3][6], Qm[3][6];
+    for (int cc = 0; cc < 6; cc++) {
+        int i = SYM_I[cc], j = SYM_J[cc];
+        for (int aa = 0; aa < 3; aa++) P[aa][cc] = r[i][aa] * r[j][aa];
+        Qm[0][cc] = r[i][0] * r[j][1] + r[i][1] * r[j][0];
+        Qm[1][cc] = r[i][0] * r[j][2] + r[i][2] * r[j][0];
+        Qm[2][cc] = r[i][1] * r[j][2] + r[i][2] * r[j][1];
+    }
+    double sp[3][6];
+    for (int b = 0; b < 3; b++)
+        for (int cc = 0; cc < 6; cc++)
+            sp[b][cc] = s[0][b] * P[0][cc] + s[1][b] * P[1][cc] + s[2][b] * P[2][cc];
+    double qs[3] = {s[0][1], s[0][2], s[1][2]};
+    int k = 0;
+    for (int cc = 0; cc < 6; cc++)
+        for (int d = cc; d < 6; d++) {
+            s21[k] = P[0][cc] * sp[0][d] + P[1][cc] * sp[1][d] + P[2][cc] * sp[2][d] +
+                     qs[0] * Qm[0][cc] * Qm[0][d] + qs[1] * Qm[1][cc] * Qm[1][d] +
+                     qs[2] * Qm[2][cc] * Qm[2][d];
+            k++;
+        }
+}
+
+// The closure field over the grid, with per-block partials: partial[3 b] = -(smallest
+// eigenvalue), partial[3 b + 1] = largest eigenvalue, partial[3 b + 2] = sum of the entropy
+// density (0 unless asked).
+extern "C" __global__ void closure_field(const double* q, double* s21, const double* coef, int deg,
+                                         int with_entropy, long long N, double* partial) {
+    __shared__ double shared[REDUCE_THREADS];
+    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    double lo = 1e300, hi = -1e300, ent = 0.0;
+    if (p < N) closure_point(q, N, p, coef, deg, with_entropy, s21 + 21 * p, &lo, &hi, &ent);
+    block_max(shared, -lo, &partial[3 * blockIdx.x]);
+    block_max(shared, hi, &partial[3 * blockIdx.x + 1]);
+    block_sum(shared, ent, &partial[3 * blockIdx.x + 2]);
+}

@@ -1,0 +1,216 @@
+//! The mean-field step on an NVIDIA GPU (feature `gpu`): the same equations and algorithm as
+//! [`crate::solver`] (docs/MODEL.md §4, M1-M2), every field resident on the device. Transforms
+//! by cuFFT (double precision, real-to-complex, the CPU's half-spectrum layout), the closure,
+//! contractions, Stokes solve, products and the IMEX update by kernels compiled at run time by
+//! NVRTC (`kernels.cu`, each the twin of a CPU loop), reductions in fixed blocks (deterministic
+//! from run to run). Only reports cross the bus during a step: a handful of doubles per
+//! reduction.
+//!
+//! CUDA is loaded at run time (cudarc's dynamic loading): a build needs no CUDA toolkit, and on
+//! a machine without a driver [`probe`] and [`GpuMeanField::new`] return
+//! [`GpuError::NoDevice`] instead of panicking. Kernel launches are the only unsafe code of
+//! the crate, in `launch.rs`.
+//!
+//! Parity with the CPU step (one step of either within 1e-12 relative, the fixed point's
+//! iteration count pinned) is tested in `meanfield/tests/gpu.rs`, which says it was skipped
+//! where no GPU is present (and fails instead with `MOTILE_REQUIRE_GPU=1`).
+
+mod launch;
+
+use crate::closure::BinghamClosure;
+use crate::solver::{
+    History, MeanFieldError, MeanFieldParams, MeanFieldStepReport, RhsReport, SBDF1, SBDF2,
+    SpectralGrid,
+};
+use launch::{Device, Kernels};
+use num_complex::Complex64;
+
+/// Why the GPU path is unavailable or failed.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No CUDA driver library, or no device.
+    #[error("no CUDA device found: {0}")]
+    NoDevice(String),
+    /// A CUDA driver call failed.
+    #[error("CUDA driver: {0}")]
+    Driver(String),
+    /// NVRTC could not compile the kernels.
+    #[error("compiling the mean-field kernels with NVRTC: {0}")]
+    Compile(String),
+    /// cuFFT failed.
+    #[error("cuFFT: {0}")]
+    Fft(String),
+    /// The step itself failed, as it would on the CPU.
+    #[error(transparent)]
+    Step(#[from] MeanFieldError),
+}
+
+/// What [`probe`] found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeviceInfo {
+    /// The device's name.
+    pub name: String,
+    /// Its memory in bytes.
+    pub memory: usize,
+    /// Compute capability (major, minor).
+    pub compute_capability: (i32, i32),
+}
+
+/// Look for a CUDA device without touching it further: the driver library, NVRTC and cuFFT
+/// must load, and device 0 must answer.
+pub fn probe() -> Result<DeviceInfo, GpuError> {
+    launch::probe()
+}
+
+/// Thread-block size of every kernel.
+const THREADS: u32 = 256;
+
+/// The mean-field state and its stepper on the device.
+pub struct GpuMeanField {
+    dev: Device,
+    k: Kernels,
+    n: usize,
+    params: MeanFieldParams,
+    deg: usize,
+    /// Current time.
+    pub t: f64,
+    prev_dt: Option<f64>,
+    bufs: launch::Buffers,
+}
+
+impl std::fmt::Debug for GpuMeanField {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuMeanField")
+            .field("n", &self.n)
+            .field("t", &self.t)
+            .field("closure_degree", &self.deg)
+            .finish_non_exhaustive()
+    }
+}
+
+impl GpuMeanField {
+    /// Upload a state (the same as [`crate::solver::MeanFieldStepper::restore`] takes) and
+    /// prepare the device: kernels, cuFFT plans, closure tables, wavenumbers, buffers.
+    pub fn new(
+        grid: &SpectralGrid,
+        closure: &BinghamClosure,
+        params: &MeanFieldParams,
+        t: f64,
+        q_hat: &[Vec<Complex64>; 6],
+        history: Option<&History>,
+        u_hat: &[Vec<Complex64>; 3],
+    ) -> Result<Self, GpuError> {
+        let n = grid.n;
+        let dev = Device::open()?;
+        let k = dev.compile()?;
+        let coef: Vec<f64> = closure.coefficients().iter().flatten().copied().collect();
+        let wavenumbers = launch::Wavenumbers::of(grid);
+        let mut bufs = launch::Buffers::new(&dev, n, &coef, &wavenumbers)?;
+        bufs.upload_state(&dev, q_hat, history, u_hat)?;
+        Ok(Self {
+            dev,
+            k,
+            n,
+            params: params.clone(),
+            deg: closure.degree(),
+            t,
+            prev_dt: history.map(|h| h.dt),
+            bufs,
+        })
+    }
+
+    /// The state, downloaded: `(t, Q coefficients, history, u coefficients)`, as
+    /// [`crate::solver::MeanFieldStepper::restore`] takes it (checkpoints, snapshots).
+    pub fn state(&self) -> Result<StateDownload, GpuError> {
+        let (q_hat, hist, u_hat) = self.bufs.download_state(&self.dev)?;
+        let history = match (self.prev_dt, hist) {
+            (Some(dt), Some((q, nl))) => Some(History {
+                q_hat: q,
+                nonlinear: nl,
+                dt,
+            }),
+            _ => None,
+        };
+        Ok((self.t, q_hat, history, u_hat))
+    }
+
+    /// Advance by `dt` as [`crate::solver::MeanFieldStepper::step`] does (SBDF1 for the first
+    /// step, then variable-step SBDF2), with the entropy only if asked. Nothing is committed
+    /// when the step fails.
+    pub fn step(&mut self, dt: f64, with_entropy: bool) -> Result<MeanFieldStepReport, GpuError> {
+        let (n, dev, k) = (self.n, &self.dev, &self.k);
+        let b = &mut self.bufs;
+        let npts = (n * n * n) as f64;
+        // Q to the grid.
+        b.inverse_q(dev)?;
+        // The closure field.
+        let (min_eigenvalue, max_eigenvalue, entropy_sum) =
+            b.closure(dev, k, self.deg, with_entropy)?;
+        // The Stokes fixed point from the previous u.
+        let mut report = RhsReport::default();
+        let zeta = self.params.zeta;
+        loop {
+            report.iterations += 1;
+            b.strain_to_grid(dev, k)?;
+            b.stress(dev, k, zeta)?;
+            b.stokes(dev, k)?;
+            report.residual = b.change(dev, k)?;
+            b.accept_u();
+            if self.params.fixed_point_done(&report)? {
+                break;
+            }
+        }
+        // u, grad u, E, S:E, the explicit terms.
+        b.gradients(dev, k)?;
+        b.explicit_terms(dev, k)?;
+        if b.nonfinite_nonlinear(dev, k)? {
+            return Err(MeanFieldError::NonFinite("the right-hand side").into());
+        }
+        let (u_max, ee, eq, ese) = b.report_sums(dev, k)?;
+        let u_l2 = b.u_norm(dev, k)?.sqrt();
+        // The IMEX update into the spare buffer; committed only if finite.
+        let (scheme, w) = match self.prev_dt {
+            Some(prev) => (SBDF2, dt / prev),
+            None => (SBDF1, 1.0),
+        };
+        let (a, bcoef) = (scheme.coefficients)(w);
+        b.imex(
+            dev,
+            k,
+            a,
+            bcoef,
+            dt,
+            self.params.diffusion,
+            self.prev_dt.is_some(),
+        )?;
+        if b.nonfinite_update(dev, k)? {
+            return Err(MeanFieldError::NonFinite("Q after the step").into());
+        }
+        b.commit_step();
+        self.prev_dt = Some(dt);
+        self.t += dt;
+        Ok(MeanFieldStepReport {
+            rhs: report,
+            min_eigenvalue,
+            u_l2,
+            u_max,
+            e_l2: (ee / npts).sqrt(),
+            e_dot_q: eq / npts,
+            max_eigenvalue,
+            entropy: if with_entropy {
+                entropy_sum / npts
+            } else {
+                f64::NAN
+            },
+            energy_residual: (2.0 * ee + zeta * ese - eq) / eq.abs().max(1e-300),
+        })
+    }
+}
+
+/// A downloaded state: `(t, Q coefficients, history, u coefficients)`.
+pub type StateDownload = (
+    f64,
+    [Vec<Complex64>; 6],
+    Option<History>,
+    [Vec<Complex64>; 3],
+);
