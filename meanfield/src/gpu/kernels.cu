@@ -209,7 +209,7 @@ extern "C" __global__ void norm_partials(const double2* u, int n, double* partia
 }
 
 // Partials of the step report: max(|u_x| + |u_y| + |u_z|), <E:E>, <E:Q>, <E:S:E> (weighted
-// sums over the six components), and the count of non-finite values of `check` (count doubles).
+// sums over the six components).
 extern "C" __global__ void report_partials(const double* ug, const double* e, const double* q,
                                            const double* se, long long N, double* partial) {
     __shared__ double shared[REDUCE_THREADS];
@@ -268,7 +268,9 @@ extern "C" __global__ void contract(const double* s21, const double* e, const do
     t[3] = m[3] * w[0] + m[8] * w[1] + m[12] * w[2] + m[15] * w[3] + m[16] * w[4] + m[17] * w[5];
     t[4] = m[4] * w[0] + m[9] * w[1] + m[13] * w[2] + m[16] * w[3] + m[18] * w[4] + m[19] * w[5];
     t[5] = m[5] * w[0] + m[10] * w[1] + m[14] * w[2] + m[17] * w[3] + m[19] * w[4] + m[20] * w[5];
-    for (int c = 0; c < 6; c++) out[c * N + p] = stress ? -q[c * N + p] + zeta * t[c] : t[c];
+    // With zeta = 0 the stress is -Q alone (as on the CPU, which skips the contraction then).
+    for (int c = 0; c < 6; c++)
+        out[c * N + p] = stress ? (zeta != 0.0 ? -q[c * N + p] + zeta * t[c] : -q[c * N + p]) : t[c];
 }
 
 // The explicit terms -u.grad Q + (grad u) Q + Q (grad u)^T - 2 S:E at every point, six
@@ -546,7 +548,7 @@ __device__ void closure_point(const double* q, long long N, long long p, const d
 // The closure field over the grid, with per-block partials: partial[3 b] = -(smallest
 // eigenvalue), partial[3 b + 1] = largest eigenvalue, partial[3 b + 2] = sum of the entropy
 // density (0 unless asked).
-extern "C" __global__ void closure_field(const double* q, double* s21, const double* coef, int deg,
+extern "C" __global__ void __launch_bounds__(REDUCE_THREADS) closure_field(const double* q, double* s21, const double* coef, int deg,
                                          int with_entropy, long long N, double* partial) {
     __shared__ double shared[REDUCE_THREADS];
     long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;

@@ -106,8 +106,14 @@ impl Device {
     }
 
     pub(super) fn compile(&self) -> Result<Kernels, GpuError> {
-        let ptx =
-            cudarc::nvrtc::compile_ptx(SOURCE).map_err(|e| GpuError::Compile(format!("{e:?}")))?;
+        // No fused multiply-adds: each a b + c rounds as it does on the CPU, so the parity
+        // with the CPU step is limited by the transforms and the math library only.
+        let opts = cudarc::nvrtc::CompileOptions {
+            fmad: Some(false),
+            ..Default::default()
+        };
+        let ptx = cudarc::nvrtc::compile_ptx_with_opts(SOURCE, opts)
+            .map_err(|e| GpuError::Compile(format!("{e:?}")))?;
         let module = self.ctx.load_module(ptx).map_err(driver)?;
         let f = |name: &str| module.load_function(name).map_err(driver);
         Ok(Kernels {
@@ -186,7 +192,10 @@ pub(super) struct Buffers {
     nl: CudaSlice<double2>,
     nl_prev: CudaSlice<double2>,
     has_prev: bool,
+    /// The last accepted step's velocity (the warm start); untouched by a failing step.
     u_hat: CudaSlice<double2>,
+    /// The fixed point's current iterate, and its next one.
+    u_work: CudaSlice<double2>,
     u_new: CudaSlice<double2>,
     spec: CudaSlice<double2>,
     q: CudaSlice<f64>,
@@ -229,6 +238,7 @@ impl Buffers {
             nl_prev: cplx(6)?,
             has_prev: false,
             u_hat: cplx(3)?,
+            u_work: cplx(3)?,
             u_new: cplx(3)?,
             spec: cplx(18)?,
             q: real(6)?,
@@ -346,9 +356,13 @@ impl Buffers {
         Ok(())
     }
 
-    /// Q's six spectra to the grid.
+    /// Q's six spectra to the grid, and the fixed point's iterate set to the last accepted
+    /// velocity.
     pub(super) fn inverse_q(&mut self, dev: &Device) -> Result<(), GpuError> {
         let s = self.s_len;
+        dev.stream
+            .memcpy_dtod(&self.u_hat, &mut self.u_work)
+            .map_err(driver)?;
         dev.stream
             .memcpy_dtod(&self.q_hat, &mut self.spec.slice_mut(0..6 * s))
             .map_err(driver)?;
@@ -388,9 +402,12 @@ impl Buffers {
         let (cfg, _) = config(self.s_len);
         let n = self.n as i32;
         let mut b = dev.stream.launch_builder(&k.strain_spectra);
-        b.arg(&self.u_hat).arg(&mut self.spec).arg(&n).arg(&self.k1);
+        b.arg(&self.u_work)
+            .arg(&mut self.spec)
+            .arg(&n)
+            .arg(&self.k1);
         // SAFETY: strain_spectra(const double2* u, double2* out, int n, const double* k1):
-        // u holds 3 S values, spec 18 S >= 6 S, k1 n; thread s < S reads u[i S + s] and writes
+        // u_work holds 3 S values, spec 18 S >= 6 S, k1 n; thread s < S reads u[i S + s] and writes
         // out[c S + s] for c < 6.
         unsafe { b.launch(cfg) }.map_err(driver)?;
         self.inverse_many(6, Field::E)
@@ -486,13 +503,13 @@ impl Buffers {
         Ok(())
     }
 
-    /// The fixed point's relative change between `u_new` and `u_hat` (solver.rs rel_change).
+    /// The fixed point's relative change between `u_new` and `u_work` (solver.rs rel_change).
     pub(super) fn change(&mut self, dev: &Device, k: &Kernels) -> Result<f64, GpuError> {
         let (cfg, blocks) = config(self.s_len);
         let n = self.n as i32;
         let mut b = dev.stream.launch_builder(&k.change_partials);
         b.arg(&self.u_new)
-            .arg(&self.u_hat)
+            .arg(&self.u_work)
             .arg(&n)
             .arg(&mut self.partial);
         // SAFETY: change_partials(const double2* a, const double2* b, int n, double* partial):
@@ -502,15 +519,16 @@ impl Buffers {
         Ok((r[0] / r[1].max(FLOW_FLOOR * FLOW_FLOOR)).sqrt())
     }
 
+    /// The new iterate becomes the current one.
     pub(super) fn accept_u(&mut self) {
-        std::mem::swap(&mut self.u_hat, &mut self.u_new);
+        std::mem::swap(&mut self.u_work, &mut self.u_new);
     }
 
     /// u and grad u on the grid, E from grad u and S:E (the explicit terms' inputs).
     pub(super) fn gradients(&mut self, dev: &Device, k: &Kernels) -> Result<(), GpuError> {
         let s = self.s_len;
         dev.stream
-            .memcpy_dtod(&self.u_hat, &mut self.spec.slice_mut(0..3 * s))
+            .memcpy_dtod(&self.u_work, &mut self.spec.slice_mut(0..3 * s))
             .map_err(driver)?;
         self.inverse_many(3, Field::Ug)?;
         self.derivatives(dev, k, 3)?;
@@ -525,11 +543,15 @@ impl Buffers {
         self.contract(dev, k, 0.0, false)
     }
 
-    /// Derivative spectra of `comps` inputs (u: 3 from u_hat, Q: 6 from q_hat) into spec.
+    /// Derivative spectra of `comps` inputs (u: 3 from u_work, Q: 6 from q_hat) into spec.
     fn derivatives(&mut self, dev: &Device, k: &Kernels, comps: usize) -> Result<(), GpuError> {
         let (cfg, _) = config(self.s_len);
         let (c, n) = (comps as i32, self.n as i32);
-        let input = if comps == 3 { &self.u_hat } else { &self.q_hat };
+        let input = if comps == 3 {
+            &self.u_work
+        } else {
+            &self.q_hat
+        };
         let mut b = dev.stream.launch_builder(&k.derivative_spectra);
         b.arg(input)
             .arg(&mut self.spec)
@@ -537,7 +559,7 @@ impl Buffers {
             .arg(&n)
             .arg(&self.k1);
         // SAFETY: derivative_spectra(const double2* c, double2* out, int comps, int n,
-        // const double* k1): the input holds comps S values (u_hat 3 S, q_hat 6 S), spec 18 S
+        // const double* k1): the input holds comps S values (u_work 3 S, q_hat 6 S), spec 18 S
         // >= 3 comps S; thread s < S writes out[(m 3 + dir) S + s] for m < comps.
         unsafe { b.launch(cfg) }.map_err(driver)?;
         Ok(())
@@ -626,8 +648,8 @@ impl Buffers {
         let (cfg, blocks) = config(self.s_len);
         let n = self.n as i32;
         let mut b = dev.stream.launch_builder(&k.norm_partials);
-        b.arg(&self.u_hat).arg(&n).arg(&mut self.partial);
-        // SAFETY: norm_partials(const double2* u, int n, double* partial): u_hat holds 3 S
+        b.arg(&self.u_work).arg(&n).arg(&mut self.partial);
+        // SAFETY: norm_partials(const double2* u, int n, double* partial): u_work holds 3 S
         // values, partial at least one per block; thread s < S reads index c S + s.
         unsafe { b.launch(cfg) }.map_err(driver)?;
         Ok(self.reduce(dev, blocks, 1, &[])?[0])
@@ -671,8 +693,10 @@ impl Buffers {
         Ok(())
     }
 
-    /// The step is accepted: Q^{n-1} <- Q^n <- Q^{n+1}, N^{n-1} <- N^n.
+    /// The step is accepted: Q^{n-1} <- Q^n <- Q^{n+1}, N^{n-1} <- N^n, and the converged
+    /// velocity becomes the next warm start.
     pub(super) fn commit_step(&mut self) {
+        std::mem::swap(&mut self.u_hat, &mut self.u_work);
         std::mem::swap(&mut self.q_prev, &mut self.q_hat);
         std::mem::swap(&mut self.q_hat, &mut self.q_new);
         std::mem::swap(&mut self.nl_prev, &mut self.nl);

@@ -19,7 +19,7 @@ mod launch;
 
 use crate::closure::BinghamClosure;
 use crate::solver::{
-    History, MeanFieldError, MeanFieldParams, MeanFieldStepReport, RhsReport, SBDF1, SBDF2,
+    History, ImexScheme, MeanFieldError, MeanFieldParams, MeanFieldStepReport, RhsReport, SBDF1,
     SpectralGrid,
 };
 use launch::{Device, Kernels};
@@ -71,6 +71,7 @@ pub struct GpuMeanField {
     k: Kernels,
     n: usize,
     params: MeanFieldParams,
+    scheme: ImexScheme,
     deg: usize,
     /// Current time.
     pub t: f64,
@@ -90,11 +91,14 @@ impl std::fmt::Debug for GpuMeanField {
 
 impl GpuMeanField {
     /// Upload a state (the same as [`crate::solver::MeanFieldStepper::restore`] takes) and
-    /// prepare the device: kernels, cuFFT plans, closure tables, wavenumbers, buffers.
+    /// prepare the device: kernels, cuFFT plans, closure tables, wavenumbers, buffers. `scheme`
+    /// as the CPU stepper's (the first step is SBDF1 whatever it is).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         grid: &SpectralGrid,
         closure: &BinghamClosure,
         params: &MeanFieldParams,
+        scheme: ImexScheme,
         t: f64,
         q_hat: &[Vec<Complex64>; 6],
         history: Option<&History>,
@@ -112,6 +116,7 @@ impl GpuMeanField {
             k,
             n,
             params: params.clone(),
+            scheme,
             deg: closure.degree(),
             t,
             prev_dt: history.map(|h| h.dt),
@@ -136,7 +141,8 @@ impl GpuMeanField {
 
     /// Advance by `dt` as [`crate::solver::MeanFieldStepper::step`] does (SBDF1 for the first
     /// step, then variable-step SBDF2), with the entropy only if asked. Nothing is committed
-    /// when the step fails.
+    /// when the step fails: the fixed point iterates in a work buffer, and the state, the
+    /// history and the warm-start velocity change only once the new Q is known to be finite.
     pub fn step(&mut self, dt: f64, with_entropy: bool) -> Result<MeanFieldStepReport, GpuError> {
         let (n, dev, k) = (self.n, &self.dev, &self.k);
         let b = &mut self.bufs;
@@ -169,9 +175,10 @@ impl GpuMeanField {
         let (u_max, ee, eq, ese) = b.report_sums(dev, k)?;
         let u_l2 = b.u_norm(dev, k)?.sqrt();
         // The IMEX update into the spare buffer; committed only if finite.
+        // As MeanFieldStepper::step: the scheme once it has its history, SBDF1 before.
         let (scheme, w) = match self.prev_dt {
-            Some(prev) => (SBDF2, dt / prev),
-            None => (SBDF1, 1.0),
+            Some(prev) if self.scheme.steps == 2 => (self.scheme, dt / prev),
+            _ => (SBDF1, 1.0),
         };
         let (a, bcoef) = (scheme.coefficients)(w);
         b.imex(
@@ -181,7 +188,7 @@ impl GpuMeanField {
             bcoef,
             dt,
             self.params.diffusion,
-            self.prev_dt.is_some(),
+            self.prev_dt.is_some() && scheme.steps == 2,
         )?;
         if b.nonfinite_update(dev, k)? {
             return Err(MeanFieldError::NonFinite("Q after the step").into());

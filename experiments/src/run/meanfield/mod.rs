@@ -148,6 +148,7 @@ impl Engine {
                     grid,
                     closure,
                     params,
+                    cpu.scheme,
                     cpu.t,
                     &cpu.q_hat,
                     cpu.history(),
