@@ -21,6 +21,29 @@ pub struct RodSet {
     pub image: Vec<[i64; 3]>,
 }
 
+/// Move the centre `x` by `dx` in a periodic box of side `l`, wrapping into `[0, l)` and
+/// counting the images crossed in `image`.
+pub(crate) fn translate_wrapped(x: &mut Vec3, image: &mut [i64; 3], dx: Vec3, l: f64) {
+    for d in 0..3 {
+        let mut c = x[d] + dx[d];
+        // Steps are far shorter than the box, so one wrap suffices; loop for safety.
+        while c >= l {
+            c -= l;
+            image[d] += 1;
+        }
+        while c < 0.0 {
+            c += l;
+            image[d] -= 1;
+        }
+        // -tiny + L can round to L.
+        if c >= l {
+            c = 0.0;
+            image[d] += 1;
+        }
+        x[d] = c;
+    }
+}
+
 fn default_diameter() -> f64 {
     crate::units::DEFAULT_DIAMETER
 }
@@ -48,25 +71,13 @@ impl RodSet {
 
     /// Move rod `i` by `dx`, wrapping into the box and counting images.
     pub fn translate(&mut self, i: usize, dx: Vec3) {
-        let l = self.box_length;
-        for d in 0..3 {
-            let mut c = self.x[i][d] + dx[d];
-            // Steps are far shorter than the box, so one wrap suffices; loop for safety.
-            while c >= l {
-                c -= l;
-                self.image[i][d] += 1;
-            }
-            while c < 0.0 {
-                c += l;
-                self.image[i][d] -= 1;
-            }
-            // -tiny + L can round to L.
-            if c >= l {
-                c = 0.0;
-                self.image[i][d] += 1;
-            }
-            self.x[i][d] = c;
-        }
+        translate_wrapped(&mut self.x[i], &mut self.image[i], dx, self.box_length);
+    }
+
+    /// Orientations of all rods, computed in parallel.
+    pub fn orientations_par(&self) -> Vec<Vec3> {
+        use rayon::prelude::*;
+        self.q.par_iter().map(|q| quat_axis(*q)).collect()
     }
 
     /// Unwrapped centres.

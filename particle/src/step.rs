@@ -292,7 +292,7 @@ impl Stepper {
         }
         let mut seconds = [0.0; 5];
         let t0 = Instant::now();
-        let p = rods.orientations();
+        let p = rods.orientations_par();
         let reach = ROD_LENGTH + b + self.contact.margin;
         let cells = CellList::build(&rods.x, rods.box_length, reach);
         let order = cells.order();
@@ -402,21 +402,32 @@ impl Stepper {
                 }
             }
         }
-        self.contact_force = ft.iter().map(|(f, _)| *f).collect();
+        self.contact_force = ft.par_iter().map(|(f, _)| *f).collect();
         let net_contact_force =
             [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| self.contact_force[r][d]));
-        for r in 0..n {
-            let (v, w) = (self.velocities.v[r], self.velocities.w[r]);
-            if !(v.iter().chain(&w).all(|c| c.is_finite())) {
-                return Err(StepError::NonFinite(r));
-            }
-            rods.translate(r, scale(dt, v));
-            rods.q[r] = quat_mul(quat_exp(scale(dt, w)), rods.q[r]);
+        // The first rod with a non-finite velocity, then every rod moved (in parallel: each
+        // rod's update is its own, so the result does not depend on the thread count).
+        let (vel, ang) = (&self.velocities.v, &self.velocities.w);
+        if let Some(r) = (0..n)
+            .into_par_iter()
+            .find_first(|&r| !(vel[r].iter().chain(&ang[r]).all(|c| c.is_finite())))
+        {
+            return Err(StepError::NonFinite(r));
         }
+        let l = rods.box_length;
+        rods.x
+            .par_iter_mut()
+            .zip(rods.image.par_iter_mut())
+            .zip(rods.q.par_iter_mut())
+            .zip(vel.par_iter().zip(ang.par_iter()))
+            .for_each(|(((x, image), q), (v, w))| {
+                crate::rods::translate_wrapped(x, image, scale(dt, *v), l);
+                *q = quat_mul(quat_exp(scale(dt, *w)), *q);
+            });
         seconds[4] = t4.elapsed().as_secs_f64();
         // True overlaps after the move, over the constrained pairs (caller's numbering).
         // The projection below only translates, so the axes after the rotation update hold.
-        let p_new = rods.orientations();
+        let p_new = rods.orientations_par();
         let (mut max_overlap, mut worst) = true_overlap(rods, &p_new, &cons, order);
         // Projection: one contact point per pair cannot hold nearly parallel rods that turn (the
         // far ends approach at first order in the angle), and the linearisation misses
@@ -479,12 +490,19 @@ impl Stepper {
         }
         let mean_speed =
             crate::contact::det_sum(n, |r| norm(self.velocities.v[r])) / n.max(1) as f64;
-        let max_speed = (0..n)
-            .map(|r| norm(self.velocities.v[r]))
-            .fold(0.0, f64::max);
-        let max_rotation_rate = (0..n)
-            .map(|r| norm(self.velocities.w[r]))
-            .fold(0.0, f64::max);
+        // Maxima are exact in any order.
+        let max_speed = self
+            .velocities
+            .v
+            .par_iter()
+            .map(|v| norm(*v))
+            .reduce(|| 0.0, f64::max);
+        let max_rotation_rate = self
+            .velocities
+            .w
+            .par_iter()
+            .map(|w| norm(*w))
+            .reduce(|| 0.0, f64::max);
         let mp = [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| p_new[r][d]) / n.max(1) as f64);
         Ok(StepReport {
             contact,

@@ -124,7 +124,8 @@ pub fn onset(
                 &dir,
                 ParticleRunConfig::validate,
             )
-            .is_ok_and(|c| c == cfg)
+            // Both resolved: defaults that follow other keys (the RPY radius) filled in.
+            .is_ok_and(|c| c.resolved() == cfg.resolved())
                 && TimeSeries::read(&ts_path).is_ok_and(|ts| {
                     ts.column("t [1/beta]")
                         .and_then(|t| t.last().copied())

@@ -236,7 +236,8 @@ fn existing(dir: &Path, cfg: &RunConfig) -> anyhow::Result<bool> {
     let same = model == cfg.model()
         && match cfg {
             RunConfig::Particle(c) => {
-                &read_run_config::<ParticleRunConfig>(dir, ParticleRunConfig::validate)? == c
+                read_run_config::<ParticleRunConfig>(dir, ParticleRunConfig::validate)?.resolved()
+                    == c.resolved()
             }
             RunConfig::MeanField(c) => {
                 &read_run_config::<MeanFieldRunConfig>(dir, MeanFieldRunConfig::validate)? == c
