@@ -283,7 +283,7 @@ impl SpectralGrid {
     /// `sum_k |c_k|^2` over the full spectrum (the mean square of the field, by Parseval).
     /// Summed in fixed blocks of rows, so the result does not depend on the thread count.
     pub fn norm_sqr(&self, c: &[Complex64]) -> f64 {
-        self.sum_rows(|row, a| self.weight_of(a) * c[row * self.h + a].norm_sqr())
+        self.sum_rows(|row, a| [self.weight_of(a) * c[row * self.h + a].norm_sqr()])[0]
     }
 
     /// Weight of the axis-0 index `a` ([`Self::weight`]).
@@ -291,29 +291,41 @@ impl SpectralGrid {
         if a == 0 || a == self.n / 2 { 1.0 } else { 2.0 }
     }
 
-    /// `sum over stored coefficients of f(row, a)` (`row = i2 n + i1`, `a` the axis-0 index), in
-    /// parallel over fixed blocks of rows and then in block order: deterministic.
-    fn sum_rows(&self, f: impl Fn(usize, usize) -> f64 + Sync + Send) -> f64 {
+    /// `K` sums over the stored coefficients of `f(row, a)` (`row = i2 n + i1`, `a` the axis-0
+    /// index) in one pass, in parallel over fixed blocks of rows and then in block order:
+    /// deterministic.
+    fn sum_rows<const K: usize>(
+        &self,
+        f: impl Fn(usize, usize) -> [f64; K] + Sync + Send,
+    ) -> [f64; K] {
         const ROWS: usize = 64;
         let rows = self.n * self.n;
-        let blocks: Vec<f64> = (0..rows.div_ceil(ROWS))
+        let blocks: Vec<[f64; K]> = (0..rows.div_ceil(ROWS))
             .into_par_iter()
             .map(|b| {
-                let mut acc = 0.0;
+                let mut acc = [0.0; K];
                 for row in b * ROWS..((b + 1) * ROWS).min(rows) {
                     for a in 0..self.h {
-                        acc += f(row, a);
+                        for (s, v) in acc.iter_mut().zip(f(row, a)) {
+                            *s += v;
+                        }
                     }
                 }
                 acc
             })
             .collect();
-        blocks.iter().sum()
+        let mut total = [0.0; K];
+        for b in &blocks {
+            for (t, v) in total.iter_mut().zip(b) {
+                *t += v;
+            }
+        }
+        total
     }
 
     /// `f(k_row, a, value)` for every stored coefficient, in parallel by rows: `k_row` holds
-    /// the first-derivative wavenumbers of axes 1 and 2 and whether the row survives the 2/3
-    /// rule, `a` is the axis-0 index.
+    /// the row's index, its axis-1 and axis-2 squared wavenumbers and whether it survives the
+    /// 2/3 rule; `a` is the axis-0 index.
     fn for_each_row<T: Send>(
         &self,
         data: &mut [T],
@@ -770,15 +782,16 @@ const FLOW_FLOOR: f64 = 1e-14;
 
 fn rel_change(grid: &SpectralGrid, a: &[Vec<Complex64>; 3], b: &[Vec<Complex64>; 3]) -> f64 {
     let h = grid.h;
-    let num = grid.sum_rows(|row, i| {
+    // The change and the norm in one pass.
+    let [num, den] = grid.sum_rows(|row, i| {
         let w = grid.weight_of(i);
-        (0..3)
-            .map(|c| w * (a[c][row * h + i] - b[c][row * h + i]).norm_sqr())
-            .sum()
-    });
-    let den = grid.sum_rows(|row, i| {
-        let w = grid.weight_of(i);
-        (0..3).map(|c| w * a[c][row * h + i].norm_sqr()).sum()
+        let mut r = [0.0; 2];
+        for c in 0..3 {
+            let (x, y) = (a[c][row * h + i], b[c][row * h + i]);
+            r[0] += w * (x - y).norm_sqr();
+            r[1] += w * x.norm_sqr();
+        }
+        r
     });
     (num / den.max(FLOW_FLOOR * FLOW_FLOOR)).sqrt()
 }

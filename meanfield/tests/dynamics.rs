@@ -10,6 +10,9 @@ use motile_meanfield::solver::{
 use std::f64::consts::PI;
 use std::sync::OnceLock;
 
+mod common;
+use common::{nonlinear_state, state};
+
 /// The tables runs use by default (degree 20).
 fn closure() -> &'static BinghamClosure {
     static T: OnceLock<BinghamClosure> = OnceLock::new();
@@ -21,20 +24,6 @@ fn closure() -> &'static BinghamClosure {
 fn exact_closure() -> &'static BinghamClosure {
     static T: OnceLock<BinghamClosure> = OnceLock::new();
     T.get_or_init(|| BinghamClosure::new(PAPER_DEGREE).expect("closure tables"))
-}
-
-/// `I/3` plus `f(x)` added to component `c`, on an `n^3` grid.
-fn state(n: usize, pert: impl Fn([f64; 3]) -> [f64; 6]) -> [Vec<f64>; 6] {
-    let mut q: [Vec<f64>; 6] = Default::default();
-    for idx in 0..n * n * n {
-        let x = [idx % n, (idx / n) % n, idx / (n * n)].map(|i| i as f64 / n as f64);
-        let d = pert(x);
-        for c in 0..6 {
-            let iso = if SYM[c].0 == SYM[c].1 { 1.0 / 3.0 } else { 0.0 };
-            q[c].push(iso + d[c]);
-        }
-    }
-    q
 }
 
 #[test]
@@ -80,25 +69,6 @@ fn linear_growth_rate_matches_theory() {
             "zeta {zeta}: growth rate {measured} vs theory {exact}: relative error {rel:.2e}"
         );
     }
-}
-
-fn nonlinear_state(n: usize) -> [Vec<f64>; 6] {
-    // A smooth, strongly non-isotropic state that stays positive definite.
-    state(n, |x| {
-        let (a, b, c) = (
-            (2.0 * PI * x[0]).sin(),
-            (2.0 * PI * x[1]).cos(),
-            (2.0 * PI * (x[2] + x[0])).sin(),
-        );
-        [
-            0.12 * a,
-            0.08 * b + 0.05 * c,
-            0.04 * a * b,
-            -0.06 * a + 0.03 * c,
-            0.07 * c,
-            -0.06 * a - 0.03 * c,
-        ]
-    })
 }
 
 #[test]

@@ -1,10 +1,13 @@
 //! The GPU mean-field step against the CPU step (issue 18): from the same strongly anisotropic
-//! state on 32^3, three steps (the first SBDF1, then variable-step SBDF2 with a step ratio of
+//! state on 32^3 (the dynamics tests' `nonlinear_state`), three steps (the first SBDF1, then variable-step SBDF2 with a step ratio of
 //! 1.25) with the fixed point's iteration count pinned to 6 (so round-off cannot stop the two
 //! one iteration apart), the entropy evaluated: Q, u and every number of the step reports
 //! agree to 1e-12 relative. Runs only where a CUDA device is present (feature `gpu`); elsewhere
 //! it says why it was skipped, and with `MOTILE_REQUIRE_GPU=1` (set on machines that have one)
 //! a missing GPU fails it instead.
+
+#[cfg(feature = "gpu")]
+mod common;
 
 fn skip(reason: &str) {
     if std::env::var("MOTILE_REQUIRE_GPU").as_deref() == Ok("1") {
@@ -25,10 +28,9 @@ fn gpu_step_matches_the_cpu_step() {
     use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
     use motile_meanfield::gpu::{GpuError, GpuMeanField, probe};
     use motile_meanfield::solver::{
-        MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SYM, SpectralGrid,
+        MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SpectralGrid,
     };
     use num_complex::Complex64;
-    use std::f64::consts::PI;
 
     match probe() {
         Err(GpuError::NoDevice(why)) => return skip(&why),
@@ -44,23 +46,7 @@ fn gpu_step_matches_the_cpu_step() {
         fixed_point_iterations: Some(6),
         ..Default::default()
     };
-    let mut q: [Vec<f64>; 6] = Default::default();
-    for idx in 0..n * n * n {
-        let x = [idx % n, (idx / n) % n, idx / (n * n)].map(|i| 2.0 * PI * i as f64 / n as f64);
-        let (a, b, c) = (x[0].sin(), x[1].cos(), (x[2] + x[0]).sin());
-        let d = [
-            0.12 * a,
-            0.08 * b + 0.05 * c,
-            0.04 * a * b,
-            -0.06 * a + 0.03 * c,
-            0.07 * c,
-            -0.06 * a - 0.03 * c,
-        ];
-        for k in 0..6 {
-            let iso = if SYM[k].0 == SYM[k].1 { 1.0 / 3.0 } else { 0.0 };
-            q[k].push(iso + d[k]);
-        }
-    }
+    let q = common::nonlinear_state(n);
     let mut cpu = MeanFieldStepper::new(&grid, &q, SBDF2);
     let mut gpu = GpuMeanField::new(
         &grid,

@@ -64,20 +64,16 @@ impl RodSet {
         quat_axis(self.q[i])
     }
 
-    /// All orientations.
+    /// All orientations (computed in parallel; each is its own, so any thread count gives the
+    /// same values).
     pub fn orientations(&self) -> Vec<Vec3> {
-        self.q.iter().map(|q| quat_axis(*q)).collect()
+        use rayon::prelude::*;
+        self.q.par_iter().map(|q| quat_axis(*q)).collect()
     }
 
     /// Move rod `i` by `dx`, wrapping into the box and counting images.
     pub fn translate(&mut self, i: usize, dx: Vec3) {
         translate_wrapped(&mut self.x[i], &mut self.image[i], dx, self.box_length);
-    }
-
-    /// Orientations of all rods, computed in parallel.
-    pub fn orientations_par(&self) -> Vec<Vec3> {
-        use rayon::prelude::*;
-        self.q.par_iter().map(|q| quat_axis(*q)).collect()
     }
 
     /// Unwrapped centres.

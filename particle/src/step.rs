@@ -292,7 +292,7 @@ impl Stepper {
         }
         let mut seconds = [0.0; 5];
         let t0 = Instant::now();
-        let p = rods.orientations_par();
+        let p = rods.orientations();
         let reach = ROD_LENGTH + b + self.contact.margin;
         let cells = CellList::build(&rods.x, rods.box_length, reach);
         let order = cells.order();
@@ -427,7 +427,7 @@ impl Stepper {
         seconds[4] = t4.elapsed().as_secs_f64();
         // True overlaps after the move, over the constrained pairs (caller's numbering).
         // The projection below only translates, so the axes after the rotation update hold.
-        let p_new = rods.orientations_par();
+        let p_new = rods.orientations();
         let (mut max_overlap, mut worst) = true_overlap(rods, &p_new, &cons, order);
         // Projection: one contact point per pair cannot hold nearly parallel rods that turn (the
         // far ends approach at first order in the angle), and the linearisation misses

@@ -20,7 +20,7 @@ fn rods(box_length: f64, x: Vec<Vec3>, p: Vec<Vec3>) -> RodSet {
     let n = x.len();
     RodSet {
         box_length,
-        diameter: motile_particle::units::DEFAULT_DIAMETER,
+        diameter: DEFAULT_DIAMETER,
         x,
         q: p.iter().map(|p| quat_from_axis(*p)).collect(),
         image: vec![[0; 3]; n],

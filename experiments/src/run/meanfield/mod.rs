@@ -133,6 +133,7 @@ enum EngineError {
 
 impl Engine {
     /// The CPU stepper, or (`device = "gpu"`) the GPU stepper started from its state.
+    #[cfg_attr(not(feature = "gpu"), allow(unused_variables))]
     fn new(
         cfg: &MeanFieldRunConfig,
         cpu: MeanFieldStepper,
@@ -140,7 +141,6 @@ impl Engine {
         closure: &BinghamClosure,
         params: &MeanFieldParams,
     ) -> anyhow::Result<Self> {
-        let _ = (grid, closure, params);
         if cfg.device == Device::Gpu {
             #[cfg(feature = "gpu")]
             {
