@@ -18,6 +18,7 @@
 //! tolerance. Products with `D` go through a per-rod list of constraints in a fixed order and
 //! every reduction is summed in fixed chunks, so results are bit-identical for any thread count.
 
+use crate::domain::{Comm, Halo, SingleProcess};
 use crate::geometry::{Vec3, axpy, cross, dot, scale, sub};
 use crate::mobility::Mobility;
 use motile_analysis::params::{InvalidParameter, check_range};
@@ -182,6 +183,16 @@ fn par_max(n: usize, f: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
         .reduce(|| f64::NEG_INFINITY, f64::max)
 }
 
+/// The ranks a contact problem is shared among, and this rank's copies of their rods (see
+/// [`crate::domain`]); one process: [`SingleProcess`] with [`Halo::none`].
+#[derive(Clone, Copy, Debug)]
+pub struct Share<'a> {
+    /// The ranks.
+    pub comm: &'a dyn Comm,
+    /// This rank's copies, in the solver's rod numbering.
+    pub halo: &'a Halo,
+}
+
 /// The BBPGD contact solver; holds only scratch memory.
 #[derive(Debug, Default)]
 pub struct ContactSolver {
@@ -248,6 +259,7 @@ impl ContactSolver {
     /// Forces and the local mobility are fused in one pass over rods into reused buffers.
     fn apply(
         &mut self,
+        share: Share<'_>,
         cons: &[Constraint],
         p: &[Vec3],
         mob: &dyn Mobility,
@@ -259,7 +271,7 @@ impl ContactSolver {
         let n = p.len();
         self.vel.resize(n, ([0.0; 3], [0.0; 3]));
         let (start, entries) = (&self.rod_start, &self.rod_entries);
-        self.vel.par_iter_mut().enumerate().for_each(|(r, vw)| {
+        let force_on = |r: usize| {
             let mut f = [0.0; 3];
             let mut t = [0.0; 3];
             for &(a, side) in &entries[start[r]..start[r + 1]] {
@@ -269,8 +281,34 @@ impl ContactSolver {
                 f = axpy(f, 1.0, fa);
                 t = axpy(t, 1.0, cross(arm, fa));
             }
-            *vw = mob.local(p[r], f, t);
-        });
+            (f, t)
+        };
+        if share.comm.size() == 1 {
+            self.vel.par_iter_mut().enumerate().for_each(|(r, vw)| {
+                let (f, t) = force_on(r);
+                *vw = mob.local(p[r], f, t);
+            });
+        } else {
+            // Forces from this rank's constraints, the copies' added into their owners, the
+            // owners' velocities copied back.
+            let mut ft: Vec<[f64; 6]> = (0..n)
+                .into_par_iter()
+                .map(|r| {
+                    let (f, t) = force_on(r);
+                    [f[0], f[1], f[2], t[0], t[1], t[2]]
+                })
+                .collect();
+            share.halo.accumulate(share.comm, &mut ft);
+            ft.par_iter_mut().enumerate().for_each(|(r, x)| {
+                let (v, w) = mob.local(p[r], [x[0], x[1], x[2]], [x[3], x[4], x[5]]);
+                *x = [v[0], v[1], v[2], w[0], w[1], w[2]];
+            });
+            share.halo.refresh(share.comm, &mut ft);
+            self.vel
+                .par_iter_mut()
+                .zip(&ft)
+                .for_each(|(vw, x)| *vw = ([x[0], x[1], x[2]], [x[3], x[4], x[5]]));
+        }
         let vel = &self.vel;
         out.par_iter_mut()
             .zip(cons)
@@ -296,10 +334,48 @@ impl ContactSolver {
         params: &ContactParams,
         initial: &[f64],
     ) -> Result<(Vec<f64>, ContactReport), ContactError> {
+        let halo = Halo::none(p.len());
+        let share = Share {
+            comm: &SingleProcess,
+            halo: &halo,
+        };
+        self.solve_shared(share, cons, p, free_v, free_w, mob, dt, params, initial)
+    }
+
+    /// [`Self::solve`] for one rank's part of a problem shared by several (collective): `cons`
+    /// are this rank's constraints over its local rods (own rods and copies, numbered as in
+    /// `share.halo`); `free_v`, `free_w` hold the owners' values on the copies too. Sums and
+    /// maxima are over all ranks, so every rank takes the same iterations and returns its own
+    /// constraints' multipliers; the report is the whole problem's.
+    pub fn solve_shared(
+        &mut self,
+        share: Share<'_>,
+        cons: &[Constraint],
+        p: &[Vec3],
+        free_v: &[Vec3],
+        free_w: &[Vec3],
+        mob: &dyn Mobility,
+        dt: f64,
+        params: &ContactParams,
+        initial: &[f64],
+    ) -> Result<(Vec<f64>, ContactReport), ContactError> {
+        let comm = share.comm;
         let m = cons.len();
-        if m == 0 {
+        let mut total = [m as f64];
+        comm.sum(&mut total);
+        if total[0] == 0.0 {
             return Ok((Vec::new(), ContactReport::default()));
         }
+        let global_sum = |x: f64| {
+            let mut v = [x];
+            comm.sum(&mut v);
+            v[0]
+        };
+        let global_max = |x: f64| {
+            let mut v = [x];
+            comm.max(&mut v);
+            v[0]
+        };
         assert!(
             initial.is_empty() || initial.len() == m,
             "initial guess has the wrong length"
@@ -310,13 +386,19 @@ impl ContactSolver {
         q.par_iter_mut()
             .zip(cons)
             .for_each(|(q, c)| *q = c.phi + dt * *q);
-        let residual_of = |lam: &[f64], g: &[f64]| par_max(m, |k| lam[k].min(g[k]).abs());
+        let residual_of =
+            |lam: &[f64], g: &[f64]| global_max(par_max(m, |k| lam[k].min(g[k]).abs()));
         let mut ag = vec![0.0; m];
         // Warm start from `initial` (projected onto lambda >= 0), or from zero.
-        let (mut lam, mut g) = if initial.iter().any(|&l| l > 0.0) {
+        let warm = global_max(if initial.iter().any(|&l| l > 0.0) {
+            1.0
+        } else {
+            0.0
+        });
+        let (mut lam, mut g) = if warm > 0.0 {
             let lam: Vec<f64> = initial.iter().map(|l| l.max(0.0)).collect();
             let mut g = vec![0.0; m];
-            self.apply(cons, p, mob, dt, &lam, &q, &mut g);
+            self.apply(share, cons, p, mob, dt, &lam, &q, &mut g);
             (lam, g)
         } else {
             (vec![0.0; m], q.clone())
@@ -334,9 +416,9 @@ impl ContactSolver {
                     }
                 })
                 .collect();
-            self.apply(cons, p, mob, dt, &gp, &[], &mut ag);
-            let gg = det_sum(m, |k| gp[k] * gp[k]);
-            let gag = det_sum(m, |k| gp[k] * ag[k]);
+            self.apply(share, cons, p, mob, dt, &gp, &[], &mut ag);
+            let gg = global_sum(det_sum(m, |k| gp[k] * gp[k]));
+            let gag = global_sum(det_sum(m, |k| gp[k] * ag[k]));
             let mut alpha = if gag > 0.0 { gg / gag } else { 1.0 };
             let mut lam_new = vec![0.0; m];
             let mut g_new = vec![0.0; m];
@@ -346,9 +428,16 @@ impl ContactSolver {
                     .par_iter_mut()
                     .enumerate()
                     .for_each(|(k, l)| *l = (lam[k] - alpha * g[k]).max(0.0));
-                self.apply(cons, p, mob, dt, &lam_new, &q, &mut g_new);
+                self.apply(share, cons, p, mob, dt, &lam_new, &q, &mut g_new);
                 // Residual and the three Barzilai-Borwein products in one fixed-chunk pass.
                 let [r, ss, sy, yy] = fused_stats(&lam, &lam_new, &g, &g_new);
+                let (r, [ss, sy, yy]) = if comm.size() == 1 {
+                    (r, [ss, sy, yy])
+                } else {
+                    let mut sums = [ss, sy, yy];
+                    comm.sum(&mut sums);
+                    (global_max(r), sums)
+                };
                 res = r;
                 if !res.is_finite() {
                     return Err(ContactError::NonFinite(iterations));
@@ -374,12 +463,12 @@ impl ContactSolver {
                 };
             }
         }
-        let active = lam.iter().filter(|&&l| l > 0.0).count();
-        let predicted_overlap = par_max(m, |k| -g[k]).max(0.0);
+        let active = global_sum(lam.iter().filter(|&&l| l > 0.0).count() as f64) as usize;
+        let predicted_overlap = global_max(par_max(m, |k| -g[k])).max(0.0);
         Ok((
             lam,
             ContactReport {
-                constraints: m,
+                constraints: total[0] as usize,
                 active,
                 iterations,
                 residual: res,

@@ -22,6 +22,8 @@
 mod cells;
 pub mod contact;
 pub mod dipole;
+pub mod distributed;
+pub mod domain;
 pub mod ewald;
 mod ewald_params;
 mod gaussian_grid;

@@ -13,11 +13,14 @@
 //! 6. the true (nonlinear) largest overlap among the constrained pairs after the move.
 
 use crate::cells::CellList;
-use crate::contact::{Constraint, ContactError, ContactParams, ContactReport, ContactSolver};
+use crate::contact::{
+    Constraint, ContactError, ContactParams, ContactReport, ContactSolver, Share,
+};
+use crate::domain::{Comm, Halo, SingleProcess, max_with_key};
 use crate::geometry::{
     Vec3, axpy, min_image, norm, quat_exp, quat_mul, scale, segment_distance, sub,
 };
-use crate::mobility::{Mobility, RodVelocities};
+use crate::mobility::{LocalDrag, Mobility, RodVelocities};
 use crate::rods::RodSet;
 use crate::units::ROD_LENGTH;
 use rayon::prelude::*;
@@ -80,6 +83,16 @@ pub enum StepError {
     /// A velocity or position became NaN or infinite.
     #[error("rod {0} has a non-finite velocity or position")]
     NonFinite(usize),
+    /// A step shared by several ranks with a mobility that is not shared yet.
+    #[error(
+        "the {mobility_name} mobility runs on one process only ({ranks} ranks asked for): run it without mpirun, or use hydrodynamics = \"none\""
+    )]
+    NotShared {
+        /// The mobility's name.
+        mobility_name: &'static str,
+        /// Ranks asked for.
+        ranks: usize,
+    },
     /// The rods' diameter is not the one the mobility was built for.
     #[error(
         "the rods have diameter {rods} l but the {mobility_name} mobility was built for {mobility} l: build both from one diameter"
@@ -146,12 +159,13 @@ fn gather(order: &[u32], v: &[Vec3]) -> Vec<Vec3> {
 const PROJECTIONS: usize = 5;
 
 /// Largest true overlap `b - dist` over the pairs of `cons` (internal indices mapped through
-/// `order` to `rods`, axes `p`), and its pair in the caller's numbering (ties: the smallest pair).
+/// `order` to `rods`, axes `p`), and its pair numbered by `gid` (ties: the smallest pair).
 fn true_overlap(
     rods: &RodSet,
     p: &[Vec3],
     cons: &[Constraint],
     order: &[u32],
+    gid: &(impl Fn(usize) -> u32 + Sync),
 ) -> (f64, (u32, u32)) {
     cons.par_iter()
         .map(|c| {
@@ -159,7 +173,8 @@ fn true_overlap(
             let d = min_image(sub(rods.x[j], rods.x[i]), rods.box_length);
             let (_, _, dist) =
                 segment_distance(rods.x[i], p[i], axpy(rods.x[i], 1.0, d), p[j], ROD_LENGTH);
-            (rods.diameter - dist, (i.min(j) as u32, i.max(j) as u32))
+            let (gi, gj) = (gid(i), gid(j));
+            (rods.diameter - dist, (gi.min(gj), gi.max(gj)))
         })
         .reduce(
             || (0.0, (0, 0)),
@@ -281,13 +296,52 @@ impl Stepper {
     /// solver's gathers hit cache); constraints carry those internal indices, and velocities
     /// and forces are mapped back to the caller's numbering.
     pub fn step(&mut self, rods: &mut RodSet, dt: f64) -> Result<StepReport, StepError> {
+        let halo = Halo::none(rods.len());
+        let part = Part {
+            comm: &SingleProcess,
+            halo: &halo,
+            ids: &[],
+            total: rods.len(),
+        };
+        self.step_part(rods, dt, part)
+    }
+
+    /// [`Self::step`] for one rank's part of a box shared by several (collective; see
+    /// [`crate::domain`]): `rods` are this rank's own rods followed by copies of other ranks'
+    /// rods within reach of them, as `part.halo` says. Every own rod and every copy moves
+    /// (the copies with their owners' velocities); the report is the whole box's. Velocities and
+    /// contact forces ([`Self::velocities`], [`Self::contact_forces`]) are those of the local
+    /// rods, correct for the own ones. Only the local mobility (`hydrodynamics = "none"`) is
+    /// shared so far; the others return [`StepError::NotShared`] on more than one rank.
+    pub fn step_part(
+        &mut self,
+        rods: &mut RodSet,
+        dt: f64,
+        part: Part<'_>,
+    ) -> Result<StepReport, StepError> {
         let n = rods.len();
         let b = rods.diameter;
+        let comm = part.comm;
+        let shared = comm.size() > 1;
+        let owned = part.halo.owned;
+        let gid = |k: usize| -> u32 {
+            if part.ids.is_empty() {
+                k as u32
+            } else {
+                part.ids[k]
+            }
+        };
         if b != self.mobility.diameter() {
             return Err(StepError::DiameterMismatch {
                 rods: b,
                 mobility: self.mobility.diameter(),
                 mobility_name: self.mobility.name(),
+            });
+        }
+        if shared && self.mobility.name() != LocalDrag::default().name() {
+            return Err(StepError::NotShared {
+                mobility_name: self.mobility.name(),
+                ranks: comm.size(),
             });
         }
         let mut seconds = [0.0; 5];
@@ -299,12 +353,34 @@ impl Stepper {
         let xs = gather(order, &rods.x);
         let ps = gather(order, &p);
         let sorted = cells.renumbered();
+        // The halo in the solver's (cell) numbering.
+        let inner_halo = if shared {
+            let mut inverse = vec![0u32; n];
+            for (k, &r) in order.iter().enumerate() {
+                inverse[r as usize] = k as u32;
+            }
+            part.halo.renumbered(&inverse)
+        } else {
+            Halo::none(n)
+        };
+        let share = Share {
+            comm,
+            halo: &inner_halo,
+        };
         seconds[0] = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let margin = self.contact.margin;
-        let cons = sorted.map_pairs(&xs, reach, |i, j, d| {
+        let mut cons = sorted.map_pairs(&xs, reach, |i, j, d| {
             constraint(&xs, &ps, i, j, d, b, margin)
         });
+        if shared {
+            // A pair is its smaller-numbered rod's owner's.
+            cons.retain(|c| {
+                let (a, bb) = (order[c.i as usize] as usize, order[c.j as usize] as usize);
+                let first = if gid(a) < gid(bb) { a } else { bb };
+                first < owned
+            });
+        }
         seconds[1] = t1.elapsed().as_secs_f64();
         let t2 = Instant::now();
         if self.velocities.v.len() != n {
@@ -317,7 +393,10 @@ impl Stepper {
         seconds[2] = t2.elapsed().as_secs_f64();
         let t3 = Instant::now();
         let key = |c: &crate::contact::Constraint| {
-            let (a, b) = (order[c.i as usize], order[c.j as usize]);
+            let (a, b) = (
+                gid(order[c.i as usize] as usize),
+                gid(order[c.j as usize] as usize),
+            );
             (a.min(b), a.max(b))
         };
         let initial: Vec<f64> = cons
@@ -328,7 +407,8 @@ impl Stepper {
                     .map_or(0.0, |k| self.warm[k].1)
             })
             .collect();
-        let (lambda, contact) = self.solver.solve(
+        let (lambda, contact) = self.solver.solve_shared(
+            share,
             &cons,
             &ps,
             &fv,
@@ -348,20 +428,14 @@ impl Stepper {
         self.warm = warm;
         seconds[3] = t3.elapsed().as_secs_f64();
         let t4 = Instant::now();
-        // Contact forces and torques, back in the caller's numbering.
-        let mut ft = vec![([0.0; 3], [0.0; 3]); n];
-        if !cons.is_empty() {
-            for (k, f) in self
-                .solver
-                .forces(&cons, &lambda, n)
-                .into_iter()
-                .enumerate()
-            {
-                ft[order[k] as usize] = f;
-            }
-        }
+        // Contact forces and torques, back in the caller's numbering (copies' shares added
+        // into their owners).
+        let mut ft = self.rod_forces(&cons, &lambda, order, part);
         self.mobility
             .final_velocities(rods, &p, &ft, &mut self.velocities)?;
+        if shared {
+            self.refresh_velocities(part);
+        }
         // Correction: with hydrodynamics the step's velocities are not the ones the contact
         // problem planned with (contact forces act through the full mobility, which moves a
         // close pair apart more weakly than the local mobility). The linearised constraints are
@@ -369,10 +443,13 @@ impl Stepper {
         // problem (local mobility, from zero) adds the impulses that restore them. Without
         // hydrodynamics the velocities are the planned ones and this finds nothing to do.
         let mut correction_active = 0;
-        if !cons.is_empty() {
+        let mut total_constraints = [cons.len() as f64];
+        comm.sum(&mut total_constraints);
+        if total_constraints[0] > 0.0 {
             let av = gather(order, &self.velocities.v);
             let aw = gather(order, &self.velocities.w);
-            let (dlambda, _) = self.solver.solve(
+            let (dlambda, _) = self.solver.solve_shared(
+                share,
                 &cons,
                 &ps,
                 &av,
@@ -382,15 +459,12 @@ impl Stepper {
                 &self.contact,
                 &[],
             )?;
-            correction_active = dlambda.iter().filter(|l| **l > 0.0).count();
+            let mut active = [dlambda.iter().filter(|l| **l > 0.0).count() as f64];
+            comm.sum(&mut active);
+            correction_active = active[0] as usize;
             if correction_active > 0 {
-                for (k, (f, t)) in self
-                    .solver
-                    .forces(&cons, &dlambda, n)
-                    .into_iter()
-                    .enumerate()
-                {
-                    let r = order[k] as usize;
+                let dft = self.rod_forces(&cons, &dlambda, order, part);
+                for (r, &(f, t)) in dft.iter().enumerate() {
                     if f == [0.0; 3] && t == [0.0; 3] {
                         continue;
                     }
@@ -400,19 +474,31 @@ impl Stepper {
                     ft[r].0 = axpy(ft[r].0, 1.0, f);
                     ft[r].1 = axpy(ft[r].1, 1.0, t);
                 }
+                if shared {
+                    self.refresh_velocities(part);
+                }
             }
         }
         self.contact_force = ft.par_iter().map(|(f, _)| *f).collect();
-        let net_contact_force =
-            [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| self.contact_force[r][d]));
-        // The first rod with a non-finite velocity, then every rod moved (in parallel: each
-        // rod's update is its own, so the result does not depend on the thread count).
+        let mut net_contact_force =
+            [0, 1, 2].map(|d| crate::contact::det_sum(owned, |r| self.contact_force[r][d]));
+        comm.sum(&mut net_contact_force);
+        // The first rod with a non-finite velocity (by number over all ranks), then every rod
+        // moved (in parallel: each rod's update is its own, so the result does not depend on
+        // the thread count; copies move with their owners' velocities).
         let (vel, ang) = (&self.velocities.v, &self.velocities.w);
-        if let Some(r) = (0..n)
+        let bad = (0..owned)
             .into_par_iter()
-            .find_first(|&r| !(vel[r].iter().chain(&ang[r]).all(|c| c.is_finite())))
-        {
-            return Err(StepError::NonFinite(r));
+            .filter(|&r| !(vel[r].iter().chain(&ang[r]).all(|c| c.is_finite())))
+            .map(&gid)
+            .min();
+        let (found, first) = max_with_key(
+            comm,
+            if bad.is_some() { 1.0 } else { 0.0 },
+            [bad.map_or(f64::INFINITY, f64::from), 0.0],
+        );
+        if found > 0.0 {
+            return Err(StepError::NonFinite(first[0] as usize));
         }
         let l = rods.box_length;
         rods.x
@@ -428,7 +514,12 @@ impl Stepper {
         // True overlaps after the move, over the constrained pairs (caller's numbering).
         // The projection below only translates, so the axes after the rotation update hold.
         let p_new = rods.orientations();
-        let (mut max_overlap, mut worst) = true_overlap(rods, &p_new, &cons, order);
+        let overlap_of = |rods: &RodSet| {
+            let (v, (i, j)) = true_overlap(rods, &p_new, &cons, order, &gid);
+            let (v, pair) = max_with_key(comm, v, [f64::from(i), f64::from(j)]);
+            (v, (pair[0] as u32, pair[1] as u32))
+        };
+        let (mut max_overlap, mut worst) = overlap_of(rods);
         // Projection: one contact point per pair cannot hold nearly parallel rods that turn (the
         // far ends approach at first order in the angle), and the linearisation misses
         // (dt w)^2 terms. Where the true overlap exceeds half the tolerance, the constraints
@@ -453,7 +544,8 @@ impl Stepper {
                 .collect();
             let zero = vec![[0.0; 3]; n];
             let translation = TranslationOnly(self.mobility.as_ref());
-            let (lambda, _) = self.solver.solve(
+            let (lambda, _) = self.solver.solve_shared(
+                share,
                 &again,
                 &ps,
                 &zero,
@@ -463,22 +555,23 @@ impl Stepper {
                 &self.contact,
                 &[],
             )?;
-            for (k, (f, t)) in self
-                .solver
-                .forces(&again, &lambda, n)
-                .into_iter()
-                .enumerate()
-            {
+            let mut pft = self.rod_forces(&again, &lambda, order, part);
+            if shared {
+                // The owners' totals on their copies too, so that copies move with them.
+                let mut flat = flatten(&pft);
+                part.halo.refresh(comm, &mut flat);
+                pft = unflatten(&flat);
+            }
+            for (r, &(f, t)) in pft.iter().enumerate() {
                 if f == [0.0; 3] && t == [0.0; 3] {
                     continue;
                 }
-                let r = order[k] as usize;
-                let (dv, _) = translation.local(ps[k], f, t);
+                let (dv, _) = translation.local(p_new[r], f, t);
                 rods.translate(r, scale(dt, dv));
                 self.velocities.v[r] = axpy(self.velocities.v[r], 1.0, dv);
                 self.contact_force[r] = axpy(self.contact_force[r], 1.0, f);
             }
-            (max_overlap, worst) = true_overlap(rods, &p_new, &cons, order);
+            (max_overlap, worst) = overlap_of(rods);
         }
         if max_overlap > self.contact.overlap_tolerance {
             return Err(StepError::Overlap {
@@ -488,34 +581,108 @@ impl Stepper {
                 tolerance: self.contact.overlap_tolerance,
             });
         }
-        let mean_speed =
-            crate::contact::det_sum(n, |r| norm(self.velocities.v[r])) / n.max(1) as f64;
+        let total = part.total.max(1) as f64;
+        let mut sums = [
+            crate::contact::det_sum(owned, |r| norm(self.velocities.v[r])),
+            crate::contact::det_sum(owned, |r| p_new[r][0]),
+            crate::contact::det_sum(owned, |r| p_new[r][1]),
+            crate::contact::det_sum(owned, |r| p_new[r][2]),
+        ];
+        comm.sum(&mut sums);
+        let mean_speed = sums[0] / total;
         // Maxima are exact in any order.
-        let max_speed = self
-            .velocities
-            .v
-            .par_iter()
-            .map(|v| norm(*v))
-            .reduce(|| 0.0, f64::max);
-        let max_rotation_rate = self
-            .velocities
-            .w
-            .par_iter()
-            .map(|w| norm(*w))
-            .reduce(|| 0.0, f64::max);
-        let mp = [0, 1, 2].map(|d| crate::contact::det_sum(n, |r| p_new[r][d]) / n.max(1) as f64);
+        let mut maxima = [
+            self.velocities.v[..owned]
+                .par_iter()
+                .map(|v| norm(*v))
+                .reduce(|| 0.0, f64::max),
+            self.velocities.w[..owned]
+                .par_iter()
+                .map(|w| norm(*w))
+                .reduce(|| 0.0, f64::max),
+        ];
+        comm.max(&mut maxima);
+        let mp = [sums[1] / total, sums[2] / total, sums[3] / total];
         Ok(StepReport {
             contact,
             max_overlap: max_overlap.max(0.0),
             correction_active,
             projections,
             mean_speed,
-            max_speed,
-            max_rotation_rate,
+            max_speed: maxima[0],
+            max_rotation_rate: maxima[1],
             polar_order: norm(mp),
             net_contact_force,
             seconds,
             hydro: self.mobility.report(),
         })
     }
+
+    /// The generalised force of multipliers `lambda` (constraints `cons` in the solver's
+    /// numbering, as indexed by its last solve) on each local rod, in the caller's numbering;
+    /// on several ranks each owner's total, its copies' shares added in (collective).
+    fn rod_forces(
+        &self,
+        cons: &[Constraint],
+        lambda: &[f64],
+        order: &[u32],
+        part: Part<'_>,
+    ) -> Vec<(Vec3, Vec3)> {
+        let n = order.len();
+        let mut ft = vec![([0.0; 3], [0.0; 3]); n];
+        if !cons.is_empty() {
+            for (k, f) in self.solver.forces(cons, lambda, n).into_iter().enumerate() {
+                ft[order[k] as usize] = f;
+            }
+        }
+        if part.comm.size() > 1 {
+            let mut flat = flatten(&ft);
+            part.halo.accumulate(part.comm, &mut flat);
+            ft = unflatten(&flat);
+        }
+        ft
+    }
+
+    /// Copy the owners' velocities to their copies.
+    fn refresh_velocities(&mut self, part: Part<'_>) {
+        let mut vw: Vec<[f64; 6]> = self
+            .velocities
+            .v
+            .iter()
+            .zip(&self.velocities.w)
+            .map(|(v, w)| [v[0], v[1], v[2], w[0], w[1], w[2]])
+            .collect();
+        part.halo.refresh(part.comm, &mut vw);
+        for (k, x) in vw.iter().enumerate() {
+            self.velocities.v[k] = [x[0], x[1], x[2]];
+            self.velocities.w[k] = [x[3], x[4], x[5]];
+        }
+    }
+}
+
+/// Force-torque pairs as rows of six.
+fn flatten(ft: &[(Vec3, Vec3)]) -> Vec<[f64; 6]> {
+    ft.iter()
+        .map(|(f, t)| [f[0], f[1], f[2], t[0], t[1], t[2]])
+        .collect()
+}
+
+/// Rows of six as force-torque pairs.
+fn unflatten(flat: &[[f64; 6]]) -> Vec<(Vec3, Vec3)> {
+    flat.iter()
+        .map(|x| ([x[0], x[1], x[2]], [x[3], x[4], x[5]]))
+        .collect()
+}
+
+/// This rank's part of a box shared by several ranks (see [`crate::domain`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Part<'a> {
+    /// The ranks.
+    pub comm: &'a dyn Comm,
+    /// Which local rods are this rank's and which are copies.
+    pub halo: &'a Halo,
+    /// Each local rod's number in the whole box (empty: the local numbering is the global one).
+    pub ids: &'a [u32],
+    /// Rods in the whole box.
+    pub total: usize,
 }

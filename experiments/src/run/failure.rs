@@ -37,7 +37,7 @@ impl From<&StepError> for FailureKind {
                 Self::Hydrodynamics
             }
             StepError::NonFinite(_) => Self::NonFinite,
-            StepError::DiameterMismatch { .. } => Self::Setup,
+            StepError::DiameterMismatch { .. } | StepError::NotShared { .. } => Self::Setup,
         }
     }
 }

@@ -1,0 +1,366 @@
+//! The particle model on several ranks (docs/MODEL.md §3): spatial slabs along `z`, each rank
+//! owning the rods whose centres lie in its slab, with copies of the other ranks' rods within
+//! contact reach ([`crate::domain::Halo`]). A step ([`Distributed::step`]):
+//!
+//! 1. the slab bounds are rebalanced so that each holds as many rods as it can (from a
+//!    histogram of all centres, summed over ranks), and rods whose centres left their slab move
+//!    to the new owner with the contact multipliers of the pairs they own (the warm start);
+//! 2. each rank sends copies of its rods within reach `l + b + margin` (in `z`, periodic) of
+//!    another slab to that slab's rank;
+//! 3. [`Stepper::step_part`] advances the local rods: contacts owned by the rank of the pair's
+//!    smaller-numbered rod, the contact solver's operator applied across ranks (forces on
+//!    copies added into their owners, velocities copied back), sums and maxima over all ranks;
+//! 4. the copies are dropped.
+//!
+//! Every rank holds only its own rods between steps; [`Distributed::gather`] brings the whole
+//! state to rank 0 (for outputs and checkpoints, in the single-process numbering, so a
+//! checkpoint restarts on any rank count).
+//!
+//! Results agree with the single-process step within the contact solver's tolerance: the
+//! iteration is the same, but sums over constraints are added per rank and then in rank order,
+//! so their round-off differs. On one rank the step is the single-process step, bit for bit.
+
+use crate::domain::{Comm, Halo};
+use crate::geometry::Vec3;
+use crate::rods::RodSet;
+use crate::step::{Part, StepError, StepReport, Stepper};
+use crate::units::ROD_LENGTH;
+use std::collections::HashMap;
+
+/// Histogram bins per rank for the slab balance.
+const BINS_PER_RANK: usize = 256;
+
+/// Slab bounds along `z`: rank `r` owns `bounds[r] <= z < bounds[r + 1]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Slabs {
+    bounds: Vec<f64>,
+}
+
+impl Slabs {
+    /// Bounds that split the centres `z` (all rods of a box of side `l`) into `ranks` slabs of
+    /// as equal counts as bins of `l / (256 ranks)` allow (slabs may be empty when rods pile up).
+    pub fn balanced(ranks: usize, l: f64, counts: &[f64]) -> Self {
+        let bins = counts.len();
+        let total: f64 = counts.iter().sum();
+        let mut bounds = vec![0.0; ranks + 1];
+        bounds[ranks] = l;
+        let mut cumulative = 0.0;
+        let mut next = 1;
+        for (b, c) in counts.iter().enumerate() {
+            cumulative += c;
+            while next < ranks && cumulative >= total * next as f64 / ranks as f64 {
+                bounds[next] = l * (b + 1) as f64 / bins as f64;
+                next += 1;
+            }
+        }
+        for k in next..ranks {
+            bounds[k] = l;
+        }
+        Self { bounds }
+    }
+
+    /// The histogram of centres `z` in a box of side `l` that [`Self::balanced`] takes.
+    pub fn histogram(ranks: usize, l: f64, z: impl Iterator<Item = f64>) -> Vec<f64> {
+        let bins = BINS_PER_RANK * ranks;
+        let mut counts = vec![0.0; bins];
+        for z in z {
+            counts[((z / l * bins as f64) as usize).min(bins - 1)] += 1.0;
+        }
+        counts
+    }
+
+    /// The rank whose slab holds `z`.
+    pub fn owner(&self, z: f64) -> usize {
+        let ranks = self.bounds.len() - 1;
+        self.bounds[1..ranks].partition_point(|&b| b <= z)
+    }
+
+    /// Periodic distance from `z` to slab `r` (zero inside it).
+    fn distance(&self, r: usize, z: f64, l: f64) -> f64 {
+        let (lo, hi) = (self.bounds[r], self.bounds[r + 1]);
+        if lo >= hi {
+            return f64::INFINITY;
+        }
+        if (lo..hi).contains(&z) {
+            return 0.0;
+        }
+        (lo - z).rem_euclid(l).min((z - hi).rem_euclid(l))
+    }
+
+    /// The bounds, `ranks + 1` of them.
+    pub fn bounds(&self) -> &[f64] {
+        &self.bounds
+    }
+}
+
+/// Values per rod in a message: centre, quaternion, image counters, number.
+const RECORD: usize = 11;
+
+fn push_record(buf: &mut Vec<f64>, rods: &RodSet, k: usize, id: u32) {
+    buf.extend_from_slice(&rods.x[k]);
+    buf.extend_from_slice(&rods.q[k]);
+    buf.extend(rods.image[k].iter().map(|&i| i as f64));
+    buf.push(f64::from(id));
+}
+
+fn pop_records(buf: &[f64], rods: &mut RodSet, ids: &mut Vec<u32>) {
+    for r in buf.chunks_exact(RECORD) {
+        rods.x.push([r[0], r[1], r[2]]);
+        rods.q.push([r[3], r[4], r[5], r[6]]);
+        rods.image.push([r[7] as i64, r[8] as i64, r[9] as i64]);
+        ids.push(r[10] as u32);
+    }
+}
+
+/// One rank's share of a particle run on several ranks.
+#[derive(Debug)]
+pub struct Distributed<C: Comm> {
+    comm: C,
+    stepper: Stepper,
+    /// This rank's own rods (between steps: no copies).
+    rods: RodSet,
+    /// Their numbers in the whole box.
+    ids: Vec<u32>,
+    total: usize,
+    slabs: Slabs,
+    last_halo: usize,
+}
+
+impl<C: Comm> Distributed<C> {
+    /// This rank's share of `all` (the whole box, the same on every rank; its numbering is the
+    /// rods' numbers from now on), stepped by `stepper` (collective).
+    pub fn new(comm: C, stepper: Stepper, all: &RodSet) -> Self {
+        let ranks = comm.size();
+        let l = all.box_length;
+        let slabs = Slabs::balanced(
+            ranks,
+            l,
+            &Slabs::histogram(ranks, l, all.x.iter().map(|x| x[2])),
+        );
+        let me = comm.rank();
+        let mine: Vec<usize> = (0..all.len())
+            .filter(|&k| slabs.owner(all.x[k][2]) == me)
+            .collect();
+        let rods = RodSet {
+            box_length: l,
+            diameter: all.diameter,
+            x: mine.iter().map(|&k| all.x[k]).collect(),
+            q: mine.iter().map(|&k| all.q[k]).collect(),
+            image: mine.iter().map(|&k| all.image[k]).collect(),
+        };
+        let ids = mine.iter().map(|&k| k as u32).collect();
+        Self {
+            comm,
+            stepper,
+            rods,
+            ids,
+            total: all.len(),
+            slabs,
+            last_halo: 0,
+        }
+    }
+
+    /// The ranks.
+    pub fn comm(&self) -> &C {
+        &self.comm
+    }
+
+    /// The stepper (its velocities and contact forces are the last step's local rods': own
+    /// rods first, in the order of [`Self::ids`]).
+    pub fn stepper(&self) -> &Stepper {
+        &self.stepper
+    }
+
+    /// This rank's own rods.
+    pub fn rods(&self) -> &RodSet {
+        &self.rods
+    }
+
+    /// Their numbers in the whole box.
+    pub fn ids(&self) -> &[u32] {
+        &self.ids
+    }
+
+    /// The current slabs.
+    pub fn slabs(&self) -> &Slabs {
+        &self.slabs
+    }
+
+    /// Copies this rank held in the last step.
+    pub fn last_halo(&self) -> usize {
+        self.last_halo
+    }
+
+    /// Rebalance the slabs and move rods that left theirs, with the warm start of the pairs
+    /// they own (collective).
+    fn migrate(&mut self) {
+        let (ranks, me, l) = (self.comm.size(), self.comm.rank(), self.rods.box_length);
+        let mut counts = Slabs::histogram(ranks, l, self.rods.x.iter().map(|x| x[2]));
+        self.comm.sum(&mut counts);
+        self.slabs = Slabs::balanced(ranks, l, &counts);
+        let dest: Vec<usize> = self.rods.x.iter().map(|x| self.slabs.owner(x[2])).collect();
+        let mut send = vec![Vec::new(); ranks];
+        let mut leaving: HashMap<u32, usize> = HashMap::new();
+        for (k, &r) in dest.iter().enumerate() {
+            if r != me {
+                push_record(&mut send[r], &self.rods, k, self.ids[k]);
+                leaving.insert(self.ids[k], r);
+            }
+        }
+        // Warm-start entries of pairs whose first rod leaves, as (a, b, lambda) after the rods.
+        let mut warm_send = vec![Vec::new(); ranks];
+        let mut kept_warm = Vec::new();
+        for &((a, b), lam) in self.stepper.warm_start() {
+            match leaving.get(&a) {
+                Some(&r) => warm_send[r].extend([f64::from(a), f64::from(b), lam]),
+                None => kept_warm.push(((a, b), lam)),
+            }
+        }
+        // One message per rank: the rod count, the rods, then the warm entries.
+        let messages = send
+            .into_iter()
+            .zip(warm_send)
+            .map(|(rods, warm)| {
+                let mut m = vec![(rods.len() / RECORD) as f64];
+                m.extend(rods);
+                m.extend(warm);
+                m
+            })
+            .collect();
+        let got = self.comm.exchange(messages);
+        let keep: Vec<usize> = (0..dest.len()).filter(|&k| dest[k] == me).collect();
+        let mut rods = RodSet {
+            box_length: l,
+            diameter: self.rods.diameter,
+            x: keep.iter().map(|&k| self.rods.x[k]).collect(),
+            q: keep.iter().map(|&k| self.rods.q[k]).collect(),
+            image: keep.iter().map(|&k| self.rods.image[k]).collect(),
+        };
+        let mut ids: Vec<u32> = keep.iter().map(|&k| self.ids[k]).collect();
+        for (r, m) in got.iter().enumerate() {
+            if r == me || m.is_empty() {
+                continue;
+            }
+            let count = m[0] as usize;
+            let (rod_part, warm_part) = m[1..].split_at(count * RECORD);
+            pop_records(rod_part, &mut rods, &mut ids);
+            for w in warm_part.chunks_exact(3) {
+                kept_warm.push(((w[0] as u32, w[1] as u32), w[2]));
+            }
+        }
+        kept_warm.sort_unstable_by_key(|w| w.0);
+        self.stepper.set_warm_start(kept_warm);
+        self.rods = rods;
+        self.ids = ids;
+    }
+
+    /// The local set: own rods, then copies of other ranks' rods within `reach` of this slab;
+    /// with their numbers and the halo (collective).
+    fn with_copies(&self, reach: f64) -> (RodSet, Vec<u32>, Halo) {
+        let (ranks, me, l) = (self.comm.size(), self.comm.rank(), self.rods.box_length);
+        let mut send_idx = vec![Vec::new(); ranks];
+        let mut send = vec![Vec::new(); ranks];
+        for (k, x) in self.rods.x.iter().enumerate() {
+            for r in 0..ranks {
+                if r != me && self.slabs.distance(r, x[2], l) <= reach {
+                    send_idx[r].push(k as u32);
+                    push_record(&mut send[r], &self.rods, k, self.ids[k]);
+                }
+            }
+        }
+        let got = self.comm.exchange(send);
+        let mut local = self.rods.clone();
+        let mut ids = self.ids.clone();
+        let owned = local.len();
+        let mut recv = vec![Vec::new(); ranks];
+        for (r, m) in got.iter().enumerate() {
+            if r == me {
+                continue;
+            }
+            let start = local.len();
+            pop_records(m, &mut local, &mut ids);
+            recv[r] = (start as u32..local.len() as u32).collect();
+        }
+        let halo = Halo {
+            owned,
+            send: send_idx,
+            recv,
+        };
+        (local, ids, halo)
+    }
+
+    /// Advance by `dt` (collective). On an error every rank returns it and keeps its own rods
+    /// as the step left them (the caller restores its last good state).
+    pub fn step(&mut self, dt: f64) -> Result<StepReport, StepError> {
+        self.migrate();
+        // A sliver beyond the contact reach, so that round-off at the slab bounds cannot drop a
+        // copy the cell list would pair.
+        let reach = (ROD_LENGTH + self.rods.diameter + self.stepper.contact.margin) * (1.0 + 1e-9);
+        let (mut local, ids, halo) = self.with_copies(reach);
+        self.last_halo = local.len() - halo.owned;
+        let part = Part {
+            comm: &self.comm,
+            halo: &halo,
+            ids: &ids,
+            total: self.total,
+        };
+        let report = self.stepper.step_part(&mut local, dt, part);
+        let owned = halo.owned;
+        local.x.truncate(owned);
+        local.q.truncate(owned);
+        local.image.truncate(owned);
+        self.rods = local;
+        report
+    }
+
+    /// The whole box on rank 0, in the single-process numbering, with `rows[k]` of each own rod
+    /// `k` (velocities, say) put in the same order; `None` on the other ranks (collective).
+    pub fn gather<const K: usize>(&self, rows: &[[f64; K]]) -> Option<(RodSet, Vec<[f64; K]>)> {
+        assert_eq!(rows.len(), self.rods.len(), "one row per own rod");
+        let mut mine = Vec::with_capacity(self.rods.len() * (RECORD + K));
+        for k in 0..self.rods.len() {
+            push_record(&mut mine, &self.rods, k, self.ids[k]);
+            mine.extend_from_slice(&rows[k]);
+        }
+        let ranks = self.comm.size();
+        let mut send = vec![Vec::new(); ranks];
+        send[0] = mine;
+        let got = self.comm.exchange(send);
+        if self.comm.rank() != 0 {
+            return None;
+        }
+        let n = self.total;
+        let mut all = RodSet {
+            box_length: self.rods.box_length,
+            diameter: self.rods.diameter,
+            x: vec![[0.0; 3]; n],
+            q: vec![[0.0; 4]; n],
+            image: vec![[0; 3]; n],
+        };
+        let mut out = vec![[0.0; K]; n];
+        for m in &got {
+            for r in m.chunks_exact(RECORD + K) {
+                let id = r[10] as usize;
+                all.x[id] = [r[0], r[1], r[2]];
+                all.q[id] = [r[3], r[4], r[5], r[6]];
+                all.image[id] = [r[7] as i64, r[8] as i64, r[9] as i64];
+                out[id].copy_from_slice(&r[RECORD..]);
+            }
+        }
+        Some((all, out))
+    }
+
+    /// The own rods' velocities `(v, w)` of the last step, as rows for [`Self::gather`].
+    pub fn velocity_rows(&self) -> Vec<[f64; 6]> {
+        let vel = self.stepper.velocities();
+        if vel.v.len() < self.rods.len() {
+            return vec![[0.0; 6]; self.rods.len()];
+        }
+        (0..self.rods.len())
+            .map(|k| {
+                let (v, w): (Vec3, Vec3) = (vel.v[k], vel.w[k]);
+                [v[0], v[1], v[2], w[0], w[1], w[2]]
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,135 @@
+//! The particle step shared by several ranks (`motile_particle::distributed`) against the
+//! single-process step: ranks as threads ([`ThreadRanks`]), so this runs everywhere; the MPI
+//! driver is the same code over another [`motile_particle::domain::Comm`].
+
+use motile_particle::distributed::Distributed;
+use motile_particle::domain::ThreadRanks;
+use motile_particle::init::random_nonoverlapping;
+use motile_particle::prelude::*;
+use motile_particle::units::DEFAULT_DIAMETER;
+
+const STEPS: usize = 20;
+const DT: f64 = 0.002;
+
+fn stepper() -> Stepper {
+    Stepper::new(
+        Box::new(LocalDrag::new(DEFAULT_DIAMETER)),
+        ContactParams::default(),
+    )
+}
+
+/// Rods and velocities `(v, w)` after `STEPS` steps on `ranks` ranks, and each step's report
+/// (rank 0's: the whole box's).
+fn on_ranks(r0: &RodSet, ranks: usize) -> (RodSet, Vec<[f64; 6]>, Vec<StepReport>, Vec<usize>) {
+    let handles: Vec<_> = ThreadRanks::group(ranks)
+        .into_iter()
+        .map(|comm| {
+            let r0 = r0.clone();
+            std::thread::spawn(move || {
+                let mut d = Distributed::new(comm, stepper(), &r0);
+                let mut reports = Vec::new();
+                let mut copies = Vec::new();
+                for _ in 0..STEPS {
+                    reports.push(d.step(DT).expect("step"));
+                    copies.push(d.last_halo());
+                }
+                (d.gather(&d.velocity_rows()), reports, copies)
+            })
+        })
+        .collect();
+    let mut results: Vec<_> = handles.into_iter().map(|h| h.join().unwrap()).collect();
+    let copies = results.iter().map(|r| r.2.iter().sum()).collect();
+    let (gathered, reports, _) = results.swap_remove(0);
+    let (rods, vel) = gathered.expect("rank 0 gathers");
+    (rods, vel, reports, copies)
+}
+
+fn single(r0: &RodSet) -> (RodSet, Vec<[f64; 6]>, Vec<StepReport>) {
+    let mut r = r0.clone();
+    let mut s = stepper();
+    let reports = (0..STEPS).map(|_| s.step(&mut r, DT).unwrap()).collect();
+    let v = s.velocities();
+    let rows =
+        v.v.iter()
+            .zip(&v.w)
+            .map(|(a, b)| [a[0], a[1], a[2], b[0], b[1], b[2]])
+            .collect();
+    (r, rows, reports)
+}
+
+/// Largest difference of centres (unwrapped), axes and velocities.
+fn difference(a: &RodSet, va: &[[f64; 6]], b: &RodSet, vb: &[[f64; 6]]) -> [f64; 3] {
+    let (ua, ub) = (a.unwrapped(), b.unwrapped());
+    let mut d = [0.0f64; 3];
+    for k in 0..a.len() {
+        let (pa, pb) = (a.p(k), b.p(k));
+        for c in 0..3 {
+            d[0] = d[0].max((ua[k][c] - ub[k][c]).abs());
+            d[1] = d[1].max((pa[c] - pb[c]).abs());
+        }
+        for c in 0..6 {
+            d[2] = d[2].max((va[k][c] - vb[k][c]).abs());
+        }
+    }
+    d
+}
+
+#[test]
+fn one_rank_is_the_single_process_step_bit_for_bit() {
+    let r0 = random_nonoverlapping(1500, 7.0, DEFAULT_DIAMETER, 3, 100_000).unwrap();
+    let (rs, vs, reps) = single(&r0);
+    let (rd, vd, repd, _) = on_ranks(&r0, 1);
+    assert!(rs == rd, "one rank moved the rods differently");
+    assert!(vs == vd, "one rank's velocities differ");
+    assert_eq!(
+        reps.iter().map(|r| &r.contact).collect::<Vec<_>>(),
+        repd.iter().map(|r| &r.contact).collect::<Vec<_>>()
+    );
+}
+
+/// A dense suspension (nu = 5, every step with active contacts) on 2 and 3 ranks against one
+/// process. The multipliers agree to the solver's residual tolerance (1e-7 l) rather than bit
+/// for bit (per-rank sums), so each step's positions can differ by about `tolerance` and
+/// velocities by `tolerance / dt`; allowed: 20 steps of that, times 10.
+#[test]
+fn two_and_three_ranks_agree_with_one_process_within_the_solver_tolerance() {
+    let r0 = random_nonoverlapping(2560, 8.0, DEFAULT_DIAMETER, 7, 100_000).unwrap();
+    let (rs, vs, reps) = single(&r0);
+    let active: usize = reps.iter().map(|r| r.contact.active).sum();
+    assert!(active > 20, "the test needs contacts ({active} active)");
+    let tol = ContactParams::default().tolerance;
+    let bound_x = 10.0 * STEPS as f64 * tol;
+    let bound_v = bound_x / DT;
+    for ranks in [2, 3] {
+        let (rd, vd, repd, copies) = on_ranks(&r0, ranks);
+        let [dx, dp, dv] = difference(&rs, &vs, &rd, &vd);
+        eprintln!(
+            "{ranks} ranks: |dx| {dx:.2e}, |dp| {dp:.2e}, |dv| {dv:.2e} after {STEPS} steps ({active} active contacts in all; copies per rank per step {:?})",
+            copies.iter().map(|c| c / STEPS).collect::<Vec<_>>()
+        );
+        assert!(
+            copies.iter().all(|&c| c > 0),
+            "every rank must hold copies: {copies:?}"
+        );
+        assert!(
+            dx <= bound_x && dp <= bound_x,
+            "{ranks} ranks: positions differ by {dx:.2e}, axes by {dp:.2e} (bound {bound_x:.1e})"
+        );
+        assert!(
+            dv <= bound_v,
+            "{ranks} ranks: velocities differ by {dv:.2e} (bound {bound_v:.1e})"
+        );
+        for (k, (a, b)) in reps.iter().zip(&repd).enumerate() {
+            assert_eq!(
+                a.contact.constraints, b.contact.constraints,
+                "step {k}: every pair is some rank's constraint, once"
+            );
+            assert!(
+                (a.mean_speed - b.mean_speed).abs() <= bound_v,
+                "step {k}: mean speed {} vs {}",
+                a.mean_speed,
+                b.mean_speed
+            );
+        }
+    }
+}
