@@ -13,3 +13,15 @@ cargo test --release --workspace
 # missing GPU a failure).
 cargo build --release -p motile-experiments --features gpu
 cargo test --release -p motile-meanfield --features gpu --test gpu
+# The optional distributed particle run (feature mpi) needs OpenMPI and libclang to build; they
+# are installed when missing (Debian packages), then its tests run motile under mpirun on 1, 2
+# and 3 ranks (oversubscribed, one thread per rank) against one process.
+if ! command -v mpicc >/dev/null 2>&1 || ! command -v mpirun >/dev/null 2>&1 \
+  || ! ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1; then
+  SUDO=""
+  if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libopenmpi-dev openmpi-bin libclang-dev >/dev/null
+fi
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+cargo test --release -p motile-experiments --features mpi --test mpi

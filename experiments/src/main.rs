@@ -636,7 +636,43 @@ fn main() -> ExitCode {
     if let Err(e) = motile_experiments::checkpoint::install_signal_handlers() {
         eprintln!("motile: warning: cannot install SIGINT/SIGTERM handlers: {e}");
     }
-    match run(cli) {
+    // Under mpirun: rank 0 runs the command, the other ranks follow it (run::ranks).
+    #[cfg(feature = "mpi")]
+    let _universe = {
+        use motile_experiments::run::ranks;
+        let universe = match mpi::initialize() {
+            Some(u) => u,
+            None => {
+                eprintln!("motile: error: MPI could not be initialised");
+                return ExitCode::FAILURE;
+            }
+        };
+        let world = ranks::MpiRanks::world();
+        if motile_particle::domain::Comm::size(&world) > 1 {
+            let comm: &'static ranks::MpiRanks = Box::leak(Box::new(world));
+            ranks::set_world(comm);
+            if motile_particle::domain::Comm::rank(comm) != 0 {
+                return match ranks::follow(comm) {
+                    Ok(()) => ExitCode::SUCCESS,
+                    Err(e) => {
+                        eprintln!("motile: error: {e:#}");
+                        ExitCode::FAILURE
+                    }
+                };
+            }
+        }
+        universe
+    };
+    #[cfg(not(feature = "mpi"))]
+    if let Some(n) = motile_experiments::run::ranks::launched_ranks() {
+        eprintln!(
+            "motile: error: started as one of {n} MPI ranks, but this motile was built without the mpi feature (each rank would run the whole command into the same directory); build it with `cargo build --release --features mpi`"
+        );
+        return ExitCode::from(2);
+    }
+    let result = run(cli);
+    motile_experiments::run::ranks::release();
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             if let Some(i) = e.downcast_ref::<motile_experiments::checkpoint::Interrupted>() {

@@ -20,6 +20,7 @@
 //! iteration is the same, but sums over constraints are added per rank and then in rank order,
 //! so their round-off differs. On one rank the step is the single-process step, bit for bit.
 
+use crate::contact::WarmStart;
 use crate::domain::{Comm, Halo};
 use crate::geometry::Vec3;
 use crate::rods::RodSet;
@@ -128,8 +129,9 @@ pub struct Distributed<C: Comm> {
 
 impl<C: Comm> Distributed<C> {
     /// This rank's share of `all` (the whole box, the same on every rank; its numbering is the
-    /// rods' numbers from now on), stepped by `stepper` (collective).
-    pub fn new(comm: C, stepper: Stepper, all: &RodSet) -> Self {
+    /// rods' numbers from now on), stepped by `stepper`, whose warm start may be the whole
+    /// box's (this rank keeps the pairs it owns).
+    pub fn new(comm: C, mut stepper: Stepper, all: &RodSet) -> Self {
         let ranks = comm.size();
         let l = all.box_length;
         let slabs = Slabs::balanced(
@@ -149,6 +151,14 @@ impl<C: Comm> Distributed<C> {
             image: mine.iter().map(|&k| all.image[k]).collect(),
         };
         let ids = mine.iter().map(|&k| k as u32).collect();
+        let own = |a: u32| slabs.owner(all.x[a as usize][2]) == me;
+        let warm = stepper
+            .warm_start()
+            .iter()
+            .filter(|((a, _), _)| own(*a))
+            .copied()
+            .collect();
+        stepper.set_warm_start(warm);
         Self {
             comm,
             stepper,
@@ -250,8 +260,18 @@ impl<C: Comm> Distributed<C> {
         }
         kept_warm.sort_unstable_by_key(|w| w.0);
         self.stepper.set_warm_start(kept_warm);
-        self.rods = rods;
-        self.ids = ids;
+        // Own rods in number order: the local numbering (and so every sum's order) is then a
+        // function of the state alone, the same in a run resumed from a checkpoint.
+        let mut perm: Vec<usize> = (0..ids.len()).collect();
+        perm.sort_unstable_by_key(|&k| ids[k]);
+        self.rods = RodSet {
+            box_length: l,
+            diameter: rods.diameter,
+            x: perm.iter().map(|&k| rods.x[k]).collect(),
+            q: perm.iter().map(|&k| rods.q[k]).collect(),
+            image: perm.iter().map(|&k| rods.image[k]).collect(),
+        };
+        self.ids = perm.iter().map(|&k| ids[k]).collect();
     }
 
     /// The local set: own rods, then copies of other ranks' rods within `reach` of this slab;
@@ -289,10 +309,11 @@ impl<C: Comm> Distributed<C> {
         (local, ids, halo)
     }
 
-    /// Advance by `dt` (collective). On an error every rank returns it and keeps its own rods
-    /// as the step left them (the caller restores its last good state).
+    /// Advance by `dt` (collective). On an error every rank returns it and keeps the state
+    /// before the step (its rods and warm start), ready to be gathered as the last good state.
     pub fn step(&mut self, dt: f64) -> Result<StepReport, StepError> {
         self.migrate();
+        let before = (self.rods.clone(), self.stepper.warm_start().to_vec());
         // A sliver beyond the contact reach, so that round-off at the slab bounds cannot drop a
         // copy the cell list would pair.
         let reach = (ROD_LENGTH + self.rods.diameter + self.stepper.contact.margin) * (1.0 + 1e-9);
@@ -305,12 +326,41 @@ impl<C: Comm> Distributed<C> {
             total: self.total,
         };
         let report = self.stepper.step_part(&mut local, dt, part);
+        if report.is_err() {
+            self.rods = before.0;
+            self.stepper.set_warm_start(before.1);
+            return report;
+        }
         let owned = halo.owned;
         local.x.truncate(owned);
         local.q.truncate(owned);
         local.image.truncate(owned);
         self.rods = local;
         report
+    }
+
+    /// Every rank's warm start (contact multipliers by rod pair), merged and sorted on rank 0;
+    /// `None` on the other ranks (collective).
+    pub fn gather_warm_start(&self) -> Option<WarmStart> {
+        let mine: Vec<f64> = self
+            .stepper
+            .warm_start()
+            .iter()
+            .flat_map(|&((a, b), l)| [f64::from(a), f64::from(b), l])
+            .collect();
+        let mut send = vec![Vec::new(); self.comm.size()];
+        send[0] = mine;
+        let got = self.comm.exchange(send);
+        if self.comm.rank() != 0 {
+            return None;
+        }
+        let mut warm: WarmStart = got
+            .iter()
+            .flat_map(|m| m.chunks_exact(3))
+            .map(|w| ((w[0] as u32, w[1] as u32), w[2]))
+            .collect();
+        warm.sort_unstable_by_key(|w| w.0);
+        Some(warm)
     }
 
     /// The whole box on rank 0, in the single-process numbering, with `rows[k]` of each own rod

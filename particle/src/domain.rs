@@ -57,6 +57,32 @@ pub trait Comm: Send + Sync + Debug {
     }
 }
 
+impl<T: Comm + ?Sized> Comm for &T {
+    fn rank(&self) -> usize {
+        (**self).rank()
+    }
+
+    fn size(&self) -> usize {
+        (**self).size()
+    }
+
+    fn exchange(&self, send: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+        (**self).exchange(send)
+    }
+
+    fn sum(&self, v: &mut [f64]) {
+        (**self).sum(v)
+    }
+
+    fn max(&self, v: &mut [f64]) {
+        (**self).max(v)
+    }
+
+    fn all_gather(&self, v: &[f64]) -> Vec<Vec<f64>> {
+        (**self).all_gather(v)
+    }
+}
+
 /// One process owning the whole box.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SingleProcess;

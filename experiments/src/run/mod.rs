@@ -18,6 +18,7 @@
 pub mod failure;
 pub mod meanfield;
 pub mod particle;
+pub mod ranks;
 
 use crate::checkpoint::{self, LAST_GOOD};
 use crate::failure::{FailureKind, RunFailure};

@@ -18,8 +18,10 @@ use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
 use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
 use motile_particle::contact::WarmStart;
+use motile_particle::distributed::Distributed;
+use motile_particle::domain::Comm;
 use motile_particle::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
-use motile_particle::{RodSet, Stepper};
+use motile_particle::{Hydrodynamics, RodSet, StepError, StepReport, Stepper};
 use std::path::Path;
 use std::time::Instant;
 
@@ -87,6 +89,9 @@ pub struct ParticleModel {
     every: (u64, u64, u64),
     pvd: Vec<(f64, String)>,
     warned_accuracy: bool,
+    /// The step shared among ranks (`mpirun`); `rods` and `stepper` are then rank 0's copies
+    /// as of the last gather, and the stepper only lends its mobility.
+    ranks: Option<Ranked>,
     /// The state before a failed step (the last good state to save).
     before: Option<ParticleCheckpoint>,
     window: (Instant, u64),
@@ -114,6 +119,10 @@ impl ParticleModel {
         stepper.set_warm_start(warm);
         stepper.mobility_mut().set_warm_state(hydro_warm);
         stepper.mobility_mut().set_sum_state(&sum_state);
+        let ranks = match run::ranks::world() {
+            Some(comm) => Some(Ranked::start(comm, cfg, &rods, &stepper)?),
+            None => None,
+        };
         let every = (
             cfg.every(cfg.diagnostic_interval),
             cfg.every(cfg.snapshot_interval),
@@ -137,13 +146,15 @@ impl ParticleModel {
             every,
             pvd,
             warned_accuracy: false,
+            ranks,
             before: None,
             window: (Instant::now(), 0),
             notes: Vec::new(),
         })
     }
 
-    fn summary(self, s: &run::LoopSummary) -> RunSummary {
+    fn summary(mut self, s: &run::LoopSummary) -> RunSummary {
+        self.sync();
         RunSummary {
             steps: s.steps,
             final_step: self.step,
@@ -152,10 +163,47 @@ impl ParticleModel {
         }
     }
 
-    fn checkpoint_to(&self, path: &Path) -> anyhow::Result<()> {
+    /// The state now (on several ranks: gathered to rank 0, collective).
+    fn checkpoint_now(&self) -> ParticleCheckpoint {
         let t = self.step as f64 * self.cfg.dt;
-        ParticleCheckpoint::of(&self.rods, &self.stepper, self.step, t).write(path)?;
+        match &self.ranks {
+            None => ParticleCheckpoint::of(&self.rods, &self.stepper, self.step, t),
+            Some(r) => {
+                let (rods, _, warm) = r.gather();
+                ParticleCheckpoint {
+                    rods,
+                    contact_warm_start: warm,
+                    gmres_warm_start: Vec::new(),
+                    sum_state: Vec::new(),
+                    step: self.step,
+                    time: t,
+                }
+            }
+        }
+    }
+
+    fn checkpoint_to(&self, path: &Path) -> anyhow::Result<()> {
+        self.checkpoint_now().write(path)?;
         Ok(())
+    }
+
+    /// On several ranks: bring the whole state to rank 0's `rods` (collective); returns the
+    /// last step's kinematics there. One process: the stepper's.
+    fn sync(&mut self) -> Kinematics {
+        if let Some(r) = &self.ranks {
+            let (rods, rows, _) = r.gather();
+            self.rods = rods;
+            return Kinematics {
+                velocities: rows.iter().map(|x| [x[0], x[1], x[2]]).collect(),
+                angular_velocities: rows.iter().map(|x| [x[3], x[4], x[5]]).collect(),
+                contact_forces: rows.iter().map(|x| [x[6], x[7], x[8]]).collect(),
+            };
+        }
+        Kinematics {
+            velocities: self.stepper.velocities().v.clone(),
+            angular_velocities: self.stepper.velocities().w.clone(),
+            contact_forces: self.stepper.contact_forces().to_vec(),
+        }
     }
 }
 
@@ -258,6 +306,7 @@ impl run::RunModel for ParticleModel {
 
     fn begin(&mut self, _io: &mut run::RunIo) -> anyhow::Result<bool> {
         self.pvd.clear();
+        self.sync();
         write_snapshot(&self.cfg, _io.run, &self.rods, 0, None, None, &mut self.pvd)?;
         Ok(true)
     }
@@ -269,11 +318,26 @@ impl run::RunModel for ParticleModel {
     fn step(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
         let step = self.step + 1;
         let cfg = &self.cfg;
-        let before = ParticleCheckpoint::of(&self.rods, &self.stepper, self.step, self.time());
-        let report = match self.stepper.step(&mut self.rods, cfg.dt) {
+        // One process keeps the state before the step; ranks keep theirs and give it back on
+        // a failure.
+        let before = match &self.ranks {
+            None => Some(ParticleCheckpoint::of(
+                &self.rods,
+                &self.stepper,
+                self.step,
+                self.time(),
+            )),
+            Some(_) => None,
+        };
+        let stepped = match &mut self.ranks {
+            None => self.stepper.step(&mut self.rods, cfg.dt),
+            Some(r) => r.step(cfg.dt),
+        };
+        let report = match stepped {
             Ok(r) => r,
             Err(e) => {
-                self.before = Some(before);
+                self.before = Some(before.unwrap_or_else(|| self.checkpoint_now()));
+                let cfg = &self.cfg;
                 return Err(run::StepFailure::Step {
                     kind: (&e).into(),
                     step,
@@ -302,7 +366,11 @@ impl run::RunModel for ParticleModel {
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
             let c = &report.contact;
-            let norms = velocity_norms(&self.stepper, &before.rods)?;
+            // Only the local level, which has no flow, is shared among ranks so far.
+            let norms = match &before {
+                Some(b) => velocity_norms(&self.stepper, &b.rods)?,
+                None => (0.0, 0.0),
+            };
             io.push_row(vec![
                 t,
                 rate,
@@ -330,17 +398,15 @@ impl run::RunModel for ParticleModel {
             ));
         }
         if step.is_multiple_of(snap) {
-            let kin = Kinematics {
-                velocities: self.stepper.velocities().v.clone(),
-                angular_velocities: self.stepper.velocities().w.clone(),
-                contact_forces: self.stepper.contact_forces().to_vec(),
-            };
-            let forces = self.stepper.mobility().force_density().map(|fd| {
-                let (points, forces) = fd.point_forces(&before.rods, &before.rods.orientations());
-                PointForces { points, forces }
+            let kin = self.sync();
+            let forces = before.as_ref().and_then(|b| {
+                self.stepper.mobility().force_density().map(|fd| {
+                    let (points, forces) = fd.point_forces(&b.rods, &b.rods.orientations());
+                    PointForces { points, forces }
+                })
             });
             write_snapshot(
-                cfg,
+                &self.cfg,
                 io.run,
                 &self.rods,
                 step,
@@ -451,4 +517,142 @@ fn write_snapshot(
         write_pvd(&run.path().join("rods.pvd"), pvd)?;
     }
     Ok(())
+}
+
+/// Rank 0's side of a particle run shared among ranks ([`run::ranks`]).
+struct Ranked {
+    dist: Distributed<&'static dyn Comm>,
+}
+
+/// Rows a gather brings per rod: velocity, angular velocity, contact force.
+const ROW: usize = 9;
+
+impl Ranked {
+    /// Send the followers the resolved config and the starting state, and take rank 0's share.
+    fn start(
+        comm: &'static dyn Comm,
+        cfg: &ParticleRunConfig,
+        rods: &RodSet,
+        stepper: &Stepper,
+    ) -> anyhow::Result<Self> {
+        if cfg.hydrodynamics != Hydrodynamics::None {
+            bail!(
+                "hydrodynamics = \"{}\" runs on one process only ({} ranks asked for): the shared step has the local level (\"none\") so far; run it without mpirun",
+                cfg.hydrodynamics,
+                comm.size()
+            );
+        }
+        let mut m = vec![run::ranks::Order::Start as u8 as f64];
+        run::ranks::encode_text(&toml::to_string(cfg)?, &mut m);
+        encode_state(rods, stepper.warm_start(), &mut m);
+        run::ranks::broadcast(comm, Some(m));
+        let mut own = Stepper::new(mobility(cfg)?, cfg.contact.clone());
+        own.set_warm_start(stepper.warm_start().to_vec());
+        Ok(Self {
+            dist: Distributed::new(comm, own, rods),
+        })
+    }
+
+    fn step(&mut self, dt: f64) -> Result<StepReport, StepError> {
+        let comm = *self.dist.comm();
+        run::ranks::broadcast(comm, Some(vec![run::ranks::Order::Step as u8 as f64, dt]));
+        self.dist.step(dt)
+    }
+
+    /// The whole state on rank 0: rods, per-rod rows, warm start (collective).
+    fn gather(&self) -> (RodSet, Vec<[f64; ROW]>, WarmStart) {
+        let comm = *self.dist.comm();
+        run::ranks::broadcast(comm, Some(vec![run::ranks::Order::Gather as u8 as f64]));
+        gather_share(&self.dist).expect("rank 0 gathers")
+    }
+}
+
+/// Each own rod's velocity, angular velocity and contact force.
+fn rows(dist: &Distributed<&'static dyn Comm>) -> Vec<[f64; ROW]> {
+    let f = dist.stepper().contact_forces();
+    dist.velocity_rows()
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            let c = f.get(k).copied().unwrap_or([0.0; 3]);
+            [v[0], v[1], v[2], v[3], v[4], v[5], c[0], c[1], c[2]]
+        })
+        .collect()
+}
+
+/// The gather every rank takes part in; rank 0 gets the state.
+fn gather_share(
+    dist: &Distributed<&'static dyn Comm>,
+) -> Option<(RodSet, Vec<[f64; ROW]>, WarmStart)> {
+    let state = dist.gather(&rows(dist));
+    let warm = dist.gather_warm_start();
+    state.zip(warm).map(|((r, v), w)| (r, v, w))
+}
+
+/// Rods and a warm start as numbers: box, diameter, count, then per rod centre, quaternion,
+/// images; then the warm start's (a, b, lambda).
+fn encode_state(rods: &RodSet, warm: &[((u32, u32), f64)], m: &mut Vec<f64>) {
+    m.extend([rods.box_length, rods.diameter, rods.len() as f64]);
+    for k in 0..rods.len() {
+        m.extend_from_slice(&rods.x[k]);
+        m.extend_from_slice(&rods.q[k]);
+        m.extend(rods.image[k].iter().map(|&i| i as f64));
+    }
+    m.extend(
+        warm.iter()
+            .flat_map(|&((a, b), l)| [f64::from(a), f64::from(b), l]),
+    );
+}
+
+fn decode_state(m: &[f64]) -> anyhow::Result<(RodSet, WarmStart)> {
+    let head = m.get(..3).context("state message too short")?;
+    let n = head[2] as usize;
+    let body = m.get(3..3 + 10 * n).context("state message too short")?;
+    let mut rods = RodSet {
+        box_length: head[0],
+        diameter: head[1],
+        x: Vec::with_capacity(n),
+        q: Vec::with_capacity(n),
+        image: Vec::with_capacity(n),
+    };
+    for r in body.chunks_exact(10) {
+        rods.x.push([r[0], r[1], r[2]]);
+        rods.q.push([r[3], r[4], r[5], r[6]]);
+        rods.image.push([r[7] as i64, r[8] as i64, r[9] as i64]);
+    }
+    let warm = m[3 + 10 * n..]
+        .chunks_exact(3)
+        .map(|w| ((w[0] as u32, w[1] as u32), w[2]))
+        .collect();
+    Ok((rods, warm))
+}
+
+/// A follower rank's share of a particle run ([`run::ranks::follow`]).
+#[derive(Debug)]
+pub(crate) struct Follower {
+    dist: Distributed<&'static dyn Comm>,
+}
+
+impl Follower {
+    /// Set up from the leader's start message (after its order).
+    pub(crate) fn start(comm: &'static dyn Comm, m: &[f64]) -> anyhow::Result<Self> {
+        let (text, rest) = run::ranks::decode_text(m)?;
+        let cfg: ParticleRunConfig = toml::from_str(&text)?;
+        let (rods, warm) = decode_state(rest)?;
+        let mut stepper = Stepper::new(mobility(&cfg)?, cfg.contact.clone());
+        stepper.set_warm_start(warm);
+        Ok(Self {
+            dist: Distributed::new(comm, stepper, &rods),
+        })
+    }
+
+    /// A step (its errors are every rank's: the leader reports them).
+    pub(crate) fn step(&mut self, dt: f64) {
+        let _ = self.dist.step(dt);
+    }
+
+    /// This rank's part of a gather.
+    pub(crate) fn gather(&self) {
+        let _ = gather_share(&self.dist);
+    }
 }
