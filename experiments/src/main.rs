@@ -672,6 +672,14 @@ fn main() -> ExitCode {
     }
     let result = run(cli);
     motile_experiments::run::ranks::release();
+    if let Some(comm) = motile_experiments::run::ranks::world() {
+        let (exchanges, values) = motile_experiments::run::ranks::traffic();
+        eprintln!(
+            "motile: rank 0 of {}: {exchanges} exchanges, {values} values ({:.1} MB) sent to other ranks",
+            comm.size(),
+            values as f64 * 8e-6
+        );
+    }
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -78,6 +78,28 @@ pub fn release() {
     }
 }
 
+/// Messages this process has exchanged with the others: `(exchanges, values sent to other
+/// ranks)`, counted by [`MpiRanks`] (zero otherwise).
+pub fn traffic() -> (u64, u64) {
+    #[cfg(feature = "mpi")]
+    {
+        (
+            TRAFFIC[0].load(std::sync::atomic::Ordering::Relaxed),
+            TRAFFIC[1].load(std::sync::atomic::Ordering::Relaxed),
+        )
+    }
+    #[cfg(not(feature = "mpi"))]
+    {
+        (0, 0)
+    }
+}
+
+#[cfg(feature = "mpi")]
+static TRAFFIC: [std::sync::atomic::AtomicU64; 2] = [
+    std::sync::atomic::AtomicU64::new(0),
+    std::sync::atomic::AtomicU64::new(0),
+];
+
 /// A follower's life: wait for the leader's orders until it says stop.
 pub fn follow(comm: &'static dyn Comm) -> anyhow::Result<()> {
     let mut model = None;
@@ -166,6 +188,9 @@ impl Comm for MpiRanks {
         };
         let (sd, rd) = (displs(&send_counts), displs(&recv_counts));
         let flat: Vec<f64> = send.concat();
+        let to_others = flat.len() - send[self.rank].len();
+        TRAFFIC[0].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        TRAFFIC[1].fetch_add(to_others as u64, std::sync::atomic::Ordering::Relaxed);
         let total: usize = recv_counts.iter().map(|&c| c as usize).sum();
         let mut recv = vec![0.0f64; total];
         {
