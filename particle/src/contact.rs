@@ -435,10 +435,11 @@ impl ContactSolver {
                     (r, [ss, sy, yy])
                 } else {
                     // One exchange for the maximum and the three sums (in rank order).
-                    comm.all_gather(&[r, ss, sy, yy]).iter().fold(
-                        (f64::NEG_INFINITY, [0.0; 3]),
-                        |(m, s), a| (m.max(a[0]), [s[0] + a[1], s[1] + a[2], s[2] + a[3]]),
-                    )
+                    comm.all_gather(&[r, ss, sy, yy])
+                        .iter()
+                        .fold((f64::NEG_INFINITY, [0.0; 3]), |(m, s), a| {
+                            (m.max(a[0]), [s[0] + a[1], s[1] + a[2], s[2] + a[3]])
+                        })
                 };
                 res = r;
                 if !res.is_finite() {

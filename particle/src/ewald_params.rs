@@ -210,6 +210,20 @@ impl EwaldParams {
     /// on the grid); the cost model weighs the real-space pairs of that `xi` (cutoff `c_R/xi`,
     /// at most `L/2` so the minimum image is exact) against the grid and keeps the cheapest.
     pub fn choose_for(tol: f64, n: usize, l: f64, outputs: &[SumOutput], pair_cost: f64) -> Self {
+        Self::choose_within(tol, n, l, outputs, pair_cost, 0.5 * l)
+    }
+
+    /// [`Self::choose_for`] with the real-space cutoff at most `max_cutoff` (itself at most
+    /// `L/2`): a sum shared among ranks keeps its pairs within the copies each rank holds.
+    pub(crate) fn choose_within(
+        tol: f64,
+        n: usize,
+        l: f64,
+        outputs: &[SumOutput],
+        pair_cost: f64,
+        max_cutoff: f64,
+    ) -> Self {
+        let max_cutoff = max_cutoff.min(0.5 * l);
         let (c_f, c_r, window_tol) = cutoffs(tol, outputs);
         let density = n as f64 / (l * l * l);
         let (support, shape, over) = window_for(window_tol);
@@ -228,7 +242,7 @@ impl EwaldParams {
             if best.as_ref().is_some_and(|(b, _)| grid > *b) {
                 break;
             }
-            if p.cutoff <= 0.5 * l {
+            if p.cutoff <= max_cutoff {
                 let pairs = n as f64 * density * 4.0 / 3.0 * PI * p.cutoff.powi(3);
                 let cost = pair_cost * pairs + grid;
                 if best.as_ref().is_none_or(|(b, _)| cost < *b) {

@@ -82,6 +82,40 @@ fn erfc_inv(y: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
+/// The Gaussian window on an `m^3` grid of a box of side `l` (see the module doc).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Window {
+    /// Support, grid points per axis.
+    pub(crate) p: usize,
+    /// Grid spacing.
+    pub(crate) h: f64,
+    /// Exponent `2 xi^2 / eta`.
+    pub(crate) alpha: f64,
+    /// 1D normalisation `sqrt(alpha / pi)`.
+    pub(crate) norm: f64,
+    /// Width parameter `eta`.
+    pub(crate) eta: f64,
+}
+
+impl Window {
+    /// The window for splitting `xi`, support `p` (clamped to 2..=[`MAX_SUPPORT`] and the
+    /// grid), `shape` standard deviations wide at the support's edge.
+    pub(crate) fn new(l: f64, xi: f64, m: usize, p: usize, shape: f64) -> Self {
+        let p = p.clamp(2, MAX_SUPPORT).min(m);
+        let h = l / m as f64;
+        let w = p as f64 * h / 2.0;
+        let eta = (2.0 * w * xi / shape).powi(2);
+        let alpha = 2.0 * xi * xi / eta;
+        Self {
+            p,
+            h,
+            alpha,
+            norm: (alpha / PI).sqrt(),
+            eta,
+        }
+    }
+}
+
 /// A planned Gaussian grid: box, grid size, support, window, FFT plan.
 #[derive(Debug, Clone)]
 pub(crate) struct GaussianGrid {
@@ -132,19 +166,15 @@ impl GaussianGrid {
     /// A grid of `m^3` points on a box of side `l`, splitting parameter `xi`, support `p`,
     /// window `shape` standard deviations wide at the support's edge.
     pub(crate) fn new(l: f64, xi: f64, m: usize, p: usize, shape: f64) -> Self {
-        let p = p.clamp(2, MAX_SUPPORT).min(m);
-        let h = l / m as f64;
-        let w = p as f64 * h / 2.0;
-        let eta = (2.0 * w * xi / shape).powi(2);
-        let alpha = 2.0 * xi * xi / eta;
+        let w = Window::new(l, xi, m, p, shape);
         Self {
             l,
             m,
-            p,
-            h,
-            alpha,
-            norm: (alpha / PI).sqrt(),
-            eta,
+            p: w.p,
+            h: w.h,
+            alpha: w.alpha,
+            norm: w.norm,
+            eta: w.eta,
             xi,
             fft: RealFft3::new([m; 3]),
             pool: Pool::default(),

@@ -36,6 +36,7 @@ pub mod periodic;
 mod point_cells;
 pub mod rods;
 pub mod rpy_reference;
+pub mod shared_ewald;
 mod slabs;
 pub mod slender;
 pub mod spectral_ewald;

@@ -87,11 +87,69 @@ pub struct SpectralEwald {
     prepared: Option<Prepared>,
     last: Option<EwaldParams>,
     timing: SumTiming,
-    /// Refinement level: internal tolerance `tol 10^(-level/2)`.
-    level: u32,
-    /// Sums in a row with ten times room at the current level.
-    calm: u32,
+    refine: Refinement,
     report: Option<SumReport>,
+}
+
+/// The adaptive level of a sum (shared by [`SpectralEwald`] and the sum shared among ranks,
+/// [`crate::shared_ewald`]): internal tolerance `tol 10^(-level/2)`, raised by the half decades
+/// an attempt missed, lowered after [`CALM_SUMS`] sums in a row with ten times room.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Refinement {
+    /// Refinement level.
+    pub(crate) level: u32,
+    /// Sums in a row with ten times room at the current level.
+    pub(crate) calm: u32,
+}
+
+impl Refinement {
+    /// Internal tolerance at the current level.
+    pub(crate) fn internal_tolerance(&self, tol: f64) -> f64 {
+        (tol * 10f64.powf(-0.5 * self.level as f64)).max(MIN_INTERNAL_TOLERANCE)
+    }
+
+    /// The highest level (internal tolerance [`MIN_INTERNAL_TOLERANCE`]).
+    pub(crate) fn max_level(tol: f64) -> u32 {
+        (2.0 * (tol / MIN_INTERNAL_TOLERANCE).log10())
+            .ceil()
+            .max(0.0) as u32
+    }
+
+    /// After an attempt with worst estimate/bound ratio `ratio`: `true` if it stands (met,
+    /// nothing finer to try, or `fixed` parameters), else the level rises by the half decades
+    /// missing.
+    pub(crate) fn accept(&mut self, tol: f64, ratio: f64, fixed: bool) -> bool {
+        let max = Self::max_level(tol);
+        if fixed || ratio <= 1.0 || self.level >= max {
+            if ratio <= 0.1 {
+                self.calm += 1;
+                if self.calm >= CALM_SUMS && self.level > 0 {
+                    self.level -= 1;
+                    self.calm = 0;
+                }
+            } else {
+                self.calm = 0;
+            }
+            return true;
+        }
+        let steps = (2.0 * ratio.log10()).ceil().max(1.0) as u32;
+        self.level = (self.level + steps).min(max);
+        self.calm = 0;
+        false
+    }
+
+    /// As a checkpoint keeps it.
+    pub(crate) fn state(&self) -> Vec<u32> {
+        vec![self.level, self.calm]
+    }
+
+    /// Restore what [`Self::state`] returned (ignored if it does not fit).
+    pub(crate) fn set_state(&mut self, tol: f64, state: &[u32]) {
+        if let [level, calm] = *state {
+            self.level = level.min(Self::max_level(tol));
+            self.calm = calm;
+        }
+    }
 }
 
 /// Seconds spent in the stages of the last sum (its last attempt).
@@ -115,11 +173,7 @@ impl SpectralEwald {
     /// cancelling parts of force-free data, about 1e-12 of their size, is no longer small
     /// against the bound).
     pub fn new(tol: f64) -> Result<Self, SumError> {
-        if !(1e-10..=1e-1).contains(&tol) {
-            return Err(SumError::Input(format!(
-                "fast-sum tolerance {tol:e} outside [1e-10, 1e-1]"
-            )));
-        }
+        check_tolerance(tol)?;
         Ok(Self {
             tol,
             fixed: None,
@@ -128,8 +182,7 @@ impl SpectralEwald {
             prepared: None,
             last: None,
             timing: SumTiming::default(),
-            level: 0,
-            calm: 0,
+            refine: Refinement::default(),
             report: None,
         })
     }
@@ -146,40 +199,17 @@ impl SpectralEwald {
 
     /// The current refinement level (internal tolerance `tol 10^(-level/2)`).
     pub fn level(&self) -> u32 {
-        self.level
+        self.refine.level
     }
 
     /// Internal tolerance at the current level.
     fn internal_tolerance(&self) -> f64 {
-        (self.tol * 10f64.powf(-0.5 * self.level as f64)).max(MIN_INTERNAL_TOLERANCE)
+        self.refine.internal_tolerance(self.tol)
     }
 
-    /// The highest level (internal tolerance [`MIN_INTERNAL_TOLERANCE`]).
-    fn max_level(&self) -> u32 {
-        (2.0 * (self.tol / MIN_INTERNAL_TOLERANCE).log10())
-            .ceil()
-            .max(0.0) as u32
-    }
-
-    /// After an attempt with worst estimate/bound ratio `ratio`: `true` if it stands (met, or
-    /// nothing finer to try), else the level rises by the half decades missing.
+    /// After an attempt: whether it stands (see [`Refinement::accept`]).
     fn accept(&mut self, ratio: f64) -> bool {
-        if self.fixed.is_some() || ratio <= 1.0 || self.level >= self.max_level() {
-            if ratio <= 0.1 {
-                self.calm += 1;
-                if self.calm >= CALM_SUMS && self.level > 0 {
-                    self.level -= 1;
-                    self.calm = 0;
-                }
-            } else {
-                self.calm = 0;
-            }
-            return true;
-        }
-        let steps = (2.0 * ratio.log10()).ceil().max(1.0) as u32;
-        self.level = (self.level + steps).min(self.max_level());
-        self.calm = 0;
-        false
+        self.refine.accept(self.tol, ratio, self.fixed.is_some())
     }
 
     /// The grid for `p` in a box of side `l`, and the points prepared for both parts; a sum at
@@ -400,30 +430,7 @@ impl SpectralEwald {
         let (pts, cells) = (&prep.grid_points, &prep.cells);
         let xi = prm.xi;
         let t1 = Instant::now();
-        let (ps, ss) = (cells.sorted_values(p), cells.sorted_values(sigma));
-        let table = StressletTable::new(prm.cutoff, xi);
-        let r0 = ERROR_MODEL_RANGE * prm.spacing(l);
-        let r02 = r0 * r0;
-        type Acc = (Vec3, [Vec3; 3], f64);
-        // The full stencil: a symmetric sum would share the table but not the contractions,
-        // which dominate here (measured: no faster).
-        let real = cells.gather(prm.cutoff, |acc: &mut Acc, hits| {
-            for h in 0..hits.len {
-                let j = hits.index[h] as usize;
-                let r = [hits.x[h], hits.y[h], hits.z[h]];
-                let r2 = dot(r, r);
-                let rn = r2.sqrt();
-                let dv = table.eval(rn);
-                let (du, dg) = stresslet_from_derivatives(r, rn, ps[j], ss[j], &dv);
-                for i in 0..3 {
-                    acc.0[i] += du[i];
-                    for m in 0..3 {
-                        acc.1[i][m] += dg[i][m];
-                    }
-                }
-                acc.2 += r02 / (r02 + r2) * ss[j] * ss[j];
-            }
-        });
+        let real = stresslet_real(cells, &prm, l, p, sigma);
         let t2 = Instant::now();
         let grid = self.grid.as_mut().expect("prepared");
         let comp = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -485,6 +492,41 @@ impl SpectralEwald {
     }
 }
 
+/// Per point of `cells`: the real-space stresslet velocity, gradient, and the error model's
+/// weighted squared strengths of its neighbours (`p`, `sigma` in the points' order).
+pub(crate) fn stresslet_real(
+    cells: &PointCells,
+    prm: &EwaldParams,
+    l: f64,
+    p: &[Vec3],
+    sigma: &[f64],
+) -> Vec<(Vec3, [Vec3; 3], f64)> {
+    let (ps, ss) = (cells.sorted_values(p), cells.sorted_values(sigma));
+    let table = StressletTable::new(prm.cutoff, prm.xi);
+    let r0 = ERROR_MODEL_RANGE * prm.spacing(l);
+    let r02 = r0 * r0;
+    type Acc = (Vec3, [Vec3; 3], f64);
+    // The full stencil: a symmetric sum would share the table but not the contractions,
+    // which dominate here (measured: no faster).
+    cells.gather(prm.cutoff, |acc: &mut Acc, hits| {
+        for h in 0..hits.len {
+            let j = hits.index[h] as usize;
+            let r = [hits.x[h], hits.y[h], hits.z[h]];
+            let r2 = dot(r, r);
+            let rn = r2.sqrt();
+            let dv = table.eval(rn);
+            let (du, dg) = stresslet_from_derivatives(r, rn, ps[j], ss[j], &dv);
+            for i in 0..3 {
+                acc.0[i] += du[i];
+                for m in 0..3 {
+                    acc.1[i][m] += dg[i][m];
+                }
+            }
+            acc.2 += r02 / (r02 + r2) * ss[j] * ss[j];
+        }
+    })
+}
+
 /// The points of the last sum, prepared for its parameters.
 #[derive(Debug)]
 struct Prepared {
@@ -510,6 +552,19 @@ fn estimate(
     n: usize,
     floor: f64,
 ) -> ErrorEstimate {
+    let tot = estimate_parts(output, (scale, internal), e2, out2, n);
+    estimate_from(output, tot, n, floor)
+}
+
+/// The estimate's four reductions over targets `0..n`: `[max est^2, sum est^2, max |q|^2,
+/// sum |q|^2]` (sums in fixed chunks: the same bits for any thread count).
+pub(crate) fn estimate_parts(
+    output: SumOutput,
+    (scale, internal): (f64, f64),
+    e2: impl Fn(usize) -> f64 + Sync,
+    out2: impl Fn(usize) -> f64 + Sync,
+    n: usize,
+) -> [f64; 4] {
     const CHUNK: usize = 4096;
     let (c_max, c_2) = error_model_constants(output, internal);
     let (a_max, a_2) = ((c_max * scale).powi(2), (c_2 * scale).powi(2));
@@ -535,6 +590,87 @@ fn estimate(
         tot[2] = tot[2].max(a[2]);
         tot[3] += a[3];
     }
+    tot
+}
+
+/// Refuse tolerances outside `[1e-10, 1e-1]`.
+pub(crate) fn check_tolerance(tol: f64) -> Result<(), SumError> {
+    if !(1e-10..=1e-1).contains(&tol) {
+        return Err(SumError::Input(format!(
+            "fast-sum tolerance {tol:e} outside [1e-10, 1e-1]"
+        )));
+    }
+    Ok(())
+}
+
+/// The report of an accepted attempt (`(internal tolerance, level, attempts)`).
+pub(crate) fn report_of(
+    tol: f64,
+    (internal, level, attempts): (f64, u32, u32),
+    params: EwaldParams,
+    estimates: Vec<ErrorEstimate>,
+) -> SumReport {
+    let met = estimates
+        .iter()
+        .all(|e| e.max_relative <= tol && e.l2_relative <= tol);
+    SumReport {
+        tolerance: tol,
+        internal_tolerance: internal,
+        level,
+        attempts,
+        params,
+        estimates,
+        met,
+    }
+}
+
+/// The estimates of a stresslet attempt (velocity, gradient) and the worst estimate/bound
+/// ratio, from its `(field, weighted strengths, sigma)` over `n` targets in all; `reduce`
+/// turns the local reductions into the whole box's (the identity for one process).
+pub(crate) fn stresslet_estimates(
+    (field, e2, sigma): (&StressletField, &[f64], &[f64]),
+    (prm, internal, tol): (&EwaldParams, f64, f64),
+    floor: impl Fn(i32) -> f64,
+    reduce: impl Fn([f64; 4]) -> [f64; 4],
+    n: usize,
+) -> (Vec<ErrorEstimate>, f64) {
+    let outputs = [SumOutput::StressletVelocity, SumOutput::StressletGradient];
+    let scale = |o: SumOutput| internal * o.self_scale(prm.xi) / VISCOSITY;
+    let local = field.u.len();
+    let u = estimate_parts(
+        outputs[0],
+        (scale(outputs[0]), internal),
+        |t| e2[t],
+        |t| dot(field.u[t], field.u[t]),
+        local,
+    );
+    let g = estimate_parts(
+        outputs[1],
+        (scale(outputs[1]), internal),
+        |t| e2[t] + sigma[t] * sigma[t],
+        |t| field.grad[t].iter().map(|r| dot(*r, *r)).sum(),
+        local,
+    );
+    let estimates = vec![
+        estimate_from(outputs[0], reduce(u), n, floor(2)),
+        estimate_from(outputs[1], reduce(g), n, floor(3)),
+    ];
+    let ratio = estimates
+        .iter()
+        .map(|e| e.max_relative.max(e.l2_relative))
+        .fold(0.0, f64::max)
+        / tol;
+    (estimates, ratio)
+}
+
+/// The estimate from [`estimate_parts`] over `n` targets in all (relative to the output, with
+/// `floor` where it vanishes).
+pub(crate) fn estimate_from(
+    output: SumOutput,
+    tot: [f64; 4],
+    n: usize,
+    floor: f64,
+) -> ErrorEstimate {
     let ratio = |est: f64, out: f64| {
         if est == 0.0 {
             0.0
@@ -554,18 +690,13 @@ fn estimate(
 impl SpectralEwald {
     /// Record the accepted attempt.
     fn record(&mut self, internal: f64, attempts: u32, estimates: Vec<ErrorEstimate>) {
-        let met = estimates
-            .iter()
-            .all(|e| e.max_relative <= self.tol && e.l2_relative <= self.tol);
-        self.report = Some(SumReport {
-            tolerance: self.tol,
-            internal_tolerance: internal,
-            level: self.level,
-            attempts,
-            params: self.last.expect("an attempt ran"),
+        let params = self.last.expect("an attempt ran");
+        self.report = Some(report_of(
+            self.tol,
+            (internal, self.refine.level, attempts),
+            params,
             estimates,
-            met,
-        });
+        ));
     }
 }
 
@@ -633,31 +764,16 @@ impl PeriodicStokes for SpectralEwald {
                 EwaldParams::choose_for(internal, x.len(), l, &outputs, STRESSLET_PAIR_COST)
             });
             let (field, e2) = self.stresslet_attempt(prm, l, x, p, sigma)?;
-            let scale = |o: SumOutput| internal * o.self_scale(prm.xi) / VISCOSITY;
             let n = x.len();
-            let est_u = estimate(
-                outputs[0],
-                (scale(outputs[0]), internal),
-                |t| e2[t],
-                |t| dot(field.u[t], field.u[t]),
+            let (estimates, ratio) = stresslet_estimates(
+                (&field, &e2, sigma),
+                (&prm, internal, self.tol),
+                floor,
+                |parts| parts,
                 n,
-                floor(2),
             );
-            let est_g = estimate(
-                outputs[1],
-                (scale(outputs[1]), internal),
-                |t| e2[t] + sigma[t] * sigma[t],
-                |t| field.grad[t].iter().map(|r| dot(*r, *r)).sum(),
-                n,
-                floor(3),
-            );
-            let ratio = [&est_u, &est_g]
-                .iter()
-                .map(|e| e.max_relative.max(e.l2_relative))
-                .fold(0.0, f64::max)
-                / self.tol;
             if self.accept(ratio) {
-                self.record(internal, attempts, vec![est_u, est_g]);
+                self.record(internal, attempts, estimates);
                 return Ok(field);
             }
         }
@@ -668,13 +784,10 @@ impl PeriodicStokes for SpectralEwald {
     }
 
     fn adaptive_state(&self) -> Vec<u32> {
-        vec![self.level, self.calm]
+        self.refine.state()
     }
 
     fn set_adaptive_state(&mut self, state: &[u32]) {
-        if let [level, calm] = *state {
-            self.level = level.min(self.max_level());
-            self.calm = calm;
-        }
+        self.refine.set_state(self.tol, state);
     }
 }

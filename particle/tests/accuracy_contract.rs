@@ -10,9 +10,11 @@
 //! second test checks the calibration the contract rests on: with the parameters fixed, the
 //! sums' own error estimates bound the measured errors.
 
+use motile_particle::domain::{Comm, ThreadRanks};
 use motile_particle::geometry::{Vec3, dot, sub};
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry, SumReport};
 use motile_particle::rpy_reference::EwaldReference;
+use motile_particle::shared_ewald::SharedEwald;
 use motile_particle::slender::half_rod_rule;
 use motile_particle::spectral_ewald::{EwaldParams, SpectralEwald, SumOutput};
 use motile_particle::units::DEFAULT_DIAMETER;
@@ -331,4 +333,103 @@ fn error_estimates_bound_the_measured_errors() {
         "estimates below the measured errors:\n{}",
         failures.join("\n")
     );
+}
+
+/// Copies within this z distance of a slab (the contact reach of the step) in the shared sums.
+const REACH: f64 = 1.3;
+
+/// Periodic z distance from `z` to `[lo, hi)`.
+fn gap(z: f64, lo: f64, hi: f64, l: f64) -> f64 {
+    if (lo..hi).contains(&z) {
+        0.0
+    } else {
+        (lo - z).rem_euclid(l).min((z - hi).rem_euclid(l))
+    }
+}
+
+/// Velocities and gradients at every point, summed on `ranks` ranks (equal z slabs), in the
+/// points' order.
+fn shared(x: &[Vec3], p: &[Vec3], l: f64, tol: f64, ranks: usize) -> Vec<(Vec3, [Vec3; 3])> {
+    let handles: Vec<_> =
+        ThreadRanks::group(ranks)
+            .into_iter()
+            .map(|comm| {
+                let (x, p) = (x.to_vec(), p.to_vec());
+                std::thread::spawn(move || {
+                    let (r, size) = (comm.rank(), comm.size());
+                    let (lo, hi) = (l * r as f64 / size as f64, l * (r + 1) as f64 / size as f64);
+                    let mut order: Vec<usize> = (0..x.len())
+                        .filter(|&k| (lo..hi).contains(&x[k][2]))
+                        .collect();
+                    let owned = order.len();
+                    order.extend((0..x.len()).filter(|&k| {
+                        !(lo..hi).contains(&x[k][2]) && gap(x[k][2], lo, hi, l) <= REACH
+                    }));
+                    let xs: Vec<Vec3> = order.iter().map(|&k| x[k]).collect();
+                    let ps: Vec<Vec3> = order.iter().map(|&k| p[k]).collect();
+                    let sigma = vec![SIGMA; xs.len()];
+                    let mut sum = SharedEwald::new(tol).unwrap();
+                    let f = sum
+                        .stresslets(&comm, (owned, x.len(), REACH), l, &xs, &ps, &sigma)
+                        .unwrap();
+                    let report = sum.last_report().unwrap();
+                    (order[..owned].to_vec(), f, report)
+                })
+            })
+            .collect();
+    let mut out = vec![([0.0; 3], [[0.0; 3]; 3]); x.len()];
+    for h in handles {
+        let (ids, f, report) = h.join().unwrap();
+        assert!(
+            report.met,
+            "the estimate says the tolerance was missed: {report:?}"
+        );
+        assert!(
+            report.params.cutoff <= REACH,
+            "cutoff {} beyond the copies",
+            report.params.cutoff
+        );
+        for (k, id) in ids.into_iter().enumerate() {
+            out[id] = (f.u[k], f.grad[k]);
+        }
+    }
+    out
+}
+
+#[test]
+fn shared_stresslet_sums_meet_the_tolerance_against_the_direct_sum_on_1_2_3_ranks() {
+    for (n, l, touching) in [(300, 8.0, false), (200, 6.0, true)] {
+        let (x, p) = rods(n, l, touching, 5 + n as u64);
+        let x: Vec<Vec3> = x.iter().map(|y| y.map(|c| c.rem_euclid(l))).collect();
+        let sigma = vec![SIGMA; n];
+        let exact = EwaldReference::default()
+            .stresslets(l, &x, &p, &sigma)
+            .unwrap();
+        let (eu, eg) = (vectors(&exact.u), matrices(&exact.grad));
+        let floor = |k: i32| SIGMA / (8.0 * PI * l.powi(k));
+        for tol in [1e-4, 1e-8] {
+            for ranks in [1, 2, 3] {
+                let s = shared(&x, &p, l, tol, ranks);
+                let su = vectors(&s.iter().map(|(u, _)| *u).collect::<Vec<_>>());
+                let sg = matrices(&s.iter().map(|(_, g)| *g).collect::<Vec<_>>());
+                let (um, u2) = errors(&su, &eu, floor(2));
+                let (gm, g2) = errors(&sg, &eg, floor(3));
+                eprintln!(
+                    "{n} stresslets{} L = {l}, tol {tol:e}, {ranks} rank(s): velocity {um:.1e} max, {u2:.1e} L2; gradient {gm:.1e} max, {g2:.1e} L2",
+                    if touching { " touching" } else { "" }
+                );
+                for (what, e) in [
+                    ("velocity max", um),
+                    ("velocity L2", u2),
+                    ("gradient max", gm),
+                    ("gradient L2", g2),
+                ] {
+                    assert!(
+                        e <= tol,
+                        "{n} stresslets, L = {l}, {ranks} ranks, tol {tol:e}: {what} error {e:.2e}"
+                    );
+                }
+            }
+        }
+    }
 }

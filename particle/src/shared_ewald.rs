@@ -1,0 +1,574 @@
+//! The spectral Ewald stresslet sum of [`crate::spectral_ewald`] shared among ranks
+//! (docs/MODEL.md §3a): each rank holds its own points and copies of the others' within the
+//! real-space cutoff ([`crate::domain::Halo`]).
+//!
+//! - Real space: every rank sums over the neighbours of its own points (own points and copies),
+//!   from the same cell list and tables as one process; the cutoff is capped at the copies'
+//!   reach ([`EwaldParams`] chosen with that cap, a finer grid making up for it).
+//! - Fourier space: the `M^3` grid is cut into slabs of planes along z. Each rank spreads its
+//!   own points (the same Gaussian window as one process) into the planes their windows touch
+//!   and sends each plane to its owner, which adds the contributions in rank order. The 3D FFT
+//!   is distributed: 2D FFTs of the owned planes, an all-to-all transpose to slabs of y rows,
+//!   FFTs along z; the kernel multiplies the modes a rank holds; the inverse runs back the same
+//!   way. Each rank then fetches the planes its points' windows need and gathers velocities and
+//!   gradients (the window's derivative), as one process does. A hand-written transpose over
+//!   the all-to-all exchange with rustfft (FFTW's MPI interface would need its C library, GPL,
+//!   and unsafe FFI).
+//! - The error estimate and the refinement are those of one process, with the maxima and sums
+//!   over all ranks, so every rank takes the same decisions.
+//!
+//! Results agree with the single-process sum within the tolerance (both are within it of the
+//! exact sum); the complex FFTs and the per-plane addition order differ from the single
+//! process's real FFTs, so the bits do not.
+
+use crate::domain::Comm;
+use crate::ewald::{rpy_fourier_mode_screened, stresslet_fourier_self_gradient};
+use crate::ewald_params::{EwaldParams, STRESSLET_PAIR_COST, SumOutput};
+use crate::gaussian_grid::{MAX_SUPPORT, Window};
+use crate::geometry::{Vec3, dot, floor_i64, wrap_position};
+use crate::periodic::{StressletField, SumError, SumReport};
+use crate::point_cells::PointCells;
+use crate::spectral_ewald::{
+    Refinement, check_tolerance, report_of, stresslet_estimates, stresslet_real,
+};
+use crate::units::VISCOSITY;
+use num_complex::Complex64;
+use rayon::prelude::*;
+use rustfft::{Fft, FftPlanner};
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+/// Stresslet components in the spread: `S_00, S_11, S_22, S_01, S_02, S_12`.
+const COMPONENTS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+
+/// The stresslet sum shared among ranks, with the adaptive level of one process.
+#[derive(Debug)]
+pub struct SharedEwald {
+    /// Requested relative accuracy (the contract of [`crate::spectral_ewald`]).
+    pub tol: f64,
+    refine: Refinement,
+    report: Option<SumReport>,
+}
+
+/// `first..first + P` grid indices and window values along one axis, with the window's
+/// derivative.
+struct Axis {
+    first: usize,
+    w: [f64; MAX_SUPPORT],
+    dw: [f64; MAX_SUPPORT],
+}
+
+/// The grid of one attempt: size, window, slabs.
+struct Grid {
+    m: usize,
+    p: usize,
+    h: f64,
+    win: Window,
+    xi: f64,
+    l: f64,
+    ranks: usize,
+    me: usize,
+    fft: Arc<dyn Fft<f64>>,
+    ifft: Arc<dyn Fft<f64>>,
+}
+
+impl Grid {
+    fn new(prm: &EwaldParams, l: f64, comm: &dyn Comm) -> Self {
+        let m = prm.modes;
+        let win = Window::new(l, prm.xi, m, prm.support, prm.shape);
+        let mut planner = FftPlanner::new();
+        Self {
+            m,
+            p: win.p,
+            h: win.h,
+            win,
+            xi: prm.xi,
+            l,
+            ranks: comm.size(),
+            me: comm.rank(),
+            fft: planner.plan_fft_forward(m),
+            ifft: planner.plan_fft_inverse(m),
+        }
+    }
+
+    /// Rank `r`'s planes (or rows): `[r M / P, (r + 1) M / P)`.
+    fn share(&self, r: usize) -> std::ops::Range<usize> {
+        r * self.m / self.ranks..(r + 1) * self.m / self.ranks
+    }
+
+    fn owner(&self, plane: usize) -> usize {
+        (0..self.ranks)
+            .rfind(|&r| r * self.m / self.ranks <= plane)
+            .expect("rank 0 starts at plane 0")
+    }
+
+    /// The window of a point along each axis (as the single-process grid computes it).
+    fn axes(&self, y: Vec3) -> [Axis; 3] {
+        let y = wrap_position(y, self.l);
+        let (m, p, h) = (self.m, self.p, self.h);
+        std::array::from_fn(|d| {
+            let t = y[d] / h;
+            let i0 = -floor_i64(p as f64 / 2.0 - t);
+            let d0 = (i0 as f64 - t) * h;
+            let mut a = Axis {
+                first: i0.rem_euclid(m as i64) as usize,
+                w: [0.0; MAX_SUPPORT],
+                dw: [0.0; MAX_SUPPORT],
+            };
+            for q in 0..p {
+                let r = d0 + q as f64 * h;
+                a.w[q] = self.win.norm * (-self.win.alpha * r * r).exp();
+                a.dw[q] = 2.0 * self.win.alpha * r * a.w[q];
+            }
+            a
+        })
+    }
+
+    /// Spread the stresslets of `points` (own points) onto the planes their windows touch,
+    /// then onto the owners' planes: this rank's planes, `[z][y][x]` per component.
+    fn spread(
+        &self,
+        comm: &dyn Comm,
+        x: &[Vec3],
+        p: &[Vec3],
+        sigma: &[f64],
+    ) -> [Vec<Complex64>; 6] {
+        let (m, pp) = (self.m, self.p);
+        let plane = m * m;
+        let mut touched: BTreeMap<usize, Vec<f64>> = BTreeMap::new();
+        for n in 0..x.len() {
+            let [ax, ay, az] = self.axes(x[n]);
+            let s: [f64; 6] = COMPONENTS.map(|(i, j)| sigma[n] * p[n][i] * p[n][j]);
+            for qz in 0..pp {
+                let z = (az.first + qz) % m;
+                let buf = touched.entry(z).or_insert_with(|| vec![0.0; plane * 6]);
+                for qy in 0..pp {
+                    let y = (ay.first + qy) % m;
+                    let wzy = az.w[qz] * ay.w[qy];
+                    for qx in 0..pp {
+                        let xi = (ax.first + qx) % m;
+                        let w = wzy * ax.w[qx];
+                        let at = (y * m + xi) * 6;
+                        for c in 0..6 {
+                            buf[at + c] += w * s[c];
+                        }
+                    }
+                }
+            }
+        }
+        // Planes to their owners: [plane index, values...] per plane.
+        let mut send = vec![Vec::new(); self.ranks];
+        for (&z, buf) in &touched {
+            let msg = &mut send[self.owner(z)];
+            msg.push(z as f64);
+            msg.extend_from_slice(buf);
+        }
+        let got = comm.exchange(send);
+        let own = self.share(self.me);
+        let mut out: [Vec<Complex64>; 6] =
+            std::array::from_fn(|_| vec![Complex64::default(); own.len() * plane]);
+        for msg in &got {
+            for chunk in msg.chunks_exact(1 + plane * 6) {
+                let z = chunk[0] as usize - own.start;
+                for (k, v) in chunk[1..].chunks_exact(6).enumerate() {
+                    for c in 0..6 {
+                        out[c][z * plane + k].re += v[c];
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// FFTs along x and y of planes `[z][y][x]` (in place).
+    fn fft_xy(&self, data: &mut [Complex64], inverse: bool) {
+        let m = self.m;
+        let f = if inverse { &self.ifft } else { &self.fft };
+        data.par_chunks_mut(m * m).for_each(|pl| {
+            f.process(pl);
+            let mut t = vec![Complex64::default(); m * m];
+            for y in 0..m {
+                for x in 0..m {
+                    t[x * m + y] = pl[y * m + x];
+                }
+            }
+            f.process(&mut t);
+            for y in 0..m {
+                for x in 0..m {
+                    pl[y * m + x] = t[x * m + y];
+                }
+            }
+        });
+    }
+
+    /// z slabs `[z][y][x]` of `fields` to y slabs `[y][x][z]` (all-to-all).
+    fn to_rows(&self, comm: &dyn Comm, fields: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
+        let m = self.m;
+        let (zs, ys) = (self.share(self.me), self.share(self.me));
+        self.transpose(
+            comm,
+            fields,
+            ys.len(),
+            |r| (0..zs.len(), self.share(r)),
+            |z, y, x| (z * m + y) * m + x,
+            |r| (self.share(r), 0..ys.len()),
+            |z, y, x| (y * m + x) * m + z,
+        )
+    }
+
+    /// y slabs `[y][x][z]` back to z slabs `[z][y][x]` (all-to-all).
+    fn to_planes(&self, comm: &dyn Comm, fields: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
+        let m = self.m;
+        let (zs, ys) = (self.share(self.me), self.share(self.me));
+        self.transpose(
+            comm,
+            fields,
+            zs.len(),
+            |r| (self.share(r), 0..ys.len()),
+            |z, y, x| (y * m + x) * m + z,
+            |r| (0..zs.len(), self.share(r)),
+            |z, y, x| (z * m + y) * m + x,
+        )
+    }
+
+    /// All-to-all of blocks: to rank `r` the elements `src(z, y, x)` for `(z, y)` in
+    /// `send(r)` (z outer) and every `x`; from rank `r` into `dst(z, y, x)` over `recv(r)` in
+    /// the same order. The result holds `len M^2` elements per field.
+    #[allow(clippy::type_complexity)]
+    fn transpose(
+        &self,
+        comm: &dyn Comm,
+        fields: &[Vec<Complex64>],
+        len: usize,
+        send: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>),
+        src: impl Fn(usize, usize, usize) -> usize,
+        recv: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>),
+        dst: impl Fn(usize, usize, usize) -> usize,
+    ) -> Vec<Vec<Complex64>> {
+        let m = self.m;
+        let messages = (0..self.ranks)
+            .map(|r| {
+                let (zr, yr) = send(r);
+                let mut v = Vec::with_capacity(fields.len() * zr.len() * yr.len() * m * 2);
+                for f in fields {
+                    for z in zr.clone() {
+                        for y in yr.clone() {
+                            for x in 0..m {
+                                let c = f[src(z, y, x)];
+                                v.extend([c.re, c.im]);
+                            }
+                        }
+                    }
+                }
+                v
+            })
+            .collect();
+        let got = comm.exchange(messages);
+        let mut out = vec![vec![Complex64::default(); len * m * m]; fields.len()];
+        for (r, msg) in got.iter().enumerate() {
+            let (zr, yr) = recv(r);
+            let mut it = msg.chunks_exact(2);
+            for f in out.iter_mut() {
+                for z in zr.clone() {
+                    for y in yr.clone() {
+                        for x in 0..m {
+                            let c = it.next().expect("a full block");
+                            f[dst(z, y, x)] = Complex64::new(c[0], c[1]);
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The stresslets' velocity field on this rank's planes (real, `[z][y][x]` per component):
+    /// spread spectra in, the Ewald kernel with the window divided out twice, back.
+    fn velocity_planes(&self, comm: &dyn Comm, mut s: [Vec<Complex64>; 6]) -> [Vec<f64>; 3] {
+        let m = self.m;
+        for f in s.iter_mut() {
+            self.fft_xy(f, false);
+        }
+        let mut rows = self.to_rows(comm, &s);
+        drop(s);
+        let fz = &self.fft;
+        for f in rows.iter_mut() {
+            f.par_chunks_mut(m).for_each(|line| fz.process(line));
+        }
+        let scale = 2.0 * PI / self.l;
+        let x = 1.0 / (4.0 * self.xi * self.xi);
+        let h3 = self.h.powi(3);
+        let vol = self.l.powi(3);
+        let axis: Vec<(f64, f64, f64)> = (0..m)
+            .map(|i| {
+                let mode = if i < m.div_ceil(2) {
+                    i as f64
+                } else {
+                    i as f64 - m as f64
+                };
+                let k = mode * scale;
+                (k, (-x * k * k).exp(), (self.win.eta * x * k * k).exp())
+            })
+            .collect();
+        let ys = self.share(self.me);
+        let xi = self.xi;
+        let mut u = vec![vec![Complex64::default(); ys.len() * m * m]; 3];
+        let (u0, rest) = u.split_at_mut(1);
+        let (u1, u2) = rest.split_at_mut(1);
+        u0[0]
+            .par_chunks_mut(m)
+            .zip(u1[0].par_chunks_mut(m))
+            .zip(u2[0].par_chunks_mut(m))
+            .enumerate()
+            .for_each(|(line, ((o0, o1), o2))| {
+                let (yl, i0) = (line / m, line % m);
+                let i1 = ys.start + yl;
+                for i2 in 0..m {
+                    if i0 == m / 2 || i1 == m / 2 || i2 == m / 2 {
+                        continue;
+                    }
+                    let (a0, a1, a2) = (axis[i0], axis[i1], axis[i2]);
+                    let k = [a0.0, a1.0, a2.0];
+                    let k2 = dot(k, k);
+                    if k2 == 0.0 {
+                        continue;
+                    }
+                    let at = line * m + i2;
+                    let sh: [Complex64; 6] = std::array::from_fn(|c| rows[c][at]);
+                    let sm = |i: usize, j: usize| -> Complex64 {
+                        let c = COMPONENTS
+                            .iter()
+                            .position(|&(a, b)| (a, b) == (i.min(j), i.max(j)))
+                            .expect("a component");
+                        sh[c]
+                    };
+                    let f: [Complex64; 3] = std::array::from_fn(|i| {
+                        -Complex64::i() * (sm(i, 0) * k[0] + sm(i, 1) * k[1] + sm(i, 2) * k[2])
+                    });
+                    let w = h3 * a0.2 * a1.2 * a2.2;
+                    let v = rpy_fourier_mode_screened(k, k2, a0.1 * a1.1 * a2.1, xi, 0.0, vol, f);
+                    o0[i2] = v[0] * w;
+                    o1[i2] = v[1] * w;
+                    o2[i2] = v[2] * w;
+                }
+            });
+        drop(rows);
+        let fi = &self.ifft;
+        for f in u.iter_mut() {
+            f.par_chunks_mut(m).for_each(|line| fi.process(line));
+        }
+        let mut planes = self.to_planes(comm, &u);
+        drop(u);
+        for f in planes.iter_mut() {
+            self.fft_xy(f, true);
+        }
+        let mut it = planes.into_iter().map(|f| f.iter().map(|c| c.re).collect());
+        std::array::from_fn(|_| it.next().expect("three components"))
+    }
+
+    /// Velocity and gradient (`[u_0..2, du_i/dx_l at 3 + 3 i + l]`) at `points` from the field
+    /// on the owners' planes (each rank fetches the planes its windows need).
+    fn gather(&self, comm: &dyn Comm, field: &[Vec<f64>; 3], x: &[Vec3]) -> Vec<[f64; 12]> {
+        let (m, pp) = (self.m, self.p);
+        let plane = m * m;
+        let axes: Vec<[Axis; 3]> = x.par_iter().map(|y| self.axes(*y)).collect();
+        let mut need = std::collections::BTreeSet::new();
+        for a in &axes {
+            for qz in 0..pp {
+                need.insert((a[2].first + qz) % m);
+            }
+        }
+        // Requests to owners, then the planes back.
+        let mut ask = vec![Vec::new(); self.ranks];
+        for &z in &need {
+            ask[self.owner(z)].push(z as f64);
+        }
+        let asked = comm.exchange(ask);
+        let own = self.share(self.me);
+        let send = asked
+            .iter()
+            .map(|list| {
+                let mut v = Vec::with_capacity(list.len() * plane * 3);
+                for &z in list {
+                    let z = z as usize - own.start;
+                    for k in 0..plane {
+                        v.extend([
+                            field[0][z * plane + k],
+                            field[1][z * plane + k],
+                            field[2][z * plane + k],
+                        ]);
+                    }
+                }
+                v
+            })
+            .collect();
+        let got = comm.exchange(send);
+        let mut planes: BTreeMap<usize, &[f64]> = BTreeMap::new();
+        let mut by_owner = vec![Vec::new(); self.ranks];
+        for &z in &need {
+            by_owner[self.owner(z)].push(z);
+        }
+        for (r, list) in by_owner.iter().enumerate() {
+            for (k, &z) in list.iter().enumerate() {
+                planes.insert(z, &got[r][k * plane * 3..(k + 1) * plane * 3]);
+            }
+        }
+        let h3 = self.h.powi(3);
+        axes.par_iter()
+            .map(|[ax, ay, az]| {
+                let mut out = [0.0; 12];
+                for qz in 0..pp {
+                    let pl = planes[&((az.first + qz) % m)];
+                    for qy in 0..pp {
+                        let y = (ay.first + qy) % m;
+                        for qx in 0..pp {
+                            let xi = (ax.first + qx) % m;
+                            let v = &pl[(y * m + xi) * 3..(y * m + xi) * 3 + 3];
+                            let w = az.w[qz] * ay.w[qy] * ax.w[qx];
+                            let d = [
+                                az.w[qz] * ay.w[qy] * ax.dw[qx],
+                                az.w[qz] * ay.dw[qy] * ax.w[qx],
+                                az.dw[qz] * ay.w[qy] * ax.w[qx],
+                            ];
+                            for c in 0..3 {
+                                out[c] += w * v[c];
+                                for l in 0..3 {
+                                    out[3 + 3 * c + l] += d[l] * v[c];
+                                }
+                            }
+                        }
+                    }
+                }
+                out.map(|v| h3 * v)
+            })
+            .collect()
+    }
+}
+
+impl SharedEwald {
+    /// A shared sum at relative tolerance `tol` (1e-10 ..= 1e-1, as one process).
+    pub fn new(tol: f64) -> Result<Self, SumError> {
+        check_tolerance(tol)?;
+        Ok(Self {
+            tol,
+            refine: Refinement::default(),
+            report: None,
+        })
+    }
+
+    /// What the last sum reported (the whole box's estimate).
+    pub fn last_report(&self) -> Option<SumReport> {
+        self.report.clone()
+    }
+
+    /// The refinement level and calm count, for checkpoints.
+    pub fn adaptive_state(&self) -> Vec<u32> {
+        self.refine.state()
+    }
+
+    /// Restore what [`Self::adaptive_state`] returned.
+    pub fn set_adaptive_state(&mut self, state: &[u32]) {
+        self.refine.set_state(self.tol, state);
+    }
+
+    /// The flow of point stresslets `sigma_n p_n p_n` at `x_n` over all ranks (collective):
+    /// `x` holds this rank's `owned` points first, then copies of other ranks' points within
+    /// `reach` of them (`total` points in the whole box); returns velocity and gradient at the
+    /// own points.
+    pub fn stresslets(
+        &mut self,
+        comm: &dyn Comm,
+        (owned, total, reach): (usize, usize, f64),
+        l: f64,
+        x: &[Vec3],
+        p: &[Vec3],
+        sigma: &[f64],
+    ) -> Result<StressletField, SumError> {
+        if x.len() != p.len() || x.len() != sigma.len() || owned > x.len() {
+            return Err(SumError::Input(
+                "shared stresslets: x, p, sigma lengths differ".into(),
+            ));
+        }
+        let outputs = [SumOutput::StressletVelocity, SumOutput::StressletGradient];
+        let mut strongest = [sigma.iter().fold(0.0f64, |m, s| m.max(s.abs()))];
+        comm.max(&mut strongest);
+        let floor = |k: i32| strongest[0] / (8.0 * PI * VISCOSITY * l.powi(k));
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let internal = self.refine.internal_tolerance(self.tol);
+            let prm = EwaldParams::choose_within(
+                internal,
+                total,
+                l,
+                &outputs,
+                STRESSLET_PAIR_COST,
+                reach,
+            );
+            let (field, e2) = attempt(comm, &prm, l, owned, x, p, sigma)?;
+            let (estimates, ratio) = stresslet_estimates(
+                (&field, &e2, sigma),
+                (&prm, internal, self.tol),
+                floor,
+                |mine| {
+                    comm.all_gather(&mine).iter().fold([0.0f64; 4], |t, a| {
+                        [t[0].max(a[0]), t[1] + a[1], t[2].max(a[2]), t[3] + a[3]]
+                    })
+                },
+                total,
+            );
+            if self.refine.accept(self.tol, ratio, false) {
+                self.report = Some(report_of(
+                    self.tol,
+                    (internal, self.refine.level, attempts),
+                    prm,
+                    estimates,
+                ));
+                return Ok(field);
+            }
+        }
+    }
+}
+
+/// One attempt: velocities and gradients at the own points, and the error model's weighted
+/// strengths per own point.
+fn attempt(
+    comm: &dyn Comm,
+    prm: &EwaldParams,
+    l: f64,
+    owned: usize,
+    x: &[Vec3],
+    p: &[Vec3],
+    sigma: &[f64],
+) -> Result<(StressletField, Vec<f64>), SumError> {
+    if let Some(i) = x.iter().position(|y| !y.iter().all(|c| c.is_finite())) {
+        return Err(SumError::Input(format!(
+            "point {i} has a non-finite coordinate {:?}",
+            x[i]
+        )));
+    }
+    let xi = prm.xi;
+    // Real space over own points and copies, as one process.
+    let cells = PointCells::build(x, l, prm.cutoff, 1);
+    let real = stresslet_real(&cells, prm, l, p, sigma);
+    // Fourier space over the ranks' slabs of the grid.
+    let grid = Grid::new(prm, l, comm);
+    let spread = grid.spread(comm, &x[..owned], &p[..owned], &sigma[..owned]);
+    let field = grid.velocity_planes(comm, spread);
+    let back = grid.gather(comm, &field, &x[..owned]);
+    let mut u = Vec::with_capacity(owned);
+    let mut grad = Vec::with_capacity(owned);
+    let mut e2 = Vec::with_capacity(owned);
+    for t in 0..owned {
+        let (ur, gr, w) = &real[t];
+        let own = stresslet_fourier_self_gradient(p[t], sigma[t], xi);
+        let b = &back[t];
+        u.push([0, 1, 2].map(|i| (ur[i] + b[i]) / VISCOSITY));
+        grad.push(std::array::from_fn(|i| {
+            std::array::from_fn(|m| (gr[i][m] + b[3 + 3 * i + m] - own[i][m]) / VISCOSITY)
+        }));
+        e2.push(*w);
+    }
+    Ok((StressletField { u, grad }, e2))
+}
