@@ -15,8 +15,9 @@ use crate::geometry::{Vec3, cross, dot};
 use crate::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
 };
-use crate::periodic::PeriodicStokes;
+use crate::periodic::{PeriodicStokes, StressletField};
 use crate::rods::RodSet;
+use crate::shared_ewald::SharedEwald;
 use crate::units::{ROD_LENGTH, SWIM_SPEED, eta};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -30,6 +31,8 @@ pub fn stresslet_strength(diameter: f64) -> f64 {
 #[derive(Debug)]
 pub struct Dipole {
     sum: Box<dyn PeriodicStokes>,
+    /// The sum shared among ranks, when this mobility runs on one rank's part of a box.
+    shared: Option<SharedEwald>,
     diameter: f64,
     local: LocalDrag,
     report: HydroReport,
@@ -44,6 +47,7 @@ impl Dipole {
         let (s, w) = crate::slender::half_rod_rule(4, ROD_LENGTH);
         Self {
             sum,
+            shared: None,
             diameter,
             local: LocalDrag::new(diameter),
             report: HydroReport::default(),
@@ -51,6 +55,34 @@ impl Dipole {
             w,
             density: Vec::new(),
         }
+    }
+}
+
+impl Dipole {
+    /// The same mobility able to run on one rank's part of a box shared by several, its sum
+    /// then [`SharedEwald`] at tolerance `tol` ([`Mobility::predicted_velocities_shared`]).
+    pub fn shared(mut self, tol: f64) -> Result<Self, crate::periodic::SumError> {
+        self.shared = Some(SharedEwald::new(tol)?);
+        Ok(self)
+    }
+
+    /// Velocities from the flow `field` at the first `field.u.len()` rods (swimming plus
+    /// the flow; Jeffery's rotation), and the force density of every rod for output.
+    fn apply_field(&mut self, p: &[Vec3], field: &StressletField, out: &mut RodVelocities) {
+        let k = field.u.len();
+        out.v[..k]
+            .par_iter_mut()
+            .zip(out.w[..k].par_iter_mut())
+            .zip(field.u.par_iter().zip(&field.grad))
+            .zip(&p[..k])
+            .for_each(|(((v, w), (u, g)), pn)| {
+                *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + u[d]);
+                let gp = [0, 1, 2].map(|i| dot(g[i], *pn));
+                let c = dot(*pn, gp);
+                let pdot = [0, 1, 2].map(|d| gp[d] - c * pn[d]);
+                *w = cross(*pn, pdot);
+            });
+        self.density_for(p);
     }
 }
 
@@ -77,23 +109,49 @@ impl Mobility for Dipole {
             ..HydroReport::default()
         };
         self.report.add_sum(self.sum.last_report());
-        out.v
-            .par_iter_mut()
-            .zip(out.w.par_iter_mut())
-            .zip(field.u.par_iter().zip(&field.grad))
-            .zip(p)
-            .for_each(|(((v, w), (u, g)), pn)| {
-                *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + u[d]);
-                let gp = [0, 1, 2].map(|i| dot(g[i], *pn));
-                let c = dot(*pn, gp);
-                let pdot = [0, 1, 2].map(|d| gp[d] - c * pn[d]);
-                *w = cross(*pn, pdot);
-            });
+        self.apply_field(p, &field, out);
+        Ok(())
+    }
+
+    fn shares(&self) -> bool {
+        self.shared.is_some()
+    }
+
+    fn density_for(&mut self, p: &[Vec3]) {
         let c = SWIM_SPEED / (2.0 * eta(self.diameter));
         self.density = p
             .iter()
             .flat_map(|pn| self.s.iter().map(move |sj| pn.map(|v| c * sj.signum() * v)))
             .collect();
+    }
+
+    fn predicted_velocities_shared(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+        part: crate::step::Part<'_>,
+    ) -> Result<(), MobilityError> {
+        let sigma = vec![stresslet_strength(self.diameter); rods.len()];
+        let t = Instant::now();
+        let shared = self
+            .shared
+            .as_mut()
+            .ok_or(MobilityError::NotShared("dipole"))?;
+        let field = shared.stresslets(
+            part.comm,
+            (part.halo.owned, part.total, part.reach),
+            rods.box_length,
+            &rods.x,
+            p,
+            &sigma,
+        )?;
+        self.report = HydroReport {
+            seconds_sums: t.elapsed().as_secs_f64(),
+            ..HydroReport::default()
+        };
+        self.report.add_sum(shared.last_report());
+        self.apply_field(p, &field, out);
         Ok(())
     }
 
@@ -106,11 +164,17 @@ impl Mobility for Dipole {
     }
 
     fn sum_state(&self) -> Vec<u32> {
-        self.sum.adaptive_state()
+        match &self.shared {
+            Some(s) => s.adaptive_state(),
+            None => self.sum.adaptive_state(),
+        }
     }
 
     fn set_sum_state(&mut self, state: &[u32]) {
-        self.sum.set_adaptive_state(state);
+        match &mut self.shared {
+            Some(s) => s.set_adaptive_state(state),
+            None => self.sum.set_adaptive_state(state),
+        }
     }
 
     fn force_density(&self) -> Option<ForceDensity<'_>> {

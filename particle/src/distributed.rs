@@ -324,6 +324,7 @@ impl<C: Comm> Distributed<C> {
             halo: &halo,
             ids: &ids,
             total: self.total,
+            reach,
         };
         let report = self.stepper.step_part(&mut local, dt, part);
         if report.is_err() {

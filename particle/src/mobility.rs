@@ -115,6 +115,9 @@ pub enum MobilityError {
     /// A periodic sum failed.
     #[error(transparent)]
     Sum(#[from] crate::periodic::SumError),
+    /// A step shared among ranks asked a mobility that was not built to share.
+    #[error("the {0} mobility was not built for a box shared among ranks")]
+    NotShared(&'static str),
 }
 
 /// The pluggable mobility of the particle step.
@@ -145,6 +148,28 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     ) -> Result<(), MobilityError> {
         self.free_velocities(rods, p, out)
     }
+    /// Whether the mobility can run on one rank's part of a box shared by several
+    /// ([`Self::predicted_velocities_shared`]).
+    fn shares(&self) -> bool {
+        false
+    }
+    /// [`Self::predicted_velocities`] on one rank's part of a box shared by several
+    /// (collective; see [`crate::domain`]): `rods` are the rank's own rods, then copies;
+    /// correct for the own rods (the step copies the owners' values to the copies). The
+    /// default is the single-process prediction, right for mobilities that act rod by rod.
+    fn predicted_velocities_shared(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+        _part: crate::step::Part<'_>,
+    ) -> Result<(), MobilityError> {
+        self.predicted_velocities(rods, p, out)
+    }
+    /// Set the force density ([`Self::force_density`]) for rods with axes `p` where it
+    /// depends on nothing else (the dipole level), without a step: a shared run's rank 0 writes
+    /// its outputs from a gathered state this way. Others keep their last step's.
+    fn density_for(&mut self, _p: &[Vec3]) {}
     /// The step's velocities given the contact forces and torques `ft` (caller's numbering);
     /// `out` holds the prediction on entry. The default adds the local response to `ft`.
     fn final_velocities(
@@ -223,6 +248,10 @@ impl Default for LocalDrag {
 impl Mobility for LocalDrag {
     fn name(&self) -> &'static str {
         "none"
+    }
+
+    fn shares(&self) -> bool {
+        true
     }
 
     fn diameter(&self) -> f64 {

@@ -20,7 +20,7 @@ use crate::domain::{Comm, Halo, SingleProcess, max_with_key};
 use crate::geometry::{
     Vec3, axpy, min_image, norm, quat_exp, quat_mul, scale, segment_distance, sub,
 };
-use crate::mobility::{LocalDrag, Mobility, RodVelocities};
+use crate::mobility::{Mobility, RodVelocities};
 use crate::rods::RodSet;
 use crate::units::ROD_LENGTH;
 use rayon::prelude::*;
@@ -85,7 +85,7 @@ pub enum StepError {
     NonFinite(usize),
     /// A step shared by several ranks with a mobility that is not shared yet.
     #[error(
-        "the {mobility_name} mobility runs on one process only ({ranks} ranks asked for): run it without mpirun, or use hydrodynamics = \"none\""
+        "the {mobility_name} mobility runs on one process only ({ranks} ranks asked for): run it without mpirun, or use hydrodynamics = \"none\" or \"dipole\""
     )]
     NotShared {
         /// The mobility's name.
@@ -302,6 +302,7 @@ impl Stepper {
             halo: &halo,
             ids: &[],
             total: rods.len(),
+            reach: 0.0,
         };
         self.step_part(rods, dt, part)
     }
@@ -311,8 +312,8 @@ impl Stepper {
     /// rods within reach of them, as `part.halo` says. Every own rod and every copy moves
     /// (the copies with their owners' velocities); the report is the whole box's. Velocities and
     /// contact forces ([`Self::velocities`], [`Self::contact_forces`]) are those of the local
-    /// rods, correct for the own ones. Only the local mobility (`hydrodynamics = "none"`) is
-    /// shared so far; the others return [`StepError::NotShared`] on more than one rank.
+    /// rods, correct for the own ones. Mobilities that cannot share ([`Mobility::shares`]:
+    /// so far the slender-body one) return [`StepError::NotShared`] on more than one rank.
     pub fn step_part(
         &mut self,
         rods: &mut RodSet,
@@ -338,7 +339,7 @@ impl Stepper {
                 mobility_name: self.mobility.name(),
             });
         }
-        if shared && self.mobility.name() != LocalDrag::default().name() {
+        if shared && !self.mobility.shares() {
             return Err(StepError::NotShared {
                 mobility_name: self.mobility.name(),
                 ranks: comm.size(),
@@ -386,8 +387,14 @@ impl Stepper {
         if self.velocities.v.len() != n {
             self.velocities = RodVelocities::zeros(n);
         }
-        self.mobility
-            .predicted_velocities(rods, &p, &mut self.velocities)?;
+        if shared {
+            self.mobility
+                .predicted_velocities_shared(rods, &p, &mut self.velocities, part)?;
+            self.refresh_velocities(part);
+        } else {
+            self.mobility
+                .predicted_velocities(rods, &p, &mut self.velocities)?;
+        }
         let fv = gather(order, &self.velocities.v);
         let fw = gather(order, &self.velocities.w);
         seconds[2] = t2.elapsed().as_secs_f64();
@@ -685,4 +692,7 @@ pub struct Part<'a> {
     pub ids: &'a [u32],
     /// Rods in the whole box.
     pub total: usize,
+    /// How far beyond its slab a rank holds copies (zero for one process): the reach of the
+    /// shared sums' real-space pairs.
+    pub reach: f64,
 }

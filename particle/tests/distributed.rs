@@ -21,16 +21,32 @@ fn stepper() -> Stepper {
 /// Rods and velocities `(v, w)` after `STEPS` steps on `ranks` ranks, and each step's report
 /// (rank 0's: the whole box's).
 fn on_ranks(r0: &RodSet, ranks: usize) -> (RodSet, Vec<[f64; 6]>, Vec<StepReport>, Vec<usize>) {
+    on_ranks_with(r0, ranks, shared_stepper, DT)
+}
+
+/// A stepper for the given rank count (the one for one process on one rank), stepping by `dt`.
+type Make = fn(usize) -> Stepper;
+
+fn shared_stepper(_ranks: usize) -> Stepper {
+    stepper()
+}
+
+fn on_ranks_with(
+    r0: &RodSet,
+    ranks: usize,
+    make: Make,
+    dt: f64,
+) -> (RodSet, Vec<[f64; 6]>, Vec<StepReport>, Vec<usize>) {
     let handles: Vec<_> = ThreadRanks::group(ranks)
         .into_iter()
         .map(|comm| {
             let r0 = r0.clone();
             std::thread::spawn(move || {
-                let mut d = Distributed::new(comm, stepper(), &r0);
+                let mut d = Distributed::new(comm, make(ranks), &r0);
                 let mut reports = Vec::new();
                 let mut copies = Vec::new();
                 for _ in 0..STEPS {
-                    reports.push(d.step(DT).expect("step"));
+                    reports.push(d.step(dt).expect("step"));
                     copies.push(d.last_halo());
                 }
                 (d.gather(&d.velocity_rows()), reports, copies)
@@ -45,9 +61,12 @@ fn on_ranks(r0: &RodSet, ranks: usize) -> (RodSet, Vec<[f64; 6]>, Vec<StepReport
 }
 
 fn single(r0: &RodSet) -> (RodSet, Vec<[f64; 6]>, Vec<StepReport>) {
+    single_with(r0, stepper(), DT)
+}
+
+fn single_with(r0: &RodSet, mut s: Stepper, dt: f64) -> (RodSet, Vec<[f64; 6]>, Vec<StepReport>) {
     let mut r = r0.clone();
-    let mut s = stepper();
-    let reports = (0..STEPS).map(|_| s.step(&mut r, DT).unwrap()).collect();
+    let reports = (0..STEPS).map(|_| s.step(&mut r, dt).unwrap()).collect();
     let v = s.velocities();
     let rows =
         v.v.iter()
@@ -55,6 +74,18 @@ fn single(r0: &RodSet) -> (RodSet, Vec<[f64; 6]>, Vec<StepReport>) {
             .map(|(a, b)| [a[0], a[1], a[2], b[0], b[1], b[2]])
             .collect();
     (r, rows, reports)
+}
+
+/// Positions and axes within `bound_x`, velocities within `bound_v`.
+fn within(ranks: usize, [dx, dp, dv]: [f64; 3], bound_x: f64, bound_v: f64) {
+    assert!(
+        dx <= bound_x && dp <= bound_x,
+        "{ranks} ranks: positions differ by {dx:.2e}, axes by {dp:.2e} (bound {bound_x:.1e})"
+    );
+    assert!(
+        dv <= bound_v,
+        "{ranks} ranks: velocities differ by {dv:.2e} (bound {bound_v:.1e})"
+    );
 }
 
 /// Largest difference of centres (unwrapped), axes and velocities.
@@ -111,14 +142,7 @@ fn two_and_three_ranks_agree_with_one_process_within_the_solver_tolerance() {
             copies.iter().all(|&c| c > 0),
             "every rank must hold copies: {copies:?}"
         );
-        assert!(
-            dx <= bound_x && dp <= bound_x,
-            "{ranks} ranks: positions differ by {dx:.2e}, axes by {dp:.2e} (bound {bound_x:.1e})"
-        );
-        assert!(
-            dv <= bound_v,
-            "{ranks} ranks: velocities differ by {dv:.2e} (bound {bound_v:.1e})"
-        );
+        within(ranks, [dx, dp, dv], bound_x, bound_v);
         for (k, (a, b)) in reps.iter().zip(&repd).enumerate() {
             assert_eq!(
                 a.contact.constraints, b.contact.constraints,
@@ -131,5 +155,57 @@ fn two_and_three_ranks_agree_with_one_process_within_the_solver_tolerance() {
                 b.mean_speed
             );
         }
+    }
+}
+
+const SUM_TOLERANCE: f64 = 1e-4;
+
+fn dipole_stepper(ranks: usize) -> Stepper {
+    let sum = Box::new(SpectralEwald::new(SUM_TOLERANCE).unwrap());
+    let mut mobility = Dipole::new(sum, DEFAULT_DIAMETER);
+    if ranks > 1 {
+        mobility = mobility.shared(SUM_TOLERANCE).unwrap();
+    }
+    Stepper::new(Box::new(mobility), ContactParams::default())
+}
+
+/// The dipole level (point stresslets through the spectral Ewald sum, shared among ranks with
+/// a distributed FFT) on 2 and 3 ranks against one process: each process's flow is within the
+/// sum's tolerance of the exact flow, so velocities may differ by `2 tol max|u_flow|` and
+/// positions by that times `dt` per step; allowed: 20 steps of that, times 10.
+#[test]
+fn the_dipole_level_on_two_and_three_ranks_agrees_with_one_process_within_the_sum_tolerance() {
+    let dt = 0.01;
+    let r0 = random_nonoverlapping(1000, 10.0, DEFAULT_DIAMETER, 5, 100_000).unwrap(); // nu = 1
+    let (rs, vs, reps) = single_with(&r0, dipole_stepper(1), dt);
+    // The flow's size: speeds beyond swimming (U = 1).
+    let flow = vs
+        .iter()
+        .map(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - 1.0).abs())
+        .fold(0.0, f64::max)
+        .max(1e-3);
+    let bound_v = 10.0 * 2.0 * SUM_TOLERANCE * flow;
+    let bound_x = STEPS as f64 * dt * bound_v;
+    for ranks in [2, 3] {
+        let (rd, vd, repd, _) = on_ranks_with(&r0, ranks, dipole_stepper, dt);
+        let [dx, dp, dv] = difference(&rs, &vs, &rd, &vd);
+        eprintln!(
+            "dipole, {ranks} ranks: |dx| {dx:.2e}, |dp| {dp:.2e}, |dv| {dv:.2e} after {STEPS} steps (flow up to {flow:.2e}; bounds {bound_x:.1e}, {bound_v:.1e}); sum levels {:?}",
+            repd.iter().map(|r| r.hydro.sum_level).collect::<Vec<_>>()
+        );
+        assert!(
+            repd.iter()
+                .all(|r| r.hydro.sums > 0 && r.hydro.sum_tolerance_met),
+            "{ranks} ranks: every shared sum met its tolerance"
+        );
+        within(ranks, [dx, dp, dv], bound_x, bound_v);
+        assert_eq!(
+            reps.iter()
+                .map(|r| r.contact.constraints)
+                .collect::<Vec<_>>(),
+            repd.iter()
+                .map(|r| r.contact.constraints)
+                .collect::<Vec<_>>(),
+        );
     }
 }

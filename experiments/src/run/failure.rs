@@ -37,7 +37,9 @@ impl From<&StepError> for FailureKind {
                 Self::Hydrodynamics
             }
             StepError::NonFinite(_) => Self::NonFinite,
-            StepError::DiameterMismatch { .. } | StepError::NotShared { .. } => Self::Setup,
+            StepError::DiameterMismatch { .. }
+            | StepError::NotShared { .. }
+            | StepError::Hydrodynamics(MobilityError::NotShared(_)) => Self::Setup,
         }
     }
 }

@@ -359,6 +359,25 @@ pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig
     parse_run_config(text, path, ParticleRunConfig::validate).map(|c| c.resolved())
 }
 
+/// The mobility of one rank's part of a box shared by several: the dipole level's sum is the
+/// shared one ([`motile_particle::shared_ewald`]); the slender-body level is not shared yet.
+pub(super) fn shared_mobility(
+    cfg: &ParticleRunConfig,
+    ranks: usize,
+) -> anyhow::Result<Box<dyn Mobility>> {
+    let h = &cfg.hydro;
+    Ok(match cfg.hydrodynamics {
+        Hydrodynamics::Dipole => Box::new(
+            Dipole::new(Box::new(SpectralEwald::new(h.sum_tolerance)?), cfg.diameter)
+                .shared(h.sum_tolerance)?,
+        ),
+        Hydrodynamics::Sbt => anyhow::bail!(
+            "hydrodynamics = \"sbt\" runs on one process only ({ranks} ranks asked for): the shared step has the levels \"none\" and \"dipole\" so far; run it without mpirun"
+        ),
+        Hydrodynamics::None => Box::new(LocalDrag::new(cfg.diameter)),
+    })
+}
+
 /// The mobility named by `hydrodynamics` (validated).
 pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
     let h = &cfg.hydro;

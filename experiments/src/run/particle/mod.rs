@@ -21,7 +21,7 @@ use motile_particle::contact::WarmStart;
 use motile_particle::distributed::Distributed;
 use motile_particle::domain::Comm;
 use motile_particle::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
-use motile_particle::{Hydrodynamics, RodSet, StepError, StepReport, Stepper};
+use motile_particle::{RodSet, StepError, StepReport, Stepper};
 use std::path::Path;
 use std::time::Instant;
 
@@ -174,7 +174,7 @@ impl ParticleModel {
                     rods,
                     contact_warm_start: warm,
                     gmres_warm_start: Vec::new(),
-                    sum_state: Vec::new(),
+                    sum_state: r.dist.stepper().mobility().sum_state(),
                     step: self.step,
                     time: t,
                 }
@@ -319,7 +319,10 @@ impl run::RunModel for ParticleModel {
         let step = self.step + 1;
         let cfg = &self.cfg;
         // One process keeps the state before the step; ranks keep theirs and give it back on
-        // a failure.
+        // a failure, and gather it before the steps whose outputs need the flow's force
+        // density (the time series' velocity norms, snapshots' point forces), which is that of
+        // the state before the step.
+        let (diag, snap, _) = self.every;
         let before = match &self.ranks {
             None => Some(ParticleCheckpoint::of(
                 &self.rods,
@@ -327,6 +330,16 @@ impl run::RunModel for ParticleModel {
                 self.step,
                 self.time(),
             )),
+            Some(_)
+                if cfg.hydrodynamics.has_flow()
+                    && (step.is_multiple_of(diag) || step.is_multiple_of(snap)) =>
+            {
+                let b = self.checkpoint_now();
+                self.stepper
+                    .mobility_mut()
+                    .density_for(&b.rods.orientations());
+                Some(b)
+            }
             Some(_) => None,
         };
         let stepped = match &mut self.ranks {
@@ -361,12 +374,10 @@ impl run::RunModel for ParticleModel {
             io.log(&msg)?;
             io.bar.println(&msg);
         }
-        let (diag, snap, _) = self.every;
         if step.is_multiple_of(diag) {
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
             let c = &report.contact;
-            // Only the local level, which has no flow, is shared among ranks so far.
             let norms = match &before {
                 Some(b) => velocity_norms(&self.stepper, &b.rods)?,
                 None => (0.0, 0.0),
@@ -535,19 +546,14 @@ impl Ranked {
         rods: &RodSet,
         stepper: &Stepper,
     ) -> anyhow::Result<Self> {
-        if cfg.hydrodynamics != Hydrodynamics::None {
-            bail!(
-                "hydrodynamics = \"{}\" runs on one process only ({} ranks asked for): the shared step has the local level (\"none\") so far; run it without mpirun",
-                cfg.hydrodynamics,
-                comm.size()
-            );
-        }
+        let mut own = Stepper::new(shared_mobility(cfg, comm.size())?, cfg.contact.clone());
+        own.set_warm_start(stepper.warm_start().to_vec());
+        let sum_state = stepper.mobility().sum_state();
+        own.mobility_mut().set_sum_state(&sum_state);
         let mut m = vec![run::ranks::Order::Start as u8 as f64];
         run::ranks::encode_text(&toml::to_string(cfg)?, &mut m);
-        encode_state(rods, stepper.warm_start(), &mut m);
+        encode_state(rods, &sum_state, stepper.warm_start(), &mut m);
         run::ranks::broadcast(comm, Some(m));
-        let mut own = Stepper::new(mobility(cfg)?, cfg.contact.clone());
-        own.set_warm_start(stepper.warm_start().to_vec());
         Ok(Self {
             dist: Distributed::new(comm, own, rods),
         })
@@ -589,22 +595,25 @@ fn gather_share(
     state.zip(warm).map(|((r, v), w)| (r, v, w))
 }
 
-/// Rods and a warm start as numbers: box, diameter, count, then per rod centre, quaternion,
-/// images; then the warm start's (a, b, lambda).
-fn encode_state(rods: &RodSet, warm: &[((u32, u32), f64)], m: &mut Vec<f64>) {
+/// Rods, the sum's adaptive state and a warm start as numbers: box, diameter, count, then per
+/// rod centre, quaternion, images; the state's length and values; then the warm start's
+/// (a, b, lambda).
+fn encode_state(rods: &RodSet, sum_state: &[u32], warm: &[((u32, u32), f64)], m: &mut Vec<f64>) {
     m.extend([rods.box_length, rods.diameter, rods.len() as f64]);
     for k in 0..rods.len() {
         m.extend_from_slice(&rods.x[k]);
         m.extend_from_slice(&rods.q[k]);
         m.extend(rods.image[k].iter().map(|&i| i as f64));
     }
+    m.push(sum_state.len() as f64);
+    m.extend(sum_state.iter().map(|&s| f64::from(s)));
     m.extend(
         warm.iter()
             .flat_map(|&((a, b), l)| [f64::from(a), f64::from(b), l]),
     );
 }
 
-fn decode_state(m: &[f64]) -> anyhow::Result<(RodSet, WarmStart)> {
+fn decode_state(m: &[f64]) -> anyhow::Result<(RodSet, Vec<u32>, WarmStart)> {
     let head = m.get(..3).context("state message too short")?;
     let n = head[2] as usize;
     let body = m.get(3..3 + 10 * n).context("state message too short")?;
@@ -620,11 +629,19 @@ fn decode_state(m: &[f64]) -> anyhow::Result<(RodSet, WarmStart)> {
         rods.q.push([r[3], r[4], r[5], r[6]]);
         rods.image.push([r[7] as i64, r[8] as i64, r[9] as i64]);
     }
-    let warm = m[3 + 10 * n..]
+    let rest = &m[3 + 10 * n..];
+    let k = *rest.first().context("state message too short")? as usize;
+    let sum_state = rest
+        .get(1..1 + k)
+        .context("state message too short")?
+        .iter()
+        .map(|&s| s as u32)
+        .collect();
+    let warm = rest[1 + k..]
         .chunks_exact(3)
         .map(|w| ((w[0] as u32, w[1] as u32), w[2]))
         .collect();
-    Ok((rods, warm))
+    Ok((rods, sum_state, warm))
 }
 
 /// A follower rank's share of a particle run ([`run::ranks::follow`]).
@@ -638,9 +655,10 @@ impl Follower {
     pub(crate) fn start(comm: &'static dyn Comm, m: &[f64]) -> anyhow::Result<Self> {
         let (text, rest) = run::ranks::decode_text(m)?;
         let cfg: ParticleRunConfig = toml::from_str(&text)?;
-        let (rods, warm) = decode_state(rest)?;
-        let mut stepper = Stepper::new(mobility(&cfg)?, cfg.contact.clone());
+        let (rods, sum_state, warm) = decode_state(rest)?;
+        let mut stepper = Stepper::new(shared_mobility(&cfg, comm.size())?, cfg.contact.clone());
         stepper.set_warm_start(warm);
+        stepper.mobility_mut().set_sum_state(&sum_state);
         Ok(Self {
             dist: Distributed::new(comm, stepper, &rods),
         })
