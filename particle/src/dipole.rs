@@ -117,6 +117,12 @@ impl Mobility for Dipole {
         self.shared.is_some()
     }
 
+    fn shared_reach(&self, total: usize, box_length: f64) -> f64 {
+        self.shared
+            .as_ref()
+            .map_or(0.0, |s| s.preferred_reach(total, box_length))
+    }
+
     fn density_for(&mut self, p: &[Vec3]) {
         let c = SWIM_SPEED / (2.0 * eta(self.diameter));
         self.density = p

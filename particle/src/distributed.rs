@@ -314,9 +314,14 @@ impl<C: Comm> Distributed<C> {
     pub fn step(&mut self, dt: f64) -> Result<StepReport, StepError> {
         self.migrate();
         let before = (self.rods.clone(), self.stepper.warm_start().to_vec());
-        // A sliver beyond the contact reach, so that round-off at the slab bounds cannot drop a
-        // copy the cell list would pair.
-        let reach = (ROD_LENGTH + self.rods.diameter + self.stepper.contact.margin) * (1.0 + 1e-9);
+        // The contact reach, or the shared sums' if farther; a sliver beyond, so that
+        // round-off at the slab bounds cannot drop a copy the cell list would pair.
+        let contact = ROD_LENGTH + self.rods.diameter + self.stepper.contact.margin;
+        let sums = self
+            .stepper
+            .mobility()
+            .shared_reach(self.total, self.rods.box_length);
+        let reach = contact.max(sums) * (1.0 + 1e-9);
         let (mut local, ids, halo) = self.with_copies(reach);
         self.last_halo = local.len() - halo.owned;
         let part = Part {

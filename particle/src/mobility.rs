@@ -153,6 +153,11 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     fn shares(&self) -> bool {
         false
     }
+    /// How far beyond its slab a rank should hold copies for this mobility's shared sums
+    /// (`total` rods in a box of side `box_length`); zero for mobilities that act rod by rod.
+    fn shared_reach(&self, _total: usize, _box_length: f64) -> f64 {
+        0.0
+    }
     /// [`Self::predicted_velocities`] on one rank's part of a box shared by several
     /// (collective; see [`crate::domain`]): `rods` are the rank's own rods, then copies;
     /// correct for the own rods (the step copies the owners' values to the copies). The

@@ -41,6 +41,8 @@ use std::sync::Arc;
 
 /// Stresslet components in the spread: `S_00, S_11, S_22, S_01, S_02, S_12`.
 const COMPONENTS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+/// The component of `S_ij` in [`COMPONENTS`], row by row.
+const SYMMETRIC: [[usize; 3]; 3] = [[0, 3, 4], [3, 1, 5], [4, 5, 2]];
 
 /// The stresslet sum shared among ranks, with the adaptive level of one process.
 #[derive(Debug)]
@@ -336,15 +338,9 @@ impl Grid {
                     }
                     let at = line * m + i2;
                     let sh: [Complex64; 6] = std::array::from_fn(|c| rows[c][at]);
-                    let sm = |i: usize, j: usize| -> Complex64 {
-                        let c = COMPONENTS
-                            .iter()
-                            .position(|&(a, b)| (a, b) == (i.min(j), i.max(j)))
-                            .expect("a component");
-                        sh[c]
-                    };
                     let f: [Complex64; 3] = std::array::from_fn(|i| {
-                        -Complex64::i() * (sm(i, 0) * k[0] + sm(i, 1) * k[1] + sm(i, 2) * k[2])
+                        let [a, b, c] = SYMMETRIC[i];
+                        -Complex64::i() * (sh[a] * k[0] + sh[b] * k[1] + sh[c] * k[2])
                     });
                     let w = h3 * a0.2 * a1.2 * a2.2;
                     let v = rpy_fourier_mode_screened(k, k2, a0.1 * a1.1 * a2.1, xi, 0.0, vol, f);
@@ -455,6 +451,20 @@ impl SharedEwald {
             refine: Refinement::default(),
             report: None,
         })
+    }
+
+    /// The real-space cutoff one process would choose for `total` points in a box of side
+    /// `l` at the current level: the reach of copies that keeps the grid as coarse as one
+    /// process's (a smaller reach caps the cutoff and refines the grid instead).
+    pub fn preferred_reach(&self, total: usize, l: f64) -> f64 {
+        EwaldParams::choose_for(
+            self.refine.internal_tolerance(self.tol),
+            total,
+            l,
+            &[SumOutput::StressletVelocity, SumOutput::StressletGradient],
+            STRESSLET_PAIR_COST,
+        )
+        .cutoff
     }
 
     /// What the last sum reported (the whole box's estimate).
