@@ -138,31 +138,56 @@ impl Grid {
     ) -> [Vec<Complex64>; 6] {
         let (m, pp) = (self.m, self.p);
         let plane = m * m;
-        let mut touched: BTreeMap<usize, Vec<f64>> = BTreeMap::new();
-        for n in 0..x.len() {
-            let [ax, ay, az] = self.axes(x[n]);
-            let s: [f64; 6] = COMPONENTS.map(|(i, j)| sigma[n] * p[n][i] * p[n][j]);
-            for qz in 0..pp {
-                let z = (az.first + qz) % m;
-                let buf = touched.entry(z).or_insert_with(|| vec![0.0; plane * 6]);
-                for qy in 0..pp {
-                    let y = (ay.first + qy) % m;
-                    let wzy = az.w[qz] * ay.w[qy];
-                    for qx in 0..pp {
-                        let xi = (ax.first + qx) % m;
-                        let w = wzy * ax.w[qx];
-                        let at = (y * m + xi) * 6;
-                        for c in 0..6 {
-                            buf[at + c] += w * s[c];
+        let axes: Vec<[Axis; 3]> = x.par_iter().map(|y| self.axes(*y)).collect();
+        // Points by the first plane of their window; each touched plane is then filled on
+        // its own (in parallel), from the buckets of the planes below it within the support,
+        // in a fixed order.
+        let mut bucket: Vec<Vec<u32>> = vec![Vec::new(); m];
+        for (n, a) in axes.iter().enumerate() {
+            bucket[a[2].first].push(n as u32);
+        }
+        let planes: Vec<usize> = (0..m)
+            .filter(|&z| (0..pp).any(|q| !bucket[(z + m - q) % m].is_empty()))
+            .collect();
+        let touched: Vec<(usize, Vec<f64>)> = planes
+            .par_iter()
+            .map(|&z| {
+                let mut buf = vec![0.0; plane * 6];
+                for qz in 0..pp {
+                    for &n in &bucket[(z + m - qz) % m] {
+                        let n = n as usize;
+                        let [ax, ay, az] = &axes[n];
+                        let s: [f64; 6] = COMPONENTS.map(|(i, j)| sigma[n] * p[n][i] * p[n][j]);
+                        for qy in 0..pp {
+                            let mut y = ay.first + qy;
+                            if y >= m {
+                                y -= m;
+                            }
+                            let wzy = az.w[qz] * ay.w[qy];
+                            let sw: [f64; 6] = s.map(|v| wzy * v);
+                            let row = &mut buf[y * m * 6..(y + 1) * m * 6];
+                            for qx in 0..pp {
+                                let mut xi = ax.first + qx;
+                                if xi >= m {
+                                    xi -= m;
+                                }
+                                let w = ax.w[qx];
+                                let cell = &mut row[xi * 6..xi * 6 + 6];
+                                for c in 0..6 {
+                                    cell[c] += w * sw[c];
+                                }
+                            }
                         }
                     }
                 }
-            }
-        }
+                (z, buf)
+            })
+            .collect();
         // Planes to their owners: [plane index, values...] per plane.
         let mut send = vec![Vec::new(); self.ranks];
-        for (&z, buf) in &touched {
-            let msg = &mut send[self.owner(z)];
+        for (z, buf) in &touched {
+            let msg = &mut send[self.owner(*z)];
+            let z = *z;
             msg.push(z as f64);
             msg.extend_from_slice(buf);
         }
@@ -417,9 +442,15 @@ impl Grid {
                 for qz in 0..pp {
                     let pl = planes[&((az.first + qz) % m)];
                     for qy in 0..pp {
-                        let y = (ay.first + qy) % m;
+                        let mut y = ay.first + qy;
+                        if y >= m {
+                            y -= m;
+                        }
                         for qx in 0..pp {
-                            let xi = (ax.first + qx) % m;
+                            let mut xi = ax.first + qx;
+                            if xi >= m {
+                                xi -= m;
+                            }
                             let v = &pl[(y * m + xi) * 3..(y * m + xi) * 3 + 3];
                             let w = az.w[qz] * ay.w[qy] * ax.w[qx];
                             let d = [
