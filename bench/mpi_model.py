@@ -17,6 +17,10 @@ The model (hydrodynamics "none", z slabs):
   c_V                          values sent per copy per step (measured)
   alpha, beta                  interconnect latency and bandwidth (stated, not fitted):
                                HDR InfiniBand, 1.5 us, 25 GB/s.
+The dipole level (function `dipole`) takes its per-point and per-grid-point costs from the
+phases of the shared stresslet sum measured on 2 ranks, and the transposes' volume
+9 fields x 16 bytes x M^3 / P per rank (six stresslet components there, three velocity
+components back).
 A cubic decomposition, not implemented, is shown for comparison: copies
   H_cube = (N/P) ((1 + 2 r / a)^3 - 1),  a = L / P^(1/3),
   with messages to 26 neighbours instead of P ranks.
@@ -77,5 +81,31 @@ def main():
         )
 
 
+def dipole():
+    """The dipole level: the shared stresslet sum's phases measured on 2 ranks (L/l = 25,
+    nu = 0.625, 9 766 rods, 4 900 own points and 7 450 local ones per rank, grid 72^3, cutoff
+    3.28 l, one thread per rank), per point and per grid point, projected the same way."""
+    real, spread, gather, fft = 7.4e-6, 4.1e-6, 22e-6, 0.91e-6  # s per local pt, own pt, own pt, grid pt
+    m_per_l, rc = 72 / 25, 3.28
+    nu = 0.625
+    print("\ndipole level, nu = 0.625, one rank per node (node speed-up 6.0: the 16-thread mobility product, issue 18)")
+    print("| L/l | rods | grid | nodes | own | copies | compute | transposes | step |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for big_l in [100, 175]:
+        n = nu * big_l**3
+        m = int(round(m_per_l * big_l))
+        for p in [8, 64, 512]:
+            own = n / p
+            h = 2 * rc * n / big_l
+            comp = (real * (own + h) + (spread + gather) * own + fft * m**3 / p) / 6.0
+            trans = 9 * 16 * m**3 / p * (p - 1) / p / BETA + 2 * p * ALPHA
+            note = "" if p <= m else " (more ranks than planes)"
+            print(
+                f"| {big_l} | {n:.3g} | {m}^3 | {p}{note} | {own:.3g} | {h:.3g} | "
+                f"{comp:.3f} s | {trans * 1e3:.1f} ms | {comp + trans:.3f} s |"
+            )
+
+
 if __name__ == "__main__":
     main()
+    dipole()
