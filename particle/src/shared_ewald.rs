@@ -23,13 +23,14 @@
 
 use crate::domain::Comm;
 use crate::ewald::{rpy_fourier_mode_screened, stresslet_fourier_self_gradient};
-use crate::ewald_params::{EwaldParams, STRESSLET_PAIR_COST, SumOutput};
+use crate::ewald_params::{EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput};
 use crate::gaussian_grid::{MAX_SUPPORT, Window};
 use crate::geometry::{Vec3, dot, floor_i64, wrap_position};
-use crate::periodic::{StressletField, SumError, SumReport};
+use crate::periodic::{ErrorEstimate, RpyGeometry, StressletField, SumError, SumReport, check_rpy};
 use crate::point_cells::PointCells;
 use crate::spectral_ewald::{
-    Refinement, check_tolerance, report_of, stresslet_estimates, stresslet_real,
+    Refinement, check_tolerance, estimate_from, estimate_parts, report_of, rpy_assemble, rpy_real,
+    stresslet_estimates, stresslet_real,
 };
 use crate::units::VISCOSITY;
 use num_complex::Complex64;
@@ -127,15 +128,14 @@ impl Grid {
         })
     }
 
-    /// Spread the stresslets of `points` (own points) onto the planes their windows touch,
+    /// Spread `NF` values per point at `x` (own points) onto the planes their windows touch,
     /// then onto the owners' planes: this rank's planes, `[z][y][x]` per component.
-    fn spread(
+    fn spread<const NF: usize>(
         &self,
         comm: &dyn Comm,
         x: &[Vec3],
-        p: &[Vec3],
-        sigma: &[f64],
-    ) -> [Vec<Complex64>; 6] {
+        values: &[[f64; NF]],
+    ) -> [Vec<Complex64>; NF] {
         let (m, pp) = (self.m, self.p);
         let plane = m * m;
         let axes: Vec<[Axis; 3]> = x.par_iter().map(|y| self.axes(*y)).collect();
@@ -152,28 +152,28 @@ impl Grid {
         let touched: Vec<(usize, Vec<f64>)> = planes
             .par_iter()
             .map(|&z| {
-                let mut buf = vec![0.0; plane * 6];
+                let mut buf = vec![0.0; plane * NF];
                 for qz in 0..pp {
                     for &n in &bucket[(z + m - qz) % m] {
                         let n = n as usize;
                         let [ax, ay, az] = &axes[n];
-                        let s: [f64; 6] = COMPONENTS.map(|(i, j)| sigma[n] * p[n][i] * p[n][j]);
+                        let s = values[n];
                         for qy in 0..pp {
                             let mut y = ay.first + qy;
                             if y >= m {
                                 y -= m;
                             }
                             let wzy = az.w[qz] * ay.w[qy];
-                            let sw: [f64; 6] = s.map(|v| wzy * v);
-                            let row = &mut buf[y * m * 6..(y + 1) * m * 6];
+                            let sw: [f64; NF] = s.map(|v| wzy * v);
+                            let row = &mut buf[y * m * NF..(y + 1) * m * NF];
                             for qx in 0..pp {
                                 let mut xi = ax.first + qx;
                                 if xi >= m {
                                     xi -= m;
                                 }
                                 let w = ax.w[qx];
-                                let cell = &mut row[xi * 6..xi * 6 + 6];
-                                for c in 0..6 {
+                                let cell = &mut row[xi * NF..xi * NF + NF];
+                                for c in 0..NF {
                                     cell[c] += w * sw[c];
                                 }
                             }
@@ -193,13 +193,13 @@ impl Grid {
         }
         let got = comm.exchange(send);
         let own = self.share(self.me);
-        let mut out: [Vec<Complex64>; 6] =
+        let mut out: [Vec<Complex64>; NF] =
             std::array::from_fn(|_| vec![Complex64::default(); own.len() * plane]);
         for msg in &got {
-            for chunk in msg.chunks_exact(1 + plane * 6) {
+            for chunk in msg.chunks_exact(1 + plane * NF) {
                 let z = chunk[0] as usize - own.start;
-                for (k, v) in chunk[1..].chunks_exact(6).enumerate() {
-                    for c in 0..6 {
+                for (k, v) in chunk[1..].chunks_exact(NF).enumerate() {
+                    for c in 0..NF {
                         out[c][z * plane + k].re += v[c];
                     }
                 }
@@ -310,9 +310,15 @@ impl Grid {
         out
     }
 
-    /// The stresslets' velocity field on this rank's planes (real, `[z][y][x]` per component):
-    /// spread spectra in, the Ewald kernel with the window divided out twice, back.
-    fn velocity_planes(&self, comm: &dyn Comm, mut s: [Vec<Complex64>; 6]) -> [Vec<f64>; 3] {
+    /// The velocity field on this rank's planes (real, `[z][y][x]` per component) of the
+    /// spread sources `s`: their spectra, `kernel(k, |k|^2, exp(-|k|^2 / 4 xi^2), spectra)` at
+    /// every kept mode with the window divided out twice, back.
+    fn velocity_planes<const NF: usize>(
+        &self,
+        comm: &dyn Comm,
+        mut s: [Vec<Complex64>; NF],
+        kernel: impl Fn(Vec3, f64, f64, [Complex64; NF]) -> [Complex64; 3] + Sync,
+    ) -> [Vec<f64>; 3] {
         let m = self.m;
         for f in s.iter_mut() {
             self.fft_xy(f, false);
@@ -326,7 +332,6 @@ impl Grid {
         let scale = 2.0 * PI / self.l;
         let x = 1.0 / (4.0 * self.xi * self.xi);
         let h3 = self.h.powi(3);
-        let vol = self.l.powi(3);
         let axis: Vec<(f64, f64, f64)> = (0..m)
             .map(|i| {
                 let mode = if i < m.div_ceil(2) {
@@ -339,7 +344,6 @@ impl Grid {
             })
             .collect();
         let ys = self.share(self.me);
-        let xi = self.xi;
         let mut u = vec![vec![Complex64::default(); ys.len() * m * m]; 3];
         let (u0, rest) = u.split_at_mut(1);
         let (u1, u2) = rest.split_at_mut(1);
@@ -362,13 +366,9 @@ impl Grid {
                         continue;
                     }
                     let at = line * m + i2;
-                    let sh: [Complex64; 6] = std::array::from_fn(|c| rows[c][at]);
-                    let f: [Complex64; 3] = std::array::from_fn(|i| {
-                        let [a, b, c] = SYMMETRIC[i];
-                        -Complex64::i() * (sh[a] * k[0] + sh[b] * k[1] + sh[c] * k[2])
-                    });
+                    let sh: [Complex64; NF] = std::array::from_fn(|c| rows[c][at]);
                     let w = h3 * a0.2 * a1.2 * a2.2;
-                    let v = rpy_fourier_mode_screened(k, k2, a0.1 * a1.1 * a2.1, xi, 0.0, vol, f);
+                    let v = kernel(k, k2, a0.1 * a1.1 * a2.1, sh);
                     o0[i2] = v[0] * w;
                     o1[i2] = v[1] * w;
                     o2[i2] = v[2] * w;
@@ -535,30 +535,38 @@ impl SharedEwald {
         let mut strongest = [sigma.iter().fold(0.0f64, |m, s| m.max(s.abs()))];
         comm.max(&mut strongest);
         let floor = |k: i32| strongest[0] / (8.0 * PI * VISCOSITY * l.powi(k));
+        let tol = self.tol;
+        self.refined(
+            (total, l, reach),
+            (&outputs, STRESSLET_PAIR_COST),
+            |prm, internal| {
+                let (field, e2) = attempt(comm, prm, l, owned, x, p, sigma)?;
+                let (estimates, ratio) = stresslet_estimates(
+                    (&field, &e2, sigma),
+                    (prm, internal, tol),
+                    floor,
+                    |mine| over_ranks(comm, mine),
+                    total,
+                );
+                Ok((field, estimates, ratio))
+            },
+        )
+    }
+
+    /// The refinement loop of one process: attempts at the current level's parameters (the
+    /// cutoff at most `reach`) until `attempt`'s estimate/bound ratio stands; records the report.
+    fn refined<T>(
+        &mut self,
+        (total, l, reach): (usize, f64, f64),
+        (outputs, pair_cost): (&[SumOutput], f64),
+        mut attempt: impl FnMut(&EwaldParams, f64) -> Result<(T, Vec<ErrorEstimate>, f64), SumError>,
+    ) -> Result<T, SumError> {
         let mut attempts = 0;
         loop {
             attempts += 1;
             let internal = self.refine.internal_tolerance(self.tol);
-            let prm = EwaldParams::choose_within(
-                internal,
-                total,
-                l,
-                &outputs,
-                STRESSLET_PAIR_COST,
-                reach,
-            );
-            let (field, e2) = attempt(comm, &prm, l, owned, x, p, sigma)?;
-            let (estimates, ratio) = stresslet_estimates(
-                (&field, &e2, sigma),
-                (&prm, internal, self.tol),
-                floor,
-                |mine| {
-                    comm.all_gather(&mine).iter().fold([0.0f64; 4], |t, a| {
-                        [t[0].max(a[0]), t[1] + a[1], t[2].max(a[2]), t[3] + a[3]]
-                    })
-                },
-                total,
-            );
+            let prm = EwaldParams::choose_within(internal, total, l, outputs, pair_cost, reach);
+            let (out, estimates, ratio) = attempt(&prm, internal)?;
             if self.refine.accept(self.tol, ratio, false) {
                 self.report = Some(report_of(
                     self.tol,
@@ -566,10 +574,109 @@ impl SharedEwald {
                     prm,
                     estimates,
                 ));
-                return Ok(field);
+                return Ok(out);
             }
         }
     }
+}
+
+/// The estimate's reductions ([`estimate_parts`]) over all ranks (collective).
+fn over_ranks(comm: &dyn Comm, mine: [f64; 4]) -> [f64; 4] {
+    comm.all_gather(&mine).iter().fold([0.0f64; 4], |t, a| {
+        [t[0].max(a[0]), t[1] + a[1], t[2].max(a[2]), t[3] + a[3]]
+    })
+}
+
+impl SharedEwald {
+    /// The RPY mobility product over all ranks (collective): `points` holds this rank's
+    /// `owned` points first, then copies of other ranks' points within `reach` of them, both in
+    /// whole groups of `geometry.group` (a point does not see its own group's direct terms);
+    /// `total` points in the whole box. Returns the velocities at the own points.
+    pub fn rpy(
+        &mut self,
+        comm: &dyn Comm,
+        (owned, total, reach): (usize, usize, f64),
+        geometry: &RpyGeometry,
+        points: &[Vec3],
+        forces: &[Vec3],
+    ) -> Result<Vec<Vec3>, SumError> {
+        check_rpy(geometry, points, forces)?;
+        if !owned.is_multiple_of(geometry.group) || owned > points.len() {
+            return Err(SumError::Input(format!(
+                "{owned} own points of {} do not split into groups of {}",
+                points.len(),
+                geometry.group
+            )));
+        }
+        let output = SumOutput::RpyVelocity;
+        let tol = self.tol;
+        self.refined(
+            (total, geometry.box_length, reach),
+            (&[output], PAIR_COST),
+            |prm, internal| {
+                let (u, e2) = rpy_attempt(comm, prm, geometry, owned, points, forces)?;
+                let scale = internal * output.self_scale(prm.xi) / VISCOSITY;
+                let mine = estimate_parts(
+                    output,
+                    (scale, internal),
+                    |t| e2[t],
+                    |t| dot(u[t], u[t]),
+                    owned,
+                );
+                let est = estimate_from(output, over_ranks(comm, mine), total, 0.0);
+                let ratio = est.max_relative.max(est.l2_relative) / tol;
+                Ok((u, vec![est], ratio))
+            },
+        )
+    }
+
+    /// The real-space cutoff one process would choose for an RPY sum of `total` points in a
+    /// box of side `l` at the current level (see [`Self::preferred_reach`]).
+    pub fn preferred_rpy_reach(&self, total: usize, l: f64) -> f64 {
+        EwaldParams::choose_for(
+            self.refine.internal_tolerance(self.tol),
+            total,
+            l,
+            &[SumOutput::RpyVelocity],
+            PAIR_COST,
+        )
+        .cutoff
+    }
+}
+
+/// One attempt of the shared RPY sum: velocities at the own points and the error model's
+/// weighted strengths.
+fn rpy_attempt(
+    comm: &dyn Comm,
+    prm: &EwaldParams,
+    geometry: &RpyGeometry,
+    owned: usize,
+    points: &[Vec3],
+    forces: &[Vec3],
+) -> Result<(Vec<Vec3>, Vec<f64>), SumError> {
+    if let Some(i) = points.iter().position(|y| !y.iter().all(|c| c.is_finite())) {
+        return Err(SumError::Input(format!(
+            "point {i} has a non-finite coordinate {:?}",
+            points[i]
+        )));
+    }
+    let (l, a) = (geometry.box_length, geometry.radius);
+    let cells = PointCells::build(points, l, prm.cutoff, geometry.group);
+    let mut real = rpy_real(&cells, prm, a, l, forces);
+    real.truncate(owned);
+    let grid = Grid::new(prm, l, comm);
+    let spread = grid.spread(comm, &points[..owned], &forces[..owned]);
+    let (xi, vol) = (prm.xi, l.powi(3));
+    let field = grid.velocity_planes(comm, spread, |k, k2, screen, f| {
+        rpy_fourier_mode_screened(k, k2, screen, xi, a, vol, f)
+    });
+    let back = grid.gather(comm, &field, &points[..owned]);
+    Ok(rpy_assemble(
+        real,
+        |t| [back[t][0], back[t][1], back[t][2]],
+        (points, forces),
+        (prm, geometry),
+    ))
 }
 
 /// One attempt: velocities and gradients at the own points, and the error model's weighted
@@ -595,8 +702,19 @@ fn attempt(
     let real = stresslet_real(&cells, prm, l, p, sigma);
     // Fourier space over the ranks' slabs of the grid.
     let grid = Grid::new(prm, l, comm);
-    let spread = grid.spread(comm, &x[..owned], &p[..owned], &sigma[..owned]);
-    let field = grid.velocity_planes(comm, spread);
+    let s6: Vec<[f64; 6]> = (0..owned)
+        .map(|n| COMPONENTS.map(|(i, j)| sigma[n] * p[n][i] * p[n][j]))
+        .collect();
+    let spread = grid.spread(comm, &x[..owned], &s6);
+    let vol = l.powi(3);
+    let field = grid.velocity_planes(comm, spread, |k, k2, screen, sh| {
+        // Force density -i k . S, then the velocity of a point force (a = 0).
+        let f: [Complex64; 3] = std::array::from_fn(|i| {
+            let [a, b, c] = SYMMETRIC[i];
+            -Complex64::i() * (sh[a] * k[0] + sh[b] * k[1] + sh[c] * k[2])
+        });
+        rpy_fourier_mode_screened(k, k2, screen, xi, 0.0, vol, f)
+    });
     let back = grid.gather(comm, &field, &x[..owned]);
     let mut u = Vec::with_capacity(owned);
     let mut grad = Vec::with_capacity(owned);

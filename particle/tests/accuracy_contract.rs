@@ -433,3 +433,99 @@ fn shared_stresslet_sums_meet_the_tolerance_against_the_direct_sum_on_1_2_3_rank
         }
     }
 }
+
+/// RPY velocities at every node of rods with centres `x` (4 nodes each, forces `f` per node),
+/// summed on `ranks` ranks: rods owned by equal z slabs of their centres, copies of the rods
+/// whose centres lie within the cutoff one process would choose plus a rod length.
+fn shared_rpy(x: &[Vec3], y: &[Vec3], f: &[Vec3], l: f64, tol: f64, ranks: usize) -> Vec<Vec3> {
+    let g = 4;
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: A_RPY,
+        group: g,
+    };
+    let reach = SharedEwald::new(tol)
+        .unwrap()
+        .preferred_rpy_reach(y.len(), l);
+    let handles: Vec<_> =
+        ThreadRanks::group(ranks)
+            .into_iter()
+            .map(|comm| {
+                let (x, y, f) = (x.to_vec(), y.to_vec(), f.to_vec());
+                std::thread::spawn(move || {
+                    let (r, size) = (comm.rank(), comm.size());
+                    let (lo, hi) = (l * r as f64 / size as f64, l * (r + 1) as f64 / size as f64);
+                    let z = |k: usize| x[k][2].rem_euclid(l);
+                    let mut order: Vec<usize> =
+                        (0..x.len()).filter(|&k| (lo..hi).contains(&z(k))).collect();
+                    let owned = order.len();
+                    order.extend((0..x.len()).filter(|&k| {
+                        !(lo..hi).contains(&z(k)) && gap(z(k), lo, hi, l) <= reach + 1.0
+                    }));
+                    let pick = |v: &[Vec3]| -> Vec<Vec3> {
+                        order
+                            .iter()
+                            .flat_map(|&k| v[k * g..(k + 1) * g].to_vec())
+                            .collect()
+                    };
+                    let (ys, fs) = (pick(&y), pick(&f));
+                    let mut sum = SharedEwald::new(tol).unwrap();
+                    let u = sum
+                        .rpy(&comm, (owned * g, y.len(), reach), &geo, &ys, &fs)
+                        .unwrap();
+                    let report = sum.last_report().unwrap();
+                    (order[..owned].to_vec(), u, report)
+                })
+            })
+            .collect();
+    let mut out = vec![[0.0; 3]; y.len()];
+    for h in handles {
+        let (ids, u, report) = h.join().unwrap();
+        assert!(
+            report.met,
+            "the estimate says the tolerance was missed: {report:?}"
+        );
+        for (k, id) in ids.into_iter().enumerate() {
+            out[id * g..(id + 1) * g].copy_from_slice(&u[k * g..(k + 1) * g]);
+        }
+    }
+    out
+}
+
+/// The slender-body level's sum, shared: swimming (force-free) rods, random forces on rods and
+/// touching swimming rods, on 1, 2 and 3 ranks, within the tolerance of the direct sum.
+#[test]
+fn shared_rpy_sums_meet_the_tolerance_against_the_direct_sum_on_1_2_3_ranks() {
+    for (n, l, touching, swimming) in [
+        (300, 8.0, false, true),
+        (300, 8.0, false, false),
+        (100, 6.0, true, true),
+    ] {
+        let (x, p) = rods(n, l, touching, 31 + n as u64);
+        let (y, f) = rod_points(&x, &p, swimming, 3);
+        let geo = RpyGeometry {
+            box_length: l,
+            radius: A_RPY,
+            group: 4,
+        };
+        let targets: Vec<usize> = (0..y.len()).collect();
+        let exact = EwaldReference::default()
+            .rpy_at(&geo, &y, &f, &targets)
+            .unwrap();
+        for tol in [1e-4, 1e-8] {
+            for ranks in [1, 2, 3] {
+                let u = shared_rpy(&x, &y, &f, l, tol, ranks);
+                let (emax, e2) = errors(&vectors(&u), &vectors(&exact), 0.0);
+                eprintln!(
+                    "{n} {} rods{}, L = {l}, tol {tol:e}, {ranks} rank(s): {emax:.1e} max, {e2:.1e} L2",
+                    if swimming { "swimming" } else { "random-force" },
+                    if touching { " touching" } else { "" }
+                );
+                assert!(
+                    emax <= tol && e2 <= tol,
+                    "{n} rods, L = {l}, {ranks} ranks, tol {tol:e}: errors {emax:.2e} max, {e2:.2e} L2"
+                );
+            }
+        }
+    }
+}
