@@ -5,32 +5,32 @@
 
 use std::process::Command;
 
-/// A dilute dipole-level run: 1000 rods, nu = 1, 20 steps of 0.01.
-const DIPOLE: &str = "box_length = 10.0
-volume_fraction = 1.0
-dt = 0.01
-t_end = 0.2
-hydrodynamics = \"dipole\"
-diagnostic_interval = 0.01
-snapshot_interval = 0.2
-checkpoint_interval = 0.1
-vtk = false
-";
-
-const CONFIG: &str = "box_length = 8.0
-volume_fraction = 5.0
-dt = 0.002
-t_end = 0.04
-hydrodynamics = \"none\"
-diagnostic_interval = 0.002
-snapshot_interval = 0.04
-checkpoint_interval = 0.02
-vtk = false
-";
-
 #[cfg(feature = "mpi")]
 mod with_mpi {
     use super::*;
+
+    /// A dilute dipole-level run: 1000 rods, nu = 1, 20 steps of 0.01.
+    const DIPOLE: &str = "box_length = 10.0
+    volume_fraction = 1.0
+    dt = 0.01
+    t_end = 0.2
+    hydrodynamics = \"dipole\"
+    diagnostic_interval = 0.01
+    snapshot_interval = 0.2
+    checkpoint_interval = 0.1
+    vtk = false
+    ";
+
+    const CONFIG: &str = "box_length = 8.0
+    volume_fraction = 5.0
+    dt = 0.002
+    t_end = 0.04
+    hydrodynamics = \"none\"
+    diagnostic_interval = 0.002
+    snapshot_interval = 0.04
+    checkpoint_interval = 0.02
+    vtk = false
+    ";
     use std::path::Path;
     use std::process::Output;
 

@@ -4,7 +4,7 @@
 //! directory, every file), with the particle model's step shared among all ranks
 //! ([`motile_particle::distributed::Distributed`]). The other ranks are followers: they ignore
 //! their command line, take the resolved config and the starting state from the leader, and
-//! then do what it says, one collective operation at a time ([`Order`]): step, gather the state
+//! then do what it says, one collective operation at a time (an order each): step, gather the state
 //! to rank 0 (for snapshots, checkpoints and the last good state), stop. The leader always says
 //! stop when its command ends, successfully or not.
 //!
@@ -79,7 +79,7 @@ pub fn release() {
 }
 
 /// Messages this process has exchanged with the others: `(exchanges, values sent to other
-/// ranks)`, counted by [`MpiRanks`] (zero otherwise).
+/// ranks)`, counted by `MpiRanks` (feature `mpi`; zero otherwise).
 pub fn traffic() -> (u64, u64) {
     #[cfg(feature = "mpi")]
     {
