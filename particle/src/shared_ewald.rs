@@ -644,6 +644,25 @@ impl SharedEwald {
     }
 }
 
+/// Refuse non-finite points on any rank, on every rank (collective: a rank that returned alone
+/// would leave the others waiting in the sum's exchanges).
+fn all_finite(comm: &dyn Comm, x: &[Vec3]) -> Result<(), SumError> {
+    let bad = x.iter().position(|y| !y.iter().all(|c| c.is_finite()));
+    let mut flag = [if bad.is_some() { 1.0 } else { 0.0 }];
+    comm.max(&mut flag);
+    match bad {
+        Some(i) => Err(SumError::Input(format!(
+            "point {i} of rank {} has a non-finite coordinate {:?}",
+            comm.rank(),
+            x[i]
+        ))),
+        None if flag[0] > 0.0 => Err(SumError::Input(
+            "another rank has a point with a non-finite coordinate".into(),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// One attempt of the shared RPY sum: velocities at the own points and the error model's
 /// weighted strengths.
 fn rpy_attempt(
@@ -654,12 +673,7 @@ fn rpy_attempt(
     points: &[Vec3],
     forces: &[Vec3],
 ) -> Result<(Vec<Vec3>, Vec<f64>), SumError> {
-    if let Some(i) = points.iter().position(|y| !y.iter().all(|c| c.is_finite())) {
-        return Err(SumError::Input(format!(
-            "point {i} has a non-finite coordinate {:?}",
-            points[i]
-        )));
-    }
+    all_finite(comm, points)?;
     let (l, a) = (geometry.box_length, geometry.radius);
     let cells = PointCells::build(points, l, prm.cutoff, geometry.group);
     let mut real = rpy_real(&cells, prm, a, l, forces);
@@ -690,12 +704,7 @@ fn attempt(
     p: &[Vec3],
     sigma: &[f64],
 ) -> Result<(StressletField, Vec<f64>), SumError> {
-    if let Some(i) = x.iter().position(|y| !y.iter().all(|c| c.is_finite())) {
-        return Err(SumError::Input(format!(
-            "point {i} has a non-finite coordinate {:?}",
-            x[i]
-        )));
-    }
+    all_finite(comm, x)?;
     let xi = prm.xi;
     // Real space over own points and copies, as one process.
     let cells = PointCells::build(x, l, prm.cutoff, 1);

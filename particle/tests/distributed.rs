@@ -209,3 +209,43 @@ fn the_dipole_level_on_two_and_three_ranks_agrees_with_one_process_within_the_su
         );
     }
 }
+
+/// A non-finite point on one rank stops the shared sums on every rank with an error (a rank
+/// that returned alone would leave the others waiting forever).
+#[test]
+fn a_non_finite_point_on_one_rank_fails_the_shared_sums_on_every_rank() {
+    use motile_particle::shared_ewald::SharedEwald;
+    let handles: Vec<_> = ThreadRanks::group(2)
+        .into_iter()
+        .map(|comm| {
+            std::thread::spawn(move || {
+                let r = motile_particle::domain::Comm::rank(&comm);
+                let mut x: Vec<[f64; 3]> = (0..20)
+                    .map(|k| [0.3 * k as f64, 1.0 + r as f64 * 4.0, 2.0 + r as f64 * 4.0])
+                    .collect();
+                if r == 0 {
+                    x[3][1] = f64::NAN;
+                }
+                let p = vec![[0.0, 0.0, 1.0]; x.len()];
+                let sigma = vec![1.0; x.len()];
+                let mut sum = SharedEwald::new(1e-4).unwrap();
+                sum.stresslets(&comm, (x.len(), 40, 1.3), 8.0, &x, &p, &sigma)
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
+            })
+        })
+        .collect();
+    let results: Vec<_> = handles.into_iter().map(|h| h.join().unwrap()).collect();
+    assert!(
+        results[0]
+            .as_ref()
+            .is_err_and(|e| e.contains("point 3 of rank 0 has a non-finite coordinate")),
+        "{results:?}"
+    );
+    assert!(
+        results[1]
+            .as_ref()
+            .is_err_and(|e| e.contains("another rank has a point with a non-finite coordinate")),
+        "{results:?}"
+    );
+}
