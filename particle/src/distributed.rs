@@ -87,11 +87,6 @@ impl Slabs {
         }
         (lo - z).rem_euclid(l).min((z - hi).rem_euclid(l))
     }
-
-    /// The bounds, `ranks + 1` of them.
-    pub fn bounds(&self) -> &[f64] {
-        &self.bounds
-    }
 }
 
 /// Values per rod in a message: centre, quaternion, image counters, number.
@@ -189,11 +184,6 @@ impl<C: Comm> Distributed<C> {
     /// Their numbers in the whole box.
     pub fn ids(&self) -> &[u32] {
         &self.ids
-    }
-
-    /// The current slabs.
-    pub fn slabs(&self) -> &Slabs {
-        &self.slabs
     }
 
     /// Copies this rank held in the last step.

@@ -186,11 +186,6 @@ impl Halo {
         }
     }
 
-    /// Whether local rod `k` is this rank's own.
-    pub fn is_owned(&self, k: usize) -> bool {
-        k < self.owned
-    }
-
     /// The same halo with local rod `k` renamed `new[k]` (`owned` then no longer marks the own
     /// rods: the renumbered halo serves only to move values).
     pub(crate) fn renumbered(&self, new: &[u32]) -> Self {
