@@ -154,6 +154,17 @@ impl<C: Comm> Distributed<C> {
             .copied()
             .collect();
         stepper.set_warm_start(warm);
+        // The mobility's per-rod state (the slender-body solution and flow), if it has the
+        // whole box's: the own rods' rows.
+        let width = stepper.mobility().rod_state_width();
+        let rows = match stepper.mobility().rod_state() {
+            Some(rows) if width > 0 && rows.len() == width * all.len() => mine
+                .iter()
+                .flat_map(|&k| rows[k * width..(k + 1) * width].to_vec())
+                .collect(),
+            _ => Vec::new(),
+        };
+        stepper.mobility_mut().set_rod_state(rows);
         Self {
             comm,
             stepper,
@@ -192,18 +203,30 @@ impl<C: Comm> Distributed<C> {
     }
 
     /// Rebalance the slabs and move rods that left theirs, with the warm start of the pairs
-    /// they own (collective).
+    /// they own and the mobility's state of each rod (collective).
     fn migrate(&mut self) {
         let (ranks, me, l) = (self.comm.size(), self.comm.rank(), self.rods.box_length);
         let mut counts = Slabs::histogram(ranks, l, self.rods.x.iter().map(|x| x[2]));
         self.comm.sum(&mut counts);
         self.slabs = Slabs::balanced(ranks, l, &counts);
         let dest: Vec<usize> = self.rods.x.iter().map(|x| self.slabs.owner(x[2])).collect();
+        // Each rod's mobility state, when this rank has it for every own rod.
+        let width = self.stepper.mobility().rod_state_width();
+        let state = self
+            .stepper
+            .mobility()
+            .rod_state()
+            .filter(|s| width > 0 && s.len() == width * self.rods.len());
+        let row = |k: usize| state.as_ref().map(|s| &s[k * width..(k + 1) * width]);
         let mut send = vec![Vec::new(); ranks];
+        let mut send_state = vec![Vec::new(); ranks];
         let mut leaving: HashMap<u32, usize> = HashMap::new();
         for (k, &r) in dest.iter().enumerate() {
             if r != me {
                 push_record(&mut send[r], &self.rods, k, self.ids[k]);
+                if let Some(v) = row(k) {
+                    send_state[r].extend_from_slice(v);
+                }
                 leaving.insert(self.ids[k], r);
             }
         }
@@ -216,13 +239,17 @@ impl<C: Comm> Distributed<C> {
                 None => kept_warm.push(((a, b), lam)),
             }
         }
-        // One message per rank: the rod count, the rods, then the warm entries.
+        // One message per rank: the rod count, whether their states follow, the rods, their
+        // states, then the warm entries.
+        let has_state = if state.is_some() { 1.0 } else { 0.0 };
         let messages = send
             .into_iter()
+            .zip(send_state)
             .zip(warm_send)
-            .map(|(rods, warm)| {
-                let mut m = vec![(rods.len() / RECORD) as f64];
+            .map(|((rods, states), warm)| {
+                let mut m = vec![(rods.len() / RECORD) as f64, has_state];
                 m.extend(rods);
+                m.extend(states);
                 m.extend(warm);
                 m
             })
@@ -237,14 +264,30 @@ impl<C: Comm> Distributed<C> {
             image: keep.iter().map(|&k| self.rods.image[k]).collect(),
         };
         let mut ids: Vec<u32> = keep.iter().map(|&k| self.ids[k]).collect();
+        // The new own rods' states; incomplete (dropped below) if some rod came without one.
+        let mut complete = state.is_some();
+        let mut states: Vec<f64> = keep
+            .iter()
+            .filter_map(|&k| row(k))
+            .flatten()
+            .copied()
+            .collect();
         for (r, m) in got.iter().enumerate() {
             if r == me || m.is_empty() {
                 continue;
             }
-            let count = m[0] as usize;
-            let (rod_part, warm_part) = m[1..].split_at(count * RECORD);
+            let (count, with_state) = (m[0] as usize, m[1] > 0.0);
+            let (rod_part, rest) = m[2..].split_at(count * RECORD);
             pop_records(rod_part, &mut rods, &mut ids);
-            for w in warm_part.chunks_exact(3) {
+            let rest = if with_state {
+                let (s, rest) = rest.split_at(count * width);
+                states.extend_from_slice(s);
+                rest
+            } else {
+                complete &= count == 0;
+                rest
+            };
+            for w in rest.chunks_exact(3) {
                 kept_warm.push(((w[0] as u32, w[1] as u32), w[2]));
             }
         }
@@ -262,6 +305,14 @@ impl<C: Comm> Distributed<C> {
             image: perm.iter().map(|&k| rods.image[k]).collect(),
         };
         self.ids = perm.iter().map(|&k| ids[k]).collect();
+        let rows = if complete {
+            perm.iter()
+                .flat_map(|&k| states[k * width..(k + 1) * width].to_vec())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        self.stepper.mobility_mut().set_rod_state(rows);
     }
 
     /// The local set: own rods, then copies of other ranks' rods within `reach` of this slab;
@@ -362,11 +413,21 @@ impl<C: Comm> Distributed<C> {
     /// The whole box on rank 0, in the single-process numbering, with `rows[k]` of each own rod
     /// `k` (velocities, say) put in the same order; `None` on the other ranks (collective).
     pub fn gather<const K: usize>(&self, rows: &[[f64; K]]) -> Option<(RodSet, Vec<[f64; K]>)> {
-        assert_eq!(rows.len(), self.rods.len(), "one row per own rod");
-        let mut mine = Vec::with_capacity(self.rods.len() * (RECORD + K));
+        let (all, flat) = self.gather_rows(rows.as_flattened(), K)?;
+        let out = flat
+            .chunks_exact(K)
+            .map(|c| c.try_into().expect("rows of K"))
+            .collect();
+        Some((all, out))
+    }
+
+    /// [`Self::gather`] for rows of `width` values laid end to end.
+    fn gather_rows(&self, rows: &[f64], width: usize) -> Option<(RodSet, Vec<f64>)> {
+        assert_eq!(rows.len(), width * self.rods.len(), "one row per own rod");
+        let mut mine = Vec::with_capacity(self.rods.len() * (RECORD + width));
         for k in 0..self.rods.len() {
             push_record(&mut mine, &self.rods, k, self.ids[k]);
-            mine.extend_from_slice(&rows[k]);
+            mine.extend_from_slice(&rows[k * width..(k + 1) * width]);
         }
         let ranks = self.comm.size();
         let mut send = vec![Vec::new(); ranks];
@@ -383,17 +444,38 @@ impl<C: Comm> Distributed<C> {
             q: vec![[0.0; 4]; n],
             image: vec![[0; 3]; n],
         };
-        let mut out = vec![[0.0; K]; n];
+        let mut out = vec![0.0; n * width];
         for m in &got {
-            for r in m.chunks_exact(RECORD + K) {
+            for r in m.chunks_exact(RECORD + width) {
                 let id = r[10] as usize;
                 all.x[id] = [r[0], r[1], r[2]];
                 all.q[id] = [r[3], r[4], r[5], r[6]];
                 all.image[id] = [r[7] as i64, r[8] as i64, r[9] as i64];
-                out[id].copy_from_slice(&r[RECORD..]);
+                out[id * width..(id + 1) * width].copy_from_slice(&r[RECORD..]);
             }
         }
         Some((all, out))
+    }
+
+    /// The mobility's per-rod state ([`crate::mobility::Mobility::rod_state`]) of the whole box
+    /// on rank 0, in the single-process numbering: empty when some rank has none (before the
+    /// first solve) or the mobility keeps none; `None` on the other ranks (collective).
+    pub fn gather_rod_state(&self) -> Option<Vec<f64>> {
+        let mobility = self.stepper.mobility();
+        let width = mobility.rod_state_width();
+        if width == 0 {
+            return (self.comm.rank() == 0).then(Vec::new);
+        }
+        let state = mobility
+            .rod_state()
+            .filter(|s| s.len() == width * self.rods.len());
+        let mut missing = [if state.is_some() { 0.0 } else { 1.0 }];
+        self.comm.max(&mut missing);
+        if missing[0] > 0.0 {
+            return (self.comm.rank() == 0).then(Vec::new);
+        }
+        let rows = state.unwrap_or_default();
+        self.gather_rows(&rows, width).map(|(_, rows)| rows)
     }
 
     /// The own rods' velocities `(v, w)` of the last step, as rows for [`Self::gather`].

@@ -203,31 +203,46 @@ impl Halo {
 
     /// Copy each owner's values to its copies on other ranks (collective).
     pub fn refresh<const K: usize>(&self, comm: &dyn Comm, vals: &mut [[f64; K]]) {
-        transfer(comm, &self.send, &self.recv, vals, false);
+        self.refresh_rows(comm, vals.as_flattened_mut(), K);
+    }
+
+    /// [`Self::refresh`] for rows of `width` values, one per local rod, laid end to end.
+    pub fn refresh_rows(&self, comm: &dyn Comm, vals: &mut [f64], width: usize) {
+        transfer(comm, (&self.send, &self.recv), vals, width, false);
     }
 
     /// Add the values on copies into their owners, in rank order after the owner's own
     /// (collective); copies keep their values.
     pub fn accumulate<const K: usize>(&self, comm: &dyn Comm, vals: &mut [[f64; K]]) {
-        transfer(comm, &self.recv, &self.send, vals, true);
+        transfer(
+            comm,
+            (&self.recv, &self.send),
+            vals.as_flattened_mut(),
+            K,
+            true,
+        );
     }
 }
 
-/// Send `vals[k]` for `k` in `from[r]` to rank `r`, which writes (or with `add`, adds) them at
-/// its `to[me]` in order (collective).
-fn transfer<const K: usize>(
+/// Send row `k` of `vals` (rows of `width` values) for `k` in `from[r]` to rank `r`, which
+/// writes (or with `add`, adds) them at its `to[me]` in order (collective).
+fn transfer(
     comm: &dyn Comm,
-    from: &[Vec<u32>],
-    to: &[Vec<u32>],
-    vals: &mut [[f64; K]],
+    (from, to): (&[Vec<u32>], &[Vec<u32>]),
+    vals: &mut [f64],
+    width: usize,
     add: bool,
 ) {
-    if comm.size() == 1 {
+    if comm.size() == 1 || width == 0 {
         return;
     }
+    let row = |k: u32| k as usize * width..(k as usize + 1) * width;
     let send = (0..comm.size())
         .map(|r| match from.get(r) {
-            Some(list) => list.iter().flat_map(|&k| vals[k as usize]).collect(),
+            Some(list) => list
+                .iter()
+                .flat_map(|&k| vals[row(k)].iter().copied())
+                .collect(),
             None => Vec::new(),
         })
         .collect();
@@ -236,8 +251,8 @@ fn transfer<const K: usize>(
         let Some(list) = to.get(r) else {
             continue;
         };
-        for (&k, chunk) in list.iter().zip(data.chunks_exact(K)) {
-            let v = &mut vals[k as usize];
+        for (&k, chunk) in list.iter().zip(data.chunks_exact(width)) {
+            let v = &mut vals[row(k)];
             if add {
                 v.iter_mut().zip(chunk).for_each(|(v, c)| *v += c);
             } else {

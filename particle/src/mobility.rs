@@ -196,6 +196,20 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
             });
         Ok(())
     }
+    /// [`Self::final_velocities`] on one rank's part of a box shared by several (collective;
+    /// the caller then copies the owners' velocities to the copies): correct for the own rods,
+    /// whose `ft` are their owners' totals. The default is the single-process method, right
+    /// for mobilities whose final step acts rod by rod.
+    fn final_velocities_shared(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        ft: &[(Vec3, Vec3)],
+        out: &mut RodVelocities,
+        _part: crate::step::Part<'_>,
+    ) -> Result<(), MobilityError> {
+        self.final_velocities(rods, p, ft, out)
+    }
     /// What the last step's hydrodynamics did.
     fn report(&self) -> HydroReport {
         HydroReport::default()
@@ -211,6 +225,28 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     }
     /// Restore what [`Self::warm_state`] returned.
     fn set_warm_state(&mut self, _state: Vec<f64>) {}
+
+    /// Values per rod in [`Self::rod_state`]; zero for mobilities without per-rod state.
+    fn rod_state_width(&self) -> usize {
+        0
+    }
+
+    /// [`Self::warm_state`] rod by rod: [`Self::rod_state_width`] values per rod, the rods in
+    /// order, so that a box shared among ranks can move each rod's state with it; `None` while
+    /// there is no state for every rod (before the first solve).
+    fn rod_state(&self) -> Option<Vec<f64>> {
+        None
+    }
+
+    /// Restore rows of [`Self::rod_state`] (an empty or incomplete set: no state, the next
+    /// step starts afresh).
+    fn set_rod_state(&mut self, _rows: Vec<f64>) {}
+
+    /// The [`Self::warm_state`] of rods whose [`Self::rod_state`] is `rows` (to checkpoint a
+    /// whole box gathered from ranks in the single-process layout).
+    fn warm_state_of(&self, _rows: &[f64]) -> Vec<f64> {
+        Vec::new()
+    }
 
     /// The periodic sum's adaptive state ([`crate::periodic::PeriodicStokes::adaptive_state`]),
     /// for checkpoints; empty without a sum.

@@ -22,13 +22,16 @@
 //! persistent contact forces; one solve per step instead of a free and a contact solve halved
 //! the step's cost (BENCHMARKS.md).
 
+use crate::domain::{Comm, SingleProcess};
 use crate::geometry::{Vec3, cross, dot};
-use crate::gmres::{GmresInfo, GmresParams, LinOp, gmres};
+use crate::gmres::{GmresInfo, GmresParams, LinOp, gmres_shared};
 use crate::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
 };
 use crate::periodic::{PeriodicStokes, RpyGeometry, SumError};
 use crate::rods::RodSet;
+use crate::shared_ewald::SharedEwald;
+use crate::step::Part;
 use crate::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, check_diameter, eta};
 use motile_analysis::params::{InvalidParameter, check_range};
 use motile_analysis::quadrature::gauss_legendre;
@@ -114,24 +117,46 @@ pub struct SlenderBody {
     /// Settings.
     pub params: SlenderParams,
     sum: Box<dyn PeriodicStokes>,
+    /// The sum shared among ranks, when this mobility runs on one rank's part of a box.
+    shared: Option<SharedEwald>,
     s: Vec<f64>,
     w: Vec<f64>,
+    /// The last solution of (P4) (own rods on a rank): the next solve's warm start.
     warm_free: Vec<f64>,
     density: Vec<Vec3>,
     report: HydroReport,
     local: LocalDrag,
-    /// Flow velocities `([u]_l / l, w)` of the last solve: the next step's prediction.
+    /// Flow velocities `([u]_l / l, w)` of the last solve (own rods on a rank): the next
+    /// step's prediction.
     flow: Vec<(Vec3, Vec3)>,
     /// Whether this step's prediction was an exact free solve.
     predicted_exactly: bool,
 }
 
-/// The operator of (P4) on the force densities of all rods (flattened `[rod][node][xyz]`).
+/// Where (P4)'s sums run.
+enum P4Sum<'a> {
+    /// One process: every rod is in `points`.
+    One(&'a mut dyn PeriodicStokes),
+    /// One rank's part of a shared box: `points` are the own rods' nodes, then the copies';
+    /// node pairs within `reach` enter the real-space sum.
+    Shared {
+        sum: &'a mut SharedEwald,
+        part: Part<'a>,
+        reach: f64,
+    },
+}
+
+/// The operator of (P4) on the force densities of the own rods (flattened
+/// `[rod][node][xyz]`; on one process, all rods).
 struct P4<'a> {
-    sum: &'a mut dyn PeriodicStokes,
+    sum: P4Sum<'a>,
     geometry: RpyGeometry,
+    /// Nodes of every local rod (own rods first).
     points: &'a [Vec3],
+    /// Axes of every local rod.
     p: &'a [Vec3],
+    /// Own rods (the unknowns' rods).
+    owned: usize,
     s: &'a [f64],
     w: &'a [f64],
     /// `eta` of the rods' diameter.
@@ -145,26 +170,57 @@ struct P4<'a> {
 }
 
 impl P4<'_> {
-    /// `u` at every node from the force density `f` (flattened).
+    /// `u` at every own node from the own rods' force density `f` (flattened; on ranks
+    /// collective: the copies' densities come from their owners).
     fn flow(&mut self, f: &[f64]) -> Result<Vec<Vec3>, SumError> {
-        if let Some((cf, cu)) = &self.cache
-            && cf.as_slice() == f
-        {
+        let hit = matches!(&self.cache, Some((cf, _)) if cf.as_slice() == f);
+        let hit = match &self.sum {
+            P4Sum::One(_) => hit,
+            // Every rank must take the same branch: a rank that skipped the sum would leave
+            // the others waiting in its exchanges.
+            P4Sum::Shared { part, .. } => {
+                let mut miss = [if hit { 0.0 } else { 1.0 }];
+                part.comm.max(&mut miss);
+                miss[0] == 0.0
+            }
+        };
+        if hit && let Some((_, cu)) = &self.cache {
             return Ok(cu.clone());
         }
         let m = self.s.len();
-        let forces: Vec<Vec3> = f
-            .par_chunks_exact(3)
-            .enumerate()
-            .map(|(k, c)| {
-                let wk = self.w[k % m];
-                [c[0] * wk, c[1] * wk, c[2] * wk]
-            })
-            .collect();
+        let weighted = |f: &[f64]| -> Vec<Vec3> {
+            f.par_chunks_exact(3)
+                .enumerate()
+                .map(|(k, c)| {
+                    let wk = self.w[k % m];
+                    [c[0] * wk, c[1] * wk, c[2] * wk]
+                })
+                .collect()
+        };
         let t = Instant::now();
-        let u = self.sum.rpy(&self.geometry, self.points, &forces)?;
+        let (u, report) = match &mut self.sum {
+            P4Sum::One(sum) => {
+                let u = sum.rpy(&self.geometry, self.points, &weighted(f))?;
+                (u, sum.last_report())
+            }
+            P4Sum::Shared { sum, part, reach } => {
+                let width = 3 * m;
+                let mut full = vec![0.0; self.points.len() * 3];
+                full[..f.len()].copy_from_slice(f);
+                part.halo.refresh_rows(part.comm, &mut full, width);
+                let counts = (self.owned * m, part.total * m, *reach);
+                let u = sum.rpy(
+                    part.comm,
+                    counts,
+                    &self.geometry,
+                    self.points,
+                    &weighted(&full),
+                )?;
+                (u, sum.last_report())
+            }
+        };
         self.seconds += t.elapsed().as_secs_f64();
-        self.accuracy.add_sum(self.sum.last_report());
+        self.accuracy.add_sum(report);
         self.cache = Some((f.to_vec(), u.clone()));
         Ok(u)
     }
@@ -186,7 +242,7 @@ impl LinOp for P4<'_> {
     type Error = SumError;
 
     fn dim(&self) -> usize {
-        3 * self.points.len()
+        3 * self.s.len() * self.owned
     }
 
     fn apply(&mut self, x: &[f64], out: &mut [f64]) -> Result<(), SumError> {
@@ -231,6 +287,7 @@ impl SlenderBody {
         Self {
             params,
             sum,
+            shared: None,
             s,
             w,
             warm_free: Vec::new(),
@@ -254,22 +311,41 @@ impl SlenderBody {
             .collect()
     }
 
-    /// Solve (P4) with right-hand side `rhs` from the warm start `x`; returns the GMRES info and
-    /// the flow at the nodes for the solution.
+    /// Solve (P4) with right-hand side `rhs` (the own rods') from the warm start `x`; returns
+    /// the GMRES info and the flow at the own nodes for the solution. With `part`, on one
+    /// rank's part of a shared box (collective).
     fn solve(
         &mut self,
         rods: &RodSet,
         p: &[Vec3],
-        rhs: &[f64],
-        x: &mut Vec<f64>,
+        (rhs, x): (&[f64], &mut Vec<f64>),
         stage: &'static str,
+        part: Option<Part<'_>>,
     ) -> Result<(GmresInfo, Vec<Vec3>), MobilityError> {
         let points = self.node_positions(rods, p);
         if x.len() != rhs.len() {
             *x = rhs.to_vec();
         }
+        let (sum, comm, owned): (P4Sum<'_>, &dyn Comm, usize) = match part {
+            None => (P4Sum::One(self.sum.as_mut()), &SingleProcess, rods.len()),
+            Some(part) => {
+                let sum = self
+                    .shared
+                    .as_mut()
+                    .ok_or(MobilityError::NotShared("sbt"))?;
+                // Copies reach `part.reach` beyond the slab from their centres; nodes lie
+                // within half a rod of theirs.
+                let reach = part.reach - ROD_LENGTH;
+                (
+                    P4Sum::Shared { sum, part, reach },
+                    part.comm,
+                    part.halo.owned,
+                )
+            }
+        };
         let mut op = P4 {
-            sum: self.sum.as_mut(),
+            sum,
+            owned,
             geometry: RpyGeometry {
                 box_length: rods.box_length,
                 radius: self.params.rpy_radius,
@@ -284,7 +360,7 @@ impl SlenderBody {
             accuracy: HydroReport::default(),
             cache: None,
         };
-        let info = gmres(&mut op, rhs, x, &self.params.gmres)
+        let info = gmres_shared(comm, &mut op, rhs, x, &self.params.gmres)
             .map_err(|source| MobilityError::Gmres { stage, source })?;
         let u = op.flow(x)?;
         self.report.seconds_sums += op.seconds;
@@ -340,33 +416,37 @@ impl SlenderBody {
     }
 
     /// Solve (P4) (warm-started from the previous solution) and write the velocities (P2)-(P3)
-    /// into `out`; remembers the flow part for the next step's prediction.
+    /// into `out`; remembers the flow part for the next step's prediction. With `part`, on one
+    /// rank's part of a shared box (collective; the own rods' velocities only).
     fn solve_and_move(
         &mut self,
         rods: &RodSet,
         p: &[Vec3],
         ft: Option<&[(Vec3, Vec3)]>,
         out: &mut RodVelocities,
+        part: Option<Part<'_>>,
     ) -> Result<(), MobilityError> {
-        let rhs = self.rhs(p, ft);
+        let owned = part.map_or(rods.len(), |q| q.halo.owned);
+        let p_own = &p[..owned];
+        let rhs = self.rhs(p_own, ft.map(|f| &f[..owned]));
         let mut x = std::mem::take(&mut self.warm_free);
         let stage = if ft.is_some() {
             "swimming + contact"
         } else {
             "free"
         };
-        let result = self.solve(rods, p, &rhs, &mut x, stage);
+        let result = self.solve(rods, p, (&rhs, &mut x), stage, part);
         self.warm_free = x;
         let (info, u) = result?;
         self.report.gmres_iterations = info.iterations;
         self.report.gmres_residual = info.final_residual;
-        self.flow = self.flow_velocities(p, &u);
+        self.flow = self.flow_velocities(p_own, &u);
         let local = &self.local;
-        out.v
+        out.v[..owned]
             .par_iter_mut()
-            .zip(out.w.par_iter_mut())
+            .zip(out.w[..owned].par_iter_mut())
             .zip(&self.flow)
-            .zip(p)
+            .zip(p_own)
             .enumerate()
             .for_each(|(n, (((v, w), (dv, dw)), pn))| {
                 let (lv, lw) = match ft {
@@ -376,13 +456,39 @@ impl SlenderBody {
                 *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + dv[d] + lv[d]);
                 *w = [0, 1, 2].map(|d| dw[d] + lw[d]);
             });
-        self.density = self
-            .warm_free
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect();
+        self.density = densities(&self.warm_free);
         Ok(())
     }
+
+    /// Swimming plus the last solve's flow velocities, for the rods with axes `p`.
+    fn predict(&self, p: &[Vec3], out: &mut RodVelocities) {
+        out.v
+            .par_iter_mut()
+            .zip(out.w.par_iter_mut())
+            .zip(&self.flow)
+            .zip(p)
+            .for_each(|(((v, w), (dv, dw)), pn)| {
+                *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + dv[d]);
+                *w = *dw;
+            });
+    }
+
+    /// The same mobility able to run on one rank's part of a box shared by several, its sum
+    /// then [`SharedEwald`] at tolerance `tol` ([`Mobility::predicted_velocities_shared`]).
+    pub fn shared(mut self, tol: f64) -> Result<Self, SumError> {
+        self.shared = Some(SharedEwald::new(tol)?);
+        Ok(self)
+    }
+}
+
+/// Whether any force or torque is non-zero.
+fn any_force(ft: &[(Vec3, Vec3)]) -> bool {
+    ft.iter().any(|(f, t)| f.iter().chain(t).any(|c| *c != 0.0))
+}
+
+/// Force densities per node from the flattened solution.
+fn densities(x: &[f64]) -> Vec<Vec3> {
+    x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
 }
 
 impl Mobility for SlenderBody {
@@ -401,7 +507,7 @@ impl Mobility for SlenderBody {
         out: &mut RodVelocities,
     ) -> Result<(), MobilityError> {
         self.report = HydroReport::default();
-        self.solve_and_move(rods, p, None, out)
+        self.solve_and_move(rods, p, None, out, None)
     }
 
     /// The previous step's flow velocities plus swimming (no solve), or an exact free solve on
@@ -415,19 +521,64 @@ impl Mobility for SlenderBody {
         self.report = HydroReport::default();
         if self.flow.len() != rods.len() {
             self.predicted_exactly = true;
-            return self.solve_and_move(rods, p, None, out);
+            return self.solve_and_move(rods, p, None, out, None);
         }
         self.predicted_exactly = false;
-        out.v
-            .par_iter_mut()
-            .zip(out.w.par_iter_mut())
-            .zip(&self.flow)
-            .zip(p)
-            .for_each(|(((v, w), (dv, dw)), pn)| {
-                *v = [0, 1, 2].map(|d| SWIM_SPEED * pn[d] + dv[d]);
-                *w = *dw;
-            });
+        self.predict(p, out);
         Ok(())
+    }
+
+    fn shares(&self) -> bool {
+        self.shared.is_some()
+    }
+
+    fn shared_reach(&self, total: usize, box_length: f64) -> f64 {
+        // Node pairs within the cutoff; nodes lie within half a rod of their centres.
+        self.shared.as_ref().map_or(0.0, |s| {
+            s.preferred_rpy_reach(total * self.s.len(), box_length) + ROD_LENGTH
+        })
+    }
+
+    /// As [`Self::predicted_velocities`]; the exact free solve when any rank lacks the last
+    /// flow of one of its rods (the first step).
+    fn predicted_velocities_shared(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+        part: Part<'_>,
+    ) -> Result<(), MobilityError> {
+        self.report = HydroReport::default();
+        let mut missing = [if self.flow.len() == part.halo.owned {
+            0.0
+        } else {
+            1.0
+        }];
+        part.comm.max(&mut missing);
+        if missing[0] > 0.0 {
+            self.predicted_exactly = true;
+            return self.solve_and_move(rods, p, None, out, Some(part));
+        }
+        self.predicted_exactly = false;
+        self.predict(&p[..part.halo.owned], out);
+        Ok(())
+    }
+
+    fn final_velocities_shared(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        ft: &[(Vec3, Vec3)],
+        out: &mut RodVelocities,
+        part: Part<'_>,
+    ) -> Result<(), MobilityError> {
+        let owned = part.halo.owned;
+        let mut any = [if any_force(&ft[..owned]) { 1.0 } else { 0.0 }];
+        part.comm.max(&mut any);
+        if self.predicted_exactly && any[0] == 0.0 {
+            return Ok(());
+        }
+        self.solve_and_move(rods, p, Some(ft), out, Some(part))
     }
 
     /// One solve of (P4) with swimming and contact terms together, unless the prediction was
@@ -439,11 +590,10 @@ impl Mobility for SlenderBody {
         ft: &[(Vec3, Vec3)],
         out: &mut RodVelocities,
     ) -> Result<(), MobilityError> {
-        let any = ft.iter().any(|(f, t)| f.iter().chain(t).any(|c| *c != 0.0));
-        if self.predicted_exactly && !any {
+        if self.predicted_exactly && !any_force(ft) {
             return Ok(());
         }
-        self.solve_and_move(rods, p, Some(ft), out)
+        self.solve_and_move(rods, p, Some(ft), out, None)
     }
 
     fn local(&self, p: Vec3, f: Vec3, t: Vec3) -> (Vec3, Vec3) {
@@ -455,11 +605,17 @@ impl Mobility for SlenderBody {
     }
 
     fn sum_state(&self) -> Vec<u32> {
-        self.sum.adaptive_state()
+        match &self.shared {
+            Some(s) => s.adaptive_state(),
+            None => self.sum.adaptive_state(),
+        }
     }
 
     fn set_sum_state(&mut self, state: &[u32]) {
-        self.sum.set_adaptive_state(state);
+        match &mut self.shared {
+            Some(s) => s.set_adaptive_state(state),
+            None => self.sum.set_adaptive_state(state),
+        }
     }
 
     /// The last solution of (P4) followed by the last flow velocities (v, w per rod): both
@@ -473,6 +629,7 @@ impl Mobility for SlenderBody {
         s
     }
 
+    /// Also sets the force density ([`Mobility::force_density`]) to the restored solution.
     fn set_warm_state(&mut self, state: Vec<f64>) {
         // len = n (3 M + 6) for n rods.
         let per_rod = 3 * self.s.len() + 6;
@@ -483,6 +640,42 @@ impl Mobility for SlenderBody {
             .map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]]))
             .collect();
         self.warm_free = state[..split].to_vec();
+        self.density = densities(&self.warm_free);
+    }
+
+    /// The solution of (P4) (`3 M` values), then the flow velocities `v, w`.
+    fn rod_state_width(&self) -> usize {
+        3 * self.s.len() + 6
+    }
+
+    fn rod_state(&self) -> Option<Vec<f64>> {
+        let width = 3 * self.s.len();
+        if self.warm_free.len() != width * self.flow.len() {
+            return None;
+        }
+        let rows = self
+            .warm_free
+            .chunks_exact(width)
+            .zip(&self.flow)
+            .flat_map(|(f, (v, w))| f.iter().chain(v).chain(w).copied())
+            .collect();
+        Some(rows)
+    }
+
+    fn set_rod_state(&mut self, rows: Vec<f64>) {
+        let state = self.warm_state_of(&rows);
+        self.set_warm_state(state);
+    }
+
+    fn warm_state_of(&self, rows: &[f64]) -> Vec<f64> {
+        let width = self.rod_state_width();
+        let split = width - 6;
+        let mut state: Vec<f64> = rows
+            .chunks_exact(width)
+            .flat_map(|r| r[..split].iter().copied())
+            .collect();
+        state.extend(rows.chunks_exact(width).flat_map(|r| r[split..].to_vec()));
+        state
     }
 
     fn force_density(&self) -> Option<ForceDensity<'_>> {

@@ -312,8 +312,8 @@ impl Stepper {
     /// rods within reach of them, as `part.halo` says. Every own rod and every copy moves
     /// (the copies with their owners' velocities); the report is the whole box's. Velocities and
     /// contact forces ([`Self::velocities`], [`Self::contact_forces`]) are those of the local
-    /// rods, correct for the own ones. Mobilities that cannot share ([`Mobility::shares`]:
-    /// so far the slender-body one) return [`StepError::NotShared`] on more than one rank.
+    /// rods, correct for the own ones. Mobilities not built to share ([`Mobility::shares`])
+    /// return [`StepError::NotShared`] on more than one rank.
     pub fn step_part(
         &mut self,
         rods: &mut RodSet,
@@ -438,10 +438,13 @@ impl Stepper {
         // Contact forces and torques, back in the caller's numbering (copies' shares added
         // into their owners).
         let mut ft = self.rod_forces(&cons, &lambda, order, part);
-        self.mobility
-            .final_velocities(rods, &p, &ft, &mut self.velocities)?;
         if shared {
+            self.mobility
+                .final_velocities_shared(rods, &p, &ft, &mut self.velocities, part)?;
             self.refresh_velocities(part);
+        } else {
+            self.mobility
+                .final_velocities(rods, &p, &ft, &mut self.velocities)?;
         }
         // Correction: with hydrodynamics the step's velocities are not the ones the contact
         // problem planned with (contact forces act through the full mobility, which moves a

@@ -249,3 +249,75 @@ fn a_non_finite_point_on_one_rank_fails_the_shared_sums_on_every_rank() {
         "{results:?}"
     );
 }
+
+/// Settings of the slender-body comparison: a tight sum and GMRES, so that the ranks' answers
+/// differ by little more than the tolerances.
+const SBT_SUM_TOLERANCE: f64 = 1e-6;
+const SBT_GMRES_TOLERANCE: f64 = 1e-10;
+
+fn sbt_stepper(ranks: usize) -> Stepper {
+    let mut params = SlenderParams::for_diameter(DEFAULT_DIAMETER);
+    params.gmres.tol = SBT_GMRES_TOLERANCE;
+    let sum = Box::new(SpectralEwald::new(SBT_SUM_TOLERANCE).unwrap());
+    let mut mobility = SlenderBody::new(params, sum);
+    if ranks > 1 {
+        mobility = mobility.shared(SBT_SUM_TOLERANCE).unwrap();
+    }
+    Stepper::new(Box::new(mobility), ContactParams::default())
+}
+
+/// The slender-body level ((P4) by GMRES with distributed dot products; the RPY sum shared
+/// among ranks; each rod's GMRES warm start and flow prediction moving with it between slabs)
+/// on 2 and 3 ranks against one process. Both solve (P4) to the GMRES tolerance with sums within
+/// the sum tolerance, so their flows differ by about `(tol_sum + tol_gmres) max|u_flow|`
+/// times the conditioning of (P4); allowed: 10 x 2 x that per step, velocities and, times
+/// `dt`, positions, over 20 steps.
+#[test]
+fn the_slender_body_level_on_two_and_three_ranks_agrees_with_one_process() {
+    let dt = 0.01;
+    // nu = 0.46 in a box wide enough that copies (within the cutoff plus a rod length of a
+    // slab, about 4 l) cover only part of it on 3 ranks.
+    let r0 = random_nonoverlapping(1000, 13.0, DEFAULT_DIAMETER, 11, 100_000).unwrap();
+    let (rs, vs, reps) = single_with(&r0, sbt_stepper(1), dt);
+    let flow = vs
+        .iter()
+        .map(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - 1.0).abs())
+        .fold(0.0, f64::max)
+        .max(1e-3);
+    let bound_v = 10.0 * 2.0 * (SBT_SUM_TOLERANCE + SBT_GMRES_TOLERANCE) * flow;
+    let bound_x = STEPS as f64 * dt * bound_v;
+    for ranks in [1, 2, 3] {
+        let (rd, vd, repd, copies) = on_ranks_with(&r0, ranks, sbt_stepper, dt);
+        let [dx, dp, dv] = difference(&rs, &vs, &rd, &vd);
+        eprintln!(
+            "sbt, {ranks} ranks: |dx| {dx:.2e}, |dp| {dp:.2e}, |dv| {dv:.2e} after {STEPS} steps (flow up to {flow:.2e}; bounds {bound_x:.1e}, {bound_v:.1e}); GMRES iterations {:?} vs {:?}; copies per rank per step {:?}",
+            reps.iter()
+                .map(|r| r.hydro.gmres_iterations)
+                .collect::<Vec<_>>(),
+            repd.iter()
+                .map(|r| r.hydro.gmres_iterations)
+                .collect::<Vec<_>>(),
+            copies.iter().map(|c| c / STEPS).collect::<Vec<_>>()
+        );
+        if ranks == 1 {
+            assert!(rs == rd && vs == vd, "one rank is the single-process step");
+            continue;
+        }
+        assert!(
+            repd.iter()
+                .all(|r| r.hydro.sums > 0 && r.hydro.sum_tolerance_met),
+            "{ranks} ranks: every shared sum met its tolerance"
+        );
+        within(ranks, [dx, dp, dv], bound_x, bound_v);
+        // The warm starts moved with their rods: a rank that lost them would start GMRES from
+        // the right-hand side and need more iterations than one process.
+        for (k, (a, b)) in reps.iter().zip(&repd).enumerate() {
+            assert!(
+                a.hydro.gmres_iterations.abs_diff(b.hydro.gmres_iterations) <= 1,
+                "step {k}: {} GMRES iterations on {ranks} ranks, {} on one process",
+                b.hydro.gmres_iterations,
+                a.hydro.gmres_iterations
+            );
+        }
+    }
+}
