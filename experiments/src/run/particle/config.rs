@@ -359,21 +359,18 @@ pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig
     parse_run_config(text, path, ParticleRunConfig::validate).map(|c| c.resolved())
 }
 
-/// The mobility of one rank's part of a box shared by several: the dipole level's sum is the
-/// shared one ([`motile_particle::shared_ewald`]); the slender-body level is not shared yet.
-pub(super) fn shared_mobility(
-    cfg: &ParticleRunConfig,
-    ranks: usize,
-) -> anyhow::Result<Box<dyn Mobility>> {
+/// The mobility of one rank's part of a box shared by several: the dipole and slender-body
+/// levels' sums are the shared one ([`motile_particle::shared_ewald`]).
+pub(super) fn shared_mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
     let h = &cfg.hydro;
+    let sum = || SpectralEwald::new(h.sum_tolerance).map(Box::new);
     Ok(match cfg.hydrodynamics {
-        Hydrodynamics::Dipole => Box::new(
-            Dipole::new(Box::new(SpectralEwald::new(h.sum_tolerance)?), cfg.diameter)
-                .shared(h.sum_tolerance)?,
-        ),
-        Hydrodynamics::Sbt => anyhow::bail!(
-            "hydrodynamics = \"sbt\" runs on one process only ({ranks} ranks asked for): the shared step has the levels \"none\" and \"dipole\" so far; run it without mpirun"
-        ),
+        Hydrodynamics::Dipole => {
+            Box::new(Dipole::new(sum()?, cfg.diameter).shared(h.sum_tolerance)?)
+        }
+        Hydrodynamics::Sbt => {
+            Box::new(SlenderBody::new(h.slender(cfg.diameter), sum()?).shared(h.sum_tolerance)?)
+        }
         Hydrodynamics::None => Box::new(LocalDrag::new(cfg.diameter)),
     })
 }

@@ -169,11 +169,11 @@ impl ParticleModel {
         match &self.ranks {
             None => ParticleCheckpoint::of(&self.rods, &self.stepper, self.step, t),
             Some(r) => {
-                let (rods, _, warm) = r.gather();
+                let (rods, _, warm, rod_state) = r.gather();
                 ParticleCheckpoint {
                     rods,
                     contact_warm_start: warm,
-                    gmres_warm_start: Vec::new(),
+                    gmres_warm_start: self.stepper.mobility().warm_state_of(&rod_state),
                     sum_state: r.dist.stepper().mobility().sum_state(),
                     step: self.step,
                     time: t,
@@ -187,12 +187,17 @@ impl ParticleModel {
         Ok(())
     }
 
-    /// On several ranks: bring the whole state to rank 0's `rods` (collective); returns the
-    /// last step's kinematics there. One process: the stepper's.
+    /// On several ranks: bring the whole state to rank 0's `rods` and its mobility (the
+    /// slender-body solution, for the outputs' force density; collective); returns the last
+    /// step's kinematics there. One process: the stepper's.
     fn sync(&mut self) -> Kinematics {
         if let Some(r) = &self.ranks {
-            let (rods, rows, _) = r.gather();
+            let (rods, rows, _, rod_state) = r.gather();
             self.rods = rods;
+            if !rod_state.is_empty() {
+                let m = self.stepper.mobility_mut();
+                m.set_warm_state(m.warm_state_of(&rod_state));
+            }
             return Kinematics {
                 velocities: rows.iter().map(|x| [x[0], x[1], x[2]]).collect(),
                 angular_velocities: rows.iter().map(|x| [x[3], x[4], x[5]]).collect(),
@@ -346,7 +351,18 @@ impl run::RunModel for ParticleModel {
             None => self.stepper.step(&mut self.rods, cfg.dt),
             Some(r) => r.step(cfg.dt),
         };
+        let mut synced = None;
         let report = match stepped {
+            // On ranks, a mobility with per-rod state (the slender-body solution: the force
+            // density of the state before the step) brings it to rank 0 for the outputs.
+            Ok(r)
+                if self.ranks.is_some()
+                    && self.stepper.mobility().rod_state_width() > 0
+                    && (step.is_multiple_of(diag) || step.is_multiple_of(snap)) =>
+            {
+                synced = Some(self.sync());
+                r
+            }
             Ok(r) => r,
             Err(e) => {
                 self.before = Some(before.unwrap_or_else(|| self.checkpoint_now()));
@@ -361,6 +377,7 @@ impl run::RunModel for ParticleModel {
         };
         self.step = step;
         self.window.1 += 1;
+        let cfg = &self.cfg;
         let t = step as f64 * cfg.dt;
         if !self.warned_accuracy && report.hydro.sums > 0 && !report.hydro.sum_tolerance_met {
             // Never silent: the finest level of the fast sum could not meet the tolerance.
@@ -409,7 +426,10 @@ impl run::RunModel for ParticleModel {
             ));
         }
         if step.is_multiple_of(snap) {
-            let kin = self.sync();
+            let kin = match synced {
+                Some(k) => k,
+                None => self.sync(),
+            };
             let forces = before.as_ref().and_then(|b| {
                 self.stepper.mobility().force_density().map(|fd| {
                     let (points, forces) = fd.point_forces(&b.rods, &b.rods.orientations());
@@ -546,13 +566,15 @@ impl Ranked {
         rods: &RodSet,
         stepper: &Stepper,
     ) -> anyhow::Result<Self> {
-        let mut own = Stepper::new(shared_mobility(cfg, comm.size())?, cfg.contact.clone());
+        let mut own = Stepper::new(shared_mobility(cfg)?, cfg.contact.clone());
         own.set_warm_start(stepper.warm_start().to_vec());
         let sum_state = stepper.mobility().sum_state();
         own.mobility_mut().set_sum_state(&sum_state);
+        let hydro = stepper.mobility().warm_state();
+        own.mobility_mut().set_warm_state(hydro.clone());
         let mut m = vec![run::ranks::Order::Start as u8 as f64];
         run::ranks::encode_text(&toml::to_string(cfg)?, &mut m);
-        encode_state(rods, &sum_state, stepper.warm_start(), &mut m);
+        encode_state(rods, (&sum_state, &hydro), stepper.warm_start(), &mut m);
         run::ranks::broadcast(comm, Some(m));
         Ok(Self {
             dist: Distributed::new(comm, own, rods),
@@ -565,8 +587,8 @@ impl Ranked {
         self.dist.step(dt)
     }
 
-    /// The whole state on rank 0: rods, per-rod rows, warm start (collective).
-    fn gather(&self) -> (RodSet, Vec<[f64; ROW]>, WarmStart) {
+    /// The whole state on rank 0 (collective).
+    fn gather(&self) -> Gathered {
         let comm = *self.dist.comm();
         run::ranks::broadcast(comm, Some(vec![run::ranks::Order::Gather as u8 as f64]));
         gather_share(&self.dist).expect("rank 0 gathers")
@@ -586,19 +608,31 @@ fn rows(dist: &Distributed<&'static dyn Comm>) -> Vec<[f64; ROW]> {
         .collect()
 }
 
+/// A state gathered on rank 0: rods, per-rod rows, contact warm start, the mobility's per-rod
+/// state.
+type Gathered = (RodSet, Vec<[f64; ROW]>, WarmStart, Vec<f64>);
+
 /// The gather every rank takes part in; rank 0 gets the state.
-fn gather_share(
-    dist: &Distributed<&'static dyn Comm>,
-) -> Option<(RodSet, Vec<[f64; ROW]>, WarmStart)> {
+fn gather_share(dist: &Distributed<&'static dyn Comm>) -> Option<Gathered> {
     let state = dist.gather(&rows(dist));
     let warm = dist.gather_warm_start();
-    state.zip(warm).map(|((r, v), w)| (r, v, w))
+    let rod_state = dist.gather_rod_state();
+    match (state, warm, rod_state) {
+        (Some((r, v)), Some(w), Some(s)) => Some((r, v, w, s)),
+        _ => None,
+    }
 }
 
-/// Rods, the sum's adaptive state and a warm start as numbers: box, diameter, count, then per
-/// rod centre, quaternion, images; the state's length and values; then the warm start's
+/// Rods, the sum's adaptive state, the mobility's warm state and the contact warm start as
+/// numbers: box, diameter, count, then per rod centre, quaternion, images; the sum state's
+/// length and values; the mobility state's length and values; then the warm start's
 /// (a, b, lambda).
-fn encode_state(rods: &RodSet, sum_state: &[u32], warm: &[((u32, u32), f64)], m: &mut Vec<f64>) {
+fn encode_state(
+    rods: &RodSet,
+    (sum_state, hydro): (&[u32], &[f64]),
+    warm: &[((u32, u32), f64)],
+    m: &mut Vec<f64>,
+) {
     m.extend([rods.box_length, rods.diameter, rods.len() as f64]);
     for k in 0..rods.len() {
         m.extend_from_slice(&rods.x[k]);
@@ -607,13 +641,18 @@ fn encode_state(rods: &RodSet, sum_state: &[u32], warm: &[((u32, u32), f64)], m:
     }
     m.push(sum_state.len() as f64);
     m.extend(sum_state.iter().map(|&s| f64::from(s)));
+    m.push(hydro.len() as f64);
+    m.extend_from_slice(hydro);
     m.extend(
         warm.iter()
             .flat_map(|&((a, b), l)| [f64::from(a), f64::from(b), l]),
     );
 }
 
-fn decode_state(m: &[f64]) -> anyhow::Result<(RodSet, Vec<u32>, WarmStart)> {
+/// What [`encode_state`] wrote: rods, sum state, mobility state, warm start.
+type StartState = (RodSet, Vec<u32>, Vec<f64>, WarmStart);
+
+fn decode_state(m: &[f64]) -> anyhow::Result<StartState> {
     let head = m.get(..3).context("state message too short")?;
     let n = head[2] as usize;
     let body = m.get(3..3 + 10 * n).context("state message too short")?;
@@ -637,11 +676,17 @@ fn decode_state(m: &[f64]) -> anyhow::Result<(RodSet, Vec<u32>, WarmStart)> {
         .iter()
         .map(|&s| s as u32)
         .collect();
-    let warm = rest[1 + k..]
+    let rest = &rest[1 + k..];
+    let h = *rest.first().context("state message too short")? as usize;
+    let hydro = rest
+        .get(1..1 + h)
+        .context("state message too short")?
+        .to_vec();
+    let warm = rest[1 + h..]
         .chunks_exact(3)
         .map(|w| ((w[0] as u32, w[1] as u32), w[2]))
         .collect();
-    Ok((rods, sum_state, warm))
+    Ok((rods, sum_state, hydro, warm))
 }
 
 /// A follower rank's share of a particle run ([`run::ranks::follow`]).
@@ -655,10 +700,11 @@ impl Follower {
     pub(crate) fn start(comm: &'static dyn Comm, m: &[f64]) -> anyhow::Result<Self> {
         let (text, rest) = run::ranks::decode_text(m)?;
         let cfg: ParticleRunConfig = toml::from_str(&text)?;
-        let (rods, sum_state, warm) = decode_state(rest)?;
-        let mut stepper = Stepper::new(shared_mobility(&cfg, comm.size())?, cfg.contact.clone());
+        let (rods, sum_state, hydro, warm) = decode_state(rest)?;
+        let mut stepper = Stepper::new(shared_mobility(&cfg)?, cfg.contact.clone());
         stepper.set_warm_start(warm);
         stepper.mobility_mut().set_sum_state(&sum_state);
+        stepper.mobility_mut().set_warm_state(hydro);
         Ok(Self {
             dist: Distributed::new(comm, stepper, &rods),
         })
