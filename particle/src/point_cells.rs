@@ -23,6 +23,9 @@ pub(crate) struct PointCells {
     pub(crate) zs: Vec<f64>,
     /// Group of each point, in cell order.
     pub(crate) group: Vec<u32>,
+    /// Points `0..owned` (in the caller's order) are targets; the rest are sources only
+    /// ([`Self::own_first`]).
+    owned: usize,
 }
 
 impl PointCells {
@@ -77,7 +80,22 @@ impl PointCells {
             ys,
             zs,
             group,
+            owned: y.len(),
         }
+    }
+
+    /// The same cells with only the first `owned` points (in the caller's order) as targets:
+    /// the others (a rank's copies of other ranks' points) are sources, and pairs of two
+    /// sources are skipped. Their results are zero.
+    pub(crate) fn own_first(mut self, owned: usize) -> Self {
+        self.owned = owned;
+        self
+    }
+
+    /// Whether sorted point `k` is a target.
+    #[inline]
+    fn is_own(&self, k: usize) -> bool {
+        (self.members[k] as usize) < self.owned
     }
 
     /// Values in cell order (`members()[k]`'s value at `k`), for streaming in [`Self::gather`].
@@ -115,6 +133,9 @@ impl PointCells {
                     // Few cells: every point, minimum image per pair.
                     for (k, acc) in out.iter_mut().enumerate() {
                         let tk = range.start + k;
+                        if !self.is_own(tk) {
+                            continue;
+                        }
                         let yt = self.sorted[tk];
                         let gt = self.group[tk];
                         hits.clear();
@@ -131,6 +152,9 @@ impl PointCells {
                 let (cx, cy, cz) = (c % n, (c / n) % n, c / (n * n));
                 for (k, acc) in out.iter_mut().enumerate() {
                     let tk = range.start + k;
+                    if !self.is_own(tk) {
+                        continue;
+                    }
                     hits.clear();
                     self.collect_hits(tk, [cx, cy, cz], cutoff, false, hits);
                     f(acc, hits);
@@ -253,8 +277,12 @@ impl PointCells {
                         self.collect_hits(tk, c3, cutoff, true, &mut hits);
                         prepare(&mut hits);
                         let mut own = A::default();
+                        let target = self.is_own(tk);
                         for h in 0..hits.len {
                             let j = hits.index[h] as usize;
+                            if !target && !self.is_own(j) {
+                                continue;
+                            }
                             let other = if j >= main_start && j - main_start < main.len() {
                                 &mut main[j - main_start]
                             } else {

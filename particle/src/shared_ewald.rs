@@ -3,23 +3,25 @@
 //! real-space cutoff ([`crate::domain::Halo`]).
 //!
 //! - Real space: every rank sums over the neighbours of its own points (own points and copies),
-//!   from the same cell list and tables as one process; the cutoff is capped at the copies'
-//!   reach ([`EwaldParams`] chosen with that cap, a finer grid making up for it).
+//!   from the same cell list and tables as one process, skipping pairs of two copies; the
+//!   cutoff is capped at the copies' reach ([`EwaldParams`] chosen with that cap, a finer grid
+//!   making up for it).
 //! - Fourier space: the `M^3` grid is cut into slabs of planes along z. Each rank spreads its
 //!   own points (the same Gaussian window as one process) into the planes their windows touch
 //!   and sends each plane to its owner, which adds the contributions in rank order. The 3D FFT
-//!   is distributed: 2D FFTs of the owned planes, an all-to-all transpose to slabs of y rows,
-//!   FFTs along z; the kernel multiplies the modes a rank holds; the inverse runs back the same
-//!   way. Each rank then fetches the planes its points' windows need and gathers velocities and
-//!   gradients (the window's derivative), as one process does. A hand-written transpose over
-//!   the all-to-all exchange with rustfft (FFTW's MPI interface would need its C library, GPL,
-//!   and unsafe FFI).
+//!   is distributed: real-to-complex FFTs along x (`M/2 + 1` modes kept) and complex ones along
+//!   y of the owned planes, an all-to-all transpose to slabs of y rows, FFTs along z; the
+//!   kernel multiplies the modes a rank holds; the inverse runs back the same way. Each rank
+//!   then fetches the planes its points' windows need and gathers velocities (and, for
+//!   stresslets, gradients from the window's derivative), as one process does. A hand-written
+//!   transpose over the all-to-all exchange with rustfft/realfft (FFTW's MPI interface would
+//!   need its C library, GPL, and unsafe FFI).
 //! - The error estimate and the refinement are those of one process, with the maxima and sums
 //!   over all ranks, so every rank takes the same decisions.
 //!
 //! Results agree with the single-process sum within the tolerance (both are within it of the
-//! exact sum); the complex FFTs and the per-plane addition order differ from the single
-//! process's real FFTs, so the bits do not.
+//! exact sum); the FFTs' factorisation along y and z and the per-plane addition order differ
+//! from the single process's, so the bits do not.
 
 use crate::domain::Comm;
 use crate::ewald::{rpy_fourier_mode_screened, stresslet_fourier_self_gradient};
@@ -35,6 +37,7 @@ use crate::spectral_ewald::{
 use crate::units::VISCOSITY;
 use num_complex::Complex64;
 use rayon::prelude::*;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::{Fft, FftPlanner};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
@@ -72,8 +75,12 @@ struct Grid {
     l: f64,
     ranks: usize,
     me: usize,
+    /// Modes kept along x: `M/2 + 1` (real fields: the others are their conjugates).
+    mx: usize,
     fft: Arc<dyn Fft<f64>>,
     ifft: Arc<dyn Fft<f64>>,
+    r2c: Arc<dyn RealToComplex<f64>>,
+    c2r: Arc<dyn ComplexToReal<f64>>,
 }
 
 impl Grid {
@@ -81,6 +88,7 @@ impl Grid {
         let m = prm.modes;
         let win = Window::new(l, prm.xi, m, prm.support, prm.shape);
         let mut planner = FftPlanner::new();
+        let mut real = RealFftPlanner::new();
         Self {
             m,
             p: win.p,
@@ -90,8 +98,11 @@ impl Grid {
             l,
             ranks: comm.size(),
             me: comm.rank(),
+            mx: m / 2 + 1,
             fft: planner.plan_fft_forward(m),
             ifft: planner.plan_fft_inverse(m),
+            r2c: real.plan_fft_forward(m),
+            c2r: real.plan_fft_inverse(m),
         }
     }
 
@@ -135,7 +146,7 @@ impl Grid {
         comm: &dyn Comm,
         x: &[Vec3],
         values: &[[f64; NF]],
-    ) -> [Vec<Complex64>; NF] {
+    ) -> [Vec<f64>; NF] {
         let (m, pp) = (self.m, self.p);
         let plane = m * m;
         let axes: Vec<[Axis; 3]> = x.par_iter().map(|y| self.axes(*y)).collect();
@@ -193,14 +204,13 @@ impl Grid {
         }
         let got = comm.exchange(send);
         let own = self.share(self.me);
-        let mut out: [Vec<Complex64>; NF] =
-            std::array::from_fn(|_| vec![Complex64::default(); own.len() * plane]);
+        let mut out: [Vec<f64>; NF] = std::array::from_fn(|_| vec![0.0; own.len() * plane]);
         for msg in &got {
             for chunk in msg.chunks_exact(1 + plane * NF) {
                 let z = chunk[0] as usize - own.start;
                 for (k, v) in chunk[1..].chunks_exact(NF).enumerate() {
                     for c in 0..NF {
-                        out[c][z * plane + k].re += v[c];
+                        out[c][z * plane + k] += v[c];
                     }
                 }
             }
@@ -208,80 +218,131 @@ impl Grid {
         out
     }
 
-    /// FFTs along x and y of planes `[z][y][x]` (in place).
-    fn fft_xy(&self, data: &mut [Complex64], inverse: bool) {
-        let m = self.m;
-        let f = if inverse { &self.ifft } else { &self.fft };
-        data.par_chunks_mut(m * m).for_each(|pl| {
-            f.process(pl);
-            let mut t = vec![Complex64::default(); m * m];
-            for y in 0..m {
-                for x in 0..m {
-                    t[x * m + y] = pl[y * m + x];
-                }
-            }
-            f.process(&mut t);
-            for y in 0..m {
-                for x in 0..m {
-                    pl[y * m + x] = t[x * m + y];
-                }
-            }
-        });
+    /// Real planes `[z][y][x]` to their spectra along x (half, `mx` modes) and y:
+    /// `[z][y][kx]`.
+    fn forward_xy(&self, real: &mut [f64]) -> Vec<Complex64> {
+        let (m, mx) = (self.m, self.mx);
+        let mut out = vec![Complex64::default(); real.len() / m * mx];
+        real.par_chunks_mut(m * m)
+            .zip(out.par_chunks_mut(m * mx))
+            .for_each_init(
+                || {
+                    let t = vec![Complex64::default(); m * mx];
+                    (self.r2c.make_scratch_vec(), t)
+                },
+                |(scratch, t), (pl, spec)| {
+                    for (row, srow) in pl.chunks_mut(m).zip(spec.chunks_mut(mx)) {
+                        self.r2c
+                            .process_with_scratch(row, srow, scratch)
+                            .expect("r2c lengths");
+                    }
+                    self.along_y(spec, &self.fft, t);
+                },
+            );
+        out
     }
 
-    /// z slabs `[z][y][x]` of `fields` to y slabs `[y][x][z]` (all-to-all).
+    /// [`Self::forward_xy`] undone: spectra `[z][y][kx]` (overwritten) to real planes.
+    fn inverse_xy(&self, spec: &mut [Complex64]) -> Vec<f64> {
+        let (m, mx) = (self.m, self.mx);
+        let mut out = vec![0.0; spec.len() / mx * m];
+        spec.par_chunks_mut(m * mx)
+            .zip(out.par_chunks_mut(m * m))
+            .for_each_init(
+                || {
+                    let t = vec![Complex64::default(); m * mx];
+                    (self.c2r.make_scratch_vec(), t)
+                },
+                |(scratch, t), (sp, pl)| {
+                    self.along_y(sp, &self.ifft, t);
+                    for (srow, row) in sp.chunks_mut(mx).zip(pl.chunks_mut(m)) {
+                        // Imaginary parts a real field cannot have (kx = 0 and M/2) are
+                        // round-off here and dropped, as the real part of a complex inverse
+                        // would drop them.
+                        match self.c2r.process_with_scratch(srow, row, scratch) {
+                            Ok(()) | Err(realfft::FftError::InputValues(..)) => {}
+                            Err(e) => panic!("shared grid c2r: {e}"),
+                        }
+                    }
+                },
+            );
+        out
+    }
+
+    /// FFTs along y of one plane `[y][kx]` (in place), through `t` (`M mx` values).
+    fn along_y(&self, pl: &mut [Complex64], f: &Arc<dyn Fft<f64>>, t: &mut [Complex64]) {
+        let (m, mx) = (self.m, self.mx);
+        for y in 0..m {
+            for x in 0..mx {
+                t[x * m + y] = pl[y * mx + x];
+            }
+        }
+        f.process(t);
+        for y in 0..m {
+            for x in 0..mx {
+                pl[y * mx + x] = t[x * m + y];
+            }
+        }
+    }
+
+    /// z slabs `[z][y][kx]` of `fields` to y slabs `[y][kx][z]` (all-to-all).
     fn to_rows(&self, comm: &dyn Comm, fields: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
-        let m = self.m;
+        let (m, mx) = (self.m, self.mx);
         let (zs, ys) = (self.share(self.me), self.share(self.me));
         self.transpose(
             comm,
             fields,
             ys.len(),
             |r| (0..zs.len(), self.share(r)),
-            |z, y, x| (z * m + y) * m + x,
+            |z, y, x| (z * m + y) * mx + x,
             |r| (self.share(r), 0..ys.len()),
-            |z, y, x| (y * m + x) * m + z,
+            |z, y, x| (y * mx + x) * m + z,
         )
     }
 
-    /// y slabs `[y][x][z]` back to z slabs `[z][y][x]` (all-to-all).
+    /// y slabs `[y][kx][z]` back to z slabs `[z][y][kx]` (all-to-all).
     fn to_planes(&self, comm: &dyn Comm, fields: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
-        let m = self.m;
+        let (m, mx) = (self.m, self.mx);
         let (zs, ys) = (self.share(self.me), self.share(self.me));
         self.transpose(
             comm,
             fields,
             zs.len(),
             |r| (self.share(r), 0..ys.len()),
-            |z, y, x| (y * m + x) * m + z,
+            |z, y, x| (y * mx + x) * m + z,
             |r| (0..zs.len(), self.share(r)),
-            |z, y, x| (z * m + y) * m + x,
+            |z, y, x| (z * m + y) * mx + x,
         )
     }
 
     /// All-to-all of blocks: to rank `r` the elements `src(z, y, x)` for `(z, y)` in
-    /// `send(r)` (z outer) and every `x`; from rank `r` into `dst(z, y, x)` over `recv(r)` in
-    /// the same order. The result holds `len M^2` elements per field.
+    /// `send(r)` (z outer) and every `x < mx`; from rank `r` into `dst(z, y, x)` over `recv(r)`
+    /// in the same order. The result holds `len M mx` elements per field.
     #[allow(clippy::type_complexity)]
     fn transpose(
         &self,
         comm: &dyn Comm,
         fields: &[Vec<Complex64>],
         len: usize,
-        send: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>),
-        src: impl Fn(usize, usize, usize) -> usize,
-        recv: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>),
-        dst: impl Fn(usize, usize, usize) -> usize,
+        send: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) + Sync,
+        src: impl Fn(usize, usize, usize) -> usize + Sync,
+        recv: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) + Sync,
+        dst: impl Fn(usize, usize, usize) -> usize + Sync,
     ) -> Vec<Vec<Complex64>> {
-        let m = self.m;
+        let (m, mx, me) = (self.m, self.mx, self.me);
+        // This rank's own block is copied directly below, not sent to itself.
         let messages = (0..self.ranks)
+            .into_par_iter()
             .map(|r| {
+                if r == me {
+                    return Vec::new();
+                }
                 let (zr, yr) = send(r);
-                let mut v = Vec::with_capacity(fields.len() * zr.len() * yr.len() * m * 2);
+                let mut v = Vec::with_capacity(fields.len() * zr.len() * yr.len() * mx * 2);
                 for f in fields {
                     for z in zr.clone() {
                         for y in yr.clone() {
-                            for x in 0..m {
+                            for x in 0..mx {
                                 let c = f[src(z, y, x)];
                                 v.extend([c.re, c.im]);
                             }
@@ -292,21 +353,34 @@ impl Grid {
             })
             .collect();
         let got = comm.exchange(messages);
-        let mut out = vec![vec![Complex64::default(); len * m * m]; fields.len()];
-        for (r, msg) in got.iter().enumerate() {
-            let (zr, yr) = recv(r);
-            let mut it = msg.chunks_exact(2);
-            for f in out.iter_mut() {
-                for z in zr.clone() {
+        let mut out = vec![vec![Complex64::default(); len * m * mx]; fields.len()];
+        out.par_iter_mut().enumerate().for_each(|(k, f)| {
+            let (zs, ys) = send(me);
+            let (zd, yd) = recv(me);
+            for (z0, z1) in zs.zip(zd) {
+                for (y0, y1) in ys.clone().zip(yd.clone()) {
+                    for x in 0..mx {
+                        f[dst(z1, y1, x)] = fields[k][src(z0, y0, x)];
+                    }
+                }
+            }
+            for (r, msg) in got.iter().enumerate() {
+                if r == me {
+                    continue;
+                }
+                let (zr, yr) = recv(r);
+                let block = 2 * zr.len() * yr.len() * mx;
+                let mut it = msg[k * block..(k + 1) * block].chunks_exact(2);
+                for z in zr {
                     for y in yr.clone() {
-                        for x in 0..m {
+                        for x in 0..mx {
                             let c = it.next().expect("a full block");
                             f[dst(z, y, x)] = Complex64::new(c[0], c[1]);
                         }
                     }
                 }
             }
-        }
+        });
         out
     }
 
@@ -316,19 +390,12 @@ impl Grid {
     fn velocity_planes<const NF: usize>(
         &self,
         comm: &dyn Comm,
-        mut s: [Vec<Complex64>; NF],
+        mut s: [Vec<f64>; NF],
         kernel: impl Fn(Vec3, f64, f64, [Complex64; NF]) -> [Complex64; 3] + Sync,
     ) -> [Vec<f64>; 3] {
-        let m = self.m;
-        for f in s.iter_mut() {
-            self.fft_xy(f, false);
-        }
-        let mut rows = self.to_rows(comm, &s);
+        let (m, mx) = (self.m, self.mx);
+        let rows = self.forward(comm, &mut s);
         drop(s);
-        let fz = &self.fft;
-        for f in rows.iter_mut() {
-            f.par_chunks_mut(m).for_each(|line| fz.process(line));
-        }
         let scale = 2.0 * PI / self.l;
         let x = 1.0 / (4.0 * self.xi * self.xi);
         let h3 = self.h.powi(3);
@@ -344,7 +411,7 @@ impl Grid {
             })
             .collect();
         let ys = self.share(self.me);
-        let mut u = vec![vec![Complex64::default(); ys.len() * m * m]; 3];
+        let mut u = vec![vec![Complex64::default(); ys.len() * mx * m]; 3];
         let (u0, rest) = u.split_at_mut(1);
         let (u1, u2) = rest.split_at_mut(1);
         u0[0]
@@ -353,7 +420,7 @@ impl Grid {
             .zip(u2[0].par_chunks_mut(m))
             .enumerate()
             .for_each(|(line, ((o0, o1), o2))| {
-                let (yl, i0) = (line / m, line % m);
+                let (yl, i0) = (line / mx, line % mx);
                 let i1 = ys.start + yl;
                 for i2 in 0..m {
                     if i0 == m / 2 || i1 == m / 2 || i2 == m / 2 {
@@ -375,22 +442,43 @@ impl Grid {
                 }
             });
         drop(rows);
-        let fi = &self.ifft;
-        for f in u.iter_mut() {
-            f.par_chunks_mut(m).for_each(|line| fi.process(line));
-        }
-        let mut planes = self.to_planes(comm, &u);
-        drop(u);
-        for f in planes.iter_mut() {
-            self.fft_xy(f, true);
-        }
-        let mut it = planes.into_iter().map(|f| f.iter().map(|c| c.re).collect());
+        let mut it = self.inverse(comm, u).into_iter();
         std::array::from_fn(|_| it.next().expect("three components"))
     }
 
-    /// Velocity and gradient (`[u_0..2, du_i/dx_l at 3 + 3 i + l]`) at `points` from the field
-    /// on the owners' planes (each rank fetches the planes its windows need).
-    fn gather(&self, comm: &dyn Comm, field: &[Vec<f64>; 3], x: &[Vec3]) -> Vec<[f64; 12]> {
+    /// The distributed forward FFT: real fields on this rank's planes (`[z][y][x]`, overwritten)
+    /// to their half spectra on its y rows (`[y][kx][z]`, unnormalised).
+    fn forward(&self, comm: &dyn Comm, fields: &mut [Vec<f64>]) -> Vec<Vec<Complex64>> {
+        let spectra: Vec<Vec<Complex64>> = fields.iter_mut().map(|f| self.forward_xy(f)).collect();
+        let mut rows = self.to_rows(comm, &spectra);
+        drop(spectra);
+        let fz = &self.fft;
+        for f in rows.iter_mut() {
+            f.par_chunks_mut(self.m).for_each(|line| fz.process(line));
+        }
+        rows
+    }
+
+    /// [`Self::forward`] undone (unnormalised: `M^3` times the field).
+    fn inverse(&self, comm: &dyn Comm, mut rows: Vec<Vec<Complex64>>) -> Vec<Vec<f64>> {
+        let fi = &self.ifft;
+        for f in rows.iter_mut() {
+            f.par_chunks_mut(self.m).for_each(|line| fi.process(line));
+        }
+        let mut planes = self.to_planes(comm, &rows);
+        drop(rows);
+        planes.iter_mut().map(|f| self.inverse_xy(f)).collect()
+    }
+
+    /// Velocity and, with `GRAD`, gradient (`[u_0..2, du_i/dx_l at 3 + 3 i + l]`; zeros
+    /// without) at `points` from the field on the owners' planes (each rank fetches the planes
+    /// its windows need).
+    fn gather<const GRAD: bool>(
+        &self,
+        comm: &dyn Comm,
+        field: &[Vec<f64>; 3],
+        x: &[Vec3],
+    ) -> Vec<[f64; 12]> {
         let (m, pp) = (self.m, self.p);
         let plane = m * m;
         let axes: Vec<[Axis; 3]> = x.par_iter().map(|y| self.axes(*y)).collect();
@@ -453,15 +541,19 @@ impl Grid {
                             }
                             let v = &pl[(y * m + xi) * 3..(y * m + xi) * 3 + 3];
                             let w = az.w[qz] * ay.w[qy] * ax.w[qx];
-                            let d = [
-                                az.w[qz] * ay.w[qy] * ax.dw[qx],
-                                az.w[qz] * ay.dw[qy] * ax.w[qx],
-                                az.dw[qz] * ay.w[qy] * ax.w[qx],
-                            ];
                             for c in 0..3 {
                                 out[c] += w * v[c];
-                                for l in 0..3 {
-                                    out[3 + 3 * c + l] += d[l] * v[c];
+                            }
+                            if GRAD {
+                                let d = [
+                                    az.w[qz] * ay.w[qy] * ax.dw[qx],
+                                    az.w[qz] * ay.dw[qy] * ax.w[qx],
+                                    az.dw[qz] * ay.w[qy] * ax.w[qx],
+                                ];
+                                for c in 0..3 {
+                                    for l in 0..3 {
+                                        out[3 + 3 * c + l] += d[l] * v[c];
+                                    }
                                 }
                             }
                         }
@@ -675,7 +767,7 @@ fn rpy_attempt(
 ) -> Result<(Vec<Vec3>, Vec<f64>), SumError> {
     all_finite(comm, points)?;
     let (l, a) = (geometry.box_length, geometry.radius);
-    let cells = PointCells::build(points, l, prm.cutoff, geometry.group);
+    let cells = PointCells::build(points, l, prm.cutoff, geometry.group).own_first(owned);
     let mut real = rpy_real(&cells, prm, a, l, forces);
     real.truncate(owned);
     let grid = Grid::new(prm, l, comm);
@@ -684,7 +776,7 @@ fn rpy_attempt(
     let field = grid.velocity_planes(comm, spread, |k, k2, screen, f| {
         rpy_fourier_mode_screened(k, k2, screen, xi, a, vol, f)
     });
-    let back = grid.gather(comm, &field, &points[..owned]);
+    let back = grid.gather::<false>(comm, &field, &points[..owned]);
     Ok(rpy_assemble(
         real,
         |t| [back[t][0], back[t][1], back[t][2]],
@@ -707,7 +799,7 @@ fn attempt(
     all_finite(comm, x)?;
     let xi = prm.xi;
     // Real space over own points and copies, as one process.
-    let cells = PointCells::build(x, l, prm.cutoff, 1);
+    let cells = PointCells::build(x, l, prm.cutoff, 1).own_first(owned);
     let real = stresslet_real(&cells, prm, l, p, sigma);
     // Fourier space over the ranks' slabs of the grid.
     let grid = Grid::new(prm, l, comm);
@@ -724,7 +816,7 @@ fn attempt(
         });
         rpy_fourier_mode_screened(k, k2, screen, xi, 0.0, vol, f)
     });
-    let back = grid.gather(comm, &field, &x[..owned]);
+    let back = grid.gather::<true>(comm, &field, &x[..owned]);
     let mut u = Vec::with_capacity(owned);
     let mut grad = Vec::with_capacity(owned);
     let mut e2 = Vec::with_capacity(owned);
@@ -739,4 +831,46 @@ fn attempt(
         e2.push(*w);
     }
     Ok((StressletField { u, grad }, e2))
+}
+
+/// The shared grid's distributed FFT alone, for benchmarks (BENCHMARKS.md compares it with
+/// FFTW's MPI interface): `reps` round trips (forward, then inverse) of `fields` real fields
+/// on an `m^3` grid split among the ranks of `comm` as the shared sums split it (collective).
+/// Returns this rank's median seconds per round trip and the largest error of the round trip
+/// against the input (scaled by `m^3`), relative to the input's largest value, over this
+/// rank's planes.
+pub fn fft_round_trip(comm: &dyn Comm, m: usize, fields: usize, reps: usize) -> (f64, f64) {
+    let l = 1.0;
+    let prm = EwaldParams {
+        modes: m,
+        ..EwaldParams::choose(1e-6, 1000, l)
+    };
+    let grid = Grid::new(&prm, l, comm);
+    let own = grid.share(grid.me);
+    let plane = m * m;
+    // A deterministic field of every global index, the same on any rank count.
+    let input: Vec<Vec<f64>> = (0..fields)
+        .map(|f| {
+            (own.start * plane..own.end * plane)
+                .map(|k| ((k * 7 + f * 13) as f64 * 0.618_033_988_7).fract() - 0.5)
+                .collect()
+        })
+        .collect();
+    let mut times = Vec::with_capacity(reps);
+    let mut error = 0.0f64;
+    for _ in 0..reps.max(1) {
+        let mut data = input.clone();
+        let t = std::time::Instant::now();
+        let rows = grid.forward(comm, &mut data);
+        let back = grid.inverse(comm, rows);
+        times.push(t.elapsed().as_secs_f64());
+        let scale = 1.0 / (m * m * m) as f64;
+        for (a, b) in back.iter().zip(&input) {
+            for (x, y) in a.iter().zip(b) {
+                error = error.max((x * scale - y).abs() / 0.5);
+            }
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    (times[times.len() / 2], error)
 }

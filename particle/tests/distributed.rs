@@ -321,3 +321,30 @@ fn the_slender_body_level_on_two_and_three_ranks_agrees_with_one_process() {
         }
     }
 }
+
+/// The shared grid's distributed FFT (the benchmark entry point BENCHMARKS.md compares with
+/// FFTW): a forward and inverse round trip returns the fields to round-off on 1, 2 and 3
+/// ranks, for grid sizes that do and do not divide among the ranks.
+#[test]
+fn the_distributed_fft_round_trip_returns_the_fields() {
+    for m in [12, 16, 20] {
+        for ranks in [1, 2, 3] {
+            let handles: Vec<_> = ThreadRanks::group(ranks)
+                .into_iter()
+                .map(|comm| {
+                    std::thread::spawn(move || {
+                        motile_particle::shared_ewald::fft_round_trip(&comm, m, 3, 1).1
+                    })
+                })
+                .collect();
+            let worst = handles
+                .into_iter()
+                .map(|h| h.join().unwrap())
+                .fold(0.0, f64::max);
+            assert!(
+                worst < 1e-13,
+                "M = {m}, {ranks} ranks: round-trip error {worst:.1e}"
+            );
+        }
+    }
+}
