@@ -351,10 +351,17 @@ impl<C: Comm> Distributed<C> {
     }
 
     /// Advance by `dt` (collective). On an error every rank returns it and keeps the state
-    /// before the step (its rods and warm start), ready to be gathered as the last good state.
+    /// before the step (its rods, the contact warm start, the mobility's per-rod state and its
+    /// sum's adaptive state), ready to be gathered as the last good state.
     pub fn step(&mut self, dt: f64) -> Result<StepReport, StepError> {
         self.migrate();
-        let before = (self.rods.clone(), self.stepper.warm_start().to_vec());
+        let mobility = self.stepper.mobility();
+        let before = (
+            self.rods.clone(),
+            self.stepper.warm_start().to_vec(),
+            mobility.rod_state(),
+            mobility.sum_state(),
+        );
         // The contact reach, or the shared sums' if farther; a sliver beyond, so that
         // round-off at the slab bounds cannot drop a copy the cell list would pair.
         let contact = ROD_LENGTH + self.rods.diameter + self.stepper.contact.margin;
@@ -374,8 +381,13 @@ impl<C: Comm> Distributed<C> {
         };
         let report = self.stepper.step_part(&mut local, dt, part);
         if report.is_err() {
-            self.rods = before.0;
-            self.stepper.set_warm_start(before.1);
+            let (rods, warm, rod_state, sum_state) = before;
+            self.rods = rods;
+            self.stepper.set_warm_start(warm);
+            let mobility = self.stepper.mobility_mut();
+            // No state before the step: none after (the next step solves afresh).
+            mobility.set_rod_state(rod_state.unwrap_or_default());
+            mobility.set_sum_state(&sum_state);
             return report;
         }
         let owned = halo.owned;
