@@ -232,8 +232,9 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     }
 
     /// [`Self::warm_state`] rod by rod: [`Self::rod_state_width`] values per rod, the rods in
-    /// order, so that a box shared among ranks can move each rod's state with it; `None` while
-    /// there is no state for every rod (before the first solve).
+    /// order, so that a box shared among ranks can move each rod's state with it. The rows are
+    /// those of the rods of the last solve (none before the first): callers check their count
+    /// against their rods. `None` for mobilities without per-rod state.
     fn rod_state(&self) -> Option<Vec<f64>> {
         None
     }

@@ -86,7 +86,7 @@ impl PointCells {
 
     /// The same cells with only the first `owned` points (in the caller's order) as targets:
     /// the others (a rank's copies of other ranks' points) are sources, and pairs of two
-    /// sources are skipped. Their results are zero.
+    /// sources are skipped. The sources' results are partial (or zero) and must not be used.
     pub(crate) fn own_first(mut self, owned: usize) -> Self {
         self.owned = owned;
         self

@@ -324,7 +324,9 @@ fn the_slender_body_level_on_two_and_three_ranks_agrees_with_one_process() {
 
 /// The shared grid's distributed FFT (the benchmark entry point BENCHMARKS.md compares with
 /// FFTW): a forward and inverse round trip returns the fields to round-off on 1, 2 and 3
-/// ranks, for grid sizes that do and do not divide among the ranks.
+/// ranks, for grid sizes that do and do not divide among the ranks. (A wrong transform that
+/// undid itself would pass here; the shared sums' tests against the direct Ewald sum in
+/// accuracy_contract.rs are what check the transform itself.)
 #[test]
 fn the_distributed_fft_round_trip_returns_the_fields() {
     for m in [12, 16, 20] {
