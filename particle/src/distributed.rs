@@ -187,6 +187,12 @@ impl<C: Comm> Distributed<C> {
         &self.stepper
     }
 
+    /// The stepper, to change its settings between steps (every rank must make the same
+    /// change: the ranks' steps are collective).
+    pub fn stepper_mut(&mut self) -> &mut Stepper {
+        &mut self.stepper
+    }
+
     /// This rank's own rods.
     pub fn rods(&self) -> &RodSet {
         &self.rods

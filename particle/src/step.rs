@@ -85,7 +85,7 @@ pub enum StepError {
     NonFinite(usize),
     /// A step shared by several ranks with a mobility that is not shared yet.
     #[error(
-        "the {mobility_name} mobility runs on one process only ({ranks} ranks asked for): run it without mpirun, or use hydrodynamics = \"none\" or \"dipole\""
+        "the {mobility_name} mobility runs on one process only ({ranks} ranks asked for): run it without mpirun"
     )]
     NotShared {
         /// The mobility's name.

@@ -350,3 +350,51 @@ fn the_distributed_fft_round_trip_returns_the_fields() {
         }
     }
 }
+
+/// A step that fails on ranks fails on every rank, and each keeps its state from before it:
+/// rods, and the slender-body level's per-rod GMRES warm start and flow prediction, gathered to
+/// rank 0 exactly as before the failed step. The failure comes at the end of a whole step (solves
+/// done, state changed): after two good steps the overlap tolerance is set below zero, which no
+/// step can meet.
+#[test]
+fn a_failed_shared_step_keeps_the_state_before_it_on_every_rank() {
+    let r0 = random_nonoverlapping(300, 8.0, DEFAULT_DIAMETER, 17, 100_000).unwrap();
+    let handles: Vec<_> = ThreadRanks::group(2)
+        .into_iter()
+        .map(|comm| {
+            let r0 = r0.clone();
+            std::thread::spawn(move || {
+                let mut d = Distributed::new(comm, sbt_stepper(2), &r0);
+                for _ in 0..2 {
+                    d.step(0.01).expect("a good step");
+                }
+                let before = (d.gather(&d.velocity_rows()), d.gather_rod_state());
+                d.stepper_mut().contact.overlap_tolerance = -1.0;
+                let failed = d.step(0.01).map(|_| ()).map_err(|e| e.to_string());
+                let after = (d.gather(&d.velocity_rows()), d.gather_rod_state());
+                (failed, before, after)
+            })
+        })
+        .collect();
+    let results: Vec<_> = handles.into_iter().map(|h| h.join().unwrap()).collect();
+    for (rank, (failed, _, _)) in results.iter().enumerate() {
+        assert!(
+            failed.is_err(),
+            "rank {rank}: the step must fail: {failed:?}"
+        );
+    }
+    let (_, before, after) = &results[0];
+    let (rods_before, state_before) = (&before.0.as_ref().unwrap().0, &before.1);
+    let (rods_after, state_after) = (&after.0.as_ref().unwrap().0, &after.1);
+    assert!(rods_before == rods_after, "the rods moved in a failed step");
+    let state = state_before.as_ref().unwrap();
+    assert_eq!(
+        state.len(),
+        300 * (3 * 4 + 6),
+        "every rod's state was gathered"
+    );
+    assert!(
+        Some(state) == state_after.as_ref(),
+        "the per-rod state changed in a failed step"
+    );
+}
