@@ -93,6 +93,9 @@ pub enum StepError {
         /// Ranks asked for.
         ranks: usize,
     },
+    /// The time step is not a positive finite number.
+    #[error("time step dt = {0} must be positive and finite (units of l / U)")]
+    InvalidTimeStep(f64),
     /// The rods' diameter is not the one the mobility was built for.
     #[error(
         "the rods have diameter {rods} l but the {mobility_name} mobility was built for {mobility} l: build both from one diameter"
@@ -332,6 +335,9 @@ impl Stepper {
                 part.ids[k]
             }
         };
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(StepError::InvalidTimeStep(dt));
+        }
         if b != self.mobility.diameter() {
             return Err(StepError::DiameterMismatch {
                 rods: b,

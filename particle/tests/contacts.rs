@@ -126,6 +126,23 @@ fn a_stepper_refuses_rods_of_another_diameter() {
     assert!(e.to_string().contains("diameter 0.1"), "{e}");
 }
 
+/// A time step that is not positive and finite is refused before anything moves (a NaN step
+/// would otherwise turn every position into NaN without an error).
+#[test]
+fn a_stepper_refuses_a_time_step_that_is_not_positive_and_finite() {
+    for dt in [f64::NAN, 0.0, -0.01, f64::INFINITY] {
+        let mut r = rods(6.0, vec![[1.0, 1.0, 1.0]], vec![[1.0, 0.0, 0.0]]);
+        let r0 = r.clone();
+        let e = stepper().step(&mut r, dt).unwrap_err();
+        assert!(
+            matches!(e, motile_particle::StepError::InvalidTimeStep(_)),
+            "dt = {dt}: {e}"
+        );
+        assert!(e.to_string().contains("must be positive and finite"), "{e}");
+        assert!(r == r0, "dt = {dt}: the rods moved");
+    }
+}
+
 #[test]
 fn rods_meeting_at_an_angle_never_overlap() {
     for (angle, offset) in [

@@ -38,6 +38,7 @@ impl From<&StepError> for FailureKind {
             }
             StepError::NonFinite(_) => Self::NonFinite,
             StepError::DiameterMismatch { .. }
+            | StepError::InvalidTimeStep(_)
             | StepError::NotShared { .. }
             | StepError::Hydrodynamics(MobilityError::NotShared(_)) => Self::Setup,
         }
