@@ -190,21 +190,38 @@ mod with_mpi {
         let bound = 10.0 * 20.0 * ContactParams::default().tolerance;
         for (first, then) in [(2, Some(3)), (3, None), (1, Some(2))] {
             let src = run_in(dir.path(), &format!("from{first}"), Some(first));
-            // Back to the middle: the last checkpoint goes, the run resumes from step 10.
-            for f in ["ckpt_000000020.h5", "ckpt_000000020.h5.crc32"] {
-                std::fs::remove_file(src.join("checkpoints").join(f)).unwrap();
-            }
-            let o = motile(then, &["resume", src.to_str().unwrap()]);
-            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-            let [dx, dq, dv, _] = differences(&single, &outcome(&src));
-            eprintln!(
-                "{first} ranks, resumed on {then:?}: |dx| {dx:.2e}, |dq| {dq:.2e}, |dv| {dv:.2e}"
-            );
-            assert!(
-                dx <= bound && dq <= bound && dv <= bound / 0.002,
-                "{first} -> {then:?} ranks: |dx| {dx:.2e}, |dq| {dq:.2e}, |dv| {dv:.2e}"
-            );
+            back_to_middle(&src);
+            let what = format!("contacts, {first} ranks");
+            resumed_within(&what, &single, &src, then, (bound, bound / 0.002));
         }
+    }
+
+    /// Drop a finished run's last checkpoint: a resume continues from step 10.
+    fn back_to_middle(run: &Path) {
+        for f in ["ckpt_000000020.h5", "ckpt_000000020.h5.crc32"] {
+            std::fs::remove_file(run.join("checkpoints").join(f)).unwrap();
+        }
+    }
+
+    /// Resume `run` on `ranks` (none: one process) and check its end against `single`:
+    /// positions and axes within `bounds.0`, velocities within `bounds.1`.
+    fn resumed_within(
+        what: &str,
+        single: &Outcome,
+        run: &Path,
+        ranks: Option<usize>,
+        bounds: (f64, f64),
+    ) {
+        let o = motile(ranks, &["resume", run.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let [dx, dq, dv, _] = differences(single, &outcome(run));
+        eprintln!("{what}, resumed on {ranks:?}: |dx| {dx:.2e}, |dq| {dq:.2e}, |dv| {dv:.2e}");
+        assert!(
+            dx <= bounds.0 && dq <= bounds.0 && dv <= bounds.1,
+            "{what}, resumed on {ranks:?}: |dx| {dx:.2e}, |dq| {dq:.2e} (bound {:.1e}), |dv| {dv:.2e} (bound {:.1e})",
+            bounds.0,
+            bounds.1
+        );
     }
 
     /// The dipole level (the stresslet sum shared with a distributed FFT): each process's flow
@@ -294,9 +311,7 @@ mod with_mpi {
             }
         }
         let src = run_in(dir.path(), "from2", Some(2));
-        for f in ["ckpt_000000020.h5", "ckpt_000000020.h5.crc32"] {
-            std::fs::remove_file(src.join("checkpoints").join(f)).unwrap();
-        }
+        back_to_middle(&src);
         let middle = src.join("checkpoints/ckpt_000000010.h5");
         let saved = ParticleCheckpoint::read(&middle, 0.2).unwrap();
         assert_eq!(
@@ -307,16 +322,7 @@ mod with_mpi {
         for then in [Some(3), None] {
             let run = dir.path().join(format!("resumed{then:?}"));
             copy_dir(&src, &run);
-            let o = motile(then, &["resume", run.to_str().unwrap()]);
-            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-            let [dx, dq, dv, _] = differences(&single, &outcome(&run));
-            eprintln!(
-                "sbt, 2 ranks, resumed on {then:?}: |dx| {dx:.2e}, |dq| {dq:.2e}, |dv| {dv:.2e}"
-            );
-            assert!(
-                dx <= bound_x && dq <= bound_x && dv <= bound_v,
-                "sbt, 2 -> {then:?} ranks: |dx| {dx:.2e}, |dq| {dq:.2e}, |dv| {dv:.2e}"
-            );
+            resumed_within("sbt, 2 ranks", &single, &run, then, (bound_x, bound_v));
         }
     }
 
