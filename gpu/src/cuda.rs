@@ -1,0 +1,223 @@
+//! The CUDA device: cudarc over the driver, NVRTC and cuFFT, each loaded at run time.
+#![allow(unsafe_code)]
+
+use crate::launch::THREADS;
+use crate::{Arg, Data, DeviceInfo, GpuError};
+use cudarc::cufft::{CudaFft, sys::cufftType, sys::double2};
+use cudarc::driver::{CudaContext, CudaFunction, CudaSlice, CudaStream, LaunchConfig, PushKernelArg};
+use std::collections::HashMap;
+use std::sync::Arc;
+
+fn driver(e: impl std::fmt::Debug) -> GpuError {
+    GpuError::Driver(format!("{e:?}"))
+}
+
+fn fft(e: impl std::fmt::Debug) -> GpuError {
+    GpuError::Fft(format!("{e:?}"))
+}
+
+/// Whether the driver library, NVRTC and cuFFT load. cudarc panics on the first call into a
+/// library it cannot load, so this runs before any such call.
+fn libraries_present() -> Result<(), GpuError> {
+    // SAFETY: these functions only try to open shared libraries by name (dlopen) and close
+    // them again; they call no CUDA function.
+    let (cuda, nvrtc, cufft) = unsafe {
+        (
+            cudarc::driver::sys::is_culib_present(),
+            cudarc::nvrtc::sys::is_culib_present(),
+            cudarc::cufft::sys::is_culib_present(),
+        )
+    };
+    let missing: Vec<&str> = [
+        (cuda, "the driver library libcuda"),
+        (nvrtc, "NVRTC (libnvrtc)"),
+        (cufft, "cuFFT (libcufft)"),
+    ]
+    .iter()
+    .filter(|(ok, _)| !ok)
+    .map(|(_, name)| *name)
+    .collect();
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        Err(GpuError::NoDevice(format!(
+            "{} could not be loaded (a driver and the CUDA toolkit's libraries are needed at \
+             run time)",
+            missing.join(", ")
+        )))
+    }
+}
+
+pub(crate) fn probe() -> Result<DeviceInfo, GpuError> {
+    libraries_present()?;
+    let count = CudaContext::device_count().map_err(|e| GpuError::NoDevice(format!("{e:?}")))?;
+    if count < 1 {
+        return Err(GpuError::NoDevice("the driver reports no device".into()));
+    }
+    let ctx = CudaContext::new(0).map_err(|e| GpuError::NoDevice(format!("{e:?}")))?;
+    Ok(DeviceInfo {
+        name: ctx.name().map_err(driver)?,
+        memory: ctx.total_mem().map_err(driver)?,
+        compute_capability: ctx.compute_capability().map_err(driver)?,
+    })
+}
+
+/// Device 0, its stream and the compiled kernels.
+pub(crate) struct Cuda {
+    name: String,
+    stream: Arc<CudaStream>,
+    functions: HashMap<String, CudaFunction>,
+}
+
+impl std::fmt::Debug for Cuda {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.describe())
+    }
+}
+
+impl Cuda {
+    pub(crate) fn open(source: &str, kernels: &[&str]) -> Result<Self, GpuError> {
+        let info = probe()?;
+        let ctx = CudaContext::new(0).map_err(|e| GpuError::NoDevice(format!("{e:?}")))?;
+        let stream = ctx.default_stream();
+        // No fused multiply-adds: each a b + c rounds as on the CPU.
+        let opts = cudarc::nvrtc::CompileOptions {
+            fmad: Some(false),
+            ..Default::default()
+        };
+        let ptx = cudarc::nvrtc::compile_ptx_with_opts(source, opts)
+            .map_err(|e| GpuError::Compile(format!("{e:?}")))?;
+        let module = ctx.load_module(ptx).map_err(driver)?;
+        let mut functions = HashMap::new();
+        for k in kernels {
+            functions.insert(
+                (*k).to_string(),
+                module
+                    .load_function(k)
+                    .map_err(|e| GpuError::Compile(format!("kernel {k}: {e:?}")))?,
+            );
+        }
+        Ok(Self {
+            name: format!(
+                "{} (compute capability {}.{}, {:.1} GiB)",
+                info.name,
+                info.compute_capability.0,
+                info.compute_capability.1,
+                info.memory as f64 / (1u64 << 30) as f64
+            ),
+            stream,
+            functions,
+        })
+    }
+
+    pub(crate) fn describe(&self) -> String {
+        format!("CUDA device 0: {}", self.name)
+    }
+
+    pub(crate) fn upload(&self, data: &[f64]) -> Result<CudaSlice<f64>, GpuError> {
+        if data.is_empty() {
+            return self.zeros(0);
+        }
+        self.stream.clone_htod(data).map_err(driver)
+    }
+
+    pub(crate) fn upload_into(&self, data: &[f64], s: &mut CudaSlice<f64>) -> Result<(), GpuError> {
+        if data.is_empty() {
+            return Ok(());
+        }
+        self.stream.memcpy_htod(data, s).map_err(driver)
+    }
+
+    pub(crate) fn zeros(&self, len: usize) -> Result<CudaSlice<f64>, GpuError> {
+        // A zero-length allocation is refused by the driver: one value stands behind an empty
+        // buffer (its `Buffer::len` stays 0).
+        self.stream.alloc_zeros::<f64>(len.max(1)).map_err(driver)
+    }
+
+    pub(crate) fn zero(&self, s: &mut CudaSlice<f64>) -> Result<(), GpuError> {
+        self.stream.memset_zeros(s).map_err(driver)
+    }
+
+    pub(crate) fn download(&self, s: &CudaSlice<f64>) -> Result<Vec<f64>, GpuError> {
+        self.stream.clone_dtoh(s).map_err(driver)
+    }
+
+    pub(crate) fn fft3(&self, m: usize, batch: usize) -> Result<(CudaFft, CudaFft), GpuError> {
+        let n = [m as i32; 3];
+        let (real, half) = ((m * m * m) as i32, (m * m * (m / 2 + 1)) as i32);
+        let b = batch as i32;
+        let st = self.stream.clone();
+        let forward =
+            CudaFft::plan_many(&n, None, 1, real, None, 1, half, cufftType::CUFFT_D2Z, b, st.clone())
+                .map_err(fft)?;
+        let inverse =
+            CudaFft::plan_many(&n, None, 1, half, None, 1, real, cufftType::CUFFT_Z2D, b, st)
+                .map_err(fft)?;
+        Ok((forward, inverse))
+    }
+
+    /// # Safety
+    /// As [`crate::Device::launch`].
+    pub(crate) unsafe fn launch(
+        &self,
+        kernel: &str,
+        blocks: u32,
+        args: &mut [Arg<'_>],
+    ) -> Result<(), GpuError> {
+        let f = self
+            .functions
+            .get(kernel)
+            .ok_or_else(|| GpuError::Input(format!("no kernel {kernel} was compiled")))?;
+        let mut b = self.stream.launch_builder(f);
+        for a in args.iter_mut() {
+            match a {
+                Arg::In(buf) => match &buf.data {
+                    Data::Cuda(s) => b.arg(s),
+                    _ => return Err(crate::foreign()),
+                },
+                Arg::Out(buf) => match &mut buf.data {
+                    Data::Cuda(s) => b.arg(s),
+                    _ => return Err(crate::foreign()),
+                },
+                Arg::Int(i) => b.arg(&*i),
+                Arg::Real(x) => b.arg(&*x),
+            };
+        }
+        let cfg = LaunchConfig {
+            grid_dim: (blocks, 1, 1),
+            block_dim: (THREADS, 1, 1),
+            shared_mem_bytes: 0,
+        };
+        // SAFETY: the arguments match the kernel's parameters and its indices stay inside
+        // the buffers: the caller's contract.
+        unsafe { b.launch(cfg) }.map_err(driver)?;
+        Ok(())
+    }
+}
+
+/// The batch of forward transforms of a plan.
+pub(crate) fn forward(
+    plan: &CudaFft,
+    real: &CudaSlice<f64>,
+    spectra: &mut CudaSlice<f64>,
+) -> Result<(), GpuError> {
+    let half = spectra.len() / 2;
+    // SAFETY: double2 is two f64 with the alignment of f64 pairs cudaMalloc gives; the view
+    // covers exactly the buffer's 2 half values.
+    let mut view = unsafe { spectra.transmute_mut::<double2>(half) }
+        .ok_or_else(|| GpuError::Input("a spectrum buffer too short".into()))?;
+    plan.exec_d2z(real, &mut view).map_err(fft)
+}
+
+/// The batch of inverse transforms of a plan (the spectra are overwritten).
+pub(crate) fn inverse(
+    plan: &CudaFft,
+    spectra: &mut CudaSlice<f64>,
+    real: &mut CudaSlice<f64>,
+) -> Result<(), GpuError> {
+    let half = spectra.len() / 2;
+    // SAFETY: as in `forward`.
+    let mut view = unsafe { spectra.transmute_mut::<double2>(half) }
+        .ok_or_else(|| GpuError::Input("a spectrum buffer too short".into()))?;
+    plan.exec_z2d(&mut view, real).map_err(fft)
+}

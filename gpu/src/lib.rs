@@ -1,0 +1,387 @@
+//! Devices for motile's GPU back-ends: device buffers of `f64`, kernels compiled at run time,
+//! batched 3D real FFTs, in two implementations of one interface.
+//!
+//! - **CUDA** (feature `cuda`): the driver, NVRTC and cuFFT are loaded when a device is opened
+//!   (cudarc's dynamic loading), so a build needs no CUDA toolkit, and a machine without a GPU
+//!   gets [`GpuError::NoDevice`] instead of a panic. Kernels are CUDA C compiled by NVRTC;
+//!   transforms are cuFFT's (`D2Z`/`Z2D`, unnormalised).
+//! - **Host emulation** ([`Device::host_emulation`]): the *same kernel source* compiled by the
+//!   system's C++ compiler with a small prelude that defines CUDA's thread indices and
+//!   `atomicAdd`, every thread of every block run one after another on one CPU thread, and the
+//!   transforms done by [`motile_analysis::fft3::RealFft3`] in cuFFT's layout and scaling. It is
+//!   slow; it exists so that kernels, their argument lists and the host code around them are
+//!   tested on machines without a GPU (where CI runs). It also checks every launch's argument
+//!   list against the kernel's parameter types, which the CUDA driver cannot. Kernels that use
+//!   shared memory or `__syncthreads` do not compile for it (a clear compile error).
+//!
+//! Layouts: a real field of an `M^3` grid is `M^3` values, x fastest (`(z M + y) M + x`); its
+//! half spectrum `M M (M/2 + 1)` complex values as interleaved `(re, im)` pairs, the x mode
+//! fastest (`((kz M + ky)(M/2 + 1) + kx)`); a batch stores its fields one after another.
+//!
+//! The only unsafe code of the crate is in the modules that load libraries and launch kernels;
+//! [`Device::launch`] itself is `unsafe`: nothing can check that a kernel indexes inside the
+//! buffers it is given.
+
+mod host;
+mod launch;
+
+#[cfg(feature = "cuda")]
+mod cuda;
+
+pub use launch::THREADS;
+
+/// Why a device is unavailable or an operation on it failed.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No CUDA driver library, or no device, or (host emulation) no C++ compiler.
+    #[error("no CUDA device found: {0}")]
+    NoDevice(String),
+    /// A driver call failed.
+    #[error("CUDA driver: {0}")]
+    Driver(String),
+    /// The kernels did not compile (NVRTC, or the host compiler for the emulation).
+    #[error("compiling the kernels: {0}")]
+    Compile(String),
+    /// A transform failed.
+    #[error("FFT: {0}")]
+    Fft(String),
+    /// A call that does not fit: an unknown kernel, arguments that do not match its
+    /// parameters, a buffer of another device or of the wrong length.
+    #[error("{0}")]
+    Input(String),
+}
+
+/// What [`probe`] found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeviceInfo {
+    /// The device's name.
+    pub name: String,
+    /// Its memory in bytes.
+    pub memory: usize,
+    /// Compute capability (major, minor).
+    pub compute_capability: (i32, i32),
+}
+
+/// Look for a CUDA device without using it: the driver library, NVRTC and cuFFT must load and
+/// device 0 must answer. Without the `cuda` feature: [`GpuError::NoDevice`].
+pub fn probe() -> Result<DeviceInfo, GpuError> {
+    #[cfg(feature = "cuda")]
+    {
+        cuda::probe()
+    }
+    #[cfg(not(feature = "cuda"))]
+    {
+        Err(GpuError::NoDevice(
+            "built without CUDA support (feature `cuda`)".into(),
+        ))
+    }
+}
+
+/// A buffer of `f64` on a device (complex values as interleaved pairs).
+#[derive(Debug)]
+pub struct Buffer {
+    len: usize,
+    data: Data,
+}
+
+#[derive(Debug)]
+enum Data {
+    Host(Vec<f64>),
+    #[cfg(feature = "cuda")]
+    Cuda(cudarc::driver::CudaSlice<f64>),
+}
+
+impl Buffer {
+    /// Number of `f64` values.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether it holds no values.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+/// One argument of a kernel launch, in the kernel's parameter order: `In` for a `const
+/// double*` parameter, `Out` for a `double*`, `Int` for an `int`, `Real` for a `double`.
+#[derive(Debug)]
+pub enum Arg<'a> {
+    /// A buffer the kernel only reads.
+    In(&'a Buffer),
+    /// A buffer the kernel writes.
+    Out(&'a mut Buffer),
+    /// An `int`.
+    Int(i32),
+    /// A `double`.
+    Real(f64),
+}
+
+impl Arg<'_> {
+    /// The host emulation's code for the parameter type this argument fits.
+    fn code(&self) -> char {
+        match self {
+            Arg::In(_) => 'i',
+            Arg::Out(_) => 'o',
+            Arg::Int(_) => 'n',
+            Arg::Real(_) => 'r',
+        }
+    }
+}
+
+/// A plan for batches of 3D real transforms of `M^3` grids.
+#[derive(Debug)]
+pub struct Fft3 {
+    m: usize,
+    batch: usize,
+    inner: FftInner,
+}
+
+enum FftInner {
+    Host(motile_analysis::fft3::RealFft3),
+    #[cfg(feature = "cuda")]
+    Cuda {
+        forward: cudarc::cufft::CudaFft,
+        inverse: cudarc::cufft::CudaFft,
+    },
+}
+
+impl std::fmt::Debug for FftInner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FftInner::Host(_) => f.write_str("Host"),
+            #[cfg(feature = "cuda")]
+            FftInner::Cuda { .. } => f.write_str("cuFFT"),
+        }
+    }
+}
+
+impl Fft3 {
+    /// `f64` values of a batch of real fields, `batch M^3`.
+    pub fn real_len(&self) -> usize {
+        self.batch * self.m.pow(3)
+    }
+
+    /// `f64` values of a batch of half spectra, `2 batch M M (M/2 + 1)`.
+    pub fn complex_len(&self) -> usize {
+        2 * self.batch * self.spectrum_len()
+    }
+
+    /// Complex values of one half spectrum, `M M (M/2 + 1)`.
+    pub fn spectrum_len(&self) -> usize {
+        self.m * self.m * (self.m / 2 + 1)
+    }
+}
+
+/// An open device and its compiled kernels.
+#[derive(Debug)]
+pub struct Device {
+    backend: Backend,
+}
+
+#[derive(Debug)]
+enum Backend {
+    Host(host::Host),
+    #[cfg(feature = "cuda")]
+    Cuda(cuda::Cuda),
+}
+
+fn foreign() -> GpuError {
+    GpuError::Input("a buffer or plan of another device".into())
+}
+
+impl Device {
+    /// CUDA device 0, with `kernels` (the names of `extern "C"` kernels in `source`) compiled
+    /// by NVRTC.
+    pub fn cuda(source: &str, kernels: &[&str]) -> Result<Self, GpuError> {
+        #[cfg(feature = "cuda")]
+        {
+            Ok(Self {
+                backend: Backend::Cuda(cuda::Cuda::open(source, kernels)?),
+            })
+        }
+        #[cfg(not(feature = "cuda"))]
+        {
+            let _ = (source, kernels);
+            Err(GpuError::NoDevice(
+                "built without CUDA support (feature `cuda`)".into(),
+            ))
+        }
+    }
+
+    /// The host emulation (see the crate doc): `source` compiled by the C++ compiler named by
+    /// `$CXX`, else the first of `c++`, `g++`, `clang++` found.
+    pub fn host_emulation(source: &str, kernels: &[&str]) -> Result<Self, GpuError> {
+        Ok(Self {
+            backend: Backend::Host(host::Host::compile(source, kernels)?),
+        })
+    }
+
+    /// What this device is, for logs and reports.
+    pub fn describe(&self) -> String {
+        match &self.backend {
+            Backend::Host(h) => h.describe(),
+            #[cfg(feature = "cuda")]
+            Backend::Cuda(c) => c.describe(),
+        }
+    }
+
+    /// Whether this is the host emulation.
+    pub fn is_emulation(&self) -> bool {
+        matches!(self.backend, Backend::Host(_))
+    }
+
+    /// A buffer holding a copy of `data`.
+    pub fn upload(&self, data: &[f64]) -> Result<Buffer, GpuError> {
+        let len = data.len();
+        let data = match &self.backend {
+            Backend::Host(_) => Data::Host(data.to_vec()),
+            #[cfg(feature = "cuda")]
+            Backend::Cuda(c) => Data::Cuda(c.upload(data)?),
+        };
+        Ok(Buffer { len, data })
+    }
+
+    /// Copy `data` into `buf`, which must have its length.
+    pub fn upload_into(&self, data: &[f64], buf: &mut Buffer) -> Result<(), GpuError> {
+        if data.len() != buf.len {
+            return Err(GpuError::Input(format!(
+                "{} values into a buffer of {}",
+                data.len(),
+                buf.len
+            )));
+        }
+        match (&self.backend, &mut buf.data) {
+            (Backend::Host(_), Data::Host(v)) => v.copy_from_slice(data),
+            #[cfg(feature = "cuda")]
+            (Backend::Cuda(c), Data::Cuda(s)) => c.upload_into(data, s)?,
+            #[allow(unreachable_patterns)]
+            _ => return Err(foreign()),
+        }
+        Ok(())
+    }
+
+    /// A buffer of `len` zeros.
+    pub fn zeros(&self, len: usize) -> Result<Buffer, GpuError> {
+        let data = match &self.backend {
+            Backend::Host(_) => Data::Host(vec![0.0; len]),
+            #[cfg(feature = "cuda")]
+            Backend::Cuda(c) => Data::Cuda(c.zeros(len)?),
+        };
+        Ok(Buffer { len, data })
+    }
+
+    /// Set every value of `buf` to zero.
+    pub fn zero(&self, buf: &mut Buffer) -> Result<(), GpuError> {
+        match (&self.backend, &mut buf.data) {
+            (Backend::Host(_), Data::Host(v)) => v.fill(0.0),
+            #[cfg(feature = "cuda")]
+            (Backend::Cuda(c), Data::Cuda(s)) => c.zero(s)?,
+            #[allow(unreachable_patterns)]
+            _ => return Err(foreign()),
+        }
+        Ok(())
+    }
+
+    /// The values of `buf` (waits for the device's queued work).
+    pub fn download(&self, buf: &Buffer) -> Result<Vec<f64>, GpuError> {
+        if buf.len == 0 {
+            return Ok(Vec::new());
+        }
+        match (&self.backend, &buf.data) {
+            (Backend::Host(_), Data::Host(v)) => Ok(v.clone()),
+            #[cfg(feature = "cuda")]
+            (Backend::Cuda(c), Data::Cuda(s)) => c.download(s),
+            #[allow(unreachable_patterns)]
+            _ => Err(foreign()),
+        }
+    }
+
+    /// A plan for batches of `batch` real transforms of `m^3` grids.
+    pub fn fft3(&self, m: usize, batch: usize) -> Result<Fft3, GpuError> {
+        if m < 2 || batch == 0 {
+            return Err(GpuError::Input(format!(
+                "an FFT plan of {batch} grids of {m}^3"
+            )));
+        }
+        let inner = match &self.backend {
+            Backend::Host(_) => FftInner::Host(motile_analysis::fft3::RealFft3::new([m; 3])),
+            #[cfg(feature = "cuda")]
+            Backend::Cuda(c) => {
+                let (forward, inverse) = c.fft3(m, batch)?;
+                FftInner::Cuda { forward, inverse }
+            }
+        };
+        Ok(Fft3 { m, batch, inner })
+    }
+
+    /// Forward transforms (`sum_x f(x) exp(-i k x)`) of the batch `real` into the half spectra
+    /// `spectra`.
+    pub fn forward(&self, plan: &Fft3, real: &Buffer, spectra: &mut Buffer) -> Result<(), GpuError> {
+        check_fft(plan, real.len, spectra.len)?;
+        match (&plan.inner, &real.data, &mut spectra.data) {
+            (FftInner::Host(fft), Data::Host(x), Data::Host(y)) => {
+                let (n, s) = (plan.m.pow(3), plan.spectrum_len());
+                let mut out = vec![num_complex::Complex64::default(); s];
+                for b in 0..plan.batch {
+                    fft.forward(&x[b * n..(b + 1) * n], &mut out);
+                    for (j, z) in out.iter().enumerate() {
+                        y[2 * (b * s + j)] = z.re;
+                        y[2 * (b * s + j) + 1] = z.im;
+                    }
+                }
+                Ok(())
+            }
+            #[cfg(feature = "cuda")]
+            (FftInner::Cuda { forward, .. }, Data::Cuda(x), Data::Cuda(y)) => {
+                cuda::forward(forward, x, y)
+            }
+            #[allow(unreachable_patterns)]
+            _ => Err(foreign()),
+        }
+    }
+
+    /// Inverse transforms (`sum_k c(k) exp(+i k x)`, unnormalised) of the batch of half spectra
+    /// `spectra` (which may be overwritten, as cuFFT does) into `real`.
+    pub fn inverse(
+        &self,
+        plan: &Fft3,
+        spectra: &mut Buffer,
+        real: &mut Buffer,
+    ) -> Result<(), GpuError> {
+        check_fft(plan, real.len, spectra.len)?;
+        match (&plan.inner, &mut spectra.data, &mut real.data) {
+            (FftInner::Host(fft), Data::Host(y), Data::Host(x)) => {
+                let (n, s) = (plan.m.pow(3), plan.spectrum_len());
+                let mut spec = vec![num_complex::Complex64::default(); s];
+                for b in 0..plan.batch {
+                    for (j, z) in spec.iter_mut().enumerate() {
+                        *z = num_complex::Complex64::new(y[2 * (b * s + j)], y[2 * (b * s + j) + 1]);
+                    }
+                    fft.inverse(&mut spec, &mut x[b * n..(b + 1) * n]);
+                }
+                Ok(())
+            }
+            #[cfg(feature = "cuda")]
+            (FftInner::Cuda { inverse, .. }, Data::Cuda(y), Data::Cuda(x)) => {
+                cuda::inverse(inverse, y, x)
+            }
+            #[allow(unreachable_patterns)]
+            _ => Err(foreign()),
+        }
+    }
+}
+
+fn check_fft(plan: &Fft3, real: usize, complex: usize) -> Result<(), GpuError> {
+    if real != plan.real_len() || complex != plan.complex_len() {
+        return Err(GpuError::Input(format!(
+            "FFT of {} grids of {}^3 needs {} real and {} complex-pair values, got {real} and \
+             {complex}",
+            plan.batch,
+            plan.m,
+            plan.real_len(),
+            plan.complex_len()
+        )));
+    }
+    Ok(())
+}
