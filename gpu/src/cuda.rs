@@ -4,7 +4,9 @@
 use crate::launch::THREADS;
 use crate::{Arg, Data, DeviceInfo, GpuError};
 use cudarc::cufft::{CudaFft, sys::cufftType, sys::double2};
-use cudarc::driver::{CudaContext, CudaFunction, CudaSlice, CudaStream, LaunchConfig, PushKernelArg};
+use cudarc::driver::{
+    CudaContext, CudaFunction, CudaSlice, CudaStream, LaunchConfig, PushKernelArg,
+};
 use std::collections::HashMap;
 use std::sync::Arc;
 
@@ -147,12 +149,32 @@ impl Cuda {
         let (real, half) = ((m * m * m) as i32, (m * m * (m / 2 + 1)) as i32);
         let b = batch as i32;
         let st = self.stream.clone();
-        let forward =
-            CudaFft::plan_many(&n, None, 1, real, None, 1, half, cufftType::CUFFT_D2Z, b, st.clone())
-                .map_err(fft)?;
-        let inverse =
-            CudaFft::plan_many(&n, None, 1, half, None, 1, real, cufftType::CUFFT_Z2D, b, st)
-                .map_err(fft)?;
+        let forward = CudaFft::plan_many(
+            &n,
+            None,
+            1,
+            real,
+            None,
+            1,
+            half,
+            cufftType::CUFFT_D2Z,
+            b,
+            st.clone(),
+        )
+        .map_err(fft)?;
+        let inverse = CudaFft::plan_many(
+            &n,
+            None,
+            1,
+            half,
+            None,
+            1,
+            real,
+            cufftType::CUFFT_Z2D,
+            b,
+            st,
+        )
+        .map_err(fft)?;
         Ok((forward, inverse))
     }
 

@@ -317,7 +317,12 @@ impl Device {
 
     /// Forward transforms (`sum_x f(x) exp(-i k x)`) of the batch `real` into the half spectra
     /// `spectra`.
-    pub fn forward(&self, plan: &Fft3, real: &Buffer, spectra: &mut Buffer) -> Result<(), GpuError> {
+    pub fn forward(
+        &self,
+        plan: &Fft3,
+        real: &Buffer,
+        spectra: &mut Buffer,
+    ) -> Result<(), GpuError> {
         check_fft(plan, real.len, spectra.len)?;
         match (&plan.inner, &real.data, &mut spectra.data) {
             (FftInner::Host(fft), Data::Host(x), Data::Host(y)) => {
@@ -356,7 +361,8 @@ impl Device {
                 let mut spec = vec![num_complex::Complex64::default(); s];
                 for b in 0..plan.batch {
                     for (j, z) in spec.iter_mut().enumerate() {
-                        *z = num_complex::Complex64::new(y[2 * (b * s + j)], y[2 * (b * s + j) + 1]);
+                        *z =
+                            num_complex::Complex64::new(y[2 * (b * s + j)], y[2 * (b * s + j) + 1]);
                     }
                     fft.inverse(&mut spec, &mut x[b * n..(b + 1) * n]);
                 }

@@ -47,7 +47,12 @@ fn kernels_run_every_thread_once_and_arguments_are_checked() {
         dev.launch(
             "axpy",
             n,
-            &mut [Arg::In(&xb), Arg::Out(&mut yb), Arg::Real(2.0), Arg::Int(n as i32)],
+            &mut [
+                Arg::In(&xb),
+                Arg::Out(&mut yb),
+                Arg::Real(2.0),
+                Arg::Int(n as i32),
+            ],
         )
     }
     .unwrap();
@@ -58,18 +63,30 @@ fn kernels_run_every_thread_once_and_arguments_are_checked() {
     let mut c = dev.zeros(1).unwrap();
     // SAFETY: count(double* c, int n) adds to c[0] only.
     unsafe { dev.launch("count", n, &mut [Arg::Out(&mut c), Arg::Int(n as i32)]) }.unwrap();
-    assert_eq!(dev.download(&c).unwrap(), vec![n as f64], "threads that ran");
+    assert_eq!(
+        dev.download(&c).unwrap(),
+        vec![n as f64],
+        "threads that ran"
+    );
     // Arguments in the wrong order, and an unknown kernel: errors, nothing run.
     // SAFETY: refused before the kernel runs (the types do not match).
     let wrong = unsafe {
         dev.launch(
             "axpy",
             n,
-            &mut [Arg::Out(&mut yb), Arg::In(&xb), Arg::Real(2.0), Arg::Int(n as i32)],
+            &mut [
+                Arg::Out(&mut yb),
+                Arg::In(&xb),
+                Arg::Real(2.0),
+                Arg::Int(n as i32),
+            ],
         )
     };
     let msg = wrong.expect_err("swapped arguments").to_string();
-    assert!(msg.contains("takes parameters (iorn) but was given (oirn)"), "{msg}");
+    assert!(
+        msg.contains("takes parameters (iorn) but was given (oirn)"),
+        "{msg}"
+    );
     // SAFETY: refused: no such kernel.
     let unknown = unsafe { dev.launch("nope", 1, &mut []) };
     assert!(unknown.is_err(), "an unknown kernel");
@@ -106,7 +123,11 @@ fn transforms_have_the_cufft_layout_and_scaling() {
         for i in 0..slen {
             let (re, im) = (s[2 * (b * slen + i)], s[2 * (b * slen + i) + 1]);
             // The cosine's half-spectrum coefficient n^3 / 2 sits at ((kz m + ky) h + kx).
-            let want = if i == (k[2] * m + k[1]) * h + k[0] { n3 / 2.0 } else { 0.0 };
+            let want = if i == (k[2] * m + k[1]) * h + k[0] {
+                n3 / 2.0
+            } else {
+                0.0
+            };
             assert!(
                 (re - want).abs() < 1e-9 && im.abs() < 1e-9,
                 "field {b} mode {i}: ({re}, {im}), expected {want}"

@@ -29,6 +29,8 @@ mod ewald_params;
 mod gaussian_grid;
 pub mod geometry;
 pub mod gmres;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod init;
 pub mod level;
 pub mod mobility;

@@ -27,6 +27,9 @@ pub enum SumError {
     /// Input of the wrong shape or not finite.
     #[error("periodic sum: {0}")]
     Input(String),
+    /// The device that does part of the sum failed (or is missing).
+    #[error("periodic sum on the device: {0}")]
+    Device(String),
 }
 
 /// The velocity/gradient produced by point stresslets at their centres (the dipole model).

@@ -89,6 +89,9 @@ pub struct SpectralEwald {
     timing: SumTiming,
     refine: Refinement,
     report: Option<SumReport>,
+    /// The device that does the Fourier part, if not the CPU.
+    #[cfg(feature = "gpu")]
+    gpu: Option<crate::gpu::GpuFourier>,
 }
 
 /// The adaptive level of a sum (shared by [`SpectralEwald`] and the sum shared among ranks,
@@ -184,7 +187,51 @@ impl SpectralEwald {
             timing: SumTiming::default(),
             refine: Refinement::default(),
             report: None,
+            #[cfg(feature = "gpu")]
+            gpu: None,
         })
+    }
+
+    /// A sum whose Fourier part (spreading, FFTs, the multiplication, the gather) runs on
+    /// `device` ([`crate::gpu`]); everything else, and so the accuracy contract, as [`Self::new`].
+    #[cfg(feature = "gpu")]
+    pub fn with_device(tol: f64, device: crate::gpu::GpuFourier) -> Result<Self, SumError> {
+        let mut s = Self::new(tol)?;
+        s.gpu = Some(device);
+        Ok(s)
+    }
+
+    /// Where the Fourier part runs: `"CPU"`, or the device's description.
+    pub fn device(&self) -> String {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &self.gpu {
+            return g.describe();
+        }
+        "CPU".into()
+    }
+
+    /// Whether the Fourier part runs on a device (the CPU grid's sorted points are then not
+    /// needed).
+    fn on_device(&self) -> bool {
+        #[cfg(feature = "gpu")]
+        {
+            self.gpu.is_some()
+        }
+        #[cfg(not(feature = "gpu"))]
+        {
+            false
+        }
+    }
+
+    /// The device's view of the sum with parameters `p` in a box of side `l`.
+    #[cfg(feature = "gpu")]
+    fn device_geometry(p: &EwaldParams, l: f64) -> crate::gpu::Geometry {
+        crate::gpu::Geometry {
+            window: crate::gaussian_grid::Window::new(l, p.xi, p.modes, p.support, p.shape),
+            m: p.modes,
+            l,
+            xi: p.xi,
+        }
     }
 
     /// Seconds per stage of the last sum.
@@ -262,11 +309,14 @@ impl SpectralEwald {
             Some(prep) => (prep.points, prep.grid_points),
             None => (Vec::new(), GridPoints::default()),
         };
-        let grid_points = self
-            .grid
-            .as_ref()
-            .expect("grid built above")
-            .prepare_reusing(points, old_grid);
+        let grid_points = if self.on_device() {
+            old_grid
+        } else {
+            self.grid
+                .as_ref()
+                .expect("grid built above")
+                .prepare_reusing(points, old_grid)
+        };
         kept.clear();
         kept.extend_from_slice(points);
         Ok(Prepared {
@@ -295,16 +345,31 @@ impl SpectralEwald {
         let real = rpy_real(cells, &p, a, l, forces);
         // Fourier space.
         let t2 = Instant::now();
-        let grid = self.grid.as_mut().expect("prepared");
-        let f: Vec<Vec<f64>> = (0..3)
-            .map(|d| forces.par_iter().map(|v| v[d]).collect())
-            .collect();
-        let spread = grid.spread(pts, [&f[0], &f[1], &f[2]]);
-        let vol = l * l * l;
-        let conv = grid.convolve::<3, 3>(spread, |k, k2, screen, f| {
-            rpy_fourier_mode_screened(k, k2, screen, xi, a, vol, f)
-        });
-        let uf: [Vec<f64>; 3] = grid.gather(pts, conv);
+        #[cfg(feature = "gpu")]
+        let on_device = match self.gpu.as_mut() {
+            Some(gpu) => Some(
+                gpu.rpy(&Self::device_geometry(&p, l), a, points, forces)
+                    .map_err(|e| SumError::Device(e.to_string()))?,
+            ),
+            None => None,
+        };
+        #[cfg(not(feature = "gpu"))]
+        let on_device: Option<[Vec<f64>; 3]> = None;
+        let uf: [Vec<f64>; 3] = match on_device {
+            Some(uf) => uf,
+            None => {
+                let grid = self.grid.as_mut().expect("prepared");
+                let f: Vec<Vec<f64>> = (0..3)
+                    .map(|d| forces.par_iter().map(|v| v[d]).collect())
+                    .collect();
+                let spread = grid.spread(pts, [&f[0], &f[1], &f[2]]);
+                let vol = l * l * l;
+                let conv = grid.convolve::<3, 3>(spread, |k, k2, screen, f| {
+                    rpy_fourier_mode_screened(k, k2, screen, xi, a, vol, f)
+                });
+                grid.gather(pts, conv)
+            }
+        };
         let t3 = Instant::now();
         let (u, e2) = rpy_assemble(
             real,
@@ -340,7 +405,6 @@ impl SpectralEwald {
         let t1 = Instant::now();
         let real = stresslet_real(cells, &prm, l, p, sigma);
         let t2 = Instant::now();
-        let grid = self.grid.as_mut().expect("prepared");
         let comp = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
         let s: Vec<Vec<f64>> = comp
             .iter()
@@ -351,28 +415,45 @@ impl SpectralEwald {
                     .collect()
             })
             .collect();
-        let spread = grid.spread(pts, std::array::from_fn::<_, 6, _>(|c| s[c].as_slice()));
-        let vol = l * l * l;
-        // Velocity only: the gradient comes from the window's derivative in the gather.
-        let out = grid.convolve::<6, 3>(spread, |k, k2, screen, sh| {
-            let sm = |i: usize, j: usize| {
-                let c = match (i.min(j), i.max(j)) {
-                    (0, 0) => 0,
-                    (1, 1) => 1,
-                    (2, 2) => 2,
-                    (0, 1) => 3,
-                    (0, 2) => 4,
-                    _ => 5,
-                };
-                sh[c]
-            };
-            // Force density -i k . S, then the velocity of a point force (a = 0).
-            let f: [Complex64; 3] = std::array::from_fn(|i| {
-                -Complex64::i() * (sm(i, 0) * k[0] + sm(i, 1) * k[1] + sm(i, 2) * k[2])
-            });
-            rpy_fourier_mode_screened(k, k2, screen, xi, 0.0, vol, f)
-        });
-        let back = grid.gather_gradient(pts, out);
+        let components = std::array::from_fn::<_, 6, _>(|c| s[c].as_slice());
+        #[cfg(feature = "gpu")]
+        let on_device = match self.gpu.as_mut() {
+            Some(gpu) => Some(
+                gpu.stresslet(&Self::device_geometry(&prm, l), x, components)
+                    .map_err(|e| SumError::Device(e.to_string()))?,
+            ),
+            None => None,
+        };
+        #[cfg(not(feature = "gpu"))]
+        let on_device: Option<[Vec<f64>; 12]> = None;
+        let back = match on_device {
+            Some(back) => back,
+            None => {
+                let grid = self.grid.as_mut().expect("prepared");
+                let spread = grid.spread(pts, components);
+                let vol = l * l * l;
+                // Velocity only: the gradient comes from the window's derivative in the gather.
+                let out = grid.convolve::<6, 3>(spread, |k, k2, screen, sh| {
+                    let sm = |i: usize, j: usize| {
+                        let c = match (i.min(j), i.max(j)) {
+                            (0, 0) => 0,
+                            (1, 1) => 1,
+                            (2, 2) => 2,
+                            (0, 1) => 3,
+                            (0, 2) => 4,
+                            _ => 5,
+                        };
+                        sh[c]
+                    };
+                    // Force density -i k . S, then the velocity of a point force (a = 0).
+                    let f: [Complex64; 3] = std::array::from_fn(|i| {
+                        -Complex64::i() * (sm(i, 0) * k[0] + sm(i, 1) * k[1] + sm(i, 2) * k[2])
+                    });
+                    rpy_fourier_mode_screened(k, k2, screen, xi, 0.0, vol, f)
+                });
+                grid.gather_gradient(pts, out)
+            }
+        };
         let t3 = Instant::now();
         type Split = ((Vec<Vec3>, Vec<[Vec3; 3]>), Weights);
         let ((u, grad), e2): Split = real

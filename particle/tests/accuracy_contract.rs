@@ -10,15 +10,15 @@
 //! second test checks the calibration the contract rests on: with the parameters fixed, the
 //! sums' own error estimates bound the measured errors.
 
+mod common;
+
+use common::{errors, matrices, rod_points, rods, vectors};
 use motile_particle::domain::{Comm, ThreadRanks};
-use motile_particle::geometry::{Vec3, dot, sub};
+use motile_particle::geometry::Vec3;
 use motile_particle::periodic::{PeriodicStokes, RpyGeometry, SumReport};
 use motile_particle::rpy_reference::EwaldReference;
 use motile_particle::shared_ewald::SharedEwald;
-use motile_particle::slender::half_rod_rule;
 use motile_particle::spectral_ewald::{EwaldParams, SpectralEwald, SumOutput};
-use motile_particle::units::DEFAULT_DIAMETER;
-use motile_particle::units::eta;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
@@ -26,87 +26,6 @@ use std::f64::consts::PI;
 const A_RPY: f64 = 0.0866;
 const SIGMA: f64 = 0.68;
 const TOLERANCES: [f64; 4] = [1e-2, 1e-4, 1e-6, 1e-8];
-
-fn unit(rng: &mut ChaCha8Rng) -> Vec3 {
-    loop {
-        let v: Vec3 = [0, 1, 2].map(|_| rng.random_range(-1.0..1.0));
-        let n = dot(v, v).sqrt();
-        if n > 0.1 && n < 1.0 {
-            return v.map(|c| c / n);
-        }
-    }
-}
-
-/// Rod centres and orientations: `n` rods at random, or (`touching`) in pairs of parallel
-/// rods whose axes are one diameter (0.2) apart.
-fn rods(n: usize, l: f64, touching: bool, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let (mut x, mut p) = (Vec::new(), Vec::new());
-    while x.len() < n {
-        let c: Vec3 = [0, 1, 2].map(|_| rng.random_range(0.0..l));
-        let q = unit(&mut rng);
-        x.push(c);
-        p.push(q);
-        if touching && x.len() < n {
-            let r = unit(&mut rng);
-            let o = sub(r, q.map(|v| v * dot(q, r)));
-            let on = dot(o, o).sqrt();
-            x.push([0, 1, 2].map(|d| c[d] + 0.2 * o[d] / on));
-            p.push(q);
-        }
-    }
-    (x, p)
-}
-
-/// What the RPY sum sees for rods: the four half-rod Gauss nodes of each, with the isolated
-/// pusher's force density `(U/2 eta) sign(s) p w` (force-free: net force and torque zero) or
-/// random forces.
-fn rod_points(x: &[Vec3], p: &[Vec3], swimming: bool, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let (s, w) = half_rod_rule(4, 1.0);
-    let c = 1.0 / (2.0 * eta(DEFAULT_DIAMETER));
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let (mut y, mut f) = (Vec::new(), Vec::new());
-    for (xn, pn) in x.iter().zip(p) {
-        for (sj, wj) in s.iter().zip(&w) {
-            y.push([0, 1, 2].map(|d| xn[d] + sj * pn[d]));
-            f.push(if swimming {
-                pn.map(|v| c * sj.signum() * wj * v)
-            } else {
-                [0, 1, 2].map(|_| rng.random_range(-1.0..1.0))
-            });
-        }
-    }
-    (y, f)
-}
-
-/// Max-relative and relative-L2 errors of `fast` against `exact`, each relative to the larger
-/// of the exact output's norm and the floor (`floor` per target).
-fn errors(fast: &[Vec<f64>], exact: &[Vec<f64>], floor: f64) -> (f64, f64) {
-    let (mut e2, mut x2, mut emax, mut xmax): (f64, f64, f64, f64) = (0.0, 0.0, 0.0, 0.0);
-    for (a, b) in fast.iter().zip(exact) {
-        let d: f64 = a.iter().zip(b).map(|(u, v)| (u - v) * (u - v)).sum();
-        let n: f64 = b.iter().map(|v| v * v).sum();
-        e2 += d;
-        x2 += n;
-        emax = emax.max(d.sqrt());
-        xmax = xmax.max(n.sqrt());
-    }
-    let count = exact.len() as f64;
-    (
-        emax / xmax.max(floor),
-        e2.sqrt() / x2.sqrt().max(floor * count.sqrt()),
-    )
-}
-
-fn vectors(v: &[Vec3]) -> Vec<Vec<f64>> {
-    v.iter().map(|x| x.to_vec()).collect()
-}
-
-fn matrices(g: &[[Vec3; 3]]) -> Vec<Vec<f64>> {
-    g.iter()
-        .map(|m| m.iter().flatten().copied().collect())
-        .collect()
-}
 
 /// One RPY case: the direct sum at (a sample of) the points, then a fresh fast sum per
 /// tolerance, with or without fixed parameters. Returns the rows of the report.

@@ -1,0 +1,203 @@
+// The Fourier part of the spectral Ewald sums on a GPU: the twins of gaussian_grid.rs (spread,
+// the mode multiplication of convolve, gather, gather_gradient) and of the mode functions of
+// ewald.rs (rpy_fourier_mode_screened, the stresslet's force density). Compiled by NVRTC, or
+// by the host C++ compiler for the emulation (motile-gpu), so: plain C++, no shared memory.
+//
+// Layouts: points as x, y, z triples; point values field-major (field c of point i at
+// c n + i); grids M^3 per field, x fastest; half spectra M M (M/2 + 1) complex values per
+// field as (re, im) pairs, the x mode fastest.
+
+#define MAX_SUPPORT 24
+
+// The window of one point along one axis: the first grid index of its support (in 0..m), the
+// offset d0 of that grid point from the point (in [-w, -w + h)), and the p weights
+// norm exp(-alpha (d0 + q h)^2). As GaussianGrid::prepare_reusing (which builds the same
+// exponentials by a recurrence).
+__device__ void window_axis(double y, double l, int m, int p, double h, double alpha,
+                            double norm, int* first, double* d0, double* w) {
+    double f = y - l * floor(y / l);
+    if (f >= l) f = 0.0;
+    double t = f / h;
+    double i0 = -floor(0.5 * p - t);
+    long long fi = ((long long)i0) % m;
+    if (fi < 0) fi += m;
+    *first = (int)fi;
+    double d = (i0 - t) * h;
+    *d0 = d;
+    for (int q = 0; q < p; ++q) {
+        double r = d + q * h;
+        w[q] = norm * exp(-alpha * r * r);
+    }
+}
+
+// Spread nf fields (nf <= 6) of n points onto nf grids (zeroed by the caller): one thread
+// per point, atomic adds (the order of contributions, and so the last bits, vary from run to
+// run on a GPU).
+extern "C" __global__ void spread(const double* pts, const double* vals, double* grid, int n,
+                                  int nf, int m, int p, double l, double h, double alpha,
+                                  double norm) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    int f[3];
+    double d0[3];
+    double w[3][MAX_SUPPORT];
+    for (int d = 0; d < 3; ++d)
+        window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &f[d], &d0[d], w[d]);
+    double v[6];
+    for (int c = 0; c < nf; ++c) v[c] = vals[(long long)c * n + i];
+    long long m3 = (long long)m * m * m;
+    for (int qz = 0; qz < p; ++qz) {
+        int z = f[2] + qz;
+        if (z >= m) z -= m;
+        for (int qy = 0; qy < p; ++qy) {
+            int y = f[1] + qy;
+            if (y >= m) y -= m;
+            double wzy = w[2][qz] * w[1][qy];
+            long long row = ((long long)z * m + y) * m;
+            for (int qx = 0; qx < p; ++qx) {
+                int x = f[0] + qx;
+                if (x >= m) x -= m;
+                double wt = wzy * w[0][qx];
+                for (int c = 0; c < nf; ++c) atomicAdd(&grid[c * m3 + row + x], wt * v[c]);
+            }
+        }
+    }
+}
+
+// Mode s of the half spectrum: its wavenumber, |k|^2, and whether the sums drop it (k = 0 and
+// the unpaired Nyquist modes, as GaussianGrid::convolve).
+__device__ bool mode_of(long long s, int m, double l, double* k, double* k2) {
+    int h0 = m / 2 + 1;
+    int i0 = (int)(s % h0);
+    long long row = s / h0;
+    int i1 = (int)(row % m);
+    int i2 = (int)(row / m);
+    int idx[3] = {i0, i1, i2};
+    double scale = 2.0 * 3.14159265358979323846 / l;
+    *k2 = 0.0;
+    bool nyquist = false;
+    for (int d = 0; d < 3; ++d) {
+        int q = idx[d] < (m + 1) / 2 ? idx[d] : idx[d] - m;
+        nyquist = nyquist || idx[d] == m / 2;
+        k[d] = q * scale;
+        *k2 += k[d] * k[d];
+    }
+    return !nyquist && *k2 != 0.0;
+}
+
+// u^ = s(k) (I - k k / k^2) f^ times the window correction h^3 exp(eta k^2 / 4 xi^2), with
+// s(k) = (1 + k^2 / 4 xi^2) exp(-k^2 / 4 xi^2) (1 - a^2 k^2 / 6)^2 / (k^2 vol) (mu = 1): the
+// RPY kernel of ewald.rs. Writes the three output spectra of mode s; f the three force
+// spectra.
+__device__ void rpy_mode(const double* f, double* out, long long s, long long slen,
+                         const double* k, double k2, double xi, double a, double l,
+                         double eta, double h) {
+    double x = k2 / (4.0 * xi * xi);
+    double g = 1.0 - a * a * k2 / 6.0;
+    double sc = (1.0 + x) * exp(-x) * g * g / k2 / (l * l * l);
+    double corr = h * h * h * exp(eta * x);
+    double kf_re = (f[0] * k[0] + f[2] * k[1] + f[4] * k[2]) / k2;
+    double kf_im = (f[1] * k[0] + f[3] * k[1] + f[5] * k[2]) / k2;
+    for (int c = 0; c < 3; ++c) {
+        out[2 * (c * slen + s)] = (f[2 * c] - kf_re * k[c]) * sc * corr;
+        out[2 * (c * slen + s) + 1] = (f[2 * c + 1] - kf_im * k[c]) * sc * corr;
+    }
+}
+
+// The RPY Fourier multiplication: three force spectra in, three velocity spectra out.
+extern "C" __global__ void rpy_modes(const double* in, double* out, int m, double l,
+                                     double xi, double a, double eta, double h) {
+    long long s = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    long long slen = (long long)m * m * (m / 2 + 1);
+    if (s >= slen) return;
+    double k[3], k2;
+    if (!mode_of(s, m, l, k, &k2)) {
+        for (int c = 0; c < 3; ++c) out[2 * (c * slen + s)] = out[2 * (c * slen + s) + 1] = 0.0;
+        return;
+    }
+    double f[6];
+    for (int c = 0; c < 3; ++c) {
+        f[2 * c] = in[2 * (c * slen + s)];
+        f[2 * c + 1] = in[2 * (c * slen + s) + 1];
+    }
+    rpy_mode(f, out, s, slen, k, k2, xi, a, l, eta, h);
+}
+
+// The stresslet Fourier multiplication: six spectra of the stresslet components (xx, yy, zz,
+// xy, xz, yz) in; the force density f^_i = -i sum_j S^_ij k_j; three velocity spectra out (a
+// point force's, a = 0). The gradient comes from the window's derivative in the gather.
+extern "C" __global__ void stresslet_modes(const double* in, double* out, int m, double l,
+                                           double xi, double eta, double h) {
+    long long s = (long long)blockIdx.x * blockDim.x + threadIdx.x;
+    long long slen = (long long)m * m * (m / 2 + 1);
+    if (s >= slen) return;
+    double k[3], k2;
+    if (!mode_of(s, m, l, k, &k2)) {
+        for (int c = 0; c < 3; ++c) out[2 * (c * slen + s)] = out[2 * (c * slen + s) + 1] = 0.0;
+        return;
+    }
+    // Component of S_ij in the input: (0,0)->0 (1,1)->1 (2,2)->2 (0,1)->3 (0,2)->4 (1,2)->5.
+    const int comp[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
+    double f[6];
+    for (int i = 0; i < 3; ++i) {
+        double re = 0.0, im = 0.0;
+        for (int j = 0; j < 3; ++j) {
+            long long at = 2 * (comp[i][j] * slen + s);
+            re += in[at] * k[j];
+            im += in[at + 1] * k[j];
+        }
+        // -i (re + i im) = im - i re
+        f[2 * i] = im;
+        f[2 * i + 1] = -re;
+    }
+    rpy_mode(f, out, s, slen, k, k2, xi, 0.0, l, eta, h);
+}
+
+// Gather three fields back to the n points: h^3 sum_grid G(x) g(y - x) at out[c n + i], and
+// with gradient != 0 also d/dy_m at out[(3 + 3 c + m) n + i] from the window's derivative
+// g'(y - x_q) = 2 alpha (d0 + q h) g (as gather_gradient_point).
+extern "C" __global__ void gather(const double* pts, const double* grid, double* out, int n,
+                                  int gradient, int m, int p, double l, double h,
+                                  double alpha, double norm) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    int f[3];
+    double d0[3];
+    double w[3][MAX_SUPPORT];
+    double dw[3][MAX_SUPPORT];
+    for (int d = 0; d < 3; ++d) {
+        window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &f[d], &d0[d], w[d]);
+        for (int q = 0; q < p; ++q) dw[d][q] = 2.0 * alpha * (d0[d] + q * h) * w[d][q];
+    }
+    double acc[12];
+    for (int c = 0; c < 12; ++c) acc[c] = 0.0;
+    long long m3 = (long long)m * m * m;
+    for (int qz = 0; qz < p; ++qz) {
+        int z = f[2] + qz;
+        if (z >= m) z -= m;
+        for (int qy = 0; qy < p; ++qy) {
+            int y = f[1] + qy;
+            if (y >= m) y -= m;
+            long long row = ((long long)z * m + y) * m;
+            double wzy = w[2][qz] * w[1][qy];
+            double wz_dy = w[2][qz] * dw[1][qy];
+            double dz_wy = dw[2][qz] * w[1][qy];
+            for (int qx = 0; qx < p; ++qx) {
+                int x = f[0] + qx;
+                if (x >= m) x -= m;
+                for (int c = 0; c < 3; ++c) {
+                    double g = grid[c * m3 + row + x];
+                    acc[c] += wzy * w[0][qx] * g;
+                    if (gradient) {
+                        acc[3 + 3 * c] += wzy * dw[0][qx] * g;
+                        acc[3 + 3 * c + 1] += wz_dy * w[0][qx] * g;
+                        acc[3 + 3 * c + 2] += dz_wy * w[0][qx] * g;
+                    }
+                }
+            }
+        }
+    }
+    double h3 = h * h * h;
+    int outputs = gradient ? 12 : 3;
+    for (int c = 0; c < outputs; ++c) out[(long long)c * n + i] = h3 * acc[c];
+}

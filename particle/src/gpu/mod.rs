@@ -1,0 +1,206 @@
+//! The Fourier part of the spectral Ewald sums on a GPU (feature `gpu`): spreading, FFTs, the
+//! Fourier-space multiplication and the interpolation back, each the twin of the CPU's
+//! (`gaussian_grid.rs`, the mode functions of [`crate::ewald`]), on a [`motile_gpu::Device`].
+//! [`crate::spectral_ewald::SpectralEwald::with_device`] uses it in place of the CPU grid; the
+//! real-space sum over neighbours, the corrections, the error estimate and the refinement stay
+//! on the CPU and are shared with the CPU sum, so the accuracy contract is the same.
+//!
+//! The device is CUDA ([`GpuFourier::cuda`]) or the host emulation
+//! ([`GpuFourier::host_emulation`]: the same kernels compiled by the C++ compiler and run on
+//! one CPU thread, for tests on machines without a GPU). Each sum uploads the points and their
+//! values and downloads the gathered values; the grids, spectra and FFT plans stay on the
+//! device from sum to sum (rebuilt when the grid size changes).
+//!
+//! On a GPU the spreading's atomic adds make the last bits vary from run to run.
+
+mod launch;
+
+use crate::gaussian_grid::Window;
+use crate::geometry::Vec3;
+use motile_gpu::{Buffer, Device, Fft3};
+pub use motile_gpu::{DeviceInfo, GpuError, probe};
+
+/// The kernels' source (compiled when a device is opened).
+const SOURCE: &str = include_str!("kernels.cu");
+
+/// The kernels of [`SOURCE`].
+const KERNELS: [&str; 4] = ["spread", "rpy_modes", "stresslet_modes", "gather"];
+
+/// The device and what stays on it between sums.
+#[derive(Debug)]
+pub struct GpuFourier {
+    dev: Device,
+    grid: Option<Grid>,
+}
+
+/// Plans and buffers for one grid size.
+#[derive(Debug)]
+struct Grid {
+    m: usize,
+    /// The spread fields and their spectra: three (RPY forces) and six (stresslets), each
+    /// made when first used.
+    inputs: [Option<Input>; 2],
+    /// The three output spectra, and the fields they transform back to.
+    spectra_out: Buffer,
+    inverse3: Fft3,
+    back: Buffer,
+}
+
+/// `nf` spread fields, their forward plan and their spectra.
+#[derive(Debug)]
+pub(crate) struct Input {
+    plan: Fft3,
+    fields: Buffer,
+    pub(crate) spectra: Buffer,
+}
+
+/// The window and box of one sum.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Geometry {
+    pub(crate) window: Window,
+    pub(crate) m: usize,
+    pub(crate) l: f64,
+    pub(crate) xi: f64,
+}
+
+impl GpuFourier {
+    /// CUDA device 0 (kernels compiled by NVRTC): [`GpuError::NoDevice`] where there is none.
+    pub fn cuda() -> Result<Self, GpuError> {
+        Ok(Self {
+            dev: Device::cuda(SOURCE, &KERNELS)?,
+            grid: None,
+        })
+    }
+
+    /// The host emulation of the same kernels (slow; for tests on machines without a GPU).
+    pub fn host_emulation() -> Result<Self, GpuError> {
+        Ok(Self {
+            dev: Device::host_emulation(SOURCE, &KERNELS)?,
+            grid: None,
+        })
+    }
+
+    /// What the device is.
+    pub fn describe(&self) -> String {
+        self.dev.describe()
+    }
+
+    /// The plans and buffers for grid size `m`, and the input of `nf` (3 or 6) fields.
+    fn grid(&mut self, m: usize, nf: usize) -> Result<&mut Grid, GpuError> {
+        let dev = &self.dev;
+        if self.grid.as_ref().is_none_or(|g| g.m != m) {
+            self.grid = None; // the old buffers go first
+            let inverse3 = dev.fft3(m, 3)?;
+            self.grid = Some(Grid {
+                m,
+                inputs: [None, None],
+                spectra_out: dev.zeros(inverse3.complex_len())?,
+                back: dev.zeros(inverse3.real_len())?,
+                inverse3,
+            });
+        }
+        let g = self.grid.as_mut().expect("made above");
+        let slot = &mut g.inputs[usize::from(nf == 6)];
+        if slot.is_none() {
+            let plan = dev.fft3(m, nf)?;
+            *slot = Some(Input {
+                fields: dev.zeros(plan.real_len())?,
+                spectra: dev.zeros(plan.complex_len())?,
+                plan,
+            });
+        }
+        Ok(g)
+    }
+
+    /// Spread `values` (field-major, `nf` fields of the points) and forward transform them
+    /// into the input's spectra.
+    fn spread(
+        &mut self,
+        geo: &Geometry,
+        pts: &Buffer,
+        n: usize,
+        values: &[f64],
+        nf: usize,
+    ) -> Result<(), GpuError> {
+        let vals = self.dev.upload(values)?;
+        self.grid(geo.m, nf)?;
+        let dev = &self.dev;
+        let g = self.grid.as_mut().expect("made by grid()");
+        let input = g.inputs[usize::from(nf == 6)]
+            .as_mut()
+            .expect("made by grid()");
+        dev.zero(&mut input.fields)?;
+        launch::spread(dev, geo, pts, &vals, &mut input.fields, n, nf)?;
+        dev.forward(&input.plan, &input.fields, &mut input.spectra)
+    }
+
+    /// Inverse transform the three output spectra and gather them (with gradients if asked).
+    fn back(
+        &mut self,
+        geo: &Geometry,
+        pts: &Buffer,
+        n: usize,
+        gradient: bool,
+    ) -> Result<Vec<f64>, GpuError> {
+        let g = self.grid.as_mut().expect("spread first");
+        let dev = &self.dev;
+        dev.inverse(&g.inverse3, &mut g.spectra_out, &mut g.back)?;
+        let mut out = dev.zeros(if gradient { 12 } else { 3 } * n)?;
+        launch::gather(dev, geo, pts, &g.back, &mut out, n, gradient)?;
+        dev.download(&out)
+    }
+
+    /// The Fourier part of the RPY sum (radius `a`) at the points: three velocity components
+    /// per point (before the division by the viscosity), in the points' order.
+    pub(crate) fn rpy(
+        &mut self,
+        geo: &Geometry,
+        a: f64,
+        points: &[Vec3],
+        forces: &[Vec3],
+    ) -> Result<[Vec<f64>; 3], GpuError> {
+        let n = points.len();
+        let pts = self.dev.upload(points.as_flattened())?;
+        let vals: Vec<f64> = (0..3)
+            .flat_map(|d| forces.iter().map(move |f| f[d]))
+            .collect();
+        self.spread(geo, &pts, n, &vals, 3)?;
+        let g = self.grid.as_mut().expect("spread made it");
+        let input = g.inputs[0].as_ref().expect("spread made it");
+        launch::modes(
+            &self.dev,
+            geo,
+            launch::Modes::Rpy { a },
+            &input.spectra,
+            &mut g.spectra_out,
+        )?;
+        let out = self.back(geo, &pts, n, false)?;
+        Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
+    }
+
+    /// The Fourier part of the stresslet sum: the six stresslet components per point
+    /// (`xx, yy, zz, xy, xz, yz`) in, velocity and gradient out as
+    /// `GaussianGrid::gather_gradient` gives them (`3 + 3 i + m` is `du_i/dx_m`).
+    pub(crate) fn stresslet(
+        &mut self,
+        geo: &Geometry,
+        points: &[Vec3],
+        s: [&[f64]; 6],
+    ) -> Result<[Vec<f64>; 12], GpuError> {
+        let n = points.len();
+        let pts = self.dev.upload(points.as_flattened())?;
+        let vals: Vec<f64> = s.iter().flat_map(|c| c.iter().copied()).collect();
+        self.spread(geo, &pts, n, &vals, 6)?;
+        let g = self.grid.as_mut().expect("spread made it");
+        let input = g.inputs[1].as_ref().expect("spread made it");
+        launch::modes(
+            &self.dev,
+            geo,
+            launch::Modes::Stresslet,
+            &input.spectra,
+            &mut g.spectra_out,
+        )?;
+        let out = self.back(geo, &pts, n, true)?;
+        Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
+    }
+}

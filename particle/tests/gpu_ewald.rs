@@ -1,0 +1,196 @@
+//! The spectral Ewald sums with their Fourier part on a device (feature `gpu`), against their
+//! CPU twin (the same sum with the CPU grid: agreement to round-off) and against the direct
+//! Ewald sum (the accuracy contract), on what the simulations produce: swimming (force-free)
+//! rods for the RPY sum, point stresslets for velocities and gradients, at tolerances 1e-4
+//! and 1e-8.
+//!
+//! Two devices: the host emulation (the same kernels compiled by the C++ compiler, run on the
+//! CPU: skipped, with the reason, where no C++ compiler runs, a failure with
+//! `MOTILE_REQUIRE_CXX=1`) and CUDA (skipped where there is no GPU, a failure with
+//! `MOTILE_REQUIRE_GPU=1`).
+
+mod common;
+
+use common::{errors, matrices, rod_points, rods, vectors};
+use motile_particle::geometry::Vec3;
+use motile_particle::gpu::{GpuError, GpuFourier};
+use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::rpy_reference::EwaldReference;
+use motile_particle::spectral_ewald::SpectralEwald;
+use std::f64::consts::PI;
+
+const A_RPY: f64 = 0.0866;
+const SIGMA: f64 = 0.68;
+const TOLERANCES: [f64; 2] = [1e-4, 1e-8];
+/// Device against CPU, relative to the largest output: both run the same arithmetic but for
+/// the order of the spreading's sums and the window's exponentials (direct on the device, a
+/// recurrence on the CPU), a few ulps per term of sums of hundreds of terms.
+const PARITY: f64 = 1e-11;
+
+/// A device, or `None` after saying why it was skipped (`require`: the variable that makes a
+/// skip a failure).
+fn device(
+    which: &str,
+    open: fn() -> Result<GpuFourier, GpuError>,
+    require: &str,
+) -> Option<GpuFourier> {
+    match open() {
+        Ok(d) => {
+            eprintln!("{which}: {}", d.describe());
+            Some(d)
+        }
+        Err(e) if std::env::var(require).is_err() => {
+            eprintln!("{which}: skipped ({e}); set {require}=1 to make this a failure");
+            None
+        }
+        Err(e) => panic!("{which}: {e} (and {require} is set)"),
+    }
+}
+
+/// The RPY sum of swimming rods and the stresslet sum, on the device against the CPU and the
+/// direct sum. Returns the report lines.
+fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
+    let mut rows = Vec::new();
+    // 40 swimming rods (four half-rod nodes each) in a box of 5 rod lengths.
+    let l = 5.0;
+    let (x, p) = rods(40, l, false, 5);
+    let (y, f) = rod_points(&x, &p, true, 3);
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: A_RPY,
+        group: 4,
+    };
+    let all: Vec<usize> = (0..y.len()).collect();
+    let exact = EwaldReference::default()
+        .rpy_at(&geo, &y, &f, &all)
+        .unwrap();
+    let largest = |v: &[Vec<f64>]| {
+        v.iter()
+            .map(|r| r.iter().map(|c| c * c).sum::<f64>().sqrt())
+            .fold(0.0, f64::max)
+    };
+    for tol in TOLERANCES {
+        let mut cpu = SpectralEwald::new(tol).unwrap();
+        let mut dev = SpectralEwald::with_device(tol, open()).unwrap();
+        let uc = cpu.rpy(&geo, &y, &f).unwrap();
+        let ud = dev.rpy(&geo, &y, &f).unwrap();
+        let (rc, rd) = (cpu.last_report().unwrap(), dev.last_report().unwrap());
+        let parity = errors(&vectors(&ud), &vectors(&uc), 0.0).0;
+        let (max, l2) = errors(&vectors(&ud), &vectors(&exact), 0.0);
+        rows.push(format!(
+            "RPY, {} swimming-rod nodes, tol {tol:.0e}: device vs CPU {parity:.1e} of the \
+             largest velocity; vs the direct sum max-relative {:.2} tol, L2 {:.2} tol (grid \
+             {}^3, level {})",
+            y.len(),
+            max / tol,
+            l2 / tol,
+            dev.last_params().unwrap().modes,
+            rd.level
+        ));
+        assert_eq!(rc.level, rd.level, "the same refinement on both");
+        assert!(
+            parity <= PARITY,
+            "RPY device vs CPU: {parity:e} (> {PARITY:e})"
+        );
+        assert!(
+            max <= tol && l2 <= tol && rd.met,
+            "RPY contract: {max:e}, {l2:e} at {tol:e}"
+        );
+        assert!(largest(&vectors(&ud)) > 0.0, "a flow");
+    }
+    // 60 point stresslets (the dipole level's sources) in a box of 6.
+    let l = 6.0;
+    let (x, p) = rods(60, l, false, 9);
+    let sigma = vec![SIGMA; x.len()];
+    let exact = EwaldReference::default()
+        .stresslets(l, &x, &p, &sigma)
+        .unwrap();
+    let floor = |k: i32| SIGMA / (8.0 * PI * l.powi(k));
+    for tol in TOLERANCES {
+        let mut cpu = SpectralEwald::new(tol).unwrap();
+        let mut dev = SpectralEwald::with_device(tol, open()).unwrap();
+        let sc = cpu.stresslets(l, &x, &p, &sigma).unwrap();
+        let sd = dev.stresslets(l, &x, &p, &sigma).unwrap();
+        let pu = errors(&vectors(&sd.u), &vectors(&sc.u), floor(2)).0;
+        let pg = errors(&matrices(&sd.grad), &matrices(&sc.grad), floor(3)).0;
+        let eu = errors(&vectors(&sd.u), &vectors(&exact.u), floor(2));
+        let eg = errors(&matrices(&sd.grad), &matrices(&exact.grad), floor(3));
+        rows.push(format!(
+            "stresslets, {} points, tol {tol:.0e}: device vs CPU {pu:.1e} (velocity), {pg:.1e} \
+             (gradient); vs the direct sum velocity {:.2} / {:.2} tol, gradient {:.2} / {:.2} \
+             tol (max-relative / L2)",
+            x.len(),
+            eu.0 / tol,
+            eu.1 / tol,
+            eg.0 / tol,
+            eg.1 / tol
+        ));
+        assert!(
+            pu <= PARITY && pg <= PARITY,
+            "stresslets device vs CPU: {pu:e}, {pg:e}"
+        );
+        for (what, (max, l2)) in [("velocity", eu), ("gradient", eg)] {
+            assert!(
+                max <= tol && l2 <= tol,
+                "stresslet {what} contract: {max:e}, {l2:e} at {tol:e}"
+            );
+        }
+        assert!(
+            dev.last_report().unwrap().met,
+            "the device sum met its estimate"
+        );
+    }
+    rows
+}
+
+#[test]
+fn emulated_device_sums_match_the_cpu_and_the_direct_sum() {
+    let Some(first) = device(
+        "host emulation",
+        GpuFourier::host_emulation,
+        "MOTILE_REQUIRE_CXX",
+    ) else {
+        return;
+    };
+    drop(first);
+    let rows = check_device(&|| GpuFourier::host_emulation().unwrap());
+    eprintln!("{}", rows.join("\n"));
+}
+
+#[test]
+fn gpu_sums_match_the_cpu_and_the_direct_sum() {
+    let Some(first) = device("CUDA", GpuFourier::cuda, "MOTILE_REQUIRE_GPU") else {
+        return;
+    };
+    drop(first);
+    let rows = check_device(&|| GpuFourier::cuda().unwrap());
+    eprintln!("{}", rows.join("\n"));
+}
+
+/// A device sum keeps its device's plans from sum to sum and follows a change of grid (the
+/// sums of one run at two tolerances, and at two box sizes).
+#[test]
+fn a_device_sum_follows_changes_of_grid() {
+    let Some(gpu) = device(
+        "host emulation",
+        GpuFourier::host_emulation,
+        "MOTILE_REQUIRE_CXX",
+    ) else {
+        return;
+    };
+    let mut dev = SpectralEwald::with_device(1e-4, gpu).unwrap();
+    let mut cpu = SpectralEwald::new(1e-4).unwrap();
+    for (l, seed) in [(5.0, 1), (7.0, 2), (5.0, 3)] {
+        let (x, p) = rods(30, l, false, seed);
+        let (y, f) = rod_points(&x, &p, true, seed);
+        let geo = RpyGeometry {
+            box_length: l,
+            radius: A_RPY,
+            group: 4,
+        };
+        let ud: Vec<Vec3> = dev.rpy(&geo, &y, &f).unwrap();
+        let uc = cpu.rpy(&geo, &y, &f).unwrap();
+        let parity = errors(&vectors(&ud), &vectors(&uc), 0.0).0;
+        assert!(parity <= PARITY, "L = {l}: device vs CPU {parity:e}");
+    }
+}
