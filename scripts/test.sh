@@ -7,12 +7,23 @@ if ! python3 -c "import h5py, numpy" 2>/dev/null; then
   python3 -m pip install --quiet -r bench/requirements-test.txt
 fi
 export MOTILE_REQUIRE_H5PY=1
+# The GPU kernels are also tested on the CPU, compiled by a C++ compiler (the host emulation of
+# crate motile-gpu): installed when missing (Debian package), and its absence is a failure here.
+if ! command -v c++ >/dev/null 2>&1 && ! command -v g++ >/dev/null 2>&1 \
+  && ! command -v clang++ >/dev/null 2>&1 && [ -z "${CXX:-}" ]; then
+  SUDO=""
+  if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq g++ >/dev/null
+fi
+export MOTILE_REQUIRE_CXX=1
 cargo test --release --workspace
-# The optional GPU back-end builds everywhere (CUDA is loaded at run time); its parity test runs
-# where a GPU is present and says why it was skipped elsewhere (MOTILE_REQUIRE_GPU=1 makes a
-# missing GPU a failure).
+# The optional GPU back-end builds everywhere (CUDA is loaded at run time); its parity tests run
+# where a GPU is present and say why they were skipped elsewhere (MOTILE_REQUIRE_GPU=1 makes a
+# missing GPU a failure). The particle sums' kernels also run here through the host emulation.
 cargo build --release -p motile-experiments --features gpu
 cargo test --release -p motile-meanfield --features gpu --test gpu
+cargo test --release -p motile-particle --features gpu --test gpu_ewald
 # The optional distributed particle run (feature mpi) needs OpenMPI and libclang to build; they
 # are installed when missing (Debian packages), then its tests run motile under mpirun on 1, 2
 # and 3 ranks (oversubscribed, one thread per rank) against one process.

@@ -209,9 +209,9 @@ struct RunArgs {
     /// Print the resolved config and exit.
     #[arg(long)]
     dry_run: bool,
-    /// Where the steps run, overriding the config's `device`: cpu, or gpu (mean-field runs in a
-    /// build with `--features gpu`; a GPU request without a GPU is an error, never a CPU
-    /// fallback).
+    /// Where the work runs, overriding the config's `device`: cpu, or gpu (a build with
+    /// `--features gpu`: the whole mean-field step, or the Fourier part of the particle model's
+    /// hydrodynamic sums; a GPU request without a GPU is an error, never a CPU fallback).
     #[arg(long, value_enum)]
     device: Option<meanfield_run::Device>,
 }
@@ -308,21 +308,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     device,
                 }),
         } => {
-            if device == Some(meanfield_run::Device::Gpu) {
-                anyhow::bail!(
-                    "--device gpu: the particle model has no GPU back-end yet (the GPU spectral Ewald sum is not written); run it on the CPU"
-                );
-            }
             let Some(cfg) = resolve_config(
                 &config,
                 dry_run,
                 parse_config,
                 ParticleRunConfig::resolve_paths,
-                |_| {},
+                |c| {
+                    if let Some(d) = device {
+                        c.device = d;
+                    }
+                },
             )?
             else {
                 return Ok(());
             };
+            // The override is checked with the rest (a GPU needs hydrodynamic sums to run).
+            cfg.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
             let out = out.context("--out DIR is required to run")?;
             let s = run_particle(
                 &cfg,

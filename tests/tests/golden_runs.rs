@@ -6,8 +6,9 @@
 //! mid-run checkpoints that the old code wrote (tests/data/golden/{particle,meanfield}: each
 //! run's directory as it stood just after its mid-run checkpoint).
 //!
-//! Since then the particle config gained `diameter` (the rod diameter, a run parameter): the
-//! fresh run's config.toml has it, every other file is unchanged.
+//! Since then the particle config gained `diameter` (the rod diameter, a run parameter) and
+//! `device` (where the sums' Fourier part runs): the fresh run's config.toml has them, every
+//! other file is unchanged.
 //!
 //! The hashes were recorded on x86_64 with AVX2 and FMA (rustfft and the compiler's vector
 //! code choose their kernels at run time); on a machine with other vector units the test
@@ -29,7 +30,7 @@ const PARTICLE: [(&str, u64); 15] = [
     ("checkpoints/ckpt_000000005.h5.crc32", 0x1364faa84b7da4cd),
     ("checkpoints/ckpt_000000010.h5", 0x53944958b5d02841),
     ("checkpoints/ckpt_000000010.h5.crc32", 0x5439f79be40bed36),
-    ("config.toml", 0x2f774aeced126098),
+    ("config.toml", 0x23477c946a5ffba7),
     ("rods.pvd", 0xdd3f77050fe4c5f7),
     ("snapshots/snap_000000.h5", 0x91dccf280beaf970),
     ("snapshots/snap_000001.h5", 0x20c72be061520fc2),

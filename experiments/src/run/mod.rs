@@ -20,13 +20,36 @@ pub mod meanfield;
 pub mod particle;
 pub mod ranks;
 
+/// Where a run's heavy work runs (`device`): the mean-field step, or the Fourier part of the
+/// particle model's hydrodynamic sums.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    /// The CPU, on the worker threads (`--threads`).
+    #[default]
+    Cpu,
+    /// An NVIDIA GPU through CUDA (a build with `--features gpu`; CUDA is loaded when the run
+    /// starts, and a run that asks for a GPU where there is none stops with that error, never
+    /// falling back to the CPU).
+    Gpu,
+}
+
+impl std::fmt::Display for Device {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Device::Cpu => "cpu",
+            Device::Gpu => "gpu",
+        })
+    }
+}
+
 use crate::checkpoint::{self, LAST_GOOD};
 use crate::failure::{FailureKind, RunFailure};
 use crate::rundir::{RunDir, TimeSeries, read_run_config};
 use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::Serialize;
 use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -8,27 +8,7 @@ use motile_meanfield::solver::MeanFieldParams;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Where the mean-field step runs (`device`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "lowercase")]
-pub enum Device {
-    /// The CPU, on the worker threads (`--threads`).
-    #[default]
-    Cpu,
-    /// An NVIDIA GPU through CUDA (a build with `--features gpu`; CUDA is loaded when the run
-    /// starts, and a run that asks for a GPU where there is none stops with that error, never
-    /// falling back to the CPU).
-    Gpu,
-}
-
-impl std::fmt::Display for Device {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Device::Cpu => "cpu",
-            Device::Gpu => "gpu",
-        })
-    }
-}
+pub use crate::run::Device;
 
 /// Configuration of a mean-field run (units: box side 1, time mu/|sigma_a|).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

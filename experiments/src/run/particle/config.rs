@@ -40,6 +40,12 @@ pub struct ParticleRunConfig {
     pub hydrodynamics: Hydrodynamics,
     /// Settings of the hydrodynamic models.
     pub hydro: HydroConfig,
+    /// Where the Fourier part of the hydrodynamic sums runs (spreading, FFTs, the Fourier-space
+    /// multiplication, the gather): "cpu" or "gpu" (a build with `--features gpu`; the
+    /// real-space part, the contacts and the rest of the step stay on the CPU's threads).
+    /// "gpu" needs hydrodynamics "dipole" or "sbt" and one process (not MPI ranks). Default
+    /// "cpu".
+    pub device: crate::run::Device,
     /// "random" (isotropic), "perturbation" (orientations drawn from
     /// `Psi = (1 + (15/2) Q'(x) : pp) / 4 pi` with `Q'` from `[perturbation]`: the mean-field
     /// model's initial field, docs/MODEL.md §5), or a file: a particle snapshot (.h5) or a text table
@@ -76,6 +82,7 @@ impl Default for ParticleRunConfig {
             diameter: motile_particle::units::DEFAULT_DIAMETER,
             hydrodynamics: Hydrodynamics::None,
             hydro: HydroConfig::default(),
+            device: crate::run::Device::Cpu,
             initial: "random".into(),
             perturbation: PerturbationConfig::default(),
             diagnostic_interval: 0.02,
@@ -293,6 +300,12 @@ impl ParticleRunConfig {
             "N l^3 / L^3",
         )?;
         range("dt", self.dt, 0.0, 0.05, true, "1/beta")?;
+        if self.device == crate::run::Device::Gpu && self.hydrodynamics == Hydrodynamics::None {
+            return Err(
+                "device = \"gpu\": the GPU does the hydrodynamic sums, and hydrodynamics = \"none\" has none; use hydrodynamics = \"dipole\" or \"sbt\", or device = \"cpu\""
+                    .into(),
+            );
+        }
         motile_particle::units::check_diameter(self.diameter).map_err(|e| e.to_string())?;
         self.perturbation.validate()?;
         range("t_end", self.t_end, 0.0, 1e9, true, "1/beta")?;
@@ -362,6 +375,11 @@ pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig
 /// The mobility of one rank's part of a box shared by several: the dipole and slender-body
 /// levels' sums are the shared one ([`motile_particle::shared_ewald`]).
 pub(super) fn shared_mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
+    if cfg.device == crate::run::Device::Gpu {
+        anyhow::bail!(
+            "device = \"gpu\": the GPU sums run in one process, not shared among MPI ranks; run one process with the GPU, or the ranks with device = \"cpu\""
+        );
+    }
     let h = &cfg.hydro;
     let sum = || SpectralEwald::new(h.sum_tolerance).map(Box::new);
     Ok(match cfg.hydrodynamics {
@@ -378,10 +396,31 @@ pub(super) fn shared_mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn
 /// The mobility named by `hydrodynamics` (validated).
 pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
     let h = &cfg.hydro;
-    let sum = || SpectralEwald::new(h.sum_tolerance).map(Box::new);
+    let sum = || -> anyhow::Result<Box<SpectralEwald>> {
+        Ok(Box::new(match cfg.device {
+            crate::run::Device::Cpu => SpectralEwald::new(h.sum_tolerance)?,
+            crate::run::Device::Gpu => gpu_sum(h.sum_tolerance)?,
+        }))
+    };
     Ok(match cfg.hydrodynamics {
         Hydrodynamics::Dipole => Box::new(Dipole::new(sum()?, cfg.diameter)),
         Hydrodynamics::Sbt => Box::new(SlenderBody::new(h.slender(cfg.diameter), sum()?)),
         Hydrodynamics::None => Box::new(LocalDrag::new(cfg.diameter)),
     })
+}
+
+/// The fast sum with its Fourier part on CUDA device 0: an error, never a CPU fallback, where
+/// there is none.
+#[cfg(feature = "gpu")]
+fn gpu_sum(tol: f64) -> anyhow::Result<SpectralEwald> {
+    let dev = motile_particle::gpu::GpuFourier::cuda()
+        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
+    Ok(SpectralEwald::with_device(tol, dev)?)
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_sum(_tol: f64) -> anyhow::Result<SpectralEwald> {
+    anyhow::bail!(
+        "device = \"gpu\": this motile was built without GPU support; build it with `cargo install --path experiments --features gpu` (CUDA is loaded when a run starts: the build needs nothing but cargo)"
+    )
 }

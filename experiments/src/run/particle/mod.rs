@@ -149,7 +149,13 @@ impl ParticleModel {
             ranks,
             before: None,
             window: (Instant::now(), 0),
-            notes: Vec::new(),
+            notes: if cfg.device == run::Device::Gpu {
+                vec![
+                    "the Fourier part of the hydrodynamic sums runs on the GPU (device = \"gpu\"); real space, contacts and the rest of the step on the CPU".into(),
+                ]
+            } else {
+                Vec::new()
+            },
         })
     }
 
