@@ -202,6 +202,7 @@ impl Cuda {
                     _ => return Err(crate::foreign()),
                 },
                 Arg::Int(i) => b.arg(&*i),
+                Arg::Long(i) => b.arg(&*i),
                 Arg::Real(x) => b.arg(&*x),
             };
         }
@@ -217,29 +218,44 @@ impl Cuda {
     }
 }
 
-/// The batch of forward transforms of a plan.
+/// The batch of forward transforms of a plan: `len` real values from `real_at`, into the
+/// half spectra from `spectra_at` (`2 half` values).
 pub(crate) fn forward(
     plan: &CudaFft,
-    real: &CudaSlice<f64>,
-    spectra: &mut CudaSlice<f64>,
+    (real, real_at, len): (&CudaSlice<f64>, usize, usize),
+    (spectra, spectra_at, half): (&mut CudaSlice<f64>, usize, usize),
 ) -> Result<(), GpuError> {
-    let half = spectra.len() / 2;
-    // SAFETY: double2 is two f64 with the alignment of f64 pairs cudaMalloc gives; the view
-    // covers exactly the buffer's 2 half values.
-    let mut view = unsafe { spectra.transmute_mut::<double2>(half) }
+    let src = real.slice(real_at..real_at + len);
+    let mut dst = spectra.slice_mut(spectra_at..spectra_at + 2 * half);
+    // SAFETY: double2 is two f64 (no padding, the alignment of an f64 pair: the offsets are
+    // even counts of f64 from a cudaMalloc'd base); the view covers exactly 2 half values.
+    let mut view = unsafe { dst.transmute_mut::<double2>(half) }
         .ok_or_else(|| GpuError::Input("a spectrum buffer too short".into()))?;
-    plan.exec_d2z(real, &mut view).map_err(fft)
+    plan.exec_d2z(&src, &mut view).map_err(fft)
 }
 
-/// The batch of inverse transforms of a plan (the spectra are overwritten).
+/// The batch of inverse transforms of a plan (the spectra are overwritten), as [`forward`].
 pub(crate) fn inverse(
     plan: &CudaFft,
-    spectra: &mut CudaSlice<f64>,
-    real: &mut CudaSlice<f64>,
+    (spectra, spectra_at, half): (&mut CudaSlice<f64>, usize, usize),
+    (real, real_at, len): (&mut CudaSlice<f64>, usize, usize),
 ) -> Result<(), GpuError> {
-    let half = spectra.len() / 2;
+    let mut src = spectra.slice_mut(spectra_at..spectra_at + 2 * half);
+    let mut dst = real.slice_mut(real_at..real_at + len);
     // SAFETY: as in `forward`.
-    let mut view = unsafe { spectra.transmute_mut::<double2>(half) }
+    let mut view = unsafe { src.transmute_mut::<double2>(half) }
         .ok_or_else(|| GpuError::Input("a spectrum buffer too short".into()))?;
-    plan.exec_z2d(&mut view, real).map_err(fft)
+    plan.exec_z2d(&mut view, &mut dst).map_err(fft)
+}
+
+/// Copy `len` values of `src` from `src_at` into `dst` from `dst_at`.
+pub(crate) fn copy(
+    c: &Cuda,
+    (src, src_at): (&CudaSlice<f64>, usize),
+    (dst, dst_at): (&mut CudaSlice<f64>, usize),
+    len: usize,
+) -> Result<(), GpuError> {
+    let from = src.slice(src_at..src_at + len);
+    let mut to = dst.slice_mut(dst_at..dst_at + len);
+    c.stream.memcpy_dtod(&from, &mut to).map_err(driver)
 }

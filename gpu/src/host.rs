@@ -11,23 +11,64 @@ use std::process::Command;
 /// What the kernels see of CUDA: thread indices (one thread at a time, so a plain global is
 /// enough), qualifiers as no-ops, `atomicAdd` as a plain add (nothing runs concurrently), and
 /// per kernel an entry point that runs every thread of every block and one that describes its
-/// parameter types (`i` const double*, `o` double*, `n` int, `r` double).
+/// parameter types (`i` const double* or const double2*, `o` double* or double2*, `n` int,
+/// `l` long long, `r` double). Shared memory and `__syncthreads` run each block's threads as OS
+/// threads with a barrier (the source is compiled that way when it uses `__syncthreads`).
 const PRELUDE: &str = r#"
 #include <cmath>
 #include <math.h>
 #include <cstddef>
 #include <utility>
+#include <thread>
+#include <mutex>
+#include <condition_variable>
+#include <vector>
 struct motile_dim3 { unsigned x, y, z; };
-static motile_dim3 threadIdx, blockIdx, blockDim, gridDim;
+struct double2 { double x, y; };
+static inline double2 make_double2(double x, double y) { return double2{x, y}; }
+static thread_local motile_dim3 threadIdx, blockIdx;
+static motile_dim3 blockDim, gridDim;
 #define __global__
 #define __device__
 #define __host__
+#define __constant__ const
 #define __forceinline__ inline
-static inline double atomicAdd(double* p, double v) { double old = *p; *p = old + v; return old; }
+#define __launch_bounds__(...)
+// Shared memory: one block runs at a time, so a static array is the block's.
+#define __shared__ static
+static inline double atomicAdd(double* p, double v) {
+    static std::mutex m;
+    std::lock_guard<std::mutex> g(m);
+    double old = *p;
+    *p = old + v;
+    return old;
+}
+// The barrier of the block's threads (threaded launches only).
+struct motile_barrier {
+    std::mutex m;
+    std::condition_variable cv;
+    unsigned count = 0, waiting = 0, generation = 0;
+    void wait() {
+        std::unique_lock<std::mutex> lock(m);
+        unsigned g = generation;
+        if (++waiting == count) {
+            waiting = 0;
+            ++generation;
+            cv.notify_all();
+        } else {
+            cv.wait(lock, [&] { return generation != g; });
+        }
+    }
+};
+static motile_barrier motile_block_barrier;
+#define __syncthreads() motile_block_barrier.wait()
 template <typename T> struct motile_code;
 template <> struct motile_code<const double*> { static constexpr char c = 'i'; };
 template <> struct motile_code<double*> { static constexpr char c = 'o'; };
+template <> struct motile_code<const double2*> { static constexpr char c = 'i'; };
+template <> struct motile_code<double2*> { static constexpr char c = 'o'; };
 template <> struct motile_code<int> { static constexpr char c = 'n'; };
+template <> struct motile_code<long long> { static constexpr char c = 'l'; };
 template <> struct motile_code<double> { static constexpr char c = 'r'; };
 template <typename... A> static const char* motile_signature(void (*)(A...)) {
     static const char s[] = {motile_code<A>::c..., '\0'};
@@ -37,10 +78,28 @@ template <typename... A, std::size_t... I>
 static void motile_call(void (*f)(A...), void** a, std::index_sequence<I...>) {
     f(*static_cast<A*>(a[I])...);
 }
+// Every thread of every block. Kernels without __syncthreads run their threads one after
+// another on the calling thread; with it (MOTILE_THREADED), each thread of a block is an OS
+// thread, the blocks one after another, a barrier between blocks.
 template <typename... A>
 static void motile_launch(void (*f)(A...), unsigned grid, unsigned block, void** a) {
     gridDim = {grid, 1, 1};
     blockDim = {block, 1, 1};
+#ifdef MOTILE_THREADED
+    motile_block_barrier.count = block;
+    std::vector<std::thread> threads;
+    for (unsigned t = 0; t < block; ++t) {
+        threads.emplace_back([=] {
+            for (unsigned b = 0; b < grid; ++b) {
+                blockIdx = {b, 0, 0};
+                threadIdx = {t, 0, 0};
+                motile_call(f, a, std::index_sequence_for<A...>{});
+                motile_block_barrier.wait();
+            }
+        });
+    }
+    for (auto& th : threads) th.join();
+#else
     for (unsigned b = 0; b < grid; ++b) {
         for (unsigned t = 0; t < block; ++t) {
             blockIdx = {b, 0, 0};
@@ -48,6 +107,7 @@ static void motile_launch(void (*f)(A...), unsigned grid, unsigned block, void**
             motile_call(f, a, std::index_sequence_for<A...>{});
         }
     }
+#endif
 }
 #define MOTILE_ENTRY(name) \
     extern "C" void motile_run_##name(unsigned g, unsigned b, void** a) { motile_launch(name, g, b, a); } \
@@ -105,7 +165,13 @@ impl Host {
             .map_err(|e| GpuError::Compile(format!("a scratch directory: {e}")))?;
         let src = dir.path().join("kernels.cpp");
         let lib = dir.path().join("libkernels.so");
-        let mut text = String::from(PRELUDE);
+        // Kernels that synchronise their blocks need the threaded launches.
+        let mut text = if source.contains("__syncthreads") {
+            String::from("#define MOTILE_THREADED 1\n")
+        } else {
+            String::new()
+        };
+        text.push_str(PRELUDE);
         text.push_str("#line 1 \"kernels.cu\"\n");
         text.push_str(source);
         text.push('\n');
@@ -115,7 +181,7 @@ impl Host {
         std::fs::write(&src, text)
             .map_err(|e| GpuError::Compile(format!("writing {}: {e}", src.display())))?;
         let out = Command::new(&compiler)
-            .args(["-std=c++17", "-O2", "-fPIC", "-shared", "-o"])
+            .args(["-std=c++17", "-O2", "-fPIC", "-shared", "-pthread", "-o"])
             .arg(&lib)
             .arg(&src)
             .output()
@@ -181,7 +247,8 @@ impl Host {
         if &given != signature {
             return Err(GpuError::Input(format!(
                 "kernel {kernel} takes parameters ({signature}) but was given ({given}) \
-                 (i const double*, o double*, n int, r double)"
+                 (i const double* or double2*, o double* or double2*, n int, l long long, \
+                 r double)"
             )));
         }
         // Each parameter's value in an aligned 8-byte slot, then a pointer to it (CUDA's
@@ -205,6 +272,7 @@ impl Host {
                     u64::from_ne_bytes(w)
                 }
                 Arg::Real(x) => x.to_bits(),
+                Arg::Long(i) => *i as u64,
             };
             values.push(slot);
         }

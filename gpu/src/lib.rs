@@ -11,8 +11,9 @@
 //!   transforms done by [`motile_analysis::fft3::RealFft3`] in cuFFT's layout and scaling. It is
 //!   slow; it exists so that kernels, their argument lists and the host code around them are
 //!   tested on machines without a GPU (where CI runs). It also checks every launch's argument
-//!   list against the kernel's parameter types, which the CUDA driver cannot. Kernels that use
-//!   shared memory or `__syncthreads` do not compile for it (a clear compile error).
+//!   list against the kernel's parameter types, which the CUDA driver cannot. A source that
+//!   uses `__syncthreads` (block reductions in shared memory) runs each block's threads as OS
+//!   threads with a barrier, one block at a time.
 //!
 //! Layouts: a real field of an `M^3` grid is `M^3` values, x fastest (`(z M + y) M + x`); its
 //! half spectrum `M M (M/2 + 1)` complex values as interleaved `(re, im)` pairs, the x mode
@@ -104,7 +105,8 @@ impl Buffer {
 }
 
 /// One argument of a kernel launch, in the kernel's parameter order: `In` for a `const
-/// double*` parameter, `Out` for a `double*`, `Int` for an `int`, `Real` for a `double`.
+/// double*` (or `const double2*`) parameter, `Out` for a `double*` (or `double2*`), `Int` for
+/// an `int`, `Long` for a `long long`, `Real` for a `double`.
 #[derive(Debug)]
 pub enum Arg<'a> {
     /// A buffer the kernel only reads.
@@ -113,6 +115,8 @@ pub enum Arg<'a> {
     Out(&'a mut Buffer),
     /// An `int`.
     Int(i32),
+    /// A `long long`.
+    Long(i64),
     /// A `double`.
     Real(f64),
 }
@@ -124,6 +128,7 @@ impl Arg<'_> {
             Arg::In(_) => 'i',
             Arg::Out(_) => 'o',
             Arg::Int(_) => 'n',
+            Arg::Long(_) => 'l',
             Arg::Real(_) => 'r',
         }
     }
@@ -315,62 +320,100 @@ impl Device {
         Ok(Fft3 { m, batch, inner })
     }
 
-    /// Forward transforms (`sum_x f(x) exp(-i k x)`) of the batch `real` into the half spectra
-    /// `spectra`.
+    /// Forward transforms (`sum_x f(x) exp(-i k x)`) of the batch of real fields at
+    /// `real[real_at..]` into the half spectra at `spectra[spectra_at..]` (offsets in `f64`
+    /// values; the complex offset must be even).
     pub fn forward(
         &self,
         plan: &Fft3,
-        real: &Buffer,
-        spectra: &mut Buffer,
+        (real, real_at): (&Buffer, usize),
+        (spectra, spectra_at): (&mut Buffer, usize),
     ) -> Result<(), GpuError> {
-        check_fft(plan, real.len, spectra.len)?;
+        check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        let (n, s) = (plan.real_len(), plan.spectrum_len());
         match (&plan.inner, &real.data, &mut spectra.data) {
             (FftInner::Host(fft), Data::Host(x), Data::Host(y)) => {
-                let (n, s) = (plan.m.pow(3), plan.spectrum_len());
+                let m3 = plan.m.pow(3);
                 let mut out = vec![num_complex::Complex64::default(); s];
                 for b in 0..plan.batch {
-                    fft.forward(&x[b * n..(b + 1) * n], &mut out);
+                    fft.forward(&x[real_at + b * m3..real_at + (b + 1) * m3], &mut out);
+                    let y = &mut y[spectra_at + 2 * b * s..spectra_at + 2 * (b + 1) * s];
                     for (j, z) in out.iter().enumerate() {
-                        y[2 * (b * s + j)] = z.re;
-                        y[2 * (b * s + j) + 1] = z.im;
+                        y[2 * j] = z.re;
+                        y[2 * j + 1] = z.im;
                     }
                 }
                 Ok(())
             }
             #[cfg(feature = "cuda")]
             (FftInner::Cuda { forward, .. }, Data::Cuda(x), Data::Cuda(y)) => {
-                cuda::forward(forward, x, y)
+                cuda::forward(forward, (x, real_at, n), (y, spectra_at, plan.batch * s))
             }
             #[allow(unreachable_patterns)]
-            _ => Err(foreign()),
+            _ => {
+                let _ = n;
+                Err(foreign())
+            }
         }
     }
 
     /// Inverse transforms (`sum_k c(k) exp(+i k x)`, unnormalised) of the batch of half spectra
-    /// `spectra` (which may be overwritten, as cuFFT does) into `real`.
+    /// at `spectra[spectra_at..]` (which may be overwritten, as cuFFT does) into the real
+    /// fields at `real[real_at..]`.
     pub fn inverse(
         &self,
         plan: &Fft3,
-        spectra: &mut Buffer,
-        real: &mut Buffer,
+        (spectra, spectra_at): (&mut Buffer, usize),
+        (real, real_at): (&mut Buffer, usize),
     ) -> Result<(), GpuError> {
-        check_fft(plan, real.len, spectra.len)?;
+        check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        let (n, s) = (plan.real_len(), plan.spectrum_len());
         match (&plan.inner, &mut spectra.data, &mut real.data) {
             (FftInner::Host(fft), Data::Host(y), Data::Host(x)) => {
-                let (n, s) = (plan.m.pow(3), plan.spectrum_len());
+                let m3 = plan.m.pow(3);
                 let mut spec = vec![num_complex::Complex64::default(); s];
                 for b in 0..plan.batch {
+                    let y = &y[spectra_at + 2 * b * s..spectra_at + 2 * (b + 1) * s];
                     for (j, z) in spec.iter_mut().enumerate() {
-                        *z =
-                            num_complex::Complex64::new(y[2 * (b * s + j)], y[2 * (b * s + j) + 1]);
+                        *z = num_complex::Complex64::new(y[2 * j], y[2 * j + 1]);
                     }
-                    fft.inverse(&mut spec, &mut x[b * n..(b + 1) * n]);
+                    fft.inverse(&mut spec, &mut x[real_at + b * m3..real_at + (b + 1) * m3]);
                 }
                 Ok(())
             }
             #[cfg(feature = "cuda")]
             (FftInner::Cuda { inverse, .. }, Data::Cuda(y), Data::Cuda(x)) => {
-                cuda::inverse(inverse, y, x)
+                cuda::inverse(inverse, (y, spectra_at, plan.batch * s), (x, real_at, n))
+            }
+            #[allow(unreachable_patterns)]
+            _ => {
+                let _ = n;
+                Err(foreign())
+            }
+        }
+    }
+
+    /// Copy `len` values of `src` from `src_at` into `dst` from `dst_at`.
+    pub fn copy(
+        &self,
+        (src, src_at): (&Buffer, usize),
+        (dst, dst_at): (&mut Buffer, usize),
+        len: usize,
+    ) -> Result<(), GpuError> {
+        if src_at + len > src.len || dst_at + len > dst.len {
+            return Err(GpuError::Input(format!(
+                "copying {len} values from {src_at} of {} into {dst_at} of {}",
+                src.len, dst.len
+            )));
+        }
+        match (&self.backend, &src.data, &mut dst.data) {
+            (Backend::Host(_), Data::Host(a), Data::Host(b)) => {
+                b[dst_at..dst_at + len].copy_from_slice(&a[src_at..src_at + len]);
+                Ok(())
+            }
+            #[cfg(feature = "cuda")]
+            (Backend::Cuda(c), Data::Cuda(a), Data::Cuda(b)) => {
+                cuda::copy(c, (a, src_at), (b, dst_at), len)
             }
             #[allow(unreachable_patterns)]
             _ => Err(foreign()),
@@ -378,11 +421,18 @@ impl Device {
     }
 }
 
-fn check_fft(plan: &Fft3, real: usize, complex: usize) -> Result<(), GpuError> {
-    if real != plan.real_len() || complex != plan.complex_len() {
+fn check_fft(
+    plan: &Fft3,
+    (real, real_at): (usize, usize),
+    (complex, complex_at): (usize, usize),
+) -> Result<(), GpuError> {
+    if real_at + plan.real_len() > real
+        || complex_at + plan.complex_len() > complex
+        || complex_at % 2 != 0
+    {
         return Err(GpuError::Input(format!(
-            "FFT of {} grids of {}^3 needs {} real and {} complex-pair values, got {real} and \
-             {complex}",
+            "FFT of {} grids of {}^3 needs {} real values from {real_at} and {} complex-pair \
+             values from {complex_at} (even); the buffers hold {real} and {complex}",
             plan.batch,
             plan.m,
             plan.real_len(),

@@ -115,7 +115,7 @@ fn transforms_have_the_cufft_layout_and_scaling() {
     }
     let rb = dev.upload(&real).unwrap();
     let mut sb = dev.zeros(plan.complex_len()).unwrap();
-    dev.forward(&plan, &rb, &mut sb).unwrap();
+    dev.forward(&plan, (&rb, 0), (&mut sb, 0)).unwrap();
     let s = dev.download(&sb).unwrap();
     let n3 = (m * m * m) as f64;
     let slen = plan.spectrum_len();
@@ -136,7 +136,7 @@ fn transforms_have_the_cufft_layout_and_scaling() {
     }
     // Inverse: unnormalised, so the round trip is n^3 times the input.
     let mut back = dev.zeros(plan.real_len()).unwrap();
-    dev.inverse(&plan, &mut sb, &mut back).unwrap();
+    dev.inverse(&plan, (&mut sb, 0), (&mut back, 0)).unwrap();
     let back = dev.download(&back).unwrap();
     let err = back
         .iter()
@@ -144,4 +144,51 @@ fn transforms_have_the_cufft_layout_and_scaling() {
         .map(|(a, b)| (a / n3 - b).abs())
         .fold(0.0, f64::max);
     assert!(err < 1e-13, "round trip error {err:e}");
+}
+
+/// A source with block reductions in shared memory (`__syncthreads`) runs each block's threads
+/// concurrently: a tree sum per block gives each block's exact partial.
+#[test]
+fn block_reductions_in_shared_memory_run() {
+    const REDUCE: &str = r#"
+extern "C" __global__ void partial_sums(const double* v, long long n, double* partial) {
+    __shared__ double shared[256];
+    long long i = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    int t = threadIdx.x;
+    shared[t] = i < n ? v[i] : 0.0;
+    __syncthreads();
+    for (int w = 128; w > 0; w /= 2) {
+        if (t < w) shared[t] += shared[t + w];
+        __syncthreads();
+    }
+    if (t == 0) partial[blockIdx.x] = shared[0];
+}
+"#;
+    let dev = match Device::host_emulation(REDUCE, &["partial_sums"]) {
+        Ok(d) => d,
+        Err(GpuError::NoDevice(why)) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
+            eprintln!("skipped: {why}");
+            return;
+        }
+        Err(e) => panic!("host emulation: {e}"),
+    };
+    let n = 700usize; // three blocks, the last partly empty
+    let v: Vec<f64> = (0..n).map(|i| (i % 7) as f64 + 0.5).collect();
+    let vb = dev.upload(&v).unwrap();
+    let mut pb = dev.zeros(3).unwrap();
+    // SAFETY: partial_sums(const double* v, long long n, double* partial) reads v[i] for
+    // i < n and writes partial[block] for the 3 blocks launched.
+    unsafe {
+        dev.launch(
+            "partial_sums",
+            n,
+            &mut [Arg::In(&vb), Arg::Long(n as i64), Arg::Out(&mut pb)],
+        )
+    }
+    .unwrap();
+    let got = dev.download(&pb).unwrap();
+    for (b, g) in got.iter().enumerate() {
+        let want: f64 = v[b * 256..((b + 1) * 256).min(n)].iter().sum();
+        assert_eq!(*g, want, "block {b}");
+    }
 }

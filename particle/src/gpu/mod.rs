@@ -131,7 +131,7 @@ impl GpuFourier {
             .expect("made by grid()");
         dev.zero(&mut input.fields)?;
         launch::spread(dev, geo, pts, &vals, &mut input.fields, n, nf)?;
-        dev.forward(&input.plan, &input.fields, &mut input.spectra)
+        dev.forward(&input.plan, (&input.fields, 0), (&mut input.spectra, 0))
     }
 
     /// Inverse transform the three output spectra and gather them (with gradients if asked).
@@ -144,7 +144,7 @@ impl GpuFourier {
     ) -> Result<Vec<f64>, GpuError> {
         let g = self.grid.as_mut().expect("spread first");
         let dev = &self.dev;
-        dev.inverse(&g.inverse3, &mut g.spectra_out, &mut g.back)?;
+        dev.inverse(&g.inverse3, (&mut g.spectra_out, 0), (&mut g.back, 0))?;
         let mut out = dev.zeros(if gradient { 12 } else { 3 } * n)?;
         launch::gather(dev, geo, pts, &g.back, &mut out, n, gradient)?;
         dev.download(&out)
