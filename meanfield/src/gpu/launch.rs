@@ -1,158 +1,48 @@
-//! The device side of [`super::GpuMeanField`]: loading CUDA, compiling the kernels, the
-//! buffers, cuFFT plans and every kernel launch. The only module of the crate that allows
-//! `unsafe`: a kernel launch cannot be checked by the compiler, so each one states why its
-//! arguments match the kernel's signature in `kernels.cu` and why every index it touches lies
-//! inside the buffers it is given.
+//! The device side of [`super::GpuMeanField`]: the buffers, the transforms and every kernel
+//! launch, on a [`motile_gpu::Device`] (CUDA, or the host emulation of the same kernels). The
+//! only module of the crate that allows `unsafe`: a kernel launch cannot be checked by the
+//! compiler, so each one states why its arguments match the kernel's signature in
+//! `kernels.cu` and why every index it touches lies inside the buffers it is given (the host
+//! emulation also checks the parameter types at run time).
 #![allow(unsafe_code)]
 
-use super::{DeviceInfo, GpuError, THREADS};
+use super::GpuError;
 use crate::solver::{History, SpectralGrid};
-use cudarc::cufft::{CudaFft, sys::cufftType, sys::double2};
-use cudarc::driver::{
-    CudaContext, CudaFunction, CudaSlice, CudaStream, LaunchConfig, PushKernelArg,
-};
+use motile_gpu::{Arg, Buffer, Device, Fft3, THREADS};
 use num_complex::Complex64;
-use std::sync::Arc;
-
-/// The kernels' source (compiled by NVRTC when a device is opened).
-const SOURCE: &str = include_str!("kernels.cu");
 
 /// Flow speed below which the fixed point's change is measured absolutely (solver.rs
 /// `FLOW_FLOOR`).
 const FLOW_FLOOR: f64 = 1e-14;
 
-fn driver(e: impl std::fmt::Debug) -> GpuError {
-    GpuError::Driver(format!("{e:?}"))
+/// The kernels of `kernels.cu`.
+pub(super) const KERNELS: [&str; 13] = [
+    "scale_dealias",
+    "strain_spectra",
+    "derivative_spectra",
+    "stokes",
+    "imex_update",
+    "change_partials",
+    "norm_partials",
+    "report_partials",
+    "nonfinite_partials",
+    "strain_from_gradient",
+    "contract",
+    "explicit_terms",
+    "closure_field",
+];
+
+/// Blocks of a launch over `elements` (one thread each, [`THREADS`] per block: the
+/// reductions' tree assumes exactly that block size).
+fn blocks(elements: usize) -> usize {
+    elements.div_ceil(THREADS as usize).max(1)
 }
 
-fn fft(e: impl std::fmt::Debug) -> GpuError {
-    GpuError::Fft(format!("{e:?}"))
-}
-
-/// Whether the CUDA driver, NVRTC and cuFFT libraries load. cudarc panics on the first call
-/// into a library it cannot load, so this runs before any such call.
-fn libraries_present() -> Result<(), GpuError> {
-    // SAFETY: these functions only try to open shared libraries by name (dlopen) and close
-    // them again; they call no CUDA function.
-    let (cuda, nvrtc, cufft) = unsafe {
-        (
-            cudarc::driver::sys::is_culib_present(),
-            cudarc::nvrtc::sys::is_culib_present(),
-            cudarc::cufft::sys::is_culib_present(),
-        )
-    };
-    let missing: Vec<&str> = [
-        (cuda, "the driver library libcuda"),
-        (nvrtc, "NVRTC (libnvrtc)"),
-        (cufft, "cuFFT (libcufft)"),
-    ]
-    .iter()
-    .filter(|(ok, _)| !ok)
-    .map(|(_, name)| *name)
-    .collect();
-    if missing.is_empty() {
-        Ok(())
-    } else {
-        Err(GpuError::NoDevice(format!(
-            "{} could not be loaded (a driver and the CUDA toolkit's libraries are needed at run time)",
-            missing.join(", ")
-        )))
-    }
-}
-
-pub(super) fn probe() -> Result<DeviceInfo, GpuError> {
-    libraries_present()?;
-    let count = CudaContext::device_count().map_err(|e| GpuError::NoDevice(format!("{e:?}")))?;
-    if count < 1 {
-        return Err(GpuError::NoDevice("the driver reports no device".into()));
-    }
-    let ctx = CudaContext::new(0).map_err(|e| GpuError::NoDevice(format!("{e:?}")))?;
-    Ok(DeviceInfo {
-        name: ctx.name().map_err(driver)?,
-        memory: ctx.total_mem().map_err(driver)?,
-        compute_capability: ctx.compute_capability().map_err(driver)?,
-    })
-}
-
-/// An open device: its context and the stream every operation runs on.
-pub(super) struct Device {
-    ctx: Arc<CudaContext>,
-    stream: Arc<CudaStream>,
-}
-
-/// The compiled kernels.
-pub(super) struct Kernels {
-    scale_dealias: CudaFunction,
-    strain_spectra: CudaFunction,
-    derivative_spectra: CudaFunction,
-    stokes: CudaFunction,
-    imex_update: CudaFunction,
-    change_partials: CudaFunction,
-    norm_partials: CudaFunction,
-    report_partials: CudaFunction,
-    nonfinite_partials: CudaFunction,
-    strain_from_gradient: CudaFunction,
-    contract: CudaFunction,
-    explicit_terms: CudaFunction,
-    closure_field: CudaFunction,
-}
-
-impl Device {
-    pub(super) fn open() -> Result<Self, GpuError> {
-        probe()?;
-        let ctx = CudaContext::new(0).map_err(|e| GpuError::NoDevice(format!("{e:?}")))?;
-        let stream = ctx.default_stream();
-        Ok(Self { ctx, stream })
-    }
-
-    pub(super) fn compile(&self) -> Result<Kernels, GpuError> {
-        // No fused multiply-adds: each a b + c rounds as it does on the CPU, so the parity
-        // with the CPU step is limited by the transforms and the math library only.
-        let opts = cudarc::nvrtc::CompileOptions {
-            fmad: Some(false),
-            ..Default::default()
-        };
-        let ptx = cudarc::nvrtc::compile_ptx_with_opts(SOURCE, opts)
-            .map_err(|e| GpuError::Compile(format!("{e:?}")))?;
-        let module = self.ctx.load_module(ptx).map_err(driver)?;
-        let f = |name: &str| module.load_function(name).map_err(driver);
-        Ok(Kernels {
-            scale_dealias: f("scale_dealias")?,
-            strain_spectra: f("strain_spectra")?,
-            derivative_spectra: f("derivative_spectra")?,
-            stokes: f("stokes")?,
-            imex_update: f("imex_update")?,
-            change_partials: f("change_partials")?,
-            norm_partials: f("norm_partials")?,
-            report_partials: f("report_partials")?,
-            nonfinite_partials: f("nonfinite_partials")?,
-            strain_from_gradient: f("strain_from_gradient")?,
-            contract: f("contract")?,
-            explicit_terms: f("explicit_terms")?,
-            closure_field: f("closure_field")?,
-        })
-    }
-}
-
-/// One thread per element, in blocks of [`THREADS`] (the reductions' tree assumes exactly
-/// that block size).
-fn config(elements: usize) -> (LaunchConfig, usize) {
-    let blocks = elements.div_ceil(THREADS as usize).max(1);
-    (
-        LaunchConfig {
-            grid_dim: (blocks as u32, 1, 1),
-            block_dim: (THREADS, 1, 1),
-            shared_mem_bytes: 0,
-        },
-        blocks,
-    )
-}
-
-/// The grid's wavenumber tables (solver.rs `SpectralGrid`).
+/// The grid's wavenumber tables (solver.rs `SpectralGrid`), `keep` as 0/1.
 pub(super) struct Wavenumbers {
     k1: Vec<f64>,
     k2: Vec<f64>,
-    keep: Vec<i32>,
+    keep: Vec<f64>,
 }
 
 impl Wavenumbers {
@@ -161,52 +51,60 @@ impl Wavenumbers {
         Self {
             k1: k1.to_vec(),
             k2: k2.to_vec(),
-            keep: keep.iter().map(|&k| k as i32).collect(),
+            keep: keep.iter().map(|&k| f64::from(u8::from(k))).collect(),
         }
     }
 }
 
-fn to_device(c: &[Complex64]) -> Vec<double2> {
-    c.iter().map(|z| double2 { x: z.re, y: z.im }).collect()
+/// Complex spectra, one after another, as interleaved (re, im) pairs.
+fn flat(c: &[Vec<Complex64>]) -> Vec<f64> {
+    c.iter().flatten().flat_map(|z| [z.re, z.im]).collect()
 }
 
-fn from_device(c: &[double2]) -> Vec<Complex64> {
-    c.iter().map(|z| Complex64::new(z.x, z.y)).collect()
+/// `count` spectra of `s` values each from interleaved pairs.
+fn split(v: &[f64], count: usize, s: usize) -> Vec<Vec<Complex64>> {
+    (0..count)
+        .map(|c| {
+            (0..s)
+                .map(|j| Complex64::new(v[2 * (c * s + j)], v[2 * (c * s + j) + 1]))
+                .collect()
+        })
+        .collect()
 }
 
-/// Every device buffer of the step. Spectra hold `S = n n (n/2 + 1)` values per component,
-/// grid fields `N = n^3`.
+/// Every device buffer of the step. Spectra hold `S = n n (n/2 + 1)` complex values per
+/// component (2 S doubles), grid fields `N = n^3` doubles.
 pub(super) struct Buffers {
     n: usize,
     s_len: usize,
     n_len: usize,
-    fwd: CudaFft,
-    inv: CudaFft,
-    k1: CudaSlice<f64>,
-    k2: CudaSlice<f64>,
-    keep: CudaSlice<i32>,
-    coef: CudaSlice<f64>,
-    q_hat: CudaSlice<double2>,
-    q_prev: CudaSlice<double2>,
-    q_new: CudaSlice<double2>,
-    nl: CudaSlice<double2>,
-    nl_prev: CudaSlice<double2>,
+    fwd: Fft3,
+    inv: Fft3,
+    k1: Buffer,
+    k2: Buffer,
+    keep: Buffer,
+    coef: Buffer,
+    q_hat: Buffer,
+    q_prev: Buffer,
+    q_new: Buffer,
+    nl: Buffer,
+    nl_prev: Buffer,
     has_prev: bool,
     /// The last accepted step's velocity (the warm start); untouched by a failing step.
-    u_hat: CudaSlice<double2>,
+    u_hat: Buffer,
     /// The fixed point's current iterate, and its next one.
-    u_work: CudaSlice<double2>,
-    u_new: CudaSlice<double2>,
-    spec: CudaSlice<double2>,
-    q: CudaSlice<f64>,
-    e: CudaSlice<f64>,
-    se: CudaSlice<f64>,
-    ug: CudaSlice<f64>,
-    g: CudaSlice<f64>,
-    dq: CudaSlice<f64>,
-    vals: CudaSlice<f64>,
-    s21: CudaSlice<f64>,
-    partial: CudaSlice<f64>,
+    u_work: Buffer,
+    u_new: Buffer,
+    spec: Buffer,
+    q: Buffer,
+    e: Buffer,
+    se: Buffer,
+    ug: Buffer,
+    g: Buffer,
+    dq: Buffer,
+    vals: Buffer,
+    s21: Buffer,
+    partial: Buffer,
 }
 
 impl Buffers {
@@ -216,21 +114,19 @@ impl Buffers {
         coef: &[f64],
         w: &Wavenumbers,
     ) -> Result<Self, GpuError> {
-        let st = &dev.stream;
         let (s_len, n_len) = (n * n * (n / 2 + 1), n * n * n);
-        let cplx = |k: usize| st.alloc_zeros::<double2>(k * s_len).map_err(driver);
-        let real = |k: usize| st.alloc_zeros::<f64>(k * n_len).map_err(driver);
-        let ni = n as i32;
+        let cplx = |k: usize| dev.zeros(2 * k * s_len);
+        let real = |k: usize| dev.zeros(k * n_len);
         Ok(Self {
             n,
             s_len,
             n_len,
-            fwd: CudaFft::plan_3d(ni, ni, ni, cufftType::CUFFT_D2Z, st.clone()).map_err(fft)?,
-            inv: CudaFft::plan_3d(ni, ni, ni, cufftType::CUFFT_Z2D, st.clone()).map_err(fft)?,
-            k1: st.clone_htod(&w.k1).map_err(driver)?,
-            k2: st.clone_htod(&w.k2).map_err(driver)?,
-            keep: st.clone_htod(&w.keep).map_err(driver)?,
-            coef: st.clone_htod(coef).map_err(driver)?,
+            fwd: dev.fft3(n, 1)?,
+            inv: dev.fft3(n, 1)?,
+            k1: dev.upload(&w.k1)?,
+            k2: dev.upload(&w.k2)?,
+            keep: dev.upload(&w.keep)?,
+            coef: dev.upload(coef)?,
             q_hat: cplx(6)?,
             q_prev: cplx(6)?,
             q_new: cplx(6)?,
@@ -250,9 +146,7 @@ impl Buffers {
             vals: real(6)?,
             s21: real(21)?,
             // The largest reduction: four partials per block over 2 * 6 S doubles.
-            partial: st
-                .alloc_zeros::<f64>(4 * (12 * s_len).div_ceil(THREADS as usize) + 8)
-                .map_err(driver)?,
+            partial: dev.zeros(4 * blocks(12 * s_len) + 8)?,
         })
     }
 
@@ -263,19 +157,11 @@ impl Buffers {
         history: Option<&History>,
         u_hat: &[Vec<Complex64>; 3],
     ) -> Result<(), GpuError> {
-        let st = &dev.stream;
-        let flat = |c: &[Vec<Complex64>]| -> Vec<double2> {
-            c.iter().flat_map(|v| to_device(v)).collect()
-        };
-        st.memcpy_htod(&flat(q_hat), &mut self.q_hat)
-            .map_err(driver)?;
-        st.memcpy_htod(&flat(u_hat), &mut self.u_hat)
-            .map_err(driver)?;
+        dev.upload_into(&flat(q_hat), &mut self.q_hat)?;
+        dev.upload_into(&flat(u_hat), &mut self.u_hat)?;
         if let Some(h) = history {
-            st.memcpy_htod(&flat(&h.q_hat), &mut self.q_prev)
-                .map_err(driver)?;
-            st.memcpy_htod(&flat(&h.nonlinear), &mut self.nl_prev)
-                .map_err(driver)?;
+            dev.upload_into(&flat(&h.q_hat), &mut self.q_prev)?;
+            dev.upload_into(&flat(&h.nonlinear), &mut self.nl_prev)?;
             self.has_prev = true;
         }
         Ok(())
@@ -294,19 +180,17 @@ impl Buffers {
         ),
         GpuError,
     > {
-        let st = &dev.stream;
         let s = self.s_len;
-        let get = |b: &CudaSlice<double2>| -> Result<Vec<Complex64>, GpuError> {
-            Ok(from_device(&st.clone_dtoh(b).map_err(driver)?))
+        let six = |b: &Buffer| -> Result<[Vec<Complex64>; 6], GpuError> {
+            let v = split(&dev.download(b)?, 6, s);
+            Ok(v.try_into().expect("six spectra"))
         };
-        let split6 = |v: Vec<Complex64>| -> [Vec<Complex64>; 6] {
-            std::array::from_fn(|c| v[c * s..(c + 1) * s].to_vec())
-        };
-        let q = split6(get(&self.q_hat)?);
-        let u_all = get(&self.u_hat)?;
-        let u: [Vec<Complex64>; 3] = std::array::from_fn(|c| u_all[c * s..(c + 1) * s].to_vec());
+        let q = six(&self.q_hat)?;
+        let u: [Vec<Complex64>; 3] = split(&dev.download(&self.u_hat)?, 3, s)
+            .try_into()
+            .expect("three spectra");
         let hist = if self.has_prev {
-            Some((split6(get(&self.q_prev)?), split6(get(&self.nl_prev)?)))
+            Some((six(&self.q_prev)?, six(&self.nl_prev)?))
         } else {
             None
         };
@@ -322,10 +206,7 @@ impl Buffers {
         stride: usize,
         max_slots: &[usize],
     ) -> Result<Vec<f64>, GpuError> {
-        let host = dev
-            .stream
-            .clone_dtoh(&self.partial.slice(0..blocks * stride))
-            .map_err(driver)?;
+        let host = dev.download(&self.partial)?;
         Ok((0..stride)
             .map(|slot| {
                 let vals = (0..blocks).map(|b| host[b * stride + slot]);
@@ -339,19 +220,30 @@ impl Buffers {
     }
 
     /// `count` real fields from the first `count` spectra of `spec` (destroyed) into `out`.
-    fn inverse_many(&mut self, count: usize, out: Field) -> Result<(), GpuError> {
+    fn inverse_many(&mut self, dev: &Device, count: usize, out: Field) -> Result<(), GpuError> {
         let (s, n) = (self.s_len, self.n_len);
+        let dst = match out {
+            Field::Q => &mut self.q,
+            Field::E => &mut self.e,
+            Field::Ug => &mut self.ug,
+            Field::G => &mut self.g,
+            Field::Dq => &mut self.dq,
+        };
         for c in 0..count {
-            let mut src = self.spec.slice_mut(c * s..(c + 1) * s);
-            let dst = match out {
-                Field::Q => &mut self.q,
-                Field::E => &mut self.e,
-                Field::Ug => &mut self.ug,
-                Field::G => &mut self.g,
-                Field::Dq => &mut self.dq,
-            };
-            let mut dst = dst.slice_mut(c * n..(c + 1) * n);
-            self.inv.exec_z2d(&mut src, &mut dst).map_err(fft)?;
+            dev.inverse(&self.inv, (&mut self.spec, 2 * c * s), (dst, c * n))?;
+        }
+        Ok(())
+    }
+
+    /// Six real fields of `src` forward transformed into the first six spectra of `dst`.
+    fn forward_six(
+        dev: &Device,
+        fwd: &Fft3,
+        (src, n): (&Buffer, usize),
+        (dst, s): (&mut Buffer, usize),
+    ) -> Result<(), GpuError> {
+        for c in 0..6 {
+            dev.forward(fwd, (src, c * n), (dst, 2 * c * s))?;
         }
         Ok(())
     }
@@ -360,162 +252,166 @@ impl Buffers {
     /// velocity.
     pub(super) fn inverse_q(&mut self, dev: &Device) -> Result<(), GpuError> {
         let s = self.s_len;
-        dev.stream
-            .memcpy_dtod(&self.u_hat, &mut self.u_work)
-            .map_err(driver)?;
-        dev.stream
-            .memcpy_dtod(&self.q_hat, &mut self.spec.slice_mut(0..6 * s))
-            .map_err(driver)?;
-        self.inverse_many(6, Field::Q)
+        dev.copy((&self.u_hat, 0), (&mut self.u_work, 0), 6 * s)?;
+        dev.copy((&self.q_hat, 0), (&mut self.spec, 0), 12 * s)?;
+        self.inverse_many(dev, 6, Field::Q)
     }
 
     /// The closure field; returns (smallest eigenvalue, largest eigenvalue, entropy sum).
     pub(super) fn closure(
         &mut self,
         dev: &Device,
-        k: &Kernels,
         deg: usize,
         with_entropy: bool,
     ) -> Result<(f64, f64, f64), GpuError> {
-        let (cfg, blocks) = config(self.n_len);
-        let (deg, ent, n) = (deg as i32, with_entropy as i32, self.n_len as i64);
-        let mut b = dev.stream.launch_builder(&k.closure_field);
-        b.arg(&self.q)
-            .arg(&mut self.s21)
-            .arg(&self.coef)
-            .arg(&deg)
-            .arg(&ent)
-            .arg(&n)
-            .arg(&mut self.partial);
         // SAFETY: closure_field(const double* q, double* s21, const double* coef, int deg,
         // int with_entropy, long long N, double* partial): q holds 6 N doubles, s21 21 N, coef
         // the 4 (deg + 1)^2 table coefficients uploaded for this degree, partial at least
         // 3 blocks; each thread reads point p < N and writes s21[21 p..21 p + 21] and its
         // block's three partials.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        let r = self.reduce(dev, blocks, 3, &[0, 1])?;
+        unsafe {
+            dev.launch(
+                "closure_field",
+                self.n_len,
+                &mut [
+                    Arg::In(&self.q),
+                    Arg::Out(&mut self.s21),
+                    Arg::In(&self.coef),
+                    Arg::Int(deg as i32),
+                    Arg::Int(i32::from(with_entropy)),
+                    Arg::Long(self.n_len as i64),
+                    Arg::Out(&mut self.partial),
+                ],
+            )
+        }?;
+        let r = self.reduce(dev, blocks(self.n_len), 3, &[0, 1])?;
         Ok((-r[0], r[1], r[2]))
     }
 
     /// E of the current u on the grid (6 strain spectra, 6 inverse transforms).
-    pub(super) fn strain_to_grid(&mut self, dev: &Device, k: &Kernels) -> Result<(), GpuError> {
-        let (cfg, _) = config(self.s_len);
-        let n = self.n as i32;
-        let mut b = dev.stream.launch_builder(&k.strain_spectra);
-        b.arg(&self.u_work)
-            .arg(&mut self.spec)
-            .arg(&n)
-            .arg(&self.k1);
+    pub(super) fn strain_to_grid(&mut self, dev: &Device) -> Result<(), GpuError> {
         // SAFETY: strain_spectra(const double2* u, double2* out, int n, const double* k1):
-        // u_work holds 3 S values, spec 18 S >= 6 S, k1 n; thread s < S reads u[i S + s] and writes
-        // out[c S + s] for c < 6.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        self.inverse_many(6, Field::E)
+        // u_work holds 3 S values, spec 18 S >= 6 S, k1 n; thread s < S reads u[i S + s] and
+        // writes out[c S + s] for c < 6.
+        unsafe {
+            dev.launch(
+                "strain_spectra",
+                self.s_len,
+                &mut [
+                    Arg::In(&self.u_work),
+                    Arg::Out(&mut self.spec),
+                    Arg::Int(self.n as i32),
+                    Arg::In(&self.k1),
+                ],
+            )
+        }?;
+        self.inverse_many(dev, 6, Field::E)
     }
 
     /// The active stress -Q + zeta S:E, forward transformed and dealiased into the first six
     /// spectra of `spec`.
-    pub(super) fn stress(&mut self, dev: &Device, k: &Kernels, zeta: f64) -> Result<(), GpuError> {
-        self.contract(dev, k, zeta, true)?;
+    pub(super) fn stress(&mut self, dev: &Device, zeta: f64) -> Result<(), GpuError> {
+        self.contract(dev, zeta, true)?;
         let (s, n) = (self.s_len, self.n_len);
-        for c in 0..6 {
-            let src = self.se.slice(c * n..(c + 1) * n);
-            let mut dst = self.spec.slice_mut(c * s..(c + 1) * s);
-            self.fwd.exec_d2z(&src, &mut dst).map_err(fft)?;
-        }
-        self.scale_dealias(dev, k, Spectra::Spec, 6, true)
+        Self::forward_six(dev, &self.fwd, (&self.se, n), (&mut self.spec, s))?;
+        self.scale_dealias(dev, Spectra::Spec, 6, true)
     }
 
     /// `S:E` (or the stress with `stress`) of the grid E into `se`.
-    fn contract(
-        &mut self,
-        dev: &Device,
-        k: &Kernels,
-        zeta: f64,
-        stress: bool,
-    ) -> Result<(), GpuError> {
-        let (cfg, _) = config(self.n_len);
-        let (n, st) = (self.n_len as i64, stress as i32);
-        let mut b = dev.stream.launch_builder(&k.contract);
-        b.arg(&self.s21)
-            .arg(&self.e)
-            .arg(&self.q)
-            .arg(&zeta)
-            .arg(&mut self.se)
-            .arg(&n)
-            .arg(&st);
+    fn contract(&mut self, dev: &Device, zeta: f64, stress: bool) -> Result<(), GpuError> {
         // SAFETY: contract(const double* s21, const double* e, const double* q, double zeta,
         // double* out, long long N, int stress): s21 holds 21 N doubles, e, q and se 6 N each;
         // thread p < N reads and writes index c N + p for c < 6 and s21[21 p..21 p + 21].
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        Ok(())
+        unsafe {
+            dev.launch(
+                "contract",
+                self.n_len,
+                &mut [
+                    Arg::In(&self.s21),
+                    Arg::In(&self.e),
+                    Arg::In(&self.q),
+                    Arg::Real(zeta),
+                    Arg::Out(&mut self.se),
+                    Arg::Long(self.n_len as i64),
+                    Arg::Int(i32::from(stress)),
+                ],
+            )
+        }
+        .map_err(GpuError::from)
     }
 
     /// Scale by 1/n^3 and dealias `count` spectra of `which`.
     fn scale_dealias(
         &mut self,
         dev: &Device,
-        k: &Kernels,
         which: Spectra,
         count: usize,
         dealias: bool,
     ) -> Result<(), GpuError> {
         let total = count * self.s_len;
-        let (cfg, _) = config(total);
-        let (total, n, scale, de) = (
-            total as i64,
-            self.n as i32,
-            1.0 / self.n_len as f64,
-            dealias as i32,
-        );
         let target = match which {
             Spectra::Spec => &mut self.spec,
             Spectra::Nonlinear => &mut self.nl,
         };
-        let mut b = dev.stream.launch_builder(&k.scale_dealias);
-        b.arg(target)
-            .arg(&total)
-            .arg(&n)
-            .arg(&scale)
-            .arg(&self.keep)
-            .arg(&de);
         // SAFETY: scale_dealias(double2* c, long long count, int n, double scale,
-        // const int* keep, int dealias): the target holds at least `count` values (6 S for the
-        // explicit terms, 18 S for spec), keep n ints; thread t < count touches c[t] only.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        Ok(())
+        // const double* keep, int dealias): the target holds at least `count` complex values
+        // (6 S for the explicit terms, 18 S for spec), keep n doubles; thread t < count
+        // touches c[t] only.
+        unsafe {
+            dev.launch(
+                "scale_dealias",
+                total,
+                &mut [
+                    Arg::Out(target),
+                    Arg::Long(total as i64),
+                    Arg::Int(self.n as i32),
+                    Arg::Real(1.0 / self.n_len as f64),
+                    Arg::In(&self.keep),
+                    Arg::Int(i32::from(dealias)),
+                ],
+            )
+        }
+        .map_err(GpuError::from)
     }
 
     /// The Stokes velocity of the stress spectra into `u_new`.
-    pub(super) fn stokes(&mut self, dev: &Device, k: &Kernels) -> Result<(), GpuError> {
-        let (cfg, _) = config(self.s_len);
-        let n = self.n as i32;
-        let mut b = dev.stream.launch_builder(&k.stokes);
-        b.arg(&self.spec)
-            .arg(&mut self.u_new)
-            .arg(&n)
-            .arg(&self.k1)
-            .arg(&self.k2);
+    pub(super) fn stokes(&mut self, dev: &Device) -> Result<(), GpuError> {
         // SAFETY: stokes(const double2* sigma, double2* u, int n, const double* k1,
         // const double* k2): spec holds 18 S >= 6 S values, u_new 3 S, k1 and k2 n; thread
         // s < S reads sigma[c S + s] and writes u[i S + s].
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        Ok(())
+        unsafe {
+            dev.launch(
+                "stokes",
+                self.s_len,
+                &mut [
+                    Arg::In(&self.spec),
+                    Arg::Out(&mut self.u_new),
+                    Arg::Int(self.n as i32),
+                    Arg::In(&self.k1),
+                    Arg::In(&self.k2),
+                ],
+            )
+        }
+        .map_err(GpuError::from)
     }
 
     /// The fixed point's relative change between `u_new` and `u_work` (solver.rs rel_change).
-    pub(super) fn change(&mut self, dev: &Device, k: &Kernels) -> Result<f64, GpuError> {
-        let (cfg, blocks) = config(self.s_len);
-        let n = self.n as i32;
-        let mut b = dev.stream.launch_builder(&k.change_partials);
-        b.arg(&self.u_new)
-            .arg(&self.u_work)
-            .arg(&n)
-            .arg(&mut self.partial);
+    pub(super) fn change(&mut self, dev: &Device) -> Result<f64, GpuError> {
         // SAFETY: change_partials(const double2* a, const double2* b, int n, double* partial):
-        // both hold 3 S values, partial at least 2 blocks; thread s < S reads index c S + s.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        let r = self.reduce(dev, blocks, 2, &[])?;
+        // both hold 3 S values, partial at least 2 per block; thread s < S reads index c S + s.
+        unsafe {
+            dev.launch(
+                "change_partials",
+                self.s_len,
+                &mut [
+                    Arg::In(&self.u_new),
+                    Arg::In(&self.u_work),
+                    Arg::Int(self.n as i32),
+                    Arg::Out(&mut self.partial),
+                ],
+            )
+        }?;
+        let r = self.reduce(dev, blocks(self.s_len), 2, &[])?;
         Ok((r[0] / r[1].max(FLOW_FLOOR * FLOW_FLOOR)).sqrt())
     }
 
@@ -525,134 +421,150 @@ impl Buffers {
     }
 
     /// u and grad u on the grid, E from grad u and S:E (the explicit terms' inputs).
-    pub(super) fn gradients(&mut self, dev: &Device, k: &Kernels) -> Result<(), GpuError> {
+    pub(super) fn gradients(&mut self, dev: &Device) -> Result<(), GpuError> {
         let s = self.s_len;
-        dev.stream
-            .memcpy_dtod(&self.u_work, &mut self.spec.slice_mut(0..3 * s))
-            .map_err(driver)?;
-        self.inverse_many(3, Field::Ug)?;
-        self.derivatives(dev, k, 3)?;
-        self.inverse_many(9, Field::G)?;
-        let (cfg, _) = config(self.n_len);
-        let n = self.n_len as i64;
-        let mut b = dev.stream.launch_builder(&k.strain_from_gradient);
-        b.arg(&self.g).arg(&mut self.e).arg(&n);
+        dev.copy((&self.u_work, 0), (&mut self.spec, 0), 6 * s)?;
+        self.inverse_many(dev, 3, Field::Ug)?;
+        self.derivatives(dev, 3)?;
+        self.inverse_many(dev, 9, Field::G)?;
         // SAFETY: strain_from_gradient(const double* g, double* e, long long N): g holds 9 N,
         // e 6 N doubles; thread p < N touches index c N + p only.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        self.contract(dev, k, 0.0, false)
+        unsafe {
+            dev.launch(
+                "strain_from_gradient",
+                self.n_len,
+                &mut [
+                    Arg::In(&self.g),
+                    Arg::Out(&mut self.e),
+                    Arg::Long(self.n_len as i64),
+                ],
+            )
+        }?;
+        self.contract(dev, 0.0, false)
     }
 
     /// Derivative spectra of `comps` inputs (u: 3 from u_work, Q: 6 from q_hat) into spec.
-    fn derivatives(&mut self, dev: &Device, k: &Kernels, comps: usize) -> Result<(), GpuError> {
-        let (cfg, _) = config(self.s_len);
-        let (c, n) = (comps as i32, self.n as i32);
+    fn derivatives(&mut self, dev: &Device, comps: usize) -> Result<(), GpuError> {
         let input = if comps == 3 {
             &self.u_work
         } else {
             &self.q_hat
         };
-        let mut b = dev.stream.launch_builder(&k.derivative_spectra);
-        b.arg(input)
-            .arg(&mut self.spec)
-            .arg(&c)
-            .arg(&n)
-            .arg(&self.k1);
         // SAFETY: derivative_spectra(const double2* c, double2* out, int comps, int n,
         // const double* k1): the input holds comps S values (u_work 3 S, q_hat 6 S), spec 18 S
         // >= 3 comps S; thread s < S writes out[(m 3 + dir) S + s] for m < comps.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        Ok(())
+        unsafe {
+            dev.launch(
+                "derivative_spectra",
+                self.s_len,
+                &mut [
+                    Arg::In(input),
+                    Arg::Out(&mut self.spec),
+                    Arg::Int(comps as i32),
+                    Arg::Int(self.n as i32),
+                    Arg::In(&self.k1),
+                ],
+            )
+        }
+        .map_err(GpuError::from)
     }
 
     /// The explicit terms' spectra into `nl` (grad Q to the grid, the products, forward,
     /// dealiased).
-    pub(super) fn explicit_terms(&mut self, dev: &Device, k: &Kernels) -> Result<(), GpuError> {
-        self.derivatives(dev, k, 6)?;
-        self.inverse_many(18, Field::Dq)?;
-        let (cfg, _) = config(self.n_len);
-        let n = self.n_len as i64;
-        let mut b = dev.stream.launch_builder(&k.explicit_terms);
-        b.arg(&self.ug)
-            .arg(&self.g)
-            .arg(&self.q)
-            .arg(&self.dq)
-            .arg(&self.se)
-            .arg(&mut self.vals)
-            .arg(&n);
+    pub(super) fn explicit_terms(&mut self, dev: &Device) -> Result<(), GpuError> {
+        self.derivatives(dev, 6)?;
+        self.inverse_many(dev, 18, Field::Dq)?;
         // SAFETY: explicit_terms(const double* ug, const double* g, const double* q,
         // const double* dq, const double* se, double* out, long long N): ug 3 N, g 9 N, q 6 N,
         // dq 18 N, se 6 N, vals 6 N doubles; thread p < N touches index m N + p only.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        let (s, nn) = (self.s_len, self.n_len);
-        for c in 0..6 {
-            let src = self.vals.slice(c * nn..(c + 1) * nn);
-            let mut dst = self.nl.slice_mut(c * s..(c + 1) * s);
-            self.fwd.exec_d2z(&src, &mut dst).map_err(fft)?;
-        }
-        self.scale_dealias(dev, k, Spectra::Nonlinear, 6, true)
+        unsafe {
+            dev.launch(
+                "explicit_terms",
+                self.n_len,
+                &mut [
+                    Arg::In(&self.ug),
+                    Arg::In(&self.g),
+                    Arg::In(&self.q),
+                    Arg::In(&self.dq),
+                    Arg::In(&self.se),
+                    Arg::Out(&mut self.vals),
+                    Arg::Long(self.n_len as i64),
+                ],
+            )
+        }?;
+        let (s, n) = (self.s_len, self.n_len);
+        Self::forward_six(dev, &self.fwd, (&self.vals, n), (&mut self.nl, s))?;
+        self.scale_dealias(dev, Spectra::Nonlinear, 6, true)
     }
 
     /// Whether the explicit terms (or, with `update`, the updated Q) hold a non-finite value.
-    fn nonfinite(&mut self, dev: &Device, k: &Kernels, update: bool) -> Result<bool, GpuError> {
+    fn nonfinite(&mut self, dev: &Device, update: bool) -> Result<bool, GpuError> {
         let count = 2 * 6 * self.s_len;
-        let (cfg, blocks) = config(count);
-        let c = count as i64;
         let src = if update { &self.q_new } else { &self.nl };
-        let mut b = dev.stream.launch_builder(&k.nonfinite_partials);
-        b.arg(src).arg(&c).arg(&mut self.partial);
         // SAFETY: nonfinite_partials(const double* v, long long count, double* partial): the
-        // spectra hold 6 S complex values = 12 S doubles, read as doubles (double2 is two
-        // doubles, no padding); partial holds at least one value per block.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        Ok(self.reduce(dev, blocks, 1, &[])?[0] > 0.0)
+        // spectra hold 6 S complex values = 12 S doubles, read as doubles; partial holds at
+        // least one value per block.
+        unsafe {
+            dev.launch(
+                "nonfinite_partials",
+                count,
+                &mut [
+                    Arg::In(src),
+                    Arg::Long(count as i64),
+                    Arg::Out(&mut self.partial),
+                ],
+            )
+        }?;
+        Ok(self.reduce(dev, blocks(count), 1, &[])?[0] > 0.0)
     }
 
-    pub(super) fn nonfinite_nonlinear(
-        &mut self,
-        dev: &Device,
-        k: &Kernels,
-    ) -> Result<bool, GpuError> {
-        self.nonfinite(dev, k, false)
+    pub(super) fn nonfinite_nonlinear(&mut self, dev: &Device) -> Result<bool, GpuError> {
+        self.nonfinite(dev, false)
     }
 
-    pub(super) fn nonfinite_update(&mut self, dev: &Device, k: &Kernels) -> Result<bool, GpuError> {
-        self.nonfinite(dev, k, true)
+    pub(super) fn nonfinite_update(&mut self, dev: &Device) -> Result<bool, GpuError> {
+        self.nonfinite(dev, true)
     }
 
     /// (max |u_x| + |u_y| + |u_z|, <E:E>, <E:Q>, <E:S:E>) as sums over the grid.
-    pub(super) fn report_sums(
-        &mut self,
-        dev: &Device,
-        k: &Kernels,
-    ) -> Result<(f64, f64, f64, f64), GpuError> {
-        let (cfg, blocks) = config(self.n_len);
-        let n = self.n_len as i64;
-        let mut b = dev.stream.launch_builder(&k.report_partials);
-        b.arg(&self.ug)
-            .arg(&self.e)
-            .arg(&self.q)
-            .arg(&self.se)
-            .arg(&n)
-            .arg(&mut self.partial);
+    pub(super) fn report_sums(&mut self, dev: &Device) -> Result<(f64, f64, f64, f64), GpuError> {
         // SAFETY: report_partials(const double* ug, const double* e, const double* q,
         // const double* se, long long N, double* partial): ug 3 N, e, q and se 6 N doubles,
-        // partial at least 4 blocks; thread p < N reads index c N + p only.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        let r = self.reduce(dev, blocks, 4, &[0])?;
+        // partial at least 4 per block; thread p < N reads index c N + p only.
+        unsafe {
+            dev.launch(
+                "report_partials",
+                self.n_len,
+                &mut [
+                    Arg::In(&self.ug),
+                    Arg::In(&self.e),
+                    Arg::In(&self.q),
+                    Arg::In(&self.se),
+                    Arg::Long(self.n_len as i64),
+                    Arg::Out(&mut self.partial),
+                ],
+            )
+        }?;
+        let r = self.reduce(dev, blocks(self.n_len), 4, &[0])?;
         Ok((r[0], r[1], r[2], r[3]))
     }
 
     /// sum over the spectrum of |u|^2 (Parseval).
-    pub(super) fn u_norm(&mut self, dev: &Device, k: &Kernels) -> Result<f64, GpuError> {
-        let (cfg, blocks) = config(self.s_len);
-        let n = self.n as i32;
-        let mut b = dev.stream.launch_builder(&k.norm_partials);
-        b.arg(&self.u_work).arg(&n).arg(&mut self.partial);
+    pub(super) fn u_norm(&mut self, dev: &Device) -> Result<f64, GpuError> {
         // SAFETY: norm_partials(const double2* u, int n, double* partial): u_work holds 3 S
         // values, partial at least one per block; thread s < S reads index c S + s.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        Ok(self.reduce(dev, blocks, 1, &[])?[0])
+        unsafe {
+            dev.launch(
+                "norm_partials",
+                self.s_len,
+                &mut [
+                    Arg::In(&self.u_work),
+                    Arg::Int(self.n as i32),
+                    Arg::Out(&mut self.partial),
+                ],
+            )
+        }?;
+        Ok(self.reduce(dev, blocks(self.s_len), 1, &[])?[0])
     }
 
     /// The IMEX update into `q_new`.
@@ -660,37 +572,40 @@ impl Buffers {
     pub(super) fn imex(
         &mut self,
         dev: &Device,
-        k: &Kernels,
         a: [f64; 3],
         bcoef: [f64; 2],
         dt: f64,
         diffusion: f64,
         two: bool,
     ) -> Result<(), GpuError> {
-        let (cfg, _) = config(self.s_len);
-        let (n, two) = (self.n as i32, two as i32);
-        let mut b = dev.stream.launch_builder(&k.imex_update);
-        b.arg(&self.q_hat)
-            .arg(&self.nl)
-            .arg(&self.q_prev)
-            .arg(&self.nl_prev)
-            .arg(&mut self.q_new)
-            .arg(&n)
-            .arg(&self.k2)
-            .arg(&a[0])
-            .arg(&a[1])
-            .arg(&a[2])
-            .arg(&bcoef[0])
-            .arg(&bcoef[1])
-            .arg(&dt)
-            .arg(&diffusion)
-            .arg(&two);
         // SAFETY: imex_update(const double2* q, const double2* nl, const double2* q_prev,
         // const double2* nl_prev, double2* out, int n, const double* k2, double a0, double a1,
         // double a2, double b0, double b1, double dt, double diffusion, int two): the five
         // spectra hold 6 S values each, k2 n doubles; thread s < S touches index c S + s.
-        unsafe { b.launch(cfg) }.map_err(driver)?;
-        Ok(())
+        unsafe {
+            dev.launch(
+                "imex_update",
+                self.s_len,
+                &mut [
+                    Arg::In(&self.q_hat),
+                    Arg::In(&self.nl),
+                    Arg::In(&self.q_prev),
+                    Arg::In(&self.nl_prev),
+                    Arg::Out(&mut self.q_new),
+                    Arg::Int(self.n as i32),
+                    Arg::In(&self.k2),
+                    Arg::Real(a[0]),
+                    Arg::Real(a[1]),
+                    Arg::Real(a[2]),
+                    Arg::Real(bcoef[0]),
+                    Arg::Real(bcoef[1]),
+                    Arg::Real(dt),
+                    Arg::Real(diffusion),
+                    Arg::Int(i32::from(two)),
+                ],
+            )
+        }
+        .map_err(GpuError::from)
     }
 
     /// The step is accepted: Q^{n-1} <- Q^n <- Q^{n+1}, N^{n-1} <- N^n, and the converged

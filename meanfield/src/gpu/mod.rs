@@ -6,14 +6,18 @@
 //! from run to run). Only reports cross the bus during a step: a handful of doubles per
 //! reduction.
 //!
-//! CUDA is loaded at run time (cudarc's dynamic loading): a build needs no CUDA toolkit, and on
-//! a machine without a driver [`probe`] and [`GpuMeanField::new`] return
-//! [`GpuError::NoDevice`] instead of panicking. Kernel launches are the only unsafe code of
-//! the crate, in `launch.rs`.
+//! The device is a [`motile_gpu::Device`]: CUDA, loaded at run time (cudarc's dynamic loading:
+//! a build needs no CUDA toolkit, and on a machine without a driver [`probe`] and
+//! [`GpuMeanField::open`] return [`GpuError::NoDevice`] instead of panicking), or the host
+//! emulation ([`Backend::HostEmulation`]: the same kernels compiled by the C++ compiler
+//! and run on the CPU, transforms in cuFFT's layout), which lets the kernels and the code around
+//! them be tested on machines without a GPU. Kernel launches are the only unsafe code of the
+//! crate, in `launch.rs`.
 //!
-//! Parity with the CPU step (one step of either within 1e-12 relative, the fixed point's
-//! iteration count pinned) is tested in `meanfield/tests/gpu.rs`, which says it was skipped
-//! where no GPU is present (and fails instead with `MOTILE_REQUIRE_GPU=1`).
+//! Parity with the CPU step (three steps within 1e-12 relative, the fixed point's iteration
+//! count pinned) is tested in `meanfield/tests/gpu.rs`: on the host emulation wherever a C++
+//! compiler runs, and on CUDA where a GPU is present (it says it was skipped elsewhere, and
+//! fails instead with `MOTILE_REQUIRE_GPU=1`).
 
 mod launch;
 
@@ -22,7 +26,8 @@ use crate::solver::{
     History, ImexScheme, MeanFieldError, MeanFieldParams, MeanFieldStepReport, RhsReport, SBDF1,
     SpectralGrid,
 };
-use launch::{Device, Kernels};
+use motile_gpu::Device;
+pub use motile_gpu::DeviceInfo;
 use num_complex::Complex64;
 
 /// Why the GPU path is unavailable or failed.
@@ -43,32 +48,45 @@ pub enum GpuError {
     /// The step itself failed, as it would on the CPU.
     #[error(transparent)]
     Step(#[from] MeanFieldError),
+    /// A call that does not fit the device's buffers or kernels (a defect of this module).
+    #[error("device call: {0}")]
+    Input(String),
 }
 
-/// What [`probe`] found.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DeviceInfo {
-    /// The device's name.
-    pub name: String,
-    /// Its memory in bytes.
-    pub memory: usize,
-    /// Compute capability (major, minor).
-    pub compute_capability: (i32, i32),
+impl From<motile_gpu::GpuError> for GpuError {
+    fn from(e: motile_gpu::GpuError) -> Self {
+        use motile_gpu::GpuError as G;
+        match e {
+            G::NoDevice(s) => Self::NoDevice(s),
+            G::Driver(s) => Self::Driver(s),
+            G::Compile(s) => Self::Compile(s),
+            G::Fft(s) => Self::Fft(s),
+            G::Input(s) => Self::Input(s),
+        }
+    }
 }
 
 /// Look for a CUDA device without touching it further: the driver library, NVRTC and cuFFT
 /// must load, and device 0 must answer.
 pub fn probe() -> Result<DeviceInfo, GpuError> {
-    launch::probe()
+    Ok(motile_gpu::probe()?)
 }
 
-/// Thread-block size of every kernel.
-const THREADS: u32 = 256;
+/// The kernels' source (compiled when a device is opened).
+const SOURCE: &str = include_str!("kernels.cu");
+
+/// Which device [`GpuMeanField::open`] opens.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// CUDA device 0 ([`GpuError::NoDevice`] where there is none).
+    Cuda,
+    /// The host emulation of the same kernels (slow: for tests on machines without a GPU).
+    HostEmulation,
+}
 
 /// The mean-field state and its stepper on the device.
 pub struct GpuMeanField {
     dev: Device,
-    k: Kernels,
     n: usize,
     params: MeanFieldParams,
     scheme: ImexScheme,
@@ -82,6 +100,7 @@ pub struct GpuMeanField {
 impl std::fmt::Debug for GpuMeanField {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("GpuMeanField")
+            .field("device", &self.dev.describe())
             .field("n", &self.n)
             .field("t", &self.t)
             .field("closure_degree", &self.deg)
@@ -90,11 +109,12 @@ impl std::fmt::Debug for GpuMeanField {
 }
 
 impl GpuMeanField {
-    /// Upload a state (the same as [`crate::solver::MeanFieldStepper::restore`] takes) and
-    /// prepare the device: kernels, cuFFT plans, closure tables, wavenumbers, buffers. `scheme`
-    /// as the CPU stepper's (the first step is SBDF1 whatever it is).
+    /// Upload a state (the same as [`crate::solver::MeanFieldStepper::restore`] takes) to the
+    /// device `backend` names and prepare it: kernels, FFT plans, closure tables, wavenumbers,
+    /// buffers. `scheme` as the CPU stepper's (the first step is SBDF1 whatever it is).
     #[allow(clippy::too_many_arguments)]
-    pub fn new(
+    pub fn open(
+        backend: Backend,
         grid: &SpectralGrid,
         closure: &BinghamClosure,
         params: &MeanFieldParams,
@@ -104,16 +124,17 @@ impl GpuMeanField {
         history: Option<&History>,
         u_hat: &[Vec<Complex64>; 3],
     ) -> Result<Self, GpuError> {
+        let dev = match backend {
+            Backend::Cuda => Device::cuda(SOURCE, &launch::KERNELS)?,
+            Backend::HostEmulation => Device::host_emulation(SOURCE, &launch::KERNELS)?,
+        };
         let n = grid.n;
-        let dev = Device::open()?;
-        let k = dev.compile()?;
         let coef: Vec<f64> = closure.coefficients().iter().flatten().copied().collect();
         let wavenumbers = launch::Wavenumbers::of(grid);
         let mut bufs = launch::Buffers::new(&dev, n, &coef, &wavenumbers)?;
         bufs.upload_state(&dev, q_hat, history, u_hat)?;
         Ok(Self {
             dev,
-            k,
             n,
             params: params.clone(),
             scheme,
@@ -124,6 +145,10 @@ impl GpuMeanField {
         })
     }
 
+    /// What the device is.
+    pub fn describe(&self) -> String {
+        self.dev.describe()
+    }
     /// The state, downloaded: `(t, Q coefficients, history, u coefficients)`, as
     /// [`crate::solver::MeanFieldStepper::restore`] takes it (checkpoints, snapshots).
     pub fn state(&self) -> Result<StateDownload, GpuError> {
@@ -144,36 +169,36 @@ impl GpuMeanField {
     /// when the step fails: the fixed point iterates in a work buffer, and the state, the
     /// history and the warm-start velocity change only once the new Q is known to be finite.
     pub fn step(&mut self, dt: f64, with_entropy: bool) -> Result<MeanFieldStepReport, GpuError> {
-        let (n, dev, k) = (self.n, &self.dev, &self.k);
+        let (n, dev) = (self.n, &self.dev);
         let b = &mut self.bufs;
         let npts = (n * n * n) as f64;
         // Q to the grid.
         b.inverse_q(dev)?;
         // The closure field.
         let (min_eigenvalue, max_eigenvalue, entropy_sum) =
-            b.closure(dev, k, self.deg, with_entropy)?;
+            b.closure(dev, self.deg, with_entropy)?;
         // The Stokes fixed point from the previous u.
         let mut report = RhsReport::default();
         let zeta = self.params.zeta;
         loop {
             report.iterations += 1;
-            b.strain_to_grid(dev, k)?;
-            b.stress(dev, k, zeta)?;
-            b.stokes(dev, k)?;
-            report.residual = b.change(dev, k)?;
+            b.strain_to_grid(dev)?;
+            b.stress(dev, zeta)?;
+            b.stokes(dev)?;
+            report.residual = b.change(dev)?;
             b.accept_u();
             if self.params.fixed_point_done(&report)? {
                 break;
             }
         }
         // u, grad u, E, S:E, the explicit terms.
-        b.gradients(dev, k)?;
-        b.explicit_terms(dev, k)?;
-        if b.nonfinite_nonlinear(dev, k)? {
+        b.gradients(dev)?;
+        b.explicit_terms(dev)?;
+        if b.nonfinite_nonlinear(dev)? {
             return Err(MeanFieldError::NonFinite("the right-hand side").into());
         }
-        let (u_max, ee, eq, ese) = b.report_sums(dev, k)?;
-        let u_l2 = b.u_norm(dev, k)?.sqrt();
+        let (u_max, ee, eq, ese) = b.report_sums(dev)?;
+        let u_l2 = b.u_norm(dev)?.sqrt();
         // The IMEX update into the spare buffer; committed only if finite.
         // As MeanFieldStepper::step: the scheme once it has its history, SBDF1 before.
         let (scheme, w) = match self.prev_dt {
@@ -183,14 +208,13 @@ impl GpuMeanField {
         let (a, bcoef) = (scheme.coefficients)(w);
         b.imex(
             dev,
-            k,
             a,
             bcoef,
             dt,
             self.params.diffusion,
             self.prev_dt.is_some() && scheme.steps == 2,
         )?;
-        if b.nonfinite_update(dev, k)? {
+        if b.nonfinite_update(dev)? {
             return Err(MeanFieldError::NonFinite("Q after the step").into());
         }
         b.commit_step();

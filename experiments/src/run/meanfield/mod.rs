@@ -144,7 +144,8 @@ impl Engine {
         if cfg.device == Device::Gpu {
             #[cfg(feature = "gpu")]
             {
-                let gpu = motile_meanfield::gpu::GpuMeanField::new(
+                let gpu = motile_meanfield::gpu::GpuMeanField::open(
+                    motile_meanfield::gpu::Backend::Cuda,
                     grid,
                     closure,
                     params,
