@@ -27,17 +27,10 @@ use motile_particle::slender::{SlenderBody, SlenderParams};
 use motile_particle::spectral_ewald::SpectralEwald;
 use motile_particle::units::DEFAULT_DIAMETER;
 use motile_particle::{ContactParams, LocalDrag, Mobility, RodSet, Stepper};
-use rand::{RngExt, SeedableRng};
-use std::f64::consts::PI;
 use std::time::Instant;
 
-fn arg(name: &str) -> Option<String> {
-    let args: Vec<String> = std::env::args().collect();
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .cloned()
-}
+mod shared;
+use shared::{arg, meanfield_state, median, random_points};
 
 /// One timed run: the phases' seconds, in the case's phase order, the total last.
 type Sample = Vec<f64>;
@@ -49,31 +42,10 @@ struct Case {
     run: Box<dyn FnMut() -> Sample + Send>,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn meanfield_case(n: usize, closure: &'static BinghamClosure) -> Case {
     let grid: &'static SpectralGrid = Box::leak(Box::new(SpectralGrid::new(n)));
     let params: &'static MeanFieldParams = Box::leak(Box::new(MeanFieldParams::default()));
-    let mut q: [Vec<f64>; 6] = std::array::from_fn(|c| {
-        vec![
-            if c == 0 || c == 3 || c == 5 {
-                1.0 / 3.0
-            } else {
-                0.0
-            };
-            n * n * n
-        ]
-    });
-    for idx in 0..n * n * n {
-        let x = [idx % n, (idx / n) % n, idx / (n * n)].map(|i| i as f64 / n as f64);
-        q[1][idx] += 0.05 * (2.0 * PI * x[0]).sin() * (2.0 * PI * x[2]).cos();
-        q[4][idx] += 0.04 * (2.0 * PI * (x[1] + x[0])).cos();
-        q[0][idx] += 0.03 * (2.0 * PI * x[1]).sin();
-        q[5][idx] -= 0.03 * (2.0 * PI * x[1]).sin();
-    }
+    let q = meanfield_state(n);
     let mut stepper = MeanFieldStepper::new(grid, &q, SBDF2);
     Case {
         name: if n == 64 { "mf64" } else { "mf128" },
@@ -110,18 +82,10 @@ fn meanfield_case(n: usize, closure: &'static BinghamClosure) -> Case {
 }
 
 fn mobility_case(n: usize) -> Case {
-    let density = 2.5;
-    let l = (n as f64 / density).cbrt();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let y: Vec<[f64; 3]> = (0..n)
-        .map(|_| [0, 1, 2].map(|_| rng.random_range(0.0..l)))
-        .collect();
+    let (l, y, f) = random_points(n);
     let y2: Vec<[f64; 3]> = y
         .iter()
         .map(|p| p.map(|c| (c + 0.37).rem_euclid(l)))
-        .collect();
-    let f: Vec<[f64; 3]> = (0..n)
-        .map(|_| [0, 1, 2].map(|_| rng.random_range(-1.0..1.0)))
         .collect();
     let geo = RpyGeometry {
         box_length: l,

@@ -116,6 +116,13 @@ impl Cuda {
         format!("CUDA device 0: {}", self.name)
     }
 
+    /// `(bytes in use, total bytes)`.
+    pub(crate) fn memory(&self) -> Result<(usize, usize), GpuError> {
+        self.stream.context().bind_to_thread().map_err(driver)?;
+        let (free, total) = cudarc::driver::result::mem_get_info().map_err(driver)?;
+        Ok((total - free, total))
+    }
+
     pub(crate) fn upload(&self, data: &[f64]) -> Result<CudaSlice<f64>, GpuError> {
         if data.is_empty() {
             return self.zeros(0);

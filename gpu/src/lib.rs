@@ -231,6 +231,16 @@ impl Device {
         }
     }
 
+    /// `(bytes in use, total bytes)` of the device's memory (all processes), or `None` on the
+    /// host emulation.
+    pub fn memory(&self) -> Result<Option<(usize, usize)>, GpuError> {
+        match &self.backend {
+            Backend::Host(_) => Ok(None),
+            #[cfg(feature = "cuda")]
+            Backend::Cuda(c) => c.memory().map(Some),
+        }
+    }
+
     /// Whether this is the host emulation.
     pub fn is_emulation(&self) -> bool {
         matches!(self.backend, Backend::Host(_))

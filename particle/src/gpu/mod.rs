@@ -85,6 +85,12 @@ impl GpuFourier {
         self.dev.describe()
     }
 
+    /// `(bytes in use, total bytes)` of the device's memory (every context on it), `None` on
+    /// the host emulation.
+    pub fn memory(&self) -> Result<Option<(usize, usize)>, GpuError> {
+        self.dev.memory()
+    }
+
     /// The plans and buffers for grid size `m`, and the input of `nf` (3 or 6) fields.
     fn grid(&mut self, m: usize, nf: usize) -> Result<&mut Grid, GpuError> {
         let dev = &self.dev;

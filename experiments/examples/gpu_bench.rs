@@ -1,0 +1,395 @@
+//! The GPU back-end against the CPU, side by side in one process: issue 18's benchmark table.
+//!
+//! ```text
+//! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- \
+//!     [--device cuda|emulation] [--small] [--cases mf,sum,dipole,sbt] [--reps 3] [--out FILE.csv]
+//! ```
+//!
+//! Cases (the sizes of issue 18; `--small` shrinks every one to seconds, for checking the
+//! harness, e.g. on the host emulation):
+//! - `mf`: one mean-field step (64^3 warm-up, then 128^3 and 256^3; closure degree 20), the
+//!   CPU stepper and the GPU stepper from the same state, with the largest relative difference
+//!   of Q between them after the timed steps;
+//! - `sum`: one RPY mobility product of 1e5, 1e6, 1e7 random points at tolerances 1e-4 and
+//!   1e-8 (points per second; the Fourier part's seconds; the largest difference of the GPU's
+//!   velocities from the CPU's relative to the largest velocity);
+//! - `dipole`: steps of the point-stresslet level at L/l = 100 and 175 (nu = 0.625);
+//! - `sbt`: steps of the slender-body level at L/l = 50 and 100.
+//!
+//! The CPU runs on the rayon pool (`RAYON_NUM_THREADS`, default all cores). Each row is the
+//! median of `--reps` timed runs after one untimed run (one timed run for the largest sizes).
+//! Memory: the GPU's bytes in use after the case (every context on the device, so the probe's
+//! own small context too) and the process's resident set (VmRSS) after it. The GPU does the
+//! particle sums' Fourier part only: their real space, the contacts and everything else stay
+//! on the CPU threads, so the particle rows measure that split.
+
+use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
+use motile_meanfield::gpu::{Backend, GpuMeanField};
+use motile_meanfield::solver::{
+    MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SpectralGrid,
+};
+use motile_particle::dipole::Dipole;
+use motile_particle::gpu::GpuFourier;
+use motile_particle::init::random_nonoverlapping;
+use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::slender::{SlenderBody, SlenderParams};
+use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::units::DEFAULT_DIAMETER;
+use motile_particle::{ContactParams, Mobility, RodSet, Stepper};
+use std::time::Instant;
+
+mod shared;
+use shared::{arg, meanfield_state, median, random_points};
+
+/// One row of the table.
+struct Row {
+    case: String,
+    side: &'static str,
+    seconds: f64,
+    rate: f64,
+    unit: &'static str,
+    note: String,
+    gpu_bytes: Option<usize>,
+    rss_bytes: usize,
+}
+
+/// The process's resident set in bytes (Linux), else 0.
+fn rss() -> usize {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmRSS:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<usize>().ok())
+        })
+        .map_or(0, |kb| kb * 1024)
+}
+
+/// Seconds of one untimed then `reps` timed calls, the median.
+fn time(reps: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    median(
+        (0..reps.max(1))
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    )
+}
+
+struct Bench {
+    emulate: bool,
+    reps: usize,
+    probe: GpuFourier,
+    rows: Vec<Row>,
+}
+
+impl Bench {
+    fn fourier(&self) -> GpuFourier {
+        if self.emulate {
+            GpuFourier::host_emulation().expect("host emulation")
+        } else {
+            GpuFourier::cuda().expect("CUDA device")
+        }
+    }
+
+    fn gpu_bytes(&self) -> Option<usize> {
+        self.probe.memory().ok().flatten().map(|(used, _)| used)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn push(
+        &mut self,
+        case: &str,
+        side: &'static str,
+        seconds: f64,
+        work: f64,
+        unit: &'static str,
+        note: String,
+    ) {
+        let row = Row {
+            case: case.into(),
+            side,
+            seconds,
+            rate: work / seconds,
+            unit,
+            note,
+            gpu_bytes: if side == "gpu" {
+                self.gpu_bytes()
+            } else {
+                None
+            },
+            rss_bytes: rss(),
+        };
+        eprintln!(
+            "{} {}: {:.4} s, {:.4e} {}{}",
+            row.case,
+            row.side,
+            row.seconds,
+            row.rate,
+            row.unit,
+            if row.note.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", row.note)
+            }
+        );
+        self.rows.push(row);
+    }
+
+    fn meanfield(&mut self, n: usize, closure: &BinghamClosure) {
+        let grid = SpectralGrid::new(n);
+        let params = MeanFieldParams::default();
+        let q = meanfield_state(n);
+        let mut cpu = MeanFieldStepper::new(&grid, &q, SBDF2);
+        let backend = if self.emulate {
+            Backend::HostEmulation
+        } else {
+            Backend::Cuda
+        };
+        let mut gpu = GpuMeanField::open(
+            backend,
+            &grid,
+            closure,
+            &params,
+            SBDF2,
+            cpu.t,
+            &cpu.q_hat,
+            cpu.history(),
+            &cpu.u_hat,
+        )
+        .expect("the GPU stepper");
+        let reps = if n >= 256 { 1 } else { self.reps };
+        let rhs = MeanFieldRhs {
+            grid: &grid,
+            closure,
+            params: &params,
+            with_entropy: false,
+        };
+        let dt = 0.01;
+        let tg = time(reps, || {
+            gpu.step(dt, false).expect("GPU step");
+        });
+        let gpu_bytes = self.gpu_bytes();
+        let tc = time(reps, || {
+            cpu.step(&rhs, dt).expect("CPU step");
+        });
+        let (_, q_gpu, _, _) = gpu.state().expect("download");
+        let scale = cpu
+            .q_hat
+            .iter()
+            .flatten()
+            .map(|z| z.norm())
+            .fold(1e-300, f64::max);
+        let dq = cpu
+            .q_hat
+            .iter()
+            .flatten()
+            .zip(q_gpu.iter().flatten())
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max)
+            / scale;
+        let case = format!("mean-field step {n}^3");
+        self.push(&case, "cpu", tc, 1.0, "steps/s", String::new());
+        self.push(
+            &case,
+            "gpu",
+            tg,
+            1.0,
+            "steps/s",
+            format!(
+                "Q differs from the CPU's by {dq:.1e} after {} steps",
+                reps + 1
+            ),
+        );
+        if let Some(last) = self.rows.last_mut() {
+            last.gpu_bytes = gpu_bytes;
+        }
+    }
+
+    fn sum(&mut self, n: usize, tol: f64) {
+        let (l, y, f) = random_points(n);
+        let geo = RpyGeometry {
+            box_length: l,
+            radius: 0.0866,
+            group: 1,
+        };
+        let reps = if n >= 10_000_000 { 1 } else { self.reps };
+        let mut gpu = SpectralEwald::with_device(tol, self.fourier()).expect("tolerance");
+        let mut ug = Vec::new();
+        let tg = time(reps, || ug = gpu.rpy(&geo, &y, &f).expect("GPU sum"));
+        let fourier_gpu = gpu.last_timing().fourier;
+        let gpu_bytes = self.gpu_bytes();
+        drop(gpu);
+        let mut cpu = SpectralEwald::new(tol).expect("tolerance");
+        let mut uc = Vec::new();
+        let tc = time(reps, || uc = cpu.rpy(&geo, &y, &f).expect("CPU sum"));
+        let fourier_cpu = cpu.last_timing().fourier;
+        let largest = uc
+            .iter()
+            .map(|u| u.iter().map(|c| c * c).sum::<f64>())
+            .fold(0.0, f64::max);
+        let diff = uc
+            .iter()
+            .zip(&ug)
+            .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
+            .fold(0.0, f64::max);
+        let case = format!("RPY product, {n} points, tol {tol:.0e}");
+        let n = n as f64;
+        self.push(
+            &case,
+            "cpu",
+            tc,
+            n,
+            "points/s",
+            format!("Fourier part {fourier_cpu:.3} s"),
+        );
+        self.push(
+            &case,
+            "gpu",
+            tg,
+            n,
+            "points/s",
+            format!(
+                "Fourier part {fourier_gpu:.3} s; differs from the CPU's by {:.1e}",
+                (diff / largest.max(1e-300)).sqrt()
+            ),
+        );
+        if let Some(last) = self.rows.last_mut() {
+            last.gpu_bytes = gpu_bytes;
+        }
+    }
+
+    fn steps(&mut self, level: &str, l: f64) {
+        let n = (0.625 * l * l * l).round() as usize;
+        let rods: RodSet = random_nonoverlapping(n, l, DEFAULT_DIAMETER, 1, 1_000_000)
+            .expect("initial configuration");
+        let make = |sum: SpectralEwald| -> Box<dyn Mobility> {
+            match level {
+                "dipole" => Box::new(Dipole::new(Box::new(sum), DEFAULT_DIAMETER)),
+                _ => Box::new(SlenderBody::new(SlenderParams::default(), Box::new(sum))),
+            }
+        };
+        let reps = if n > 1_000_000 { 1 } else { self.reps };
+        let dt = 0.01;
+        let run = |mobility: Box<dyn Mobility>| {
+            let mut r = rods.clone();
+            let mut stepper = Stepper::new(mobility, ContactParams::default());
+            // The slender-body level's first step solves exactly; steady steps predict.
+            stepper.step(&mut r, dt).expect("first step");
+            let mut sums = 0.0;
+            let t = time(reps, || {
+                sums = stepper.step(&mut r, dt).expect("step").hydro.seconds_sums;
+            });
+            (t, sums)
+        };
+        let (tg, sg) = run(make(
+            SpectralEwald::with_device(1e-4, self.fourier()).unwrap(),
+        ));
+        let gpu_bytes = self.gpu_bytes();
+        let (tc, sc) = run(make(SpectralEwald::new(1e-4).unwrap()));
+        let case = format!("{level} step, L/l = {l}, {n} rods");
+        self.push(&case, "cpu", tc, 1.0, "steps/s", format!("sums {sc:.3} s"));
+        self.push(&case, "gpu", tg, 1.0, "steps/s", format!("sums {sg:.3} s"));
+        if let Some(last) = self.rows.last_mut() {
+            last.gpu_bytes = gpu_bytes;
+            last.note.push_str(&format!(
+                "; {:.0} GPU bytes per rod",
+                gpu_bytes.unwrap_or(0) as f64 / n as f64
+            ));
+        }
+    }
+}
+
+fn main() {
+    let emulate = arg("--device").as_deref() == Some("emulation");
+    let small = std::env::args().any(|a| a == "--small");
+    let cases = arg("--cases").unwrap_or_else(|| "mf,sum,dipole,sbt".into());
+    let reps: usize = arg("--reps").map_or(3, |r| r.parse().expect("--reps"));
+    let probe = if emulate {
+        GpuFourier::host_emulation()
+    } else {
+        GpuFourier::cuda()
+    };
+    let probe = match probe {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("gpu_bench: {e}");
+            std::process::exit(2);
+        }
+    };
+    println!(
+        "device: {}; CPU: {} threads",
+        probe.describe(),
+        rayon::current_num_threads()
+    );
+    let mut b = Bench {
+        emulate,
+        reps,
+        probe,
+        rows: Vec::new(),
+    };
+    let has = |c: &str| cases.split(',').any(|x| x.trim() == c);
+    if has("mf") {
+        let closure = BinghamClosure::new(DEFAULT_DEGREE).expect("closure tables");
+        for n in if small { vec![16] } else { vec![128, 256] } {
+            b.meanfield(n, &closure);
+        }
+    }
+    if has("sum") {
+        let sizes = if small {
+            vec![2_000]
+        } else {
+            vec![100_000, 1_000_000, 10_000_000]
+        };
+        for n in sizes {
+            for tol in [1e-4, 1e-8] {
+                b.sum(n, tol);
+            }
+        }
+    }
+    if has("dipole") {
+        for l in if small { vec![5.0] } else { vec![100.0, 175.0] } {
+            b.steps("dipole", l);
+        }
+    }
+    if has("sbt") {
+        for l in if small { vec![4.0] } else { vec![50.0, 100.0] } {
+            b.steps("sbt", l);
+        }
+    }
+    println!("| case | side | seconds | rate | GPU bytes in use | RSS | note |");
+    println!("|---|---|---:|---:|---:|---:|---|");
+    let mut csv = String::from("case,side,seconds,rate,unit,gpu_bytes,rss_bytes,note\n");
+    for r in &b.rows {
+        println!(
+            "| {} | {} | {:.4} | {:.3e} {} | {} | {:.2} GB | {} |",
+            r.case,
+            r.side,
+            r.seconds,
+            r.rate,
+            r.unit,
+            r.gpu_bytes
+                .map_or("-".into(), |g| format!("{:.2} GB", g as f64 / 1e9)),
+            r.rss_bytes as f64 / 1e9,
+            r.note
+        );
+        csv.push_str(&format!(
+            "\"{}\",{},{},{},{},{},{},\"{}\"\n",
+            r.case,
+            r.side,
+            r.seconds,
+            r.rate,
+            r.unit,
+            r.gpu_bytes.map_or(String::new(), |g| g.to_string()),
+            r.rss_bytes,
+            r.note
+        ));
+    }
+    if let Some(path) = arg("--out") {
+        std::fs::write(&path, csv).expect("writing the CSV");
+        println!("wrote {path}");
+    }
+}

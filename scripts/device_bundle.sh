@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Builds what a session with a lent GPU machine runs there (issue 18), into device-bin/ (ignored
+# by git; name it in the device tool's `carry`): the motile binary and the benchmark examples
+# with the gpu feature, the two GPU parity test executables, stripped, and device_run.sh.
+# The device machine has CUDA but no Rust: everything is built here.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+rm -rf device-bin
+mkdir -p device-bin
+cargo build --release -p motile-experiments --features gpu --bin motile --example gpu_bench \
+  --example scaling
+cp target/release/motile target/release/examples/gpu_bench target/release/examples/scaling \
+  device-bin/
+# The test executables, by the paths cargo reports for them.
+exe() {
+  cargo test --release -p "$1" --features gpu --test "$2" --no-run --message-format=json 2>/dev/null \
+    | python3 -c 'import json, sys
+for line in sys.stdin:
+    m = json.loads(line)
+    if m.get("executable") and m.get("target", {}).get("kind") == ["test"]:
+        print(m["executable"])'
+}
+cp "$(exe motile-meanfield gpu)" device-bin/test_meanfield_gpu
+cp "$(exe motile-particle gpu_ewald)" device-bin/test_particle_gpu_ewald
+strip device-bin/*
+cp scripts/device_run.sh device-bin/
+du -sh device-bin
