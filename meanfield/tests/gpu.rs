@@ -33,13 +33,12 @@ fn gpu_step_matches_the_cpu_step() {
     skip("built without the `gpu` feature (cargo test --features gpu)");
 }
 
+/// Without the feature there is no GPU code to emulate: scripts/test.sh runs this file again
+/// with `--features gpu`, where the emulated test is required to run.
 #[cfg(not(feature = "gpu"))]
 #[test]
 fn emulated_gpu_step_matches_the_cpu_step() {
-    skip_unless(
-        "built without the `gpu` feature (cargo test --features gpu)",
-        "MOTILE_REQUIRE_CXX",
-    );
+    eprintln!("gpu parity (host emulation): skipped: built without the `gpu` feature");
 }
 
 #[cfg(feature = "gpu")]
