@@ -82,14 +82,23 @@ impl Cuda {
         let info = probe()?;
         let ctx = CudaContext::new(0).map_err(|e| GpuError::NoDevice(format!("{e:?}")))?;
         let stream = ctx.default_stream();
-        // No fused multiply-adds: each a b + c rounds as on the CPU.
+        // No fused multiply-adds: each a b + c rounds as on the CPU. The device's own virtual
+        // architecture: NVRTC 12 defaults to compute_52, where atomicAdd on doubles (sm_60 and
+        // later) does not exist.
+        let (major, minor) = info.compute_capability;
         let opts = cudarc::nvrtc::CompileOptions {
             fmad: Some(false),
+            options: vec![format!("--gpu-architecture=compute_{major}{minor}")],
             ..Default::default()
         };
         let ptx = cudarc::nvrtc::compile_ptx_with_opts(source, opts)
             .map_err(|e| GpuError::Compile(format!("{e:?}")))?;
-        let module = ctx.load_module(ptx).map_err(driver)?;
+        let module = ctx.load_module(ptx).map_err(|e| {
+            GpuError::Driver(format!(
+                "loading the kernels compiled for compute_{major}{minor}: {e:?} (a driver older \
+                 than the NVRTC library refuses its PTX: update the driver)"
+            ))
+        })?;
         let mut functions = HashMap::new();
         for k in kernels {
             functions.insert(
@@ -151,38 +160,58 @@ impl Cuda {
         self.stream.clone_dtoh(s).map_err(driver)
     }
 
-    pub(crate) fn fft3(&self, m: usize, batch: usize) -> Result<(CudaFft, CudaFft), GpuError> {
-        let n = [m as i32; 3];
-        let (real, half) = ((m * m * m) as i32, (m * m * (m / 2 + 1)) as i32);
-        let b = batch as i32;
-        let st = self.stream.clone();
-        let forward = CudaFft::plan_many(
-            &n,
-            None,
-            1,
-            real,
-            None,
-            1,
-            half,
-            cufftType::CUFFT_D2Z,
-            b,
-            st.clone(),
-        )
-        .map_err(fft)?;
-        let inverse = CudaFft::plan_many(
-            &n,
-            None,
-            1,
-            half,
-            None,
-            1,
-            real,
-            cufftType::CUFFT_Z2D,
-            b,
-            st,
-        )
-        .map_err(fft)?;
-        Ok((forward, inverse))
+    pub(crate) fn download_range(
+        &self,
+        s: &CudaSlice<f64>,
+        at: usize,
+        len: usize,
+    ) -> Result<Vec<f64>, GpuError> {
+        self.stream
+            .clone_dtoh(&s.slice(at..at + len))
+            .map_err(driver)
+    }
+
+    /// cuFFT plans of `batch` transforms of `m^3` grids, forward (D2Z) and/or inverse (Z2D).
+    pub(crate) fn fft3(
+        &self,
+        m: usize,
+        batch: usize,
+        (forward, inverse): (bool, bool),
+    ) -> Result<(Option<CudaFft>, Option<CudaFft>), GpuError> {
+        let int = |v: usize, what: &str| {
+            i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds cuFFT's int")))
+        };
+        let n = [int(m, "grid size")?; 3];
+        let real = int(m * m * m, "grid points")?;
+        let half = int(m * m * (m / 2 + 1), "half-spectrum size")?;
+        let b = int(batch, "batch")?;
+        let plan = |kind, idist, odist| {
+            CudaFft::plan_many(
+                &n,
+                None,
+                1,
+                idist,
+                None,
+                1,
+                odist,
+                kind,
+                b,
+                self.stream.clone(),
+            )
+            .map_err(fft)
+        };
+        Ok((
+            if forward {
+                Some(plan(cufftType::CUFFT_D2Z, real, half)?)
+            } else {
+                None
+            },
+            if inverse {
+                Some(plan(cufftType::CUFFT_Z2D, half, real)?)
+            } else {
+                None
+            },
+        ))
     }
 
     /// # Safety

@@ -122,6 +122,9 @@ type Sig = unsafe extern "C" fn() -> *const c_char;
 
 /// The compiled kernels: entry points and parameter signatures.
 pub(crate) struct Host {
+    /// One launch at a time: the emulated kernels share the library's globals (thread indices'
+    /// dimensions, the block barrier, shared memory).
+    running: std::sync::Mutex<()>,
     compiler: String,
     kernels: HashMap<String, (Run, String)>,
     // Keeps the entry points valid; dropped before the directory holding it.
@@ -216,6 +219,7 @@ impl Host {
             map.insert((*k).to_string(), (run, signature));
         }
         Ok(Self {
+            running: std::sync::Mutex::new(()),
             compiler,
             kernels: map,
             _lib: library,
@@ -280,10 +284,14 @@ impl Host {
             .iter_mut()
             .map(|v| std::ptr::from_mut(v).cast::<c_void>())
             .collect();
+        let _one_at_a_time = self
+            .running
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         // SAFETY: the parameter types match the kernel's (checked above); each params entry
         // points to 8 bytes holding the value (a pointer into a live host buffer, an int in
-        // its first four bytes, or a double), which outlive the call; the indices the kernel
-        // touches are the caller's contract.
+        // its first four bytes, or a double), which outlive the call; no other launch runs
+        // (the lock); the indices the kernel touches are the caller's contract.
         unsafe { run(blocks, THREADS, params.as_mut_ptr()) };
         Ok(())
     }

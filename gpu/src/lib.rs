@@ -139,6 +139,7 @@ impl Arg<'_> {
 pub struct Fft3 {
     m: usize,
     batch: usize,
+    direction: Direction,
     inner: FftInner,
 }
 
@@ -146,9 +147,21 @@ enum FftInner {
     Host(motile_analysis::fft3::RealFft3),
     #[cfg(feature = "cuda")]
     Cuda {
-        forward: cudarc::cufft::CudaFft,
-        inverse: cudarc::cufft::CudaFft,
+        forward: Option<cudarc::cufft::CudaFft>,
+        inverse: Option<cudarc::cufft::CudaFft>,
     },
+}
+
+/// Which transforms a plan does (each cuFFT plan holds a work area about the size of its data,
+/// so a plan is made only for the directions asked for).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Direction {
+    /// Real to half spectrum.
+    Forward,
+    /// Half spectrum to real.
+    Inverse,
+    /// Both.
+    Both,
 }
 
 impl std::fmt::Debug for FftInner {
@@ -312,8 +325,33 @@ impl Device {
         }
     }
 
-    /// A plan for batches of `batch` real transforms of `m^3` grids.
-    pub fn fft3(&self, m: usize, batch: usize) -> Result<Fft3, GpuError> {
+    /// `len` values of `buf` from `at` (waits for the device's queued work).
+    pub fn download_range(
+        &self,
+        buf: &Buffer,
+        at: usize,
+        len: usize,
+    ) -> Result<Vec<f64>, GpuError> {
+        if at + len > buf.len {
+            return Err(GpuError::Input(format!(
+                "{len} values from {at} of a buffer of {}",
+                buf.len
+            )));
+        }
+        if len == 0 {
+            return Ok(Vec::new());
+        }
+        match (&self.backend, &buf.data) {
+            (Backend::Host(_), Data::Host(v)) => Ok(v[at..at + len].to_vec()),
+            #[cfg(feature = "cuda")]
+            (Backend::Cuda(c), Data::Cuda(s)) => c.download_range(s, at, len),
+            #[allow(unreachable_patterns)]
+            _ => Err(foreign()),
+        }
+    }
+
+    /// A plan for batches of `batch` real transforms of `m^3` grids in the directions asked for.
+    pub fn fft3(&self, m: usize, batch: usize, direction: Direction) -> Result<Fft3, GpuError> {
         if m < 2 || batch == 0 {
             return Err(GpuError::Input(format!(
                 "an FFT plan of {batch} grids of {m}^3"
@@ -323,11 +361,23 @@ impl Device {
             Backend::Host(_) => FftInner::Host(motile_analysis::fft3::RealFft3::new([m; 3])),
             #[cfg(feature = "cuda")]
             Backend::Cuda(c) => {
-                let (forward, inverse) = c.fft3(m, batch)?;
+                let (forward, inverse) = c.fft3(
+                    m,
+                    batch,
+                    (
+                        direction != Direction::Inverse,
+                        direction != Direction::Forward,
+                    ),
+                )?;
                 FftInner::Cuda { forward, inverse }
             }
         };
-        Ok(Fft3 { m, batch, inner })
+        Ok(Fft3 {
+            m,
+            batch,
+            direction,
+            inner,
+        })
     }
 
     /// Forward transforms (`sum_x f(x) exp(-i k x)`) of the batch of real fields at
@@ -340,6 +390,11 @@ impl Device {
         (spectra, spectra_at): (&mut Buffer, usize),
     ) -> Result<(), GpuError> {
         check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        if plan.direction == Direction::Inverse {
+            return Err(GpuError::Input(
+                "a forward transform with an inverse-only plan".into(),
+            ));
+        }
         let (n, s) = (plan.real_len(), plan.spectrum_len());
         match (&plan.inner, &real.data, &mut spectra.data) {
             (FftInner::Host(fft), Data::Host(x), Data::Host(y)) => {
@@ -356,9 +411,14 @@ impl Device {
                 Ok(())
             }
             #[cfg(feature = "cuda")]
-            (FftInner::Cuda { forward, .. }, Data::Cuda(x), Data::Cuda(y)) => {
-                cuda::forward(forward, (x, real_at, n), (y, spectra_at, plan.batch * s))
-            }
+            (
+                FftInner::Cuda {
+                    forward: Some(forward),
+                    ..
+                },
+                Data::Cuda(x),
+                Data::Cuda(y),
+            ) => cuda::forward(forward, (x, real_at, n), (y, spectra_at, plan.batch * s)),
             #[allow(unreachable_patterns)]
             _ => {
                 let _ = n;
@@ -377,6 +437,11 @@ impl Device {
         (real, real_at): (&mut Buffer, usize),
     ) -> Result<(), GpuError> {
         check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        if plan.direction == Direction::Forward {
+            return Err(GpuError::Input(
+                "an inverse transform with a forward-only plan".into(),
+            ));
+        }
         let (n, s) = (plan.real_len(), plan.spectrum_len());
         match (&plan.inner, &mut spectra.data, &mut real.data) {
             (FftInner::Host(fft), Data::Host(y), Data::Host(x)) => {
@@ -392,9 +457,14 @@ impl Device {
                 Ok(())
             }
             #[cfg(feature = "cuda")]
-            (FftInner::Cuda { inverse, .. }, Data::Cuda(y), Data::Cuda(x)) => {
-                cuda::inverse(inverse, (y, spectra_at, plan.batch * s), (x, real_at, n))
-            }
+            (
+                FftInner::Cuda {
+                    inverse: Some(inverse),
+                    ..
+                },
+                Data::Cuda(y),
+                Data::Cuda(x),
+            ) => cuda::inverse(inverse, (y, spectra_at, plan.batch * s), (x, real_at, n)),
             #[allow(unreachable_patterns)]
             _ => {
                 let _ = n;

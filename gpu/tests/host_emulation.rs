@@ -6,7 +6,7 @@
 //! indices fit.
 #![allow(unsafe_code)]
 
-use motile_gpu::{Arg, Device, GpuError};
+use motile_gpu::{Arg, Device, Direction, GpuError};
 
 const SOURCE: &str = r#"
 extern "C" __global__ void axpy(const double* x, double* y, double a, int n) {
@@ -97,7 +97,7 @@ fn kernels_run_every_thread_once_and_arguments_are_checked() {
 fn transforms_have_the_cufft_layout_and_scaling() {
     let Some(dev) = device() else { return };
     let (m, batch) = (8, 2);
-    let plan = dev.fft3(m, batch).unwrap();
+    let plan = dev.fft3(m, batch, Direction::Both).unwrap();
     let h = m / 2 + 1;
     // Field b: cos(2 pi (kx x + ky y + kz z) / m) with (kx, ky, kz) = (1, 2, 3) and (3, 0, 1).
     let modes = [[1usize, 2, 3], [3, 0, 1]];
@@ -144,6 +144,13 @@ fn transforms_have_the_cufft_layout_and_scaling() {
         .map(|(a, b)| (a / n3 - b).abs())
         .fold(0.0, f64::max);
     assert!(err < 1e-13, "round trip error {err:e}");
+    // A plan made for one direction refuses the other.
+    let forward_only = dev.fft3(m, batch, Direction::Forward).unwrap();
+    let mut out = dev.zeros(plan.real_len()).unwrap();
+    assert!(
+        dev.inverse(&forward_only, (&mut sb, 0), (&mut out, 0))
+            .is_err()
+    );
 }
 
 /// A source with block reductions in shared memory (`__syncthreads`) runs each block's threads

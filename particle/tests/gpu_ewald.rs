@@ -74,8 +74,17 @@ fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
         let mut dev = SpectralEwald::with_device(tol, open()).unwrap();
         let uc = cpu.rpy(&geo, &y, &f).unwrap();
         let ud = dev.rpy(&geo, &y, &f).unwrap();
-        let (rc, rd) = (cpu.last_report().unwrap(), dev.last_report().unwrap());
-        let parity = errors(&vectors(&ud), &vectors(&uc), 0.0).0;
+        let rd = dev.last_report().unwrap();
+        // Parity at the CPU's parameters (on a GPU the spreading's order varies, so the
+        // refinement could in principle decide differently near a threshold).
+        let mut same = SpectralEwald::with_device(tol, open()).unwrap();
+        same.fixed = cpu.last_params();
+        let parity = errors(
+            &vectors(&same.rpy(&geo, &y, &f).unwrap()),
+            &vectors(&uc),
+            0.0,
+        )
+        .0;
         let (max, l2) = errors(&vectors(&ud), &vectors(&exact), 0.0);
         rows.push(format!(
             "RPY, {} swimming-rod nodes, tol {tol:.0e}: device vs CPU {parity:.1e} of the \
@@ -87,7 +96,6 @@ fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
             dev.last_params().unwrap().modes,
             rd.level
         ));
-        assert_eq!(rc.level, rd.level, "the same refinement on both");
         assert!(
             parity <= PARITY,
             "RPY device vs CPU: {parity:e} (> {PARITY:e})"
@@ -111,8 +119,11 @@ fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
         let mut dev = SpectralEwald::with_device(tol, open()).unwrap();
         let sc = cpu.stresslets(l, &x, &p, &sigma).unwrap();
         let sd = dev.stresslets(l, &x, &p, &sigma).unwrap();
-        let pu = errors(&vectors(&sd.u), &vectors(&sc.u), floor(2)).0;
-        let pg = errors(&matrices(&sd.grad), &matrices(&sc.grad), floor(3)).0;
+        let mut same = SpectralEwald::with_device(tol, open()).unwrap();
+        same.fixed = cpu.last_params();
+        let ss = same.stresslets(l, &x, &p, &sigma).unwrap();
+        let pu = errors(&vectors(&ss.u), &vectors(&sc.u), floor(2)).0;
+        let pg = errors(&matrices(&ss.grad), &matrices(&sc.grad), floor(3)).0;
         let eu = errors(&vectors(&sd.u), &vectors(&exact.u), floor(2));
         let eg = errors(&matrices(&sd.grad), &matrices(&exact.grad), floor(3));
         rows.push(format!(

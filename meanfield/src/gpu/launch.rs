@@ -8,7 +8,7 @@
 
 use super::GpuError;
 use crate::solver::{History, SpectralGrid};
-use motile_gpu::{Arg, Buffer, Device, Fft3, THREADS};
+use motile_gpu::{Arg, Buffer, Device, Direction, Fft3, THREADS};
 use num_complex::Complex64;
 
 /// Flow speed below which the fixed point's change is measured absolutely (solver.rs
@@ -31,6 +31,10 @@ pub(super) const KERNELS: [&str; 13] = [
     "explicit_terms",
     "closure_field",
 ];
+
+// The block reductions of kernels.cu sum REDUCE_THREADS = 256 values per block in shared
+// memory: every launch must have exactly that many threads per block.
+const _: () = assert!(THREADS == 256);
 
 /// Blocks of a launch over `elements` (one thread each, [`THREADS`] per block: the
 /// reductions' tree assumes exactly that block size).
@@ -78,8 +82,8 @@ pub(super) struct Buffers {
     n: usize,
     s_len: usize,
     n_len: usize,
-    fwd: Fft3,
-    inv: Fft3,
+    /// One real field to one half spectrum and back.
+    fft: Fft3,
     k1: Buffer,
     k2: Buffer,
     keep: Buffer,
@@ -121,8 +125,7 @@ impl Buffers {
             n,
             s_len,
             n_len,
-            fwd: dev.fft3(n, 1)?,
-            inv: dev.fft3(n, 1)?,
+            fft: dev.fft3(n, 1, Direction::Both)?,
             k1: dev.upload(&w.k1)?,
             k2: dev.upload(&w.k2)?,
             keep: dev.upload(&w.keep)?,
@@ -206,7 +209,7 @@ impl Buffers {
         stride: usize,
         max_slots: &[usize],
     ) -> Result<Vec<f64>, GpuError> {
-        let host = dev.download(&self.partial)?;
+        let host = dev.download_range(&self.partial, 0, blocks * stride)?;
         Ok((0..stride)
             .map(|slot| {
                 let vals = (0..blocks).map(|b| host[b * stride + slot]);
@@ -230,7 +233,7 @@ impl Buffers {
             Field::Dq => &mut self.dq,
         };
         for c in 0..count {
-            dev.inverse(&self.inv, (&mut self.spec, 2 * c * s), (dst, c * n))?;
+            dev.inverse(&self.fft, (&mut self.spec, 2 * c * s), (dst, c * n))?;
         }
         Ok(())
     }
@@ -313,7 +316,7 @@ impl Buffers {
     pub(super) fn stress(&mut self, dev: &Device, zeta: f64) -> Result<(), GpuError> {
         self.contract(dev, zeta, true)?;
         let (s, n) = (self.s_len, self.n_len);
-        Self::forward_six(dev, &self.fwd, (&self.se, n), (&mut self.spec, s))?;
+        Self::forward_six(dev, &self.fft, (&self.se, n), (&mut self.spec, s))?;
         self.scale_dealias(dev, Spectra::Spec, 6, true)
     }
 
@@ -493,7 +496,7 @@ impl Buffers {
             )
         }?;
         let (s, n) = (self.s_len, self.n_len);
-        Self::forward_six(dev, &self.fwd, (&self.vals, n), (&mut self.nl, s))?;
+        Self::forward_six(dev, &self.fft, (&self.vals, n), (&mut self.nl, s))?;
         self.scale_dealias(dev, Spectra::Nonlinear, 6, true)
     }
 

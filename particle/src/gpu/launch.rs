@@ -50,7 +50,8 @@ pub(super) fn spread(
     // int m, int p, double l, double h, double alpha, double norm). Thread i < n reads
     // pts[3 i..3 i + 3] (3 n checked) and vals[c n + i] for c < nf (nf n checked), and adds to
     // grid[c m^3 + idx] with idx < m^3 (every index is reduced into 0..m per axis; nf m^3
-    // checked); p <= MAX_SUPPORT = 24 (the window's clamp, asserted) sizes its local arrays.
+    // checked: a support p <= m, asserted, wraps at most once); p <= MAX_SUPPORT = 24 (the
+    // window's clamp, asserted) sizes its local arrays.
     unsafe {
         dev.launch(
             "spread",
@@ -124,7 +125,10 @@ pub(super) fn gather(
     gradient: bool,
 ) -> Result<(), GpuError> {
     let (m, p, ni) = ints(geo, n)?;
-    assert!(geo.window.p <= 24, "support 24");
+    assert!(
+        geo.window.p <= 24 && geo.window.p <= geo.m,
+        "a support of at most 24 and at most the grid"
+    );
     let outputs = if gradient { 12 } else { 3 };
     check("points", pts, 3 * n)?;
     check("grid", grid, 3 * geo.m.pow(3))?;
@@ -133,8 +137,8 @@ pub(super) fn gather(
     // SAFETY: gather(const double* pts, const double* grid, double* out, int n, int gradient,
     // int m, int p, double l, double h, double alpha, double norm). Thread i < n reads
     // pts[3 i..3 i + 3] (3 n checked), grid[c m^3 + idx] for c < 3 and idx < m^3 (indices
-    // reduced into 0..m per axis; 3 m^3 checked), and writes out[c n + i] for c < 3, or 12
-    // with gradient (checked); p <= 24 sizes its local arrays (asserted).
+    // reduced into 0..m per axis, p <= m asserted; 3 m^3 checked), and writes out[c n + i]
+    // for c < 3, or 12 with gradient (checked); p <= 24 sizes its local arrays (asserted).
     unsafe {
         dev.launch(
             "gather",

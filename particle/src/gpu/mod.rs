@@ -17,7 +17,7 @@ mod launch;
 
 use crate::gaussian_grid::Window;
 use crate::geometry::Vec3;
-use motile_gpu::{Buffer, Device, Fft3};
+use motile_gpu::{Buffer, Device, Direction, Fft3};
 pub use motile_gpu::{DeviceInfo, GpuError, probe};
 
 /// The kernels' source (compiled when a device is opened).
@@ -96,7 +96,7 @@ impl GpuFourier {
         let dev = &self.dev;
         if self.grid.as_ref().is_none_or(|g| g.m != m) {
             self.grid = None; // the old buffers go first
-            let inverse3 = dev.fft3(m, 3)?;
+            let inverse3 = dev.fft3(m, 3, Direction::Inverse)?;
             self.grid = Some(Grid {
                 m,
                 inputs: [None, None],
@@ -108,7 +108,7 @@ impl GpuFourier {
         let g = self.grid.as_mut().expect("made above");
         let slot = &mut g.inputs[usize::from(nf == 6)];
         if slot.is_none() {
-            let plan = dev.fft3(m, nf)?;
+            let plan = dev.fft3(m, nf, Direction::Forward)?;
             *slot = Some(Input {
                 fields: dev.zeros(plan.real_len())?,
                 spectra: dev.zeros(plan.complex_len())?,
