@@ -20,10 +20,12 @@ export MOTILE_REQUIRE_CXX=1
 cargo test --release --workspace
 # The optional GPU back-end builds everywhere (CUDA is loaded at run time); its parity tests run
 # where a GPU is present and say why they were skipped elsewhere (MOTILE_REQUIRE_GPU=1 makes a
-# missing GPU a failure). The particle sums' kernels also run here through the host emulation.
+# missing GPU a failure). All GPU kernels also run here through the host emulation: against
+# their CPU twins, and end to end through the motile binary (MOTILE_GPU_BACKEND=emulation).
 cargo build --release -p motile-experiments --features gpu
 cargo test --release -p motile-meanfield --features gpu --test gpu
 cargo test --release -p motile-particle --features gpu --test gpu_ewald
+cargo test --release -p motile-experiments --features gpu --test gpu_runs
 # The optional distributed particle run (feature mpi) needs OpenMPI and libclang to build; they
 # are installed when missing (Debian packages), then its tests run motile under mpirun on 1, 2
 # and 3 ranks (oversubscribed, one thread per rank) against one process.

@@ -3,10 +3,13 @@
 //! (feature `mpi`; scripts/test.sh builds it and has OpenMPI). Without the feature, a launch
 //! under mpirun is refused.
 
+mod support;
+
 use std::process::Command;
 
 #[cfg(feature = "mpi")]
 mod with_mpi {
+    use super::support::copy_dir;
     use super::*;
 
     /// A dilute dipole-level run: 1000 rods, nu = 1, 20 steps of 0.01.
@@ -323,20 +326,6 @@ mod with_mpi {
             let run = dir.path().join(format!("resumed{then:?}"));
             copy_dir(&src, &run);
             resumed_within("sbt, 2 ranks", &single, &run, then, (bound_x, bound_v));
-        }
-    }
-
-    /// Copy a run directory (files and one level of folders).
-    fn copy_dir(from: &Path, to: &Path) {
-        std::fs::create_dir_all(to).unwrap();
-        for e in std::fs::read_dir(from).unwrap() {
-            let e = e.unwrap();
-            let target = to.join(e.file_name());
-            if e.file_type().unwrap().is_dir() {
-                copy_dir(&e.path(), &target);
-            } else {
-                std::fs::copy(e.path(), target).unwrap();
-            }
         }
     }
 }

@@ -144,8 +144,13 @@ impl Engine {
         if cfg.device == Device::Gpu {
             #[cfg(feature = "gpu")]
             {
+                let backend = if run::gpu_emulated()? {
+                    motile_meanfield::gpu::Backend::HostEmulation
+                } else {
+                    motile_meanfield::gpu::Backend::Cuda
+                };
                 let gpu = motile_meanfield::gpu::GpuMeanField::open(
-                    motile_meanfield::gpu::Backend::Cuda,
+                    backend,
                     grid,
                     closure,
                     params,
@@ -248,8 +253,12 @@ impl MeanFieldModel {
         ));
         let params = cfg.model_params();
         let stepper = Engine::new(cfg, stepper, &grid, &closure, &params)?;
-        if cfg.device == Device::Gpu {
-            notes.push("steps run on the GPU (device = \"gpu\")".into());
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &stepper.gpu {
+            notes.push(format!(
+                "steps run on the GPU (device = \"gpu\"): {}",
+                g.describe()
+            ));
         }
         Ok(Self {
             cfg: cfg.clone(),

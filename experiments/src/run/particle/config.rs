@@ -413,8 +413,12 @@ pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobili
 /// there is none.
 #[cfg(feature = "gpu")]
 fn gpu_sum(tol: f64) -> anyhow::Result<SpectralEwald> {
-    let dev = motile_particle::gpu::GpuFourier::cuda()
-        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
+    let dev = if crate::run::gpu_emulated()? {
+        motile_particle::gpu::GpuFourier::host_emulation()
+    } else {
+        motile_particle::gpu::GpuFourier::cuda()
+    }
+    .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
     Ok(SpectralEwald::with_device(tol, dev)?)
 }
 
