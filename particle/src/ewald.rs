@@ -576,6 +576,18 @@ impl RealSpaceTable {
         (a, b_r2 * r * r)
     }
 
+    /// The table as the GPU's twin reads it: `(1/h, intervals, c, ca, cb, [A_F, B_F / r^2]
+    /// at every node, flattened)`.
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
+    pub(crate) fn parts(&self) -> (f64, usize, [f64; 3], Vec<f64>) {
+        (
+            self.inv_h,
+            self.n,
+            [self.c, self.ca, self.cb],
+            self.g.iter().flatten().copied().collect(),
+        )
+    }
+
     /// `(A_R, B_R / r^2)` given `r` and `1/r`: the pair sums apply `A f + (B / r^2)(r . f) r`
     /// and need no unit vector.
     #[inline]

@@ -192,8 +192,9 @@ impl SpectralEwald {
         })
     }
 
-    /// A sum whose Fourier part (spreading, FFTs, the multiplication, the gather) runs on
-    /// `device` ([`crate::gpu`]); everything else, and so the accuracy contract, as [`Self::new`].
+    /// A sum whose Fourier part (spreading, FFTs, the multiplication, the gather) and RPY
+    /// real-space pairs run on `device` ([`crate::gpu`]); everything else, and so the accuracy
+    /// contract, as [`Self::new`].
     #[cfg(feature = "gpu")]
     pub fn with_device(tol: f64, device: crate::gpu::GpuFourier) -> Result<Self, SumError> {
         let mut s = Self::new(tol)?;
@@ -342,6 +343,17 @@ impl SpectralEwald {
         let (pts, cells) = (&prep.grid_points, &prep.cells);
         let xi = p.xi;
         let t1 = Instant::now();
+        #[cfg(feature = "gpu")]
+        let real = match self.gpu.as_mut() {
+            Some(gpu) => {
+                let table = RealSpaceTable::new(p.cutoff, p.xi, a);
+                let r0 = ERROR_MODEL_RANGE * p.spacing(l);
+                gpu.rpy_real(cells, &table, (p.cutoff, a, r0), forces)
+                    .map_err(|e| SumError::Device(e.to_string()))?
+            }
+            None => rpy_real(cells, &p, a, l, forces),
+        };
+        #[cfg(not(feature = "gpu"))]
         let real = rpy_real(cells, &p, a, l, forces);
         // Fourier space.
         let t2 = Instant::now();

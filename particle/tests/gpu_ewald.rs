@@ -1,4 +1,5 @@
-//! The spectral Ewald sums with their Fourier part on a device (feature `gpu`), against their
+//! The spectral Ewald sums with their Fourier part (and the RPY sum's real-space part) on a
+//! device (feature `gpu`), against their
 //! CPU twin (the same sum with the CPU grid: agreement to round-off) and against the direct
 //! Ewald sum (the accuracy contract), on what the simulations produce: swimming (force-free)
 //! rods for the RPY sum, point stresslets for velocities and gradients, at tolerances 1e-4
@@ -178,8 +179,8 @@ fn gpu_sums_match_the_cpu_and_the_direct_sum() {
     eprintln!("{}", rows.join("\n"));
 }
 
-/// A device sum keeps its device's plans from sum to sum and follows a change of grid (the
-/// sums of one run at two tolerances, and at two box sizes).
+/// A device sum keeps its device's plans from sum to sum and follows a change of grid and of
+/// the real-space cells (boxes of three sizes, one with fewer than five cells per axis).
 #[test]
 fn a_device_sum_follows_changes_of_grid() {
     let Some(gpu) = device(
@@ -191,8 +192,16 @@ fn a_device_sum_follows_changes_of_grid() {
     };
     let mut dev = SpectralEwald::with_device(1e-4, gpu).unwrap();
     let mut cpu = SpectralEwald::new(1e-4).unwrap();
-    for (l, seed) in [(5.0, 1), (7.0, 2), (5.0, 3)] {
-        let (x, p) = rods(30, l, false, seed);
+    // Small boxes have fewer than five real-space cells per axis (every pair by its minimum
+    // image); the last, 400 rods in a box of 10, has more (the 5^3 cell stencil).
+    for (l, seed, n) in [
+        (5.0, 1, 30),
+        (7.0, 2, 30),
+        (5.0, 3, 30),
+        (3.0, 4, 2),
+        (10.0, 5, 400),
+    ] {
+        let (x, p) = rods(n, l, false, seed);
         let (y, f) = rod_points(&x, &p, true, seed);
         let geo = RpyGeometry {
             box_length: l,

@@ -201,3 +201,121 @@ extern "C" __global__ void gather(const double* pts, const double* grid, double*
     int outputs = gradient ? 12 : 3;
     for (int c = 0; c < outputs; ++c) out[(long long)c * n + i] = h3 * acc[c];
 }
+
+// ---------------------------------------------------------------------------------------------
+// The real-space RPY sum (twin of spectral_ewald.rs rpy_real with ewald.rs RealSpaceTable and
+// rpy_overlap_correction): per target, every point of another group within the cutoff,
+// A f + (B / r^2)(r . f) r, and the error model's weighted strengths. Points in cell order
+// (point_cells.rs: positions wrapped into [0, L), cells of side >= cutoff / 2, x fastest).
+
+// Minimum image of a difference of two wrapped positions.
+__device__ double min_image_wrapped(double c, double l) {
+    double h = 0.5 * l;
+    if (c > h) return c - l;
+    if (c < -h) return c + l;
+    return c;
+}
+
+// One source j at offset r from the target: the table's (A, B / r^2) and the overlap
+// correction, added to acc (three velocity components and the weighted strength).
+__device__ void rpy_pair(const double* r, const double* f, double f2, const double* table,
+                         int nt, double inv_h, double c, double ca, double cb, double a,
+                         double r0sq, double* acc) {
+    double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    double rn = sqrt(r2);
+    double inv = 1.0 / rn;
+    // Cubic Lagrange interpolation on the uniform table (ewald.rs lagrange4).
+    double x = rn * inv_h;
+    long long i = (long long)x;
+    i = i > 0 ? i - 1 : 0;
+    if (i > nt - 3) i = nt - 3;
+    double t = x - (double)i;
+    double t1 = t - 1.0, t2 = t - 2.0, t3 = t - 3.0;
+    const double SIXTH = 1.0 / 6.0;
+    double w[4] = {-t1 * t2 * t3 * SIXTH, t * t2 * t3 * 0.5, -t * t1 * t3 * 0.5,
+                   t * t1 * t2 * SIXTH};
+    const double* g = table + 2 * i;
+    double af = w[0] * g[0] + w[1] * g[2] + w[2] * g[4] + w[3] * g[6];
+    double bf = w[0] * g[1] + w[1] * g[3] + w[2] * g[5] + w[3] * g[7];
+    double inv2 = inv * inv;
+    double inv3 = inv2 * inv;
+    double ar = c * inv + ca * inv3 - af;
+    double br2 = (c - cb * inv2) * inv3 - bf;
+    if (rn < 2.0 * a) {
+        const double PI = 3.14159265358979323846;
+        double co = 1.0 / (6.0 * PI * a);
+        double ao = co * (1.0 - 9.0 * rn / (32.0 * a));
+        double bo = co * 3.0 * rn / (32.0 * a);
+        double rr3 = rn * rn * rn, a2 = a * a;
+        double afar = (1.0 / rn + 2.0 * a2 / (3.0 * rr3)) / (8.0 * PI);
+        double bfar = (1.0 / rn - 2.0 * a2 / rr3) / (8.0 * PI);
+        ar += ao - afar;
+        br2 += (bo - bfar) / (rn * rn);
+    }
+    double s = br2 * (r[0] * f[0] + r[1] * f[1] + r[2] * f[2]);
+    for (int d = 0; d < 3; ++d) acc[d] += ar * f[d] + s * r[d];
+    acc[3] += r0sq / (r0sq + rn * rn) * f2;
+}
+
+// Per target t (cell order): pos, force 3 per point, group and cell starts as doubles (exact
+// integers), table 2 (nt + 1) values (A_F, B_F / r^2 at r = k h); out 4 per point.
+extern "C" __global__ void rpy_real(const double* pos, const double* force, const double* group,
+                                    const double* start, const double* table, double* out,
+                                    int npts, int ncell, int nt, double l, double cutoff,
+                                    double inv_h, double c, double ca, double cb, double a,
+                                    double r0sq) {
+    int t = blockIdx.x * blockDim.x + threadIdx.x;
+    if (t >= npts) return;
+    double yt[3] = {pos[3 * t], pos[3 * t + 1], pos[3 * t + 2]};
+    double gt = group[t];
+    double c2 = cutoff * cutoff;
+    double acc[4] = {0.0, 0.0, 0.0, 0.0};
+    if (ncell < 5) {
+        // Few cells: every point, minimum image per pair.
+        for (int j = 0; j < npts; ++j) {
+            double r[3];
+            for (int d = 0; d < 3; ++d) r[d] = min_image_wrapped(yt[d] - pos[3 * j + d], l);
+            double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            if (r2 < c2 && r2 > 0.0 && group[j] != gt) {
+                const double* f = force + 3 * j;
+                rpy_pair(r, f, f[0] * f[0] + f[1] * f[1] + f[2] * f[2], table, nt, inv_h, c, ca,
+                         cb, a, r0sq, acc);
+            }
+        }
+    } else {
+        double scale = ncell / l;
+        int cell[3];
+        for (int d = 0; d < 3; ++d) {
+            int k = (int)(yt[d] * scale);
+            cell[d] = k < ncell - 1 ? k : ncell - 1;
+        }
+        for (int dz = -2; dz <= 2; ++dz) {
+            int z = cell[2] + dz;
+            double sz = z < 0 ? -l : (z >= ncell ? l : 0.0);
+            z = (z + ncell) % ncell;
+            for (int dy = -2; dy <= 2; ++dy) {
+                int y = cell[1] + dy;
+                double sy = y < 0 ? -l : (y >= ncell ? l : 0.0);
+                y = (y + ncell) % ncell;
+                for (int dx = -2; dx <= 2; ++dx) {
+                    int x = cell[0] + dx;
+                    double sx = x < 0 ? -l : (x >= ncell ? l : 0.0);
+                    x = (x + ncell) % ncell;
+                    long long cc = ((long long)z * ncell + y) * ncell + x;
+                    long long j0 = (long long)start[cc], j1 = (long long)start[cc + 1];
+                    for (long long j = j0; j < j1; ++j) {
+                        double r[3] = {yt[0] - (pos[3 * j] + sx), yt[1] - (pos[3 * j + 1] + sy),
+                                       yt[2] - (pos[3 * j + 2] + sz)};
+                        double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                        if (r2 < c2 && r2 > 0.0 && group[j] != gt) {
+                            const double* f = force + 3 * j;
+                            rpy_pair(r, f, f[0] * f[0] + f[1] * f[1] + f[2] * f[2], table, nt,
+                                     inv_h, c, ca, cb, a, r0sq, acc);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for (int d = 0; d < 4; ++d) out[4 * t + d] = acc[d];
+}

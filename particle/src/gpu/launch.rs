@@ -159,3 +159,72 @@ pub(super) fn gather(
         )
     }
 }
+
+/// The real-space RPY sum's inputs in cell order.
+pub(super) struct RealSpace<'a> {
+    pub(super) pos: &'a Buffer,
+    pub(super) force: &'a Buffer,
+    pub(super) group: &'a Buffer,
+    pub(super) start: &'a Buffer,
+    pub(super) table: &'a Buffer,
+    pub(super) npts: usize,
+    pub(super) ncell: usize,
+    pub(super) nodes: usize,
+    /// `l, cutoff, 1/h, c, ca, cb, a, r0^2`.
+    pub(super) reals: [f64; 8],
+}
+
+pub(super) fn rpy_real(dev: &Device, r: &RealSpace<'_>, out: &mut Buffer) -> Result<(), GpuError> {
+    let n = r.npts;
+    let int = |v: usize, what: &str| {
+        i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
+    };
+    let (npts, ncell, nt) = (
+        int(n, "points")?,
+        int(r.ncell, "cells")?,
+        int(r.nodes, "nodes")?,
+    );
+    int(4 * n, "4 x points")?;
+    assert!(r.nodes >= 3, "a table of at least 4 nodes");
+    check("positions", r.pos, 3 * n)?;
+    check("forces", r.force, 3 * n)?;
+    check("groups", r.group, n)?;
+    check("cell starts", r.start, r.ncell.pow(3) + 1)?;
+    check("table", r.table, 2 * (r.nodes + 1))?;
+    check("real-space sums", out, 4 * n)?;
+    let [l, cutoff, inv_h, c, ca, cb, a, r0sq] = r.reals;
+    // SAFETY: rpy_real(const double* pos, const double* force, const double* group,
+    // const double* start, const double* table, double* out, int npts, int ncell, int nt,
+    // double l, double cutoff, double inv_h, double c, double ca, double cb, double a,
+    // double r0sq). Thread t < npts reads pos and force at 3 j..3 j + 3 and group[j] for
+    // j < npts (3 n, 3 n, n checked); cell indices are reduced into 0..ncell per axis, so start
+    // is read at cc and cc + 1 <= ncell^3 (checked), and j runs between two of its entries,
+    // which are cell-ordered point indices < npts (PointCells); the table index i is clamped to
+    // 0..=nt - 3 and reads 2 (i + 3) + 1 < 2 (nt + 1) (checked); out[4 t..4 t + 4] (4 n
+    // checked).
+    unsafe {
+        dev.launch(
+            "rpy_real",
+            n,
+            &mut [
+                Arg::In(r.pos),
+                Arg::In(r.force),
+                Arg::In(r.group),
+                Arg::In(r.start),
+                Arg::In(r.table),
+                Arg::Out(out),
+                Arg::Int(npts),
+                Arg::Int(ncell),
+                Arg::Int(nt),
+                Arg::Real(l),
+                Arg::Real(cutoff),
+                Arg::Real(inv_h),
+                Arg::Real(c),
+                Arg::Real(ca),
+                Arg::Real(cb),
+                Arg::Real(a),
+                Arg::Real(r0sq),
+            ],
+        )
+    }
+}

@@ -1,9 +1,12 @@
-//! The Fourier part of the spectral Ewald sums on a GPU (feature `gpu`): spreading, FFTs, the
-//! Fourier-space multiplication and the interpolation back, each the twin of the CPU's
-//! (`gaussian_grid.rs`, the mode functions of [`crate::ewald`]), on a [`motile_gpu::Device`].
-//! [`crate::spectral_ewald::SpectralEwald::with_device`] uses it in place of the CPU grid; the
-//! real-space sum over neighbours, the corrections, the error estimate and the refinement stay
-//! on the CPU and are shared with the CPU sum, so the accuracy contract is the same.
+//! The spectral Ewald sums on a GPU (feature `gpu`): the Fourier part (spreading, FFTs, the
+//! Fourier-space multiplication and the interpolation back) and the RPY sum's real-space part
+//! (every pair within the cutoff, from the CPU's cell list and with its interpolation table),
+//! each the twin of the CPU's (`gaussian_grid.rs`, the mode functions of [`crate::ewald`],
+//! `spectral_ewald::rpy_real`), on a [`motile_gpu::Device`].
+//! [`crate::spectral_ewald::SpectralEwald::with_device`] uses it in place of the CPU's; the
+//! cell list's sort, the stresslet sum's real-space part, the corrections, the error estimate
+//! and the refinement stay on the CPU and are shared with the CPU sum, so the accuracy contract
+//! is the same.
 //!
 //! The device is CUDA ([`GpuFourier::cuda`]) or the host emulation
 //! ([`GpuFourier::host_emulation`]: the same kernels compiled by the C++ compiler and run on
@@ -15,8 +18,10 @@
 
 mod launch;
 
+use crate::ewald::RealSpaceTable;
 use crate::gaussian_grid::Window;
 use crate::geometry::Vec3;
+use crate::point_cells::PointCells;
 use motile_gpu::{Buffer, Device, Direction, Fft3};
 pub use motile_gpu::{DeviceInfo, GpuError, probe};
 
@@ -24,7 +29,13 @@ pub use motile_gpu::{DeviceInfo, GpuError, probe};
 const SOURCE: &str = include_str!("kernels.cu");
 
 /// The kernels of [`SOURCE`].
-const KERNELS: [&str; 4] = ["spread", "rpy_modes", "stresslet_modes", "gather"];
+const KERNELS: [&str; 5] = [
+    "spread",
+    "rpy_modes",
+    "stresslet_modes",
+    "gather",
+    "rpy_real",
+];
 
 /// The device and what stays on it between sums.
 #[derive(Debug)]
@@ -182,6 +193,53 @@ impl GpuFourier {
         )?;
         let out = self.back(geo, &pts, n, false)?;
         Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
+    }
+
+    /// The real-space part of the RPY sum (radius `a`, cutoff and table as the CPU's
+    /// [`crate::spectral_ewald::rpy_real`]) at every point of `cells`: `[u_0, u_1, u_2, e2]`
+    /// per point in the points' own order, `e2` the error model's weighted strengths with
+    /// range `r0`.
+    pub(crate) fn rpy_real(
+        &mut self,
+        cells: &PointCells,
+        table: &RealSpaceTable,
+        (cutoff, a, r0): (f64, f64, f64),
+        forces: &[Vec3],
+    ) -> Result<Vec<[f64; 4]>, GpuError> {
+        if !cells.all_own() {
+            return Err(GpuError::Input(
+                "the device's real-space sum takes every point as a target".into(),
+            ));
+        }
+        let n = cells.members.len();
+        let dev = &self.dev;
+        let (inv_h, nodes, [c, ca, cb], g) = table.parts();
+        let pos = dev.upload(cells.sorted.as_flattened())?;
+        let force = dev.upload(cells.sorted_values(forces).as_flattened())?;
+        let group: Vec<f64> = cells.group.iter().map(|&g| f64::from(g)).collect();
+        let group = dev.upload(&group)?;
+        let start: Vec<f64> = cells.start.iter().map(|&s| s as f64).collect();
+        let start = dev.upload(&start)?;
+        let table = dev.upload(&g)?;
+        let mut out = dev.zeros(4 * n)?;
+        let inputs = launch::RealSpace {
+            pos: &pos,
+            force: &force,
+            group: &group,
+            start: &start,
+            table: &table,
+            npts: n,
+            ncell: cells.n,
+            nodes,
+            reals: [cells.l, cutoff, inv_h, c, ca, cb, a, r0 * r0],
+        };
+        launch::rpy_real(dev, &inputs, &mut out)?;
+        let sorted = dev.download(&out)?;
+        let mut result = vec![[0.0; 4]; n];
+        for (k, &i) in cells.members.iter().enumerate() {
+            result[i as usize].copy_from_slice(&sorted[4 * k..4 * k + 4]);
+        }
+        Ok(result)
     }
 
     /// The Fourier part of the stresslet sum: the six stresslet components per point
