@@ -650,6 +650,19 @@ impl StressletTable {
         }
     }
 
+    /// The table as the GPU's twin reads it: `(1/h, intervals, xi, r_direct, [A', A'', C, C',
+    /// C''] of the Fourier part at every node, flattened)`.
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
+    pub(crate) fn parts(&self) -> (f64, usize, f64, f64, Vec<f64>) {
+        (
+            self.inv_h,
+            self.n,
+            self.xi,
+            self.r_direct,
+            self.g.iter().flatten().copied().collect(),
+        )
+    }
+
     /// `[0, A', A'', C, C', C'']` of the real-space part at `0 < r <= cutoff`.
     #[inline]
     pub(crate) fn eval(&self, r: f64) -> [f64; 6] {

@@ -192,7 +192,7 @@ impl SpectralEwald {
         })
     }
 
-    /// A sum whose Fourier part (spreading, FFTs, the multiplication, the gather) and RPY
+    /// A sum whose Fourier part (spreading, FFTs, the multiplication, the gather) and
     /// real-space pairs run on `device` ([`crate::gpu`]); everything else, and so the accuracy
     /// contract, as [`Self::new`].
     #[cfg(feature = "gpu")]
@@ -415,6 +415,23 @@ impl SpectralEwald {
         let (pts, cells) = (&prep.grid_points, &prep.cells);
         let xi = prm.xi;
         let t1 = Instant::now();
+        #[cfg(feature = "gpu")]
+        let real = match self.gpu.as_mut() {
+            Some(gpu) => {
+                let table = StressletTable::new(prm.cutoff, prm.xi);
+                let r0 = ERROR_MODEL_RANGE * prm.spacing(l);
+                gpu.stresslet_real(cells, &table, (prm.cutoff, r0), (p, sigma))
+                    .map_err(|e| SumError::Device(e.to_string()))?
+                    .into_iter()
+                    .map(|v| {
+                        let g = std::array::from_fn(|i| std::array::from_fn(|m| v[3 + 3 * i + m]));
+                        ([v[0], v[1], v[2]], g, v[12])
+                    })
+                    .collect()
+            }
+            None => stresslet_real(cells, &prm, l, p, sigma),
+        };
+        #[cfg(not(feature = "gpu"))]
         let real = stresslet_real(cells, &prm, l, p, sigma);
         let t2 = Instant::now();
         let comp = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];

@@ -1,5 +1,5 @@
-//! The spectral Ewald sums with their Fourier part (and the RPY sum's real-space part) on a
-//! device (feature `gpu`), against their
+//! The spectral Ewald sums with their Fourier and real-space parts on a device (feature
+//! `gpu`), against their
 //! CPU twin (the same sum with the CPU grid: agreement to round-off) and against the direct
 //! Ewald sum (the accuracy contract), on what the simulations produce: swimming (force-free)
 //! rods for the RPY sum, point stresslets for velocities and gradients, at tolerances 1e-4
@@ -180,7 +180,8 @@ fn gpu_sums_match_the_cpu_and_the_direct_sum() {
 }
 
 /// A device sum keeps its device's plans from sum to sum and follows a change of grid and of
-/// the real-space cells (boxes of three sizes, one with fewer than five cells per axis).
+/// the real-space cells (boxes of four sizes, with fewer and with more than five cells per
+/// axis), for both sums.
 #[test]
 fn a_device_sum_follows_changes_of_grid() {
     let Some(gpu) = device(
@@ -193,7 +194,8 @@ fn a_device_sum_follows_changes_of_grid() {
     let mut dev = SpectralEwald::with_device(1e-4, gpu).unwrap();
     let mut cpu = SpectralEwald::new(1e-4).unwrap();
     // Small boxes have fewer than five real-space cells per axis (every pair by its minimum
-    // image); the last, 400 rods in a box of 10, has more (the 5^3 cell stencil).
+    // image); the last, 400 rods in a box of 10, has more (the 5^3 cell stencil). RPY sums of
+    // the rods' nodes, stresslet sums of their centres.
     for (l, seed, n) in [
         (5.0, 1, 30),
         (7.0, 2, 30),
@@ -201,7 +203,13 @@ fn a_device_sum_follows_changes_of_grid() {
         (3.0, 4, 2),
         (10.0, 5, 400),
     ] {
-        let (x, p) = rods(n, l, false, seed);
+        let (mut x, mut p) = rods(n, l, false, seed);
+        if n == 2 {
+            // Two centres 0.004 apart: closer than the stresslet table's first nodes, where the
+            // real-space derivatives are evaluated in closed form.
+            x[1] = [x[0][0] + 0.004, x[0][1], x[0][2]];
+            p[1] = [0.0, 0.6, 0.8];
+        }
         let (y, f) = rod_points(&x, &p, true, seed);
         let geo = RpyGeometry {
             box_length: l,
@@ -212,5 +220,16 @@ fn a_device_sum_follows_changes_of_grid() {
         let uc = cpu.rpy(&geo, &y, &f).unwrap();
         let parity = errors(&vectors(&ud), &vectors(&uc), 0.0).0;
         assert!(parity <= PARITY, "L = {l}: device vs CPU {parity:e}");
+        // The rods' centres as point stresslets (the dipole level's sources).
+        let sigma = vec![SIGMA; x.len()];
+        let sd = dev.stresslets(l, &x, &p, &sigma).unwrap();
+        let sc = cpu.stresslets(l, &x, &p, &sigma).unwrap();
+        let floor = |k: i32| SIGMA / (8.0 * PI * l.powi(k));
+        let pu = errors(&vectors(&sd.u), &vectors(&sc.u), floor(2)).0;
+        let pg = errors(&matrices(&sd.grad), &matrices(&sc.grad), floor(3)).0;
+        assert!(
+            pu <= PARITY && pg <= PARITY,
+            "L = {l}: stresslets device vs CPU {pu:e}, {pg:e}"
+        );
     }
 }

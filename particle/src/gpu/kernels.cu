@@ -216,6 +216,22 @@ __device__ double min_image_wrapped(double c, double l) {
     return c;
 }
 
+// Cubic Lagrange interpolation on a uniform table of nt intervals at x = r / h (ewald.rs
+// lagrange4): the first of the four nodes, and their weights in w.
+__device__ long long lagrange4(double x, int nt, double* w) {
+    long long i = (long long)x;
+    i = i > 0 ? i - 1 : 0;
+    if (i > nt - 3) i = nt - 3;
+    double t = x - (double)i;
+    double t1 = t - 1.0, t2 = t - 2.0, t3 = t - 3.0;
+    const double SIXTH = 1.0 / 6.0;
+    w[0] = -t1 * t2 * t3 * SIXTH;
+    w[1] = t * t2 * t3 * 0.5;
+    w[2] = -t * t1 * t3 * 0.5;
+    w[3] = t * t1 * t2 * SIXTH;
+    return i;
+}
+
 // One source j at offset r from the target: the table's (A, B / r^2) and the overlap
 // correction, added to acc (three velocity components and the weighted strength).
 __device__ void rpy_pair(const double* r, const double* f, double f2, const double* table,
@@ -224,17 +240,8 @@ __device__ void rpy_pair(const double* r, const double* f, double f2, const doub
     double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
     double rn = sqrt(r2);
     double inv = 1.0 / rn;
-    // Cubic Lagrange interpolation on the uniform table (ewald.rs lagrange4).
-    double x = rn * inv_h;
-    long long i = (long long)x;
-    i = i > 0 ? i - 1 : 0;
-    if (i > nt - 3) i = nt - 3;
-    double t = x - (double)i;
-    double t1 = t - 1.0, t2 = t - 2.0, t3 = t - 3.0;
-    const double SIXTH = 1.0 / 6.0;
-    double w[4] = {-t1 * t2 * t3 * SIXTH, t * t2 * t3 * 0.5, -t * t1 * t3 * 0.5,
-                   t * t1 * t2 * SIXTH};
-    const double* g = table + 2 * i;
+    double w[4];
+    const double* g = table + 2 * lagrange4(rn * inv_h, nt, w);
     double af = w[0] * g[0] + w[1] * g[2] + w[2] * g[4] + w[3] * g[6];
     double bf = w[0] * g[1] + w[1] * g[3] + w[2] * g[5] + w[3] * g[7];
     double inv2 = inv * inv;
@@ -257,6 +264,69 @@ __device__ void rpy_pair(const double* r, const double* f, double f2, const doub
     acc[3] += r0sq / (r0sq + rn * rn) * f2;
 }
 
+// Every source j of another group within the cutoff of target t (cell order): pair(j, r)
+// with r the minimum-image offset target minus source. Few cells (fewer than five per axis):
+// every point; else the 5^3 stencil of cells around the target's.
+template <typename Pair>
+__device__ void for_each_neighbour(int t, const double* pos, const double* group,
+                                   const double* start, int npts, int ncell, double l,
+                                   double cutoff, Pair& pair) {
+    double yt[3] = {pos[3 * t], pos[3 * t + 1], pos[3 * t + 2]};
+    double gt = group[t];
+    double c2 = cutoff * cutoff;
+    if (ncell < 5) {
+        for (int j = 0; j < npts; ++j) {
+            double r[3];
+            for (int d = 0; d < 3; ++d) r[d] = min_image_wrapped(yt[d] - pos[3 * j + d], l);
+            double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            if (r2 < c2 && r2 > 0.0 && group[j] != gt) pair(j, r, r2);
+        }
+        return;
+    }
+    double scale = ncell / l;
+    int cell[3];
+    for (int d = 0; d < 3; ++d) {
+        int k = (int)(yt[d] * scale);
+        cell[d] = k < ncell - 1 ? k : ncell - 1;
+    }
+    for (int dz = -2; dz <= 2; ++dz) {
+        int z = cell[2] + dz;
+        double sz = z < 0 ? -l : (z >= ncell ? l : 0.0);
+        z = (z + ncell) % ncell;
+        for (int dy = -2; dy <= 2; ++dy) {
+            int y = cell[1] + dy;
+            double sy = y < 0 ? -l : (y >= ncell ? l : 0.0);
+            y = (y + ncell) % ncell;
+            for (int dx = -2; dx <= 2; ++dx) {
+                int x = cell[0] + dx;
+                double sx = x < 0 ? -l : (x >= ncell ? l : 0.0);
+                x = (x + ncell) % ncell;
+                long long cc = ((long long)z * ncell + y) * ncell + x;
+                long long j0 = (long long)start[cc], j1 = (long long)start[cc + 1];
+                for (long long j = j0; j < j1; ++j) {
+                    double r[3] = {yt[0] - (pos[3 * j] + sx), yt[1] - (pos[3 * j + 1] + sy),
+                                   yt[2] - (pos[3 * j + 2] + sz)};
+                    double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                    if (r2 < c2 && r2 > 0.0 && group[j] != gt) pair((int)j, r, r2);
+                }
+            }
+        }
+    }
+}
+
+struct RpyPair {
+    const double* force;
+    const double* table;
+    int nt;
+    double inv_h, c, ca, cb, a, r0sq;
+    double acc[4];
+    __device__ void operator()(int j, const double* r, double) {
+        const double* f = force + 3 * j;
+        rpy_pair(r, f, f[0] * f[0] + f[1] * f[1] + f[2] * f[2], table, nt, inv_h, c, ca, cb, a,
+                 r0sq, acc);
+    }
+};
+
 // Per target t (cell order): pos, force 3 per point, group and cell starts as doubles (exact
 // integers), table 2 (nt + 1) values (A_F, B_F / r^2 at r = k h); out 4 per point.
 extern "C" __global__ void rpy_real(const double* pos, const double* force, const double* group,
@@ -266,56 +336,95 @@ extern "C" __global__ void rpy_real(const double* pos, const double* force, cons
                                     double r0sq) {
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= npts) return;
-    double yt[3] = {pos[3 * t], pos[3 * t + 1], pos[3 * t + 2]};
-    double gt = group[t];
-    double c2 = cutoff * cutoff;
-    double acc[4] = {0.0, 0.0, 0.0, 0.0};
-    if (ncell < 5) {
-        // Few cells: every point, minimum image per pair.
-        for (int j = 0; j < npts; ++j) {
-            double r[3];
-            for (int d = 0; d < 3; ++d) r[d] = min_image_wrapped(yt[d] - pos[3 * j + d], l);
-            double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-            if (r2 < c2 && r2 > 0.0 && group[j] != gt) {
-                const double* f = force + 3 * j;
-                rpy_pair(r, f, f[0] * f[0] + f[1] * f[1] + f[2] * f[2], table, nt, inv_h, c, ca,
-                         cb, a, r0sq, acc);
+    RpyPair pair{force, table, nt, inv_h, c, ca, cb, a, r0sq, {0.0, 0.0, 0.0, 0.0}};
+    for_each_neighbour(t, pos, group, start, npts, ncell, l, cutoff, pair);
+    for (int d = 0; d < 4; ++d) out[4 * t + d] = pair.acc[d];
+}
+
+// ---------------------------------------------------------------------------------------------
+// The real-space stresslet sum (twin of spectral_ewald.rs stresslet_real with ewald.rs
+// StressletTable and stresslet_from_derivatives): per target, velocity, gradient and the
+// error model's weighted strengths of every other stresslet within the cutoff.
+
+// The Stokeslet's real-space radial derivatives [A, A', A'', C, C', C''] in closed form.
+__device__ void stokeslet_real_derivatives(double r, double xi, double* d) {
+    const double PI = 3.14159265358979323846;
+    const double PI_3_2 = 5.568327996831708; // pi^(3/2)
+    double r2 = r * r, x2 = xi * xi;
+    double ec = erfc(xi * r) / PI;
+    double g = xi * exp(-x2 * r2) / PI_3_2;
+    double r3 = r2 * r, r4 = r2 * r2;
+    d[0] = ec / (8.0 * r) - g / 4.0;
+    d[1] = g * x2 * r / 2.0 - g / (4.0 * r) - ec / (8.0 * r2);
+    d[2] = g * x2 * (1.0 - r2 * x2) + g / (2.0 * r2) + ec / (4.0 * r3);
+    d[3] = g / (4.0 * r2) + ec / (8.0 * r3);
+    d[4] = -g * x2 / (2.0 * r) - 3.0 * g / (4.0 * r3) - 3.0 * ec / (8.0 * r4);
+    d[5] = g * (x2 * x2 + 2.0 * x2 / r2 + 3.0 / r4) + 3.0 * ec / (2.0 * r4 * r);
+}
+
+struct StressletPair {
+    const double* orient;
+    const double* sigma;
+    const double* table;
+    int nt;
+    double inv_h, xi, r_direct, r0sq;
+    double acc[13];
+    __device__ void operator()(int j, const double* x, double r2) {
+        double r = sqrt(r2);
+        double d[6];
+        if (r < r_direct) {
+            stokeslet_real_derivatives(r, xi, d);
+            d[0] = 0.0;
+        } else {
+            // The table's Fourier part subtracted from the free-space Stokeslet.
+            double w[4];
+            const double* g = table + 5 * lagrange4(r * inv_h, nt, w);
+            const double PI = 3.14159265358979323846;
+            double cf = 1.0 / (8.0 * PI);
+            double i1 = 1.0 / r, i2 = i1 * i1, i3 = i2 * i1;
+            double f[6] = {cf * i1, -cf * i2, 2.0 * cf * i3, cf * i3, -3.0 * cf * i3 * i1,
+                           12.0 * cf * i3 * i2};
+            d[0] = 0.0;
+            for (int c = 0; c < 5; ++c) {
+                double v = w[0] * g[c] + w[1] * g[5 + c] + w[2] * g[10 + c] + w[3] * g[15 + c];
+                d[c + 1] = f[c + 1] - v;
             }
         }
-    } else {
-        double scale = ncell / l;
-        int cell[3];
-        for (int d = 0; d < 3; ++d) {
-            int k = (int)(yt[d] * scale);
-            cell[d] = k < ncell - 1 ? k : ncell - 1;
-        }
-        for (int dz = -2; dz <= 2; ++dz) {
-            int z = cell[2] + dz;
-            double sz = z < 0 ? -l : (z >= ncell ? l : 0.0);
-            z = (z + ncell) % ncell;
-            for (int dy = -2; dy <= 2; ++dy) {
-                int y = cell[1] + dy;
-                double sy = y < 0 ? -l : (y >= ncell ? l : 0.0);
-                y = (y + ncell) % ncell;
-                for (int dx = -2; dx <= 2; ++dx) {
-                    int x = cell[0] + dx;
-                    double sx = x < 0 ? -l : (x >= ncell ? l : 0.0);
-                    x = (x + ncell) % ncell;
-                    long long cc = ((long long)z * ncell + y) * ncell + x;
-                    long long j0 = (long long)start[cc], j1 = (long long)start[cc + 1];
-                    for (long long j = j0; j < j1; ++j) {
-                        double r[3] = {yt[0] - (pos[3 * j] + sx), yt[1] - (pos[3 * j + 1] + sy),
-                                       yt[2] - (pos[3 * j + 2] + sz)};
-                        double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-                        if (r2 < c2 && r2 > 0.0 && group[j] != gt) {
-                            const double* f = force + 3 * j;
-                            rpy_pair(r, f, f[0] * f[0] + f[1] * f[1] + f[2] * f[2], table, nt,
-                                     inv_h, c, ca, cb, a, r0sq, acc);
-                        }
-                    }
-                }
+        const double* p = orient + 3 * j;
+        double s = sigma[j];
+        double a1r = d[1], a2r = d[2], c = d[3], c1r = d[4], c2r = d[5];
+        double q = p[0] * x[0] + p[1] * x[1] + p[2] * x[2];
+        double inv = 1.0 / r;
+        double a1 = a1r * inv, c1 = c1r * inv;
+        double a1p = (a2r - a1) * inv, c1p = (c2r - c1) * inv;
+        double vp = (a1 + c) * q;
+        double vx = c1 * q * q + c;
+        for (int i = 0; i < 3; ++i) acc[i] += -s * (vp * p[i] + vx * x[i]);
+        double ap = (a1p + c1r) * q * inv;
+        double bx = (c1p * q * q + c1r) * inv;
+        for (int i = 0; i < 3; ++i)
+            for (int m = 0; m < 3; ++m) {
+                double v = p[i] * (ap * x[m] + (a1 + c) * p[m]) +
+                           x[i] * (bx * x[m] + 2.0 * c1 * q * p[m]) + (i == m ? vx : 0.0);
+                acc[3 + 3 * i + m] += -s * v;
             }
-        }
+        acc[12] += r0sq / (r0sq + r2) * s * s;
     }
-    for (int d = 0; d < 4; ++d) out[4 * t + d] = acc[d];
+};
+
+// Per target t (cell order): pos and orient 3 per point, sigma, group and cell starts, table
+// 5 (nt + 1) values ([A', A'', C, C', C''] of the Fourier part at r = k h); out 13 per point
+// (velocity, gradient d u_i / d x_m at 3 + 3 i + m, weighted strengths).
+extern "C" __global__ void stresslet_real(const double* pos, const double* orient,
+                                          const double* sigma, const double* group,
+                                          const double* start, const double* table, double* out,
+                                          int npts, int ncell, int nt, double l, double cutoff,
+                                          double inv_h, double xi, double r_direct,
+                                          double r0sq) {
+    int t = blockIdx.x * blockDim.x + threadIdx.x;
+    if (t >= npts) return;
+    StressletPair pair{orient, sigma, table, nt, inv_h, xi, r_direct, r0sq, {}};
+    for (int k = 0; k < 13; ++k) pair.acc[k] = 0.0;
+    for_each_neighbour(t, pos, group, start, npts, ncell, l, cutoff, pair);
+    for (int k = 0; k < 13; ++k) out[13 * t + k] = pair.acc[k];
 }

@@ -160,21 +160,35 @@ pub(super) fn gather(
     }
 }
 
-/// The real-space RPY sum's inputs in cell order.
+/// A real-space sum's inputs in cell order (per point: position, then the kernel's values).
 pub(super) struct RealSpace<'a> {
     pub(super) pos: &'a Buffer,
-    pub(super) force: &'a Buffer,
+    /// RPY: forces (3 per point); stresslets: orientations (3 per point) and strengths.
+    pub(super) values: [&'a Buffer; 2],
     pub(super) group: &'a Buffer,
     pub(super) start: &'a Buffer,
     pub(super) table: &'a Buffer,
     pub(super) npts: usize,
     pub(super) ncell: usize,
     pub(super) nodes: usize,
-    /// `l, cutoff, 1/h, c, ca, cb, a, r0^2`.
-    pub(super) reals: [f64; 8],
+    /// RPY: `l, cutoff, 1/h, c, ca, cb, a, r0^2`; stresslets: `l, cutoff, 1/h, xi, r_direct,
+    /// r0^2`.
+    pub(super) reals: Vec<f64>,
 }
 
-pub(super) fn rpy_real(dev: &Device, r: &RealSpace<'_>, out: &mut Buffer) -> Result<(), GpuError> {
+/// Which real-space sum.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Real {
+    Rpy,
+    Stresslet,
+}
+
+pub(super) fn real_space(
+    dev: &Device,
+    which: Real,
+    r: &RealSpace<'_>,
+    out: &mut Buffer,
+) -> Result<(), GpuError> {
     let n = r.npts;
     let int = |v: usize, what: &str| {
         i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
@@ -184,47 +198,49 @@ pub(super) fn rpy_real(dev: &Device, r: &RealSpace<'_>, out: &mut Buffer) -> Res
         int(r.ncell, "cells")?,
         int(r.nodes, "nodes")?,
     );
-    int(4 * n, "4 x points")?;
-    assert!(r.nodes >= 3, "a table of at least 4 nodes");
+    let (kernel, per_node, outputs, reals) = match which {
+        Real::Rpy => ("rpy_real", 2, 4, 8),
+        Real::Stresslet => ("stresslet_real", 5, 13, 6),
+    };
+    int(outputs * n, "outputs")?;
+    assert!(
+        r.nodes >= 3 && r.reals.len() == reals,
+        "a table of 4 nodes or more, {reals} reals"
+    );
     check("positions", r.pos, 3 * n)?;
-    check("forces", r.force, 3 * n)?;
+    check("values", r.values[0], 3 * n)?;
+    if which == Real::Stresslet {
+        check("strengths", r.values[1], n)?;
+    }
     check("groups", r.group, n)?;
     check("cell starts", r.start, r.ncell.pow(3) + 1)?;
-    check("table", r.table, 2 * (r.nodes + 1))?;
-    check("real-space sums", out, 4 * n)?;
-    let [l, cutoff, inv_h, c, ca, cb, a, r0sq] = r.reals;
+    check("table", r.table, per_node * (r.nodes + 1))?;
+    check("real-space sums", out, outputs * n)?;
+    let mut args = vec![Arg::In(r.pos), Arg::In(r.values[0])];
+    if which == Real::Stresslet {
+        args.push(Arg::In(r.values[1]));
+    }
+    args.extend([
+        Arg::In(r.group),
+        Arg::In(r.start),
+        Arg::In(r.table),
+        Arg::Out(out),
+        Arg::Int(npts),
+        Arg::Int(ncell),
+        Arg::Int(nt),
+    ]);
+    args.extend(r.reals.iter().map(|&x| Arg::Real(x)));
     // SAFETY: rpy_real(const double* pos, const double* force, const double* group,
     // const double* start, const double* table, double* out, int npts, int ncell, int nt,
     // double l, double cutoff, double inv_h, double c, double ca, double cb, double a,
-    // double r0sq). Thread t < npts reads pos and force at 3 j..3 j + 3 and group[j] for
-    // j < npts (3 n, 3 n, n checked); cell indices are reduced into 0..ncell per axis, so start
-    // is read at cc and cc + 1 <= ncell^3 (checked), and j runs between two of its entries,
-    // which are cell-ordered point indices < npts (PointCells); the table index i is clamped to
-    // 0..=nt - 3 and reads 2 (i + 3) + 1 < 2 (nt + 1) (checked); out[4 t..4 t + 4] (4 n
-    // checked).
-    unsafe {
-        dev.launch(
-            "rpy_real",
-            n,
-            &mut [
-                Arg::In(r.pos),
-                Arg::In(r.force),
-                Arg::In(r.group),
-                Arg::In(r.start),
-                Arg::In(r.table),
-                Arg::Out(out),
-                Arg::Int(npts),
-                Arg::Int(ncell),
-                Arg::Int(nt),
-                Arg::Real(l),
-                Arg::Real(cutoff),
-                Arg::Real(inv_h),
-                Arg::Real(c),
-                Arg::Real(ca),
-                Arg::Real(cb),
-                Arg::Real(a),
-                Arg::Real(r0sq),
-            ],
-        )
-    }
+    // double r0sq) and stresslet_real(pos, const double* orient, const double* sigma, group,
+    // start, table, out, npts, ncell, nt, double l, double cutoff, double inv_h, double xi,
+    // double r_direct, double r0sq). Thread t < npts reads pos and the forces or orientations
+    // at 3 j..3 j + 3, sigma[j] and group[j] for j < npts (3 n, 3 n, n, n checked); cell
+    // indices are reduced into 0..ncell per axis, so start is read at cc and cc + 1 <= ncell^3
+    // (checked), and j runs between two of its entries, which are cell-ordered point indices
+    // < npts (PointCells); the table index i is clamped to 0..=nt - 3 and reads
+    // per_node (i + 3) + per_node - 1 < per_node (nt + 1) (checked); it writes
+    // out[outputs t..outputs (t + 1)] (outputs n checked).
+    unsafe { dev.launch(kernel, n, &mut args) }
 }

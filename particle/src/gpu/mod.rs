@@ -1,12 +1,12 @@
 //! The spectral Ewald sums on a GPU (feature `gpu`): the Fourier part (spreading, FFTs, the
-//! Fourier-space multiplication and the interpolation back) and the RPY sum's real-space part
-//! (every pair within the cutoff, from the CPU's cell list and with its interpolation table),
-//! each the twin of the CPU's (`gaussian_grid.rs`, the mode functions of [`crate::ewald`],
-//! `spectral_ewald::rpy_real`), on a [`motile_gpu::Device`].
-//! [`crate::spectral_ewald::SpectralEwald::with_device`] uses it in place of the CPU's; the
-//! cell list's sort, the stresslet sum's real-space part, the corrections, the error estimate
-//! and the refinement stay on the CPU and are shared with the CPU sum, so the accuracy contract
-//! is the same.
+//! Fourier-space multiplication and the interpolation back) and the real-space parts (every
+//! pair within the cutoff, from the CPU's cell list and with its interpolation tables), each
+//! the twin of the CPU's (`gaussian_grid.rs`, the mode and pair functions of
+//! [`crate::ewald`], `spectral_ewald::{rpy_real, stresslet_real}`), on a
+//! [`motile_gpu::Device`]. [`crate::spectral_ewald::SpectralEwald::with_device`] uses it in
+//! place of the CPU's; the cell list's sort, the corrections, the error estimate and the
+//! refinement stay on the CPU and are shared with the CPU sum, so the accuracy contract is the
+//! same.
 //!
 //! The device is CUDA ([`GpuFourier::cuda`]) or the host emulation
 //! ([`GpuFourier::host_emulation`]: the same kernels compiled by the C++ compiler and run on
@@ -18,7 +18,7 @@
 
 mod launch;
 
-use crate::ewald::RealSpaceTable;
+use crate::ewald::{RealSpaceTable, StressletTable};
 use crate::gaussian_grid::Window;
 use crate::geometry::Vec3;
 use crate::point_cells::PointCells;
@@ -29,12 +29,13 @@ pub use motile_gpu::{DeviceInfo, GpuError, probe};
 const SOURCE: &str = include_str!("kernels.cu");
 
 /// The kernels of [`SOURCE`].
-const KERNELS: [&str; 5] = [
+const KERNELS: [&str; 6] = [
     "spread",
     "rpy_modes",
     "stresslet_modes",
     "gather",
     "rpy_real",
+    "stresslet_real",
 ];
 
 /// The device and what stays on it between sums.
@@ -195,6 +196,56 @@ impl GpuFourier {
         Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
     }
 
+    /// The cell list's layout on the device: sorted positions, groups, cell starts.
+    fn cells(&self, cells: &PointCells) -> Result<[Buffer; 3], GpuError> {
+        if !cells.all_own() {
+            return Err(GpuError::Input(
+                "the device's real-space sums take every point as a target".into(),
+            ));
+        }
+        let dev = &self.dev;
+        let group: Vec<f64> = cells.group.iter().map(|&g| f64::from(g)).collect();
+        let start: Vec<f64> = cells.start.iter().map(|&s| s as f64).collect();
+        Ok([
+            dev.upload(cells.sorted.as_flattened())?,
+            dev.upload(&group)?,
+            dev.upload(&start)?,
+        ])
+    }
+
+    /// Run a real-space kernel and return its `K` outputs per point in the points' own order.
+    fn real_space<const K: usize>(
+        &mut self,
+        which: launch::Real,
+        cells: &PointCells,
+        values: [&Buffer; 2],
+        (table, nodes, reals): (&[f64], usize, Vec<f64>),
+    ) -> Result<Vec<[f64; K]>, GpuError> {
+        let n = cells.members.len();
+        let [pos, group, start] = self.cells(cells)?;
+        let dev = &self.dev;
+        let table = dev.upload(table)?;
+        let mut out = dev.zeros(K * n)?;
+        let inputs = launch::RealSpace {
+            pos: &pos,
+            values,
+            group: &group,
+            start: &start,
+            table: &table,
+            npts: n,
+            ncell: cells.n,
+            nodes,
+            reals,
+        };
+        launch::real_space(dev, which, &inputs, &mut out)?;
+        let sorted = dev.download(&out)?;
+        let mut result = vec![[0.0; K]; n];
+        for (k, &i) in cells.members.iter().enumerate() {
+            result[i as usize].copy_from_slice(&sorted[K * k..K * (k + 1)]);
+        }
+        Ok(result)
+    }
+
     /// The real-space part of the RPY sum (radius `a`, cutoff and table as the CPU's
     /// [`crate::spectral_ewald::rpy_real`]) at every point of `cells`: `[u_0, u_1, u_2, e2]`
     /// per point in the points' own order, `e2` the error model's weighted strengths with
@@ -206,40 +257,40 @@ impl GpuFourier {
         (cutoff, a, r0): (f64, f64, f64),
         forces: &[Vec3],
     ) -> Result<Vec<[f64; 4]>, GpuError> {
-        if !cells.all_own() {
-            return Err(GpuError::Input(
-                "the device's real-space sum takes every point as a target".into(),
-            ));
-        }
-        let n = cells.members.len();
-        let dev = &self.dev;
         let (inv_h, nodes, [c, ca, cb], g) = table.parts();
-        let pos = dev.upload(cells.sorted.as_flattened())?;
-        let force = dev.upload(cells.sorted_values(forces).as_flattened())?;
-        let group: Vec<f64> = cells.group.iter().map(|&g| f64::from(g)).collect();
-        let group = dev.upload(&group)?;
-        let start: Vec<f64> = cells.start.iter().map(|&s| s as f64).collect();
-        let start = dev.upload(&start)?;
-        let table = dev.upload(&g)?;
-        let mut out = dev.zeros(4 * n)?;
-        let inputs = launch::RealSpace {
-            pos: &pos,
-            force: &force,
-            group: &group,
-            start: &start,
-            table: &table,
-            npts: n,
-            ncell: cells.n,
-            nodes,
-            reals: [cells.l, cutoff, inv_h, c, ca, cb, a, r0 * r0],
-        };
-        launch::rpy_real(dev, &inputs, &mut out)?;
-        let sorted = dev.download(&out)?;
-        let mut result = vec![[0.0; 4]; n];
-        for (k, &i) in cells.members.iter().enumerate() {
-            result[i as usize].copy_from_slice(&sorted[4 * k..4 * k + 4]);
-        }
-        Ok(result)
+        let force = self
+            .dev
+            .upload(cells.sorted_values(forces).as_flattened())?;
+        let reals = vec![cells.l, cutoff, inv_h, c, ca, cb, a, r0 * r0];
+        self.real_space(
+            launch::Real::Rpy,
+            cells,
+            [&force, &force],
+            (&g, nodes, reals),
+        )
+    }
+
+    /// The real-space part of the stresslet sum (the CPU's
+    /// [`crate::spectral_ewald::stresslet_real`]): per point in its own order, velocity
+    /// `0..3`, gradient `du_i/dx_m` at `3 + 3 i + m`, and the error model's weighted strengths
+    /// at 12.
+    pub(crate) fn stresslet_real(
+        &mut self,
+        cells: &PointCells,
+        table: &StressletTable,
+        (cutoff, r0): (f64, f64),
+        (p, sigma): (&[Vec3], &[f64]),
+    ) -> Result<Vec<[f64; 13]>, GpuError> {
+        let (inv_h, nodes, xi, r_direct, g) = table.parts();
+        let orient = self.dev.upload(cells.sorted_values(p).as_flattened())?;
+        let strength = self.dev.upload(&cells.sorted_values(sigma))?;
+        let reals = vec![cells.l, cutoff, inv_h, xi, r_direct, r0 * r0];
+        self.real_space(
+            launch::Real::Stresslet,
+            cells,
+            [&orient, &strength],
+            (&g, nodes, reals),
+        )
     }
 
     /// The Fourier part of the stresslet sum: the six stresslet components per point
