@@ -295,10 +295,11 @@ impl Bench {
         self.push(&case, "gpu", tg, 1.0, "steps/s", format!("sums {sg:.3} s"));
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
-            last.note.push_str(&format!(
-                "; {:.0} GPU bytes per rod",
-                gpu_bytes.unwrap_or(0) as f64 / n as f64
-            ));
+            if let Some(g) = gpu_bytes {
+                let per_rod = g as f64 / n as f64;
+                last.note
+                    .push_str(&format!("; {per_rod:.0} GPU bytes in use per rod"));
+            }
         }
     }
 }
