@@ -92,14 +92,14 @@ impl PointCells {
         self
     }
 
-    /// Whether sorted point `k` is a target.
-    #[inline]
     /// Whether every point is a target (no source-only copies).
     #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub(crate) fn all_own(&self) -> bool {
         self.owned == self.members.len()
     }
 
+    /// Whether sorted point `k` is a target.
+    #[inline]
     fn is_own(&self, k: usize) -> bool {
         (self.members[k] as usize) < self.owned
     }

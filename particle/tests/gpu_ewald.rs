@@ -169,6 +169,55 @@ fn emulated_device_sums_match_the_cpu_and_the_direct_sum() {
     eprintln!("{}", rows.join("\n"));
 }
 
+/// Exactly five real-space cells per axis (the smallest stencil, each neighbour cell once) and
+/// centres on cell boundaries: the device visits the CPU's pairs.
+#[test]
+fn five_cells_per_axis_and_points_on_cell_boundaries() {
+    let Some(gpu) = device(
+        "host emulation",
+        GpuFourier::host_emulation,
+        "MOTILE_REQUIRE_CXX",
+    ) else {
+        return;
+    };
+    let l = 10.0;
+    let (mut x, p) = rods(300, l, false, 8);
+    // Cells of side 2: boundaries at 0, 2, 4, 6, 8 (and L, which wraps to 0).
+    x[0] = [4.0, 6.0, 0.0];
+    x[1] = [10.0, 2.0, 8.0];
+    x[2] = [2.0, 2.0 + 1e-15, 4.0 - 1e-15];
+    let mut cpu = SpectralEwald::new(1e-6).unwrap();
+    let sigma = vec![SIGMA; x.len()];
+    cpu.stresslets(l, &x, &p, &sigma).unwrap();
+    let mut fixed = cpu.last_params().unwrap();
+    fixed.cutoff = 2.0 * l / 5.5; // floor(2 L / cutoff) = 5 cells per axis
+    cpu.fixed = Some(fixed);
+    let mut dev = SpectralEwald::with_device(1e-6, gpu).unwrap();
+    dev.fixed = Some(fixed);
+    let sc = cpu.stresslets(l, &x, &p, &sigma).unwrap();
+    let sd = dev.stresslets(l, &x, &p, &sigma).unwrap();
+    let floor = |k: i32| SIGMA / (8.0 * PI * l.powi(k));
+    let pu = errors(&vectors(&sd.u), &vectors(&sc.u), floor(2)).0;
+    let pg = errors(&matrices(&sd.grad), &matrices(&sc.grad), floor(3)).0;
+    let (y, f) = rod_points(&x, &p, true, 8);
+    let geo = RpyGeometry {
+        box_length: l,
+        radius: A_RPY,
+        group: 4,
+    };
+    let pr = errors(
+        &vectors(&dev.rpy(&geo, &y, &f).unwrap()),
+        &vectors(&cpu.rpy(&geo, &y, &f).unwrap()),
+        0.0,
+    )
+    .0;
+    eprintln!("five cells per axis: stresslets {pu:.1e} / {pg:.1e}, RPY {pr:.1e}");
+    assert!(
+        pu <= PARITY && pg <= PARITY && pr <= PARITY,
+        "device vs CPU: stresslet velocity {pu:e}, gradient {pg:e}, RPY {pr:e}"
+    );
+}
+
 #[test]
 fn gpu_sums_match_the_cpu_and_the_direct_sum() {
     let Some(first) = device("CUDA", GpuFourier::cuda, "MOTILE_REQUIRE_GPU") else {

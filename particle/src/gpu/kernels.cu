@@ -286,8 +286,10 @@ __device__ void for_each_neighbour(int t, const double* pos, const double* group
     double scale = ncell / l;
     int cell[3];
     for (int d = 0; d < 3; ++d) {
+        // Clamped at both ends, as PointCells::build's `as usize` and `min` do (a wrapped
+        // coordinate can come out a rounding error below 0).
         int k = (int)(yt[d] * scale);
-        cell[d] = k < ncell - 1 ? k : ncell - 1;
+        cell[d] = k < 0 ? 0 : (k < ncell - 1 ? k : ncell - 1);
     }
     for (int dz = -2; dz <= 2; ++dz) {
         int z = cell[2] + dz;
@@ -303,9 +305,13 @@ __device__ void for_each_neighbour(int t, const double* pos, const double* group
                 x = (x + ncell) % ncell;
                 long long cc = ((long long)z * ncell + y) * ncell + x;
                 long long j0 = (long long)start[cc], j1 = (long long)start[cc + 1];
+                if (j1 > npts) j1 = npts; // the starts are the caller's; stay inside pos
+                // The target shifted by the cell's image, then the source: the CPU's
+                // (y_t - s) - y_j.
+                double ys[3] = {yt[0] - sx, yt[1] - sy, yt[2] - sz};
                 for (long long j = j0; j < j1; ++j) {
-                    double r[3] = {yt[0] - (pos[3 * j] + sx), yt[1] - (pos[3 * j + 1] + sy),
-                                   yt[2] - (pos[3 * j + 2] + sz)};
+                    double r[3] = {ys[0] - pos[3 * j], ys[1] - pos[3 * j + 1],
+                                   ys[2] - pos[3 * j + 2]};
                     double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
                     if (r2 < c2 && r2 > 0.0 && group[j] != gt) pair((int)j, r, r2);
                 }
@@ -424,7 +430,6 @@ extern "C" __global__ void stresslet_real(const double* pos, const double* orien
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= npts) return;
     StressletPair pair{orient, sigma, table, nt, inv_h, xi, r_direct, r0sq, {}};
-    for (int k = 0; k < 13; ++k) pair.acc[k] = 0.0;
     for_each_neighbour(t, pos, group, start, npts, ncell, l, cutoff, pair);
     for (int k = 0; k < 13; ++k) out[13 * t + k] = pair.acc[k];
 }

@@ -237,9 +237,11 @@ pub(super) fn real_space(
     // start, table, out, npts, ncell, nt, double l, double cutoff, double inv_h, double xi,
     // double r_direct, double r0sq). Thread t < npts reads pos and the forces or orientations
     // at 3 j..3 j + 3, sigma[j] and group[j] for j < npts (3 n, 3 n, n, n checked); cell
-    // indices are reduced into 0..ncell per axis, so start is read at cc and cc + 1 <= ncell^3
-    // (checked), and j runs between two of its entries, which are cell-ordered point indices
-    // < npts (PointCells); the table index i is clamped to 0..=nt - 3 and reads
+    // indices are clamped into 0..ncell per axis (both ends) and wrapped per neighbour, so
+    // start is read at cc and cc + 1 <= ncell^3 (checked), and j runs between two of its
+    // entries with the upper one clamped to npts in the kernel (for PointCells' starts, which
+    // are non-decreasing and end at npts, the clamp never acts); the table index i is clamped
+    // to 0..=nt - 3 and reads
     // per_node (i + 3) + per_node - 1 < per_node (nt + 1) (checked); it writes
     // out[outputs t..outputs (t + 1)] (outputs n checked).
     unsafe { dev.launch(kernel, n, &mut args) }
