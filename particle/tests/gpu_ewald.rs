@@ -48,6 +48,15 @@ fn device(
     }
 }
 
+/// The host emulation, or `None` after saying why not.
+fn emulation() -> Option<GpuFourier> {
+    device(
+        "host emulation",
+        GpuFourier::host_emulation,
+        "MOTILE_REQUIRE_CXX",
+    )
+}
+
 /// The RPY sum of swimming rods and the stresslet sum, on the device against the CPU and the
 /// direct sum. Returns the report lines.
 fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
@@ -157,11 +166,7 @@ fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
 
 #[test]
 fn emulated_device_sums_match_the_cpu_and_the_direct_sum() {
-    let Some(first) = device(
-        "host emulation",
-        GpuFourier::host_emulation,
-        "MOTILE_REQUIRE_CXX",
-    ) else {
+    let Some(first) = emulation() else {
         return;
     };
     drop(first);
@@ -173,11 +178,7 @@ fn emulated_device_sums_match_the_cpu_and_the_direct_sum() {
 /// centres on cell boundaries: the device visits the CPU's pairs.
 #[test]
 fn five_cells_per_axis_and_points_on_cell_boundaries() {
-    let Some(gpu) = device(
-        "host emulation",
-        GpuFourier::host_emulation,
-        "MOTILE_REQUIRE_CXX",
-    ) else {
+    let Some(gpu) = emulation() else {
         return;
     };
     let l = 10.0;
@@ -233,11 +234,7 @@ fn gpu_sums_match_the_cpu_and_the_direct_sum() {
 /// axis), for both sums.
 #[test]
 fn a_device_sum_follows_changes_of_grid() {
-    let Some(gpu) = device(
-        "host emulation",
-        GpuFourier::host_emulation,
-        "MOTILE_REQUIRE_CXX",
-    ) else {
+    let Some(gpu) = emulation() else {
         return;
     };
     let mut dev = SpectralEwald::with_device(1e-4, gpu).unwrap();
