@@ -254,11 +254,6 @@ impl Device {
         }
     }
 
-    /// Whether this is the host emulation.
-    pub fn is_emulation(&self) -> bool {
-        matches!(self.backend, Backend::Host(_))
-    }
-
     /// A buffer holding a copy of `data`.
     pub fn upload(&self, data: &[f64]) -> Result<Buffer, GpuError> {
         let len = data.len();

@@ -92,6 +92,10 @@ pub struct SpectralEwald {
     /// The device that does the Fourier part, if not the CPU.
     #[cfg(feature = "gpu")]
     gpu: Option<crate::gpu::GpuFourier>,
+    /// Counts the preparations of new points (a device keeps the points it was given, and the
+    /// cell list, while this stays the same: the products of one GMRES solve).
+    #[cfg(feature = "gpu")]
+    generation: u64,
 }
 
 /// The adaptive level of a sum (shared by [`SpectralEwald`] and the sum shared among ranks,
@@ -189,6 +193,8 @@ impl SpectralEwald {
             report: None,
             #[cfg(feature = "gpu")]
             gpu: None,
+            #[cfg(feature = "gpu")]
+            generation: 0,
         })
     }
 
@@ -296,6 +302,10 @@ impl SpectralEwald {
         {
             return Ok(prep);
         }
+        #[cfg(feature = "gpu")]
+        {
+            self.generation += 1;
+        }
         if let Some(i) = points
             .par_iter()
             .position_first(|y| !y.iter().all(|c| c.is_finite()))
@@ -348,7 +358,7 @@ impl SpectralEwald {
             Some(gpu) => {
                 let table = RealSpaceTable::new(p.cutoff, p.xi, a);
                 let r0 = ERROR_MODEL_RANGE * p.spacing(l);
-                gpu.rpy_real(cells, &table, (p.cutoff, a, r0), forces)
+                gpu.rpy_real(self.generation, cells, &table, (p.cutoff, a, r0), forces)
                     .map_err(|e| SumError::Device(e.to_string()))?
             }
             None => rpy_real(cells, &p, a, l, forces),
@@ -360,8 +370,14 @@ impl SpectralEwald {
         #[cfg(feature = "gpu")]
         let on_device = match self.gpu.as_mut() {
             Some(gpu) => Some(
-                gpu.rpy(&Self::device_geometry(&p, l), a, points, forces)
-                    .map_err(|e| SumError::Device(e.to_string()))?,
+                gpu.rpy(
+                    self.generation,
+                    &Self::device_geometry(&p, l),
+                    a,
+                    points,
+                    forces,
+                )
+                .map_err(|e| SumError::Device(e.to_string()))?,
             ),
             None => None,
         };
@@ -420,7 +436,7 @@ impl SpectralEwald {
             Some(gpu) => {
                 let table = StressletTable::new(prm.cutoff, prm.xi);
                 let r0 = ERROR_MODEL_RANGE * prm.spacing(l);
-                gpu.stresslet_real(cells, &table, (prm.cutoff, r0), (p, sigma))
+                gpu.stresslet_real(self.generation, cells, &table, (prm.cutoff, r0), (p, sigma))
                     .map_err(|e| SumError::Device(e.to_string()))?
                     .into_iter()
                     .map(|v| {
@@ -448,8 +464,13 @@ impl SpectralEwald {
         #[cfg(feature = "gpu")]
         let on_device = match self.gpu.as_mut() {
             Some(gpu) => Some(
-                gpu.stresslet(&Self::device_geometry(&prm, l), x, components)
-                    .map_err(|e| SumError::Device(e.to_string()))?,
+                gpu.stresslet(
+                    self.generation,
+                    &Self::device_geometry(&prm, l),
+                    x,
+                    components,
+                )
+                .map_err(|e| SumError::Device(e.to_string()))?,
             ),
             None => None,
         };

@@ -150,11 +150,6 @@ impl GpuMeanField {
         self.dev.describe()
     }
 
-    /// `(bytes in use, total bytes)` of the device's memory (every context on it), `None` on
-    /// the host emulation.
-    pub fn memory(&self) -> Result<Option<(usize, usize)>, GpuError> {
-        Ok(self.dev.memory()?)
-    }
     /// The state, downloaded: `(t, Q coefficients, history, u coefficients)`, as
     /// [`crate::solver::MeanFieldStepper::restore`] takes it (checkpoints, snapshots).
     pub fn state(&self) -> Result<StateDownload, GpuError> {

@@ -43,6 +43,10 @@ const KERNELS: [&str; 6] = [
 pub struct GpuFourier {
     dev: Device,
     grid: Option<Grid>,
+    /// The last points uploaded (as given, and the cell list's layout), with the caller's
+    /// generation: the products of one GMRES solve reuse them instead of uploading again.
+    points: Option<(u64, Buffer)>,
+    cells: Option<(u64, [Buffer; 3])>,
 }
 
 /// Plans and buffers for one grid size.
@@ -81,6 +85,8 @@ impl GpuFourier {
         Ok(Self {
             dev: Device::cuda(SOURCE, &KERNELS)?,
             grid: None,
+            points: None,
+            cells: None,
         })
     }
 
@@ -89,6 +95,8 @@ impl GpuFourier {
         Ok(Self {
             dev: Device::host_emulation(SOURCE, &KERNELS)?,
             grid: None,
+            points: None,
+            cells: None,
         })
     }
 
@@ -172,13 +180,14 @@ impl GpuFourier {
     /// per point (before the division by the viscosity), in the points' order.
     pub(crate) fn rpy(
         &mut self,
+        generation: u64,
         geo: &Geometry,
         a: f64,
         points: &[Vec3],
         forces: &[Vec3],
     ) -> Result<[Vec<f64>; 3], GpuError> {
         let n = points.len();
-        let pts = self.dev.upload(points.as_flattened())?;
+        let pts = self.points(generation, points)?;
         let vals: Vec<f64> = (0..3)
             .flat_map(|d| forces.iter().map(move |f| f[d]))
             .collect();
@@ -193,15 +202,32 @@ impl GpuFourier {
             &mut g.spectra_out,
         )?;
         let out = self.back(geo, &pts, n, false)?;
+        self.points = Some((generation, pts));
         Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
     }
 
-    /// The cell list's layout on the device: sorted positions, groups, cell starts.
-    fn cells(&self, cells: &PointCells) -> Result<[Buffer; 3], GpuError> {
+    /// The points of `generation` on the device, as given: the cached upload, or a new one
+    /// (the caller puts it back in [`Self::points`] after use).
+    fn points(&mut self, generation: u64, points: &[Vec3]) -> Result<Buffer, GpuError> {
+        match self.points.take() {
+            Some((g, b)) if g == generation && b.len() == 3 * points.len() => Ok(b),
+            _ => self.dev.upload(points.as_flattened()),
+        }
+    }
+
+    /// The cell list's layout on the device (sorted positions, groups, cell starts) for the
+    /// points of `generation`: the cached upload, or a new one.
+    fn cells(&mut self, generation: u64, cells: &PointCells) -> Result<[Buffer; 3], GpuError> {
         if !cells.all_own() {
             return Err(GpuError::Input(
                 "the device's real-space sums take every point as a target".into(),
             ));
+        }
+        if let Some((g, b)) = self.cells.take()
+            && g == generation
+            && b[0].len() == 3 * cells.members.len()
+        {
+            return Ok(b);
         }
         let dev = &self.dev;
         let group: Vec<f64> = cells.group.iter().map(|&g| f64::from(g)).collect();
@@ -216,13 +242,14 @@ impl GpuFourier {
     /// Run a real-space kernel and return its `K` outputs per point in the points' own order.
     fn real_space<const K: usize>(
         &mut self,
+        generation: u64,
         which: launch::Real,
         cells: &PointCells,
         values: [&Buffer; 2],
         (table, nodes, reals): (&[f64], usize, Vec<f64>),
     ) -> Result<Vec<[f64; K]>, GpuError> {
         let n = cells.members.len();
-        let [pos, group, start] = self.cells(cells)?;
+        let [pos, group, start] = self.cells(generation, cells)?;
         let dev = &self.dev;
         let table = dev.upload(table)?;
         let mut out = dev.zeros(K * n)?;
@@ -239,6 +266,7 @@ impl GpuFourier {
         };
         launch::real_space(dev, which, &inputs, &mut out)?;
         let sorted = dev.download(&out)?;
+        self.cells = Some((generation, [pos, group, start]));
         let mut result = vec![[0.0; K]; n];
         for (k, &i) in cells.members.iter().enumerate() {
             result[i as usize].copy_from_slice(&sorted[K * k..K * (k + 1)]);
@@ -252,6 +280,7 @@ impl GpuFourier {
     /// range `r0`.
     pub(crate) fn rpy_real(
         &mut self,
+        generation: u64,
         cells: &PointCells,
         table: &RealSpaceTable,
         (cutoff, a, r0): (f64, f64, f64),
@@ -263,6 +292,7 @@ impl GpuFourier {
             .upload(cells.sorted_values(forces).as_flattened())?;
         let reals = vec![cells.l, cutoff, inv_h, c, ca, cb, a, r0 * r0];
         self.real_space(
+            generation,
             launch::Real::Rpy,
             cells,
             [&force, &force],
@@ -276,6 +306,7 @@ impl GpuFourier {
     /// at 12.
     pub(crate) fn stresslet_real(
         &mut self,
+        generation: u64,
         cells: &PointCells,
         table: &StressletTable,
         (cutoff, r0): (f64, f64),
@@ -286,6 +317,7 @@ impl GpuFourier {
         let strength = self.dev.upload(&cells.sorted_values(sigma))?;
         let reals = vec![cells.l, cutoff, inv_h, xi, r_direct, r0 * r0];
         self.real_space(
+            generation,
             launch::Real::Stresslet,
             cells,
             [&orient, &strength],
@@ -298,12 +330,13 @@ impl GpuFourier {
     /// `GaussianGrid::gather_gradient` gives them (`3 + 3 i + m` is `du_i/dx_m`).
     pub(crate) fn stresslet(
         &mut self,
+        generation: u64,
         geo: &Geometry,
         points: &[Vec3],
         s: [&[f64]; 6],
     ) -> Result<[Vec<f64>; 12], GpuError> {
         let n = points.len();
-        let pts = self.dev.upload(points.as_flattened())?;
+        let pts = self.points(generation, points)?;
         let vals: Vec<f64> = s.iter().flat_map(|c| c.iter().copied()).collect();
         self.spread(geo, &pts, n, &vals, 6)?;
         let g = self.grid.as_mut().expect("spread made it");
@@ -316,6 +349,7 @@ impl GpuFourier {
             &mut g.spectra_out,
         )?;
         let out = self.back(geo, &pts, n, true)?;
+        self.points = Some((generation, pts));
         Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
     }
 }
