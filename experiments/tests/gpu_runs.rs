@@ -15,6 +15,7 @@
 
 mod support;
 
+use motile_experiments::rundir::TimeSeries;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use support::copy_dir;
@@ -75,15 +76,10 @@ fn golden() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/golden")
 }
 
-/// The rows of a time series: header and numbers.
+/// A run's time series: header and rows.
 fn rows(dir: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let text = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
-    let mut lines = text.lines();
-    let header = lines.next().unwrap().split(',').map(String::from).collect();
-    let rows = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
-    (header, rows)
+    let ts = TimeSeries::read(&dir.join("timeseries.csv")).unwrap();
+    (ts.columns, ts.rows)
 }
 
 /// Every column but `skip` of the rows of `b` at the times of `a`'s rows, within `tol` relative
