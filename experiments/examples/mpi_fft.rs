@@ -13,8 +13,8 @@
 //! error (the largest over ranks).
 
 use motile_experiments::run::ranks::MpiRanks;
-use motile_particle::domain::Comm;
-use motile_particle::shared_ewald::fft_round_trip;
+use motile_particle::parallel::comm::Comm;
+use motile_particle::parallel::slab_fft::fft_round_trip;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {

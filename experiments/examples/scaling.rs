@@ -20,13 +20,16 @@ use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
 use motile_meanfield::solver::{
     MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SpectralGrid,
 };
-use motile_particle::dipole::Dipole;
-use motile_particle::init::random_nonoverlapping;
-use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
-use motile_particle::slender::{SlenderBody, SlenderParams};
-use motile_particle::spectral_ewald::SpectralEwald;
-use motile_particle::units::DEFAULT_DIAMETER;
-use motile_particle::{ContactParams, LocalDrag, Mobility, RodSet, Stepper};
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::mobility::{LocalDrag, Mobility};
+use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::rods::RodSet;
+use motile_particle::model::units::DEFAULT_DIAMETER;
+use motile_particle::step::contact::ContactParams;
+use motile_particle::step::stepper::Stepper;
 use std::time::Instant;
 
 mod shared;

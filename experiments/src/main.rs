@@ -3,14 +3,13 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use motile_experiments::analyze::{AnalyzeOptions, analyze_run};
-use motile_experiments::compare;
 use motile_experiments::demo::DemoConfig;
-use motile_experiments::meanfield_run;
 use motile_experiments::particle_run::{
     ParticleRunConfig, parse_config, resume_particle, run_particle,
 };
 use motile_experiments::rundir::{RunDir, TimeSeries};
 use motile_experiments::scene;
+use motile_experiments::{compare, meanfield_run};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -125,7 +124,7 @@ enum Command {
         amplitude: Option<f64>,
         /// Particle and onset: hydrodynamics [default: sbt].
         #[arg(long, default_value = "sbt")]
-        hydrodynamics: motile_particle::Hydrodynamics,
+        hydrodynamics: motile_particle::model::level::Hydrodynamics,
         /// Mean-field: diffusion D [default: 1e-4, the paper's].
         #[arg(long, default_value_t = 1e-4)]
         diffusion: f64,
@@ -649,10 +648,10 @@ fn main() -> ExitCode {
             }
         };
         let world = ranks::MpiRanks::world();
-        if motile_particle::domain::Comm::size(&world) > 1 {
+        if motile_particle::parallel::comm::Comm::size(&world) > 1 {
             let comm: &'static ranks::MpiRanks = Box::leak(Box::new(world));
             ranks::set_world(comm);
-            if motile_particle::domain::Comm::rank(comm) != 0 {
+            if motile_particle::parallel::comm::Comm::rank(comm) != 0 {
                 return match ranks::follow(comm) {
                     Ok(()) => ExitCode::SUCCESS,
                     Err(e) => {

@@ -7,12 +7,12 @@
 use motile_experiments::accuracy::{Audit, audit, render};
 use motile_experiments::particle_run::{ParticleRunConfig, run_particle};
 use motile_experiments::snapshot::{Snapshot, read_snapshot};
-use motile_particle::dipole::stresslet_strength;
-use motile_particle::geometry::{Vec3, dot, sub};
-use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
-use motile_particle::rpy_reference::EwaldReference;
-use motile_particle::spectral_ewald::SpectralEwald;
-use motile_particle::units::DEFAULT_DIAMETER;
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::ewald::reference::EwaldReference;
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::hydro::dipole::stresslet_strength;
+use motile_particle::model::geometry::{Vec3, dot, sub};
+use motile_particle::model::units::DEFAULT_DIAMETER;
 use std::path::Path;
 
 fn short_run(hydrodynamics: &str, box_length: f64, out: &Path) -> ParticleRunConfig {

@@ -71,7 +71,7 @@ mod with_mpi {
     }
     use motile_experiments::particle_run::ParticleCheckpoint;
     use motile_experiments::snapshot::{Snapshot, read_snapshot};
-    use motile_particle::ContactParams;
+    use motile_particle::step::contact::ContactParams;
 
     /// Final rods, velocities and time-series rows of a finished run in `dir`.
     fn outcome(dir: &Path) -> Outcome {

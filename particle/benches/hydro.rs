@@ -13,13 +13,15 @@
 //! comparison from `bench/spectral_ewald_vs_finufft.py`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use motile_particle::dipole::Dipole;
-use motile_particle::init::random_nonoverlapping;
-use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
-use motile_particle::slender::{SlenderBody, SlenderParams};
-use motile_particle::spectral_ewald::SpectralEwald;
-use motile_particle::units::DEFAULT_DIAMETER;
-use motile_particle::{ContactParams, Mobility, Stepper};
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::mobility::Mobility;
+use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::units::DEFAULT_DIAMETER;
+use motile_particle::step::contact::ContactParams;
+use motile_particle::step::stepper::Stepper;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::time::Duration;

@@ -4,9 +4,11 @@
 //! `cargo run --release -p motile-particle --example step_profile`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use motile_particle::init::random_nonoverlapping;
-use motile_particle::units::DEFAULT_DIAMETER;
-use motile_particle::{ContactParams, LocalDrag, Stepper};
+use motile_particle::hydro::mobility::LocalDrag;
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::units::DEFAULT_DIAMETER;
+use motile_particle::step::contact::ContactParams;
+use motile_particle::step::stepper::Stepper;
 use std::time::Duration;
 
 fn bench(c: &mut Criterion) {

@@ -3,8 +3,8 @@
 //! `ewald_export N TOL DENSITY OUT_DIR [REPS]`. Files: points.f64, forces.f64, u.f64 (raw
 //! little-endian, N x 3), params.json.
 
-use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
-use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::ewald::spectral::SpectralEwald;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::io::Write;

@@ -2,12 +2,14 @@
 //! `hydro_step --model sbt|dipole [--box L] [--nu NU] [--steps S] [--tol T] [--threads N]`.
 //! Defaults: sbt at nu = 0.625, L/l = 25 (9 766 rods), tolerance 1e-4.
 
-use motile_particle::dipole::Dipole;
-use motile_particle::init::random_nonoverlapping;
-use motile_particle::slender::{SlenderBody, SlenderParams};
-use motile_particle::spectral_ewald::SpectralEwald;
-use motile_particle::units::DEFAULT_DIAMETER;
-use motile_particle::{ContactParams, Mobility, Stepper};
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::mobility::Mobility;
+use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::units::DEFAULT_DIAMETER;
+use motile_particle::step::contact::ContactParams;
+use motile_particle::step::stepper::Stepper;
 use std::time::Instant;
 
 fn arg(name: &str, default: &str) -> String {

@@ -2,9 +2,11 @@
 //! between neighbour search, constraint assembly, free velocities, contact solve and update,
 //! with the solver's iterations: `step_profile [--threads N] [--steps S] [--box L]`.
 
-use motile_particle::init::random_nonoverlapping;
-use motile_particle::units::DEFAULT_DIAMETER;
-use motile_particle::{ContactParams, LocalDrag, Stepper};
+use motile_particle::hydro::mobility::LocalDrag;
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::units::DEFAULT_DIAMETER;
+use motile_particle::step::contact::ContactParams;
+use motile_particle::step::stepper::Stepper;
 use std::time::Instant;
 
 fn arg(name: &str, default: f64) -> f64 {

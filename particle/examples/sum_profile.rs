@@ -5,9 +5,9 @@
 //! swimming rods (4 per rod, the force-free density of an isolated pusher), the data the
 //! slender-body solves produce, where the accuracy contract asks for finer parameters.
 
-use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
-use motile_particle::spectral_ewald::SpectralEwald;
-use motile_particle::units::DEFAULT_DIAMETER;
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::model::units::DEFAULT_DIAMETER;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
@@ -47,13 +47,13 @@ fn main() {
         let sigma = vec![0.85; n];
         let mut s = SpectralEwald::new(tol).unwrap();
         if let Ok(c) = std::env::var("PAIR_COST") {
-            s.fixed = Some(motile_particle::spectral_ewald::EwaldParams::choose_for(
+            s.fixed = Some(motile_particle::ewald::params::EwaldParams::choose_for(
                 tol,
                 n,
                 l,
                 &[
-                    motile_particle::spectral_ewald::SumOutput::StressletVelocity,
-                    motile_particle::spectral_ewald::SumOutput::StressletGradient,
+                    motile_particle::ewald::params::SumOutput::StressletVelocity,
+                    motile_particle::ewald::params::SumOutput::StressletGradient,
                 ],
                 c.parse().unwrap(),
             ));
@@ -76,8 +76,8 @@ fn main() {
     let rods = args.get(4).is_some_and(|a| a == "rods");
     let (y, f) = if rods {
         // Swimming rods: centres, orientations, the isolated pusher's force density.
-        let (s, w) = motile_particle::slender::half_rod_rule(4, 1.0);
-        let c = 1.0 / (2.0 * motile_particle::units::eta(DEFAULT_DIAMETER));
+        let (s, w) = motile_particle::hydro::slender::half_rod_rule(4, 1.0);
+        let c = 1.0 / (2.0 * motile_particle::model::units::eta(DEFAULT_DIAMETER));
         let mut y = Vec::new();
         let mut f = Vec::new();
         for _ in 0..n / 4 {
@@ -99,11 +99,11 @@ fn main() {
     };
     let mut s = SpectralEwald::new(tol).unwrap();
     if let Ok(c) = std::env::var("PAIR_COST") {
-        s.fixed = Some(motile_particle::spectral_ewald::EwaldParams::choose_for(
+        s.fixed = Some(motile_particle::ewald::params::EwaldParams::choose_for(
             tol,
             n,
             l,
-            &[motile_particle::spectral_ewald::SumOutput::RpyVelocity],
+            &[motile_particle::ewald::params::SumOutput::RpyVelocity],
             c.parse().unwrap(),
         ));
     }

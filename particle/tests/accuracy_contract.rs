@@ -13,12 +13,13 @@
 mod common;
 
 use common::{errors, matrices, rod_points, rods, vectors};
-use motile_particle::domain::{Comm, ThreadRanks};
-use motile_particle::geometry::Vec3;
-use motile_particle::periodic::{PeriodicStokes, RpyGeometry, SumReport};
-use motile_particle::rpy_reference::EwaldReference;
-use motile_particle::shared_ewald::SharedEwald;
-use motile_particle::spectral_ewald::{EwaldParams, SpectralEwald, SumOutput};
+use motile_particle::ewald::params::{EwaldParams, SumOutput};
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry, SumReport};
+use motile_particle::ewald::reference::EwaldReference;
+use motile_particle::ewald::shared::SharedEwald;
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::model::geometry::Vec3;
+use motile_particle::parallel::comm::{Comm, ThreadRanks};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;

@@ -4,19 +4,20 @@
 //! problem; a dense suspension (nu = 5) never overlaps beyond tolerance and its contact forces
 //! sum to zero; trajectories are bit-identical for 1 and 2 threads.
 
-use motile_particle::contact::{Constraint, ContactParams, ContactSolver};
-use motile_particle::geometry::{Vec3, dot, quat_from_axis, segment_distance, sub};
-use motile_particle::init::random_nonoverlapping;
-use motile_particle::mobility::{LocalDrag, Mobility};
-use motile_particle::rods::RodSet;
-use motile_particle::step::{Stepper, constraints};
-use motile_particle::units::{DEFAULT_DIAMETER, eta};
+use motile_particle::hydro::mobility::{LocalDrag, Mobility};
+use motile_particle::model::geometry::{Vec3, dot, quat_from_axis, segment_distance, sub};
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::rods::RodSet;
+use motile_particle::model::units::{DEFAULT_DIAMETER, eta};
+use motile_particle::step::constraints::constraints;
+use motile_particle::step::contact::{Constraint, ContactParams, ContactSolver};
+use motile_particle::step::stepper::Stepper;
 
 fn rods(box_length: f64, x: Vec<Vec3>, p: Vec<Vec3>) -> RodSet {
     let n = x.len();
     RodSet {
         box_length,
-        diameter: motile_particle::units::DEFAULT_DIAMETER,
+        diameter: motile_particle::model::units::DEFAULT_DIAMETER,
         x,
         q: p.iter().map(|p| quat_from_axis(*p)).collect(),
         image: vec![[0; 3]; n],
@@ -120,7 +121,10 @@ fn a_stepper_refuses_rods_of_another_diameter() {
     r.diameter = 0.1;
     let e = stepper().step(&mut r, 0.01).unwrap_err();
     assert!(
-        matches!(e, motile_particle::StepError::DiameterMismatch { .. }),
+        matches!(
+            e,
+            motile_particle::step::report::StepError::DiameterMismatch { .. }
+        ),
         "{e}"
     );
     assert!(e.to_string().contains("diameter 0.1"), "{e}");
@@ -135,7 +139,10 @@ fn a_stepper_refuses_a_time_step_that_is_not_positive_and_finite() {
         let r0 = r.clone();
         let e = stepper().step(&mut r, dt).unwrap_err();
         assert!(
-            matches!(e, motile_particle::StepError::InvalidTimeStep(_)),
+            matches!(
+                e,
+                motile_particle::step::report::StepError::InvalidTimeStep(_)
+            ),
             "dt = {dt}: {e}"
         );
         assert!(e.to_string().contains("must be positive and finite"), "{e}");
@@ -161,7 +168,7 @@ fn rods_meeting_at_an_angle_never_overlap() {
         let mut min_sep = f64::INFINITY;
         for _ in 0..600 {
             s.step(&mut r, 0.005).unwrap();
-            let d = motile_particle::geometry::min_image(sub(r.x[1], r.x[0]), 12.0);
+            let d = motile_particle::model::geometry::min_image(sub(r.x[1], r.x[0]), 12.0);
             let xb = [r.x[0][0] + d[0], r.x[0][1] + d[1], r.x[0][2] + d[2]];
             let (_, _, dist) = segment_distance(r.x[0], r.p(0), xb, r.p(1), 1.0);
             min_sep = min_sep.min(dist - DEFAULT_DIAMETER);
@@ -210,8 +217,10 @@ fn dense_problem(r: &RodSet, cons: &[Constraint], dt: f64) -> (Vec<Vec<f64>>, Ve
             let (i, j) = (c.i as usize, c.j as usize);
             let (vi, wi) = mob.local(p[i], ft[i].0, ft[i].1);
             let (vj, wj) = mob.local(p[j], ft[j].0, ft[j].1);
-            let ui = [0, 1, 2].map(|d| vi[d] + motile_particle::geometry::cross(wi, c.ri)[d]);
-            let uj = [0, 1, 2].map(|d| vj[d] + motile_particle::geometry::cross(wj, c.rj)[d]);
+            let ui =
+                [0, 1, 2].map(|d| vi[d] + motile_particle::model::geometry::cross(wi, c.ri)[d]);
+            let uj =
+                [0, 1, 2].map(|d| vj[d] + motile_particle::model::geometry::cross(wj, c.rj)[d]);
             a[row][k] = dt * dot(c.n, sub(ui, uj));
         }
     }
@@ -411,8 +420,8 @@ fn iteration_cap_gives_a_structured_error() {
     );
     let e = capped.step(&mut r, 0.002).unwrap_err();
     match e {
-        motile_particle::StepError::Contact(
-            motile_particle::contact::ContactError::NoConvergence {
+        motile_particle::step::report::StepError::Contact(
+            motile_particle::step::contact::ContactError::NoConvergence {
                 iterations,
                 residual,
                 ..
@@ -446,8 +455,8 @@ impl Mobility for Turning {
         &mut self,
         _rods: &RodSet,
         p: &[Vec3],
-        out: &mut motile_particle::mobility::RodVelocities,
-    ) -> Result<(), motile_particle::mobility::MobilityError> {
+        out: &mut motile_particle::hydro::mobility::RodVelocities,
+    ) -> Result<(), motile_particle::hydro::mobility::MobilityError> {
         for r in 0..p.len() {
             out.v[r] = [0.0; 3];
             out.w[r] = [0.0, 0.0, if r == 0 { self.omega } else { 0.0 }];

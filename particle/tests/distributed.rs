@@ -1,12 +1,12 @@
-//! The particle step shared by several ranks (`motile_particle::distributed`) against the
+//! The particle step shared by several ranks (`motile_particle::parallel::distributed`) against the
 //! single-process step: ranks as threads ([`ThreadRanks`]), so this runs everywhere; the MPI
-//! driver is the same code over another [`motile_particle::domain::Comm`].
+//! driver is the same code over another [`motile_particle::parallel::comm::Comm`].
 
-use motile_particle::distributed::Distributed;
-use motile_particle::domain::ThreadRanks;
-use motile_particle::init::random_nonoverlapping;
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::units::DEFAULT_DIAMETER;
+use motile_particle::parallel::comm::ThreadRanks;
+use motile_particle::parallel::distributed::Distributed;
 use motile_particle::prelude::*;
-use motile_particle::units::DEFAULT_DIAMETER;
 
 const STEPS: usize = 20;
 const DT: f64 = 0.002;
@@ -214,12 +214,12 @@ fn the_dipole_level_on_two_and_three_ranks_agrees_with_one_process_within_the_su
 /// that returned alone would leave the others waiting forever).
 #[test]
 fn a_non_finite_point_on_one_rank_fails_the_shared_sums_on_every_rank() {
-    use motile_particle::shared_ewald::SharedEwald;
+    use motile_particle::ewald::shared::SharedEwald;
     let handles: Vec<_> = ThreadRanks::group(2)
         .into_iter()
         .map(|comm| {
             std::thread::spawn(move || {
-                let r = motile_particle::domain::Comm::rank(&comm);
+                let r = motile_particle::parallel::comm::Comm::rank(&comm);
                 let mut x: Vec<[f64; 3]> = (0..20)
                     .map(|k| [0.3 * k as f64, 1.0 + r as f64 * 4.0, 2.0 + r as f64 * 4.0])
                     .collect();
@@ -335,7 +335,7 @@ fn the_distributed_fft_round_trip_returns_the_fields() {
                 .into_iter()
                 .map(|comm| {
                     std::thread::spawn(move || {
-                        motile_particle::shared_ewald::fft_round_trip(&comm, m, 3, 1).1
+                        motile_particle::parallel::slab_fft::fft_round_trip(&comm, m, 3, 1).1
                     })
                 })
                 .collect();

@@ -13,11 +13,11 @@
 mod common;
 
 use common::{errors, matrices, rod_points, rods, vectors};
-use motile_particle::geometry::Vec3;
-use motile_particle::gpu::{GpuError, GpuFourier};
-use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
-use motile_particle::rpy_reference::EwaldReference;
-use motile_particle::spectral_ewald::SpectralEwald;
+use motile_particle::ewald::gpu::{GpuError, GpuFourier};
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::ewald::reference::EwaldReference;
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::model::geometry::Vec3;
 use std::f64::consts::PI;
 
 const A_RPY: f64 = 0.0866;

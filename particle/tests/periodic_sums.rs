@@ -4,10 +4,11 @@
 //! to 1e-8 and for thread-count independence (the full accuracy contract, on force-free and
 //! sparse inputs too, is `tests/accuracy_contract.rs`).
 
-use motile_particle::geometry::{Vec3, dot, sub};
-use motile_particle::periodic::{PeriodicStokes, RpyGeometry};
-use motile_particle::rpy_reference::EwaldReference;
-use motile_particle::spectral_ewald::{EwaldParams, SpectralEwald};
+use motile_particle::ewald::params::EwaldParams;
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
+use motile_particle::ewald::reference::EwaldReference;
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::model::geometry::{Vec3, dot, sub};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -108,8 +109,9 @@ fn image_sum(y: &[Vec3], f: &[Vec3], l: f64, r_max: f64, t: usize) -> Vec3 {
                     }
                     let r = [0, 1, 2].map(|d| y[t][d] - yj[d] - sh[d]);
                     let rn = dot(r, r).sqrt();
-                    let (a, b) = motile_particle::ewald::rpy(rn, A_RPY);
-                    let v = motile_particle::ewald::apply_radial(a, b, r.map(|c| c / rn), *fj);
+                    let (a, b) = motile_particle::ewald::kernels::rpy(rn, A_RPY);
+                    let v =
+                        motile_particle::ewald::kernels::apply_radial(a, b, r.map(|c| c / rn), *fj);
                     for d in 0..3 {
                         u[d] += v[d];
                     }
@@ -271,7 +273,7 @@ fn fast_sums_are_bit_identical_for_one_two_and_three_threads() {
         assert!(run(threads) == one, "1 and {threads} threads differ");
     }
     // Swimming rods: force-free, so the sum refines; the decisions are deterministic too.
-    let (s, w) = motile_particle::slender::half_rod_rule(4, 1.0);
+    let (s, w) = motile_particle::hydro::slender::half_rod_rule(4, 1.0);
     let swim: Vec<Vec3> = (0..y.len())
         .map(|k| {
             let (n, j) = (k / 4, k % 4);
@@ -313,7 +315,7 @@ fn fast_sums_are_bit_identical_for_one_two_and_three_threads() {
 #[test]
 fn the_refinement_level_carries_over_to_the_next_sum() {
     let l = 8.0;
-    let (s, w) = motile_particle::slender::half_rod_rule(4, 1.0);
+    let (s, w) = motile_particle::hydro::slender::half_rod_rule(4, 1.0);
     let mut rng = ChaCha8Rng::seed_from_u64(71);
     let (mut y, mut f) = (Vec::new(), Vec::new());
     for _ in 0..200 {

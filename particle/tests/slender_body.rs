@@ -6,15 +6,15 @@
 //! model says, with a difference that falls like d^-4; quadrature convergence in M; bit-identical
 //! results for 1 and 2 threads.
 
-use motile_particle::dipole::Dipole;
-use motile_particle::geometry::{Vec3, cross, dot, norm, quat_from_axis, sub};
-use motile_particle::gmres::GmresParams;
-use motile_particle::init::random_nonoverlapping;
-use motile_particle::mobility::{Mobility, RodVelocities};
-use motile_particle::rods::RodSet;
-use motile_particle::slender::{SlenderBody, SlenderParams};
-use motile_particle::spectral_ewald::SpectralEwald;
-use motile_particle::units::DEFAULT_DIAMETER;
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::gmres::GmresParams;
+use motile_particle::hydro::mobility::{Mobility, RodVelocities};
+use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
+use motile_particle::model::geometry::{Vec3, cross, dot, norm, quat_from_axis, sub};
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::rods::RodSet;
+use motile_particle::model::units::DEFAULT_DIAMETER;
 
 fn rods(box_length: f64, x: Vec<Vec3>, p: Vec<Vec3>) -> RodSet {
     let n = x.len();
@@ -104,8 +104,8 @@ fn net_force_torque(mob: &SlenderBody, r: &RodSet) -> (f64, f64) {
 #[test]
 fn force_density_is_force_and_torque_free_and_stable_under_the_sum_tolerance() {
     let r = random_nonoverlapping(625, 10.0, DEFAULT_DIAMETER, 5, 1000).unwrap();
-    let f0 =
-        motile_particle::units::SWIM_SPEED / (2.0 * motile_particle::units::eta(DEFAULT_DIAMETER));
+    let f0 = motile_particle::model::units::SWIM_SPEED
+        / (2.0 * motile_particle::model::units::eta(DEFAULT_DIAMETER));
     let mut reference = sbt(4, 1e-10, 1e-11);
     free(&mut reference, &r);
     let fref: Vec<Vec3> = reference.force_density().unwrap().f.to_vec();
@@ -286,7 +286,8 @@ fn head_on_rods_stop_at_contact_with_hydrodynamics() {
     // plans with the local mobility and the previous step's flow, so a residual approach speed
     // remains, of the order of the flow change the splitting misses (measured 1.2e-5 U); it
     // leaves an overlap far below the tolerance, which the next steps hold steady.
-    use motile_particle::{ContactParams, Stepper};
+    use motile_particle::step::contact::ContactParams;
+    use motile_particle::step::stepper::Stepper;
     let l = 12.0;
     let x1 = [5.0, 6.0, 6.0];
     let x2 = [5.0 + 1.0 + 0.2 + 0.02, 6.0, 6.0];

@@ -7,7 +7,7 @@
 use motile_experiments::particle_run::{ParticleRunConfig, resume_particle, run_particle};
 use motile_experiments::rundir::TimeSeries;
 use motile_experiments::snapshot::{Snapshot, read_snapshot};
-use motile_particle::units::DEFAULT_DIAMETER;
+use motile_particle::model::units::DEFAULT_DIAMETER;
 
 fn small(model: &str) -> ParticleRunConfig {
     ParticleRunConfig {

@@ -3,7 +3,7 @@
 //! (same settings) instead of running them again.
 
 use motile_experiments::onset::{OnsetOptions, onset};
-use motile_particle::Hydrodynamics;
+use motile_particle::model::level::Hydrodynamics;
 
 #[test]
 fn a_tiny_scan_writes_its_chart_and_reuses_finished_runs() {

@@ -4,9 +4,9 @@
 
 use motile_meanfield::control::StepControl;
 use motile_meanfield::solver::MeanFieldParams;
-use motile_particle::ContactParams;
-use motile_particle::gmres::GmresParams;
-use motile_particle::slender::SlenderParams;
+use motile_particle::hydro::gmres::GmresParams;
+use motile_particle::hydro::slender::SlenderParams;
+use motile_particle::step::contact::ContactParams;
 
 #[test]
 fn library_defaults_pass_their_own_checks() {

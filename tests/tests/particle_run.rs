@@ -180,7 +180,7 @@ fn thin_rods_are_a_run_parameter() {
     let dir = tempfile::tempdir().unwrap();
     let thin = ParticleRunConfig {
         diameter: 0.1,
-        hydrodynamics: motile_particle::Hydrodynamics::Sbt,
+        hydrodynamics: motile_particle::model::level::Hydrodynamics::Sbt,
         t_end: 0.1,
         ..small()
     };
@@ -197,12 +197,12 @@ fn thin_rods_are_a_run_parameter() {
     assert_eq!(done.rods.diameter, 0.1);
     let tol = thin.contact.overlap_tolerance;
     assert!(
-        motile_particle::init::overlapping_pairs(&done.rods, tol).is_empty(),
+        motile_particle::model::init::overlapping_pairs(&done.rods, tol).is_empty(),
         "thin rods overlap by more than {tol}"
     );
     let mut probe = done.rods.clone();
     probe.diameter = 0.2;
-    let close = motile_particle::init::overlapping_pairs(&probe, 0.0);
+    let close = motile_particle::model::init::overlapping_pairs(&probe, 0.0);
     assert!(
         !close.is_empty(),
         "at nu = 5 some thin rods come closer than 0.2 l"

@@ -8,7 +8,7 @@
 use crate::rundir::RunDir;
 use crate::snapshot::{ParticleSnapshot, PointForces};
 use motile_analysis::quadrature::gauss_legendre;
-use motile_particle::init::isotropic_orientation;
+use motile_particle::model::init::isotropic_orientation;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};

@@ -12,8 +12,10 @@ use crate::plot::{Chart, Series, line_chart};
 use crate::rundir::TimeSeries;
 use anyhow::Context;
 use motile_analysis::stats::{GrowthFit, growth_phase};
-use motile_particle::Hydrodynamics;
-use motile_particle::units::{DEFAULT_DIAMETER, continuum_growth_rate, meanfield_time_unit, zeta};
+use motile_particle::model::level::Hydrodynamics;
+use motile_particle::model::units::{
+    DEFAULT_DIAMETER, continuum_growth_rate, meanfield_time_unit, zeta,
+};
 use std::fmt::Write as _;
 use std::path::Path;
 

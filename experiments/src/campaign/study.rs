@@ -18,7 +18,7 @@ use crate::plot::{Series, log_chart};
 use crate::rundir::TimeSeries;
 use crate::scene::{RunConfig, Scene};
 use anyhow::{Context, bail};
-use motile_particle::geometry::{norm, sub};
+use motile_particle::model::geometry::{norm, sub};
 use std::fmt::Write as _;
 use std::path::Path;
 

@@ -17,7 +17,7 @@ use crate::snapshot::Snapshot;
 use anyhow::{Context, bail};
 use motile_analysis::correlation::velocity_spectrum;
 use motile_analysis::stats::{GrowthFit, correlation_length, growth_phase, window_average};
-use motile_particle::units::{DEFAULT_DIAMETER, VISCOSITY, continuum_growth_rate};
+use motile_particle::model::units::{DEFAULT_DIAMETER, VISCOSITY, continuum_growth_rate};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -40,7 +40,7 @@ pub struct NormCurve {
     pub theory_rate: f64,
 }
 
-pub use motile_particle::units::particle_to_meanfield;
+pub use motile_particle::model::units::particle_to_meanfield;
 
 fn column(ts: &TimeSeries, prefix: &str, path: &Path) -> anyhow::Result<Vec<f64>> {
     let c = ts
@@ -90,7 +90,7 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 .zip(&u)
                 .map(|(t, u)| particle_to_meanfield(*t, *u, nu, cfg.diameter))
                 .unzip();
-            let zeta = motile_particle::units::zeta(nu, cfg.diameter);
+            let zeta = motile_particle::model::units::zeta(nu, cfg.diameter);
             Ok(NormCurve {
                 label: format!(
                     "particle L/l = {l}, nu = {nu:.3} ({}{})",
@@ -230,7 +230,7 @@ fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis>
             .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
         let nu = n as f64 / (l * l * l);
         particle = Some((l, nu));
-        let s = motile_particle::units::meanfield_time_unit(nu, cfg.diameter);
+        let s = motile_particle::model::units::meanfield_time_unit(nu, cfg.diameter);
         (1.0 / l, s * s)
     } else {
         (1.0, 1.0)
@@ -311,7 +311,7 @@ pub fn velocity_slice(
             let modes = ((2.0 * l) as usize).clamp(8, 64) & !1;
             let spec = velocity_spectrum(&f.points, &f.forces, l, VISCOSITY, modes, 1e-6)?;
             // u / (beta L) to mean-field units.
-            let s = motile_particle::units::meanfield_time_unit(nu, diameter) / l;
+            let s = motile_particle::model::units::meanfield_time_unit(nu, diameter) / l;
             let g = [0, 1, 2].map(|c| spec.to_grid(c).into_iter().map(|v| v * s).collect());
             (modes, g, particle_to_meanfield(p.time, 0.0, nu, diameter).0)
         }

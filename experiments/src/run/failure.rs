@@ -3,8 +3,8 @@
 //! so callers such as the stability maps classify failures by variant, never by message text.
 
 use motile_meanfield::solver::MeanFieldError;
-use motile_particle::StepError;
-use motile_particle::mobility::MobilityError;
+use motile_particle::hydro::mobility::MobilityError;
+use motile_particle::step::report::StepError;
 
 /// What made a step fail.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

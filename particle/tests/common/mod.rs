@@ -3,9 +3,9 @@
 //! contract's two error metrics.
 #![allow(dead_code)]
 
-use motile_particle::geometry::{Vec3, dot, sub};
-use motile_particle::slender::half_rod_rule;
-use motile_particle::units::{DEFAULT_DIAMETER, eta};
+use motile_particle::hydro::slender::half_rod_rule;
+use motile_particle::model::geometry::{Vec3, dot, sub};
+use motile_particle::model::units::{DEFAULT_DIAMETER, eta};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -11,10 +11,9 @@ mod state;
 pub use config::*;
 pub use state::*;
 
-use crate::checkpoint;
-use crate::run;
 use crate::rundir::{RunDir, TimeSeries};
 use crate::snapshot::FieldSnapshot;
+use crate::{checkpoint, run};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::control::StepControl;
 use motile_meanfield::solver::{

@@ -2,11 +2,13 @@
 //! validated with messages that name the field; the mobility it selects.
 
 use crate::rundir::{parse_run_config, range};
-use motile_particle::dipole::Dipole;
-use motile_particle::gmres::GmresParams;
-use motile_particle::slender::{SlenderBody, SlenderParams, default_rpy_radius};
-use motile_particle::spectral_ewald::SpectralEwald;
-use motile_particle::{ContactParams, Hydrodynamics, LocalDrag, Mobility};
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::gmres::GmresParams;
+use motile_particle::hydro::mobility::{LocalDrag, Mobility};
+use motile_particle::hydro::slender::{SlenderBody, SlenderParams, default_rpy_radius};
+use motile_particle::model::level::Hydrodynamics;
+use motile_particle::step::contact::ContactParams;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -79,7 +81,7 @@ impl Default for ParticleRunConfig {
             dt: 0.002,
             t_end: 2.0,
             seed: 1,
-            diameter: motile_particle::units::DEFAULT_DIAMETER,
+            diameter: motile_particle::model::units::DEFAULT_DIAMETER,
             hydrodynamics: Hydrodynamics::None,
             hydro: HydroConfig::default(),
             device: crate::run::Device::Cpu,
@@ -306,7 +308,7 @@ impl ParticleRunConfig {
                     .into(),
             );
         }
-        motile_particle::units::check_diameter(self.diameter).map_err(|e| e.to_string())?;
+        motile_particle::model::units::check_diameter(self.diameter).map_err(|e| e.to_string())?;
         self.perturbation.validate()?;
         range("t_end", self.t_end, 0.0, 1e9, true, "1/beta")?;
         for (name, v) in [
@@ -373,7 +375,7 @@ pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig
 }
 
 /// The mobility of one rank's part of a box shared by several: the dipole and slender-body
-/// levels' sums are the shared one ([`motile_particle::shared_ewald`]).
+/// levels' sums are the shared one ([`motile_particle::ewald::shared`]).
 pub(super) fn shared_mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
     if cfg.device == crate::run::Device::Gpu {
         anyhow::bail!(
@@ -414,9 +416,9 @@ pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobili
 #[cfg(feature = "gpu")]
 fn gpu_sum(tol: f64) -> anyhow::Result<SpectralEwald> {
     let dev = if crate::run::gpu_emulated()? {
-        motile_particle::gpu::GpuFourier::host_emulation()
+        motile_particle::ewald::gpu::GpuFourier::host_emulation()
     } else {
-        motile_particle::gpu::GpuFourier::cuda()
+        motile_particle::ewald::gpu::GpuFourier::cuda()
     }
     .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
     Ok(SpectralEwald::with_device(tol, dev)?)

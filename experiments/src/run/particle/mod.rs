@@ -17,11 +17,13 @@ use crate::snapshot::{Kinematics, ParticleSnapshot, PointForces};
 use crate::vtk::{write_pvd, write_rods_vtp};
 use anyhow::{Context, bail};
 use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
-use motile_particle::contact::WarmStart;
-use motile_particle::distributed::Distributed;
-use motile_particle::domain::Comm;
-use motile_particle::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
-use motile_particle::{RodSet, StepError, StepReport, Stepper};
+use motile_particle::model::rods::RodSet;
+use motile_particle::model::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
+use motile_particle::parallel::comm::Comm;
+use motile_particle::parallel::distributed::Distributed;
+use motile_particle::step::contact::WarmStart;
+use motile_particle::step::report::{StepError, StepReport};
+use motile_particle::step::stepper::Stepper;
 use std::path::Path;
 use std::time::Instant;
 

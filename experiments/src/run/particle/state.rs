@@ -8,12 +8,13 @@ use crate::snapshot::{Snapshot, read_snapshot};
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_meanfield::initial::PerturbationField;
-use motile_particle::contact::WarmStart;
-use motile_particle::geometry::quat_from_axis;
-use motile_particle::init::{
+use motile_particle::model::geometry::quat_from_axis;
+use motile_particle::model::init::{
     nonoverlapping_with, overlapping_pairs, perturbed_orientation, random_nonoverlapping,
 };
-use motile_particle::{RodSet, Stepper};
+use motile_particle::model::rods::RodSet;
+use motile_particle::step::contact::WarmStart;
+use motile_particle::step::stepper::Stepper;
 use std::path::Path;
 
 /// Load an initial configuration of rods of diameter `diameter` from a snapshot (.h5) or a

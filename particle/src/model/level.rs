@@ -9,7 +9,7 @@ use std::str::FromStr;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(try_from = "String", into = "String")]
 pub enum Hydrodynamics {
-    /// Free swimming with local slender-body drag, no flow ([`crate::LocalDrag`]).
+    /// Free swimming with local slender-body drag, no flow ([`crate::hydro::mobility::LocalDrag`]).
     #[default]
     None,
     /// Point stresslets in the periodic flow of all the others (docs/MODEL.md §2, D1-D2).

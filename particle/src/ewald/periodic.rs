@@ -1,14 +1,14 @@
 //! The periodic Stokes sums every hydrodynamic model needs, behind one trait so that the fast
-//! method ([`crate::spectral_ewald::SpectralEwald`]) and its slow twin
-//! ([`crate::rpy_reference::EwaldReference`]) are interchangeable in the solvers and compared
+//! method ([`crate::ewald::spectral::SpectralEwald`]) and its slow twin
+//! ([`crate::ewald::reference::EwaldReference`]) are interchangeable in the solvers and compared
 //! in the tests (docs/MODEL.md §1, §2).
 //!
 //! Points come in groups of `group` consecutive points (the quadrature points of one rod, or
 //! single points): a point does not see the direct (image 0) contribution of its own group,
 //! itself included, but it sees every periodic image of it, as (P1) requires.
 
-use crate::ewald_params::{EwaldParams, SumOutput};
-use crate::geometry::Vec3;
+use crate::ewald::params::{EwaldParams, SumOutput};
+use crate::model::geometry::Vec3;
 
 /// Geometry of a periodic RPY sum.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -42,7 +42,7 @@ pub struct StressletField {
 }
 
 /// The estimated error of one output of a sum, relative to the output (the contract of
-/// [`crate::spectral_ewald`]: max-relative and relative-L2, each to be at most the tolerance).
+/// [`crate::ewald::spectral`]: max-relative and relative-L2, each to be at most the tolerance).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ErrorEstimate {
     /// Which output.
@@ -89,7 +89,7 @@ impl SumReport {
 /// Fast implementations promise, for each output separately, a max-relative and a
 /// relative-L2 error at most their tolerance relative to the exact output (not to the input's
 /// scale), with a floor only where an output vanishes by symmetry: the contract of
-/// [`crate::spectral_ewald`], stated in `docs/accuracy.md`.
+/// [`crate::ewald::spectral`], stated in `docs/accuracy.md`.
 pub trait PeriodicStokes: Send + Sync + std::fmt::Debug {
     /// RPY mobility product: `u_i = sum_j sum_images M_RPY(y_i - y_j) f_j`, own group's direct
     /// terms excluded. `points` and `forces` have the same length, a multiple of the group.

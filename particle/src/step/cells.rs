@@ -5,7 +5,7 @@
 //! `(i, j)` with `i < j`, sorted, so the output does not depend on the thread count. Boxes
 //! narrower than 3 cells fall back to the all-pairs search (the stencil would repeat cells).
 
-use crate::geometry::{Vec3, dot, min_image, sub};
+use crate::model::geometry::{Vec3, dot, min_image, sub};
 use rayon::prelude::*;
 
 /// Cell list over particle centres in a periodic cube.

@@ -1,10 +1,10 @@
 //! Points sorted into cells for the real-space part of the spectral Ewald sums
-//! ([`crate::spectral_ewald`]): neighbour hits within the cutoff, gathered per target or
+//! ([`crate::ewald::spectral`]): neighbour hits within the cutoff, gathered per target or
 //! visited once per pair (the symmetric sum), in an order fixed by the cells so that results
 //! do not depend on the thread count.
 
-use crate::geometry::{Vec3, dot, floor_i64, min_image, wrap_position};
-use crate::slabs::{self, phased};
+use crate::ewald::phased_writes::{self, phased};
+use crate::model::geometry::{Vec3, dot, floor_i64, min_image, wrap_position};
 use rayon::prelude::*;
 
 /// Points sorted into cells of side at least half the cutoff (a 5^3 stencil then covers the
@@ -271,7 +271,7 @@ impl PointCells {
         let nn = n * n;
         let plane_start = |z: usize| self.start[z * nn];
         // Slabs at least two cell planes thick: a target writes up to two planes ahead.
-        let bounds = slabs::bounds(n, 2);
+        let bounds = phased_writes::bounds(n, 2);
         let mut acc = vec![A::default(); self.members.len()];
         let task = |s: usize, main: &mut [A], main_start: usize, wrap: &mut [A]| {
             let mut hits = Hits::default();

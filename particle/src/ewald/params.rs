@@ -1,4 +1,4 @@
-//! Parameters of the spectral Ewald sums ([`crate::spectral_ewald`]) from a tolerance, per
+//! Parameters of the spectral Ewald sums ([`crate::ewald::spectral`]) from a tolerance, per
 //! output (docs/MODEL.md §1, §2; the accuracy contract is stated in `docs/accuracy.md`).
 //!
 //! Three outputs, the `n`-th derivative of the Stokeslet sum: RPY velocities (`n = 0`),
@@ -9,32 +9,32 @@
 //! same scale, the self velocity itself being zero by symmetry). Every truncation of the
 //! method leaves an error proportional to that scale, so each is chosen to leave a fixed
 //! fraction of `tol Phi_n` per source (`tol` the internal tolerance of one attempt, see
-//! [`crate::spectral_ewald`]):
+//! [`crate::ewald::spectral`]):
 //!
 //! - **Fourier cutoff** `k_max = 2 xi c_F`: the output's spectrum near a source is
 //!   `k^n (1 + k^2/4xi^2) exp(-k^2/4xi^2)` over `k^2 dk` (the Hasimoto-screened Stokeslet,
 //!   times `k^n` for `n` derivatives), so the part beyond `k_max` is the fraction
-//!   `I_n(c_F) / I_n(0)`, `I_n(c) = int_c^inf t^n (1 + t^2) exp(-t^2) dt` ([`fourier_tail`]):
+//!   `I_n(c_F) / I_n(0)`, `I_n(c) = int_c^inf t^n (1 + t^2) exp(-t^2) dt` (`fourier_tail`):
 //!   `c_F` solves `I_n(c_F)/I_n(0) = FOURIER_SHARE tol`. The factor `t^n` is why one cutoff for
 //!   every output failed the gradients: at `c = sqrt(ln(1/tol))` the gradient's tail is 16 tol
 //!   at 1e-4 and grows like `c^3`.
 //! - **Real-space cutoff** `r_c = c_R / xi`: the real-space kernel's `n`-th derivative at
-//!   `r_c`, relative to `Phi_n` ([`real_tail`], from the closed forms of
-//!   [`crate::ewald::stokeslet_real_derivatives`]), equals `REAL_SHARE tol`.
-//! - **Gaussian window** (support, shape, grid oversampling): [`window_for`] at
+//!   `r_c`, relative to `Phi_n` (`real_tail`, from the closed forms of
+//!   [`crate::ewald::kernels::stokeslet_real_derivatives`]), equals `REAL_SHARE tol`.
+//! - **Gaussian window** (support, shape, grid oversampling): `window_for` at
 //!   `WINDOW_SHARE tol` (the gradient's window, differentiated in the gather, gets
 //!   `GRADIENT_WINDOW_SHARE`).
 //!
 //! The shares were calibrated against the direct Ewald sum (the calibration is the test
 //! `tests/accuracy_contract.rs`): with them, the error at each target is within a calibrated
-//! multiple ([`error_model_constants`]) of `tol Phi_n sqrt(sum_j w(r_j) s_j^2)`, the sum over the
+//! multiple (`error_model_constants`) of `tol Phi_n sqrt(sum_j w(r_j) s_j^2)`, the sum over the
 //! target's own group and its real-space neighbours of the sources' strengths squared, weighted
 //! by `w(r) = 1 / (1 + (r / 2h)^2)` (`h` the grid spacing: errors of the Fourier part decay
 //! over a few grid spacings from each source). That per-target estimate is what the sums
 //! compare with the requested tolerance after each attempt.
 
-use crate::ewald::stokeslet_real_derivatives;
-use crate::gaussian_grid::window_for;
+use crate::ewald::kernels::stokeslet_real_derivatives;
+use crate::ewald::window::window_for;
 use motile_analysis::fft3::next_smooth_even;
 use std::f64::consts::PI;
 

@@ -9,7 +9,7 @@
 //! identities behind it: zero net force and torque without contacts, for any flow.
 //!
 //! Rod n's own direct terms are excluded from `u_n` (the point-group exclusion of
-//! [`crate::periodic`]); all periodic images, its own included, are in.
+//! [`crate::ewald::periodic`]); all periodic images, its own included, are in.
 //!
 //! Contacts (docs/MODEL.md §3), the splitting: the contact solver plans with the local mobility of
 //! (P2)-(P3) applied to predicted velocities, namely swimming plus the previous step's flow
@@ -22,17 +22,17 @@
 //! persistent contact forces; one solve per step instead of a free and a contact solve halved
 //! the step's cost (BENCHMARKS.md).
 
-use crate::domain::{Comm, SingleProcess};
-use crate::geometry::{Vec3, cross, dot};
-use crate::gmres::{GmresInfo, GmresParams, LinOp, gmres_shared};
-use crate::mobility::{
+use crate::ewald::periodic::{PeriodicStokes, RpyGeometry, SumError};
+use crate::ewald::shared::SharedEwald;
+use crate::hydro::gmres::{GmresInfo, GmresParams, LinOp, gmres_shared};
+use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
 };
-use crate::periodic::{PeriodicStokes, RpyGeometry, SumError};
-use crate::rods::RodSet;
-use crate::shared_ewald::SharedEwald;
-use crate::step::Part;
-use crate::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, check_diameter, eta};
+use crate::model::geometry::{Vec3, cross, dot};
+use crate::model::rods::RodSet;
+use crate::model::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, check_diameter, eta};
+use crate::parallel::comm::{Comm, SingleProcess};
+use crate::parallel::part::Part;
 use motile_analysis::params::{InvalidParameter, check_range};
 use motile_analysis::quadrature::gauss_legendre;
 use rayon::prelude::*;

@@ -18,9 +18,12 @@
 //! tolerance. Products with `D` go through a per-rod list of constraints in a fixed order and
 //! every reduction is summed in fixed chunks, so results are bit-identical for any thread count.
 
-use crate::domain::{Comm, Halo, SingleProcess};
-use crate::geometry::{Vec3, axpy, cross, dot, scale, sub};
-use crate::mobility::Mobility;
+use crate::hydro::mobility::Mobility;
+use crate::model::geometry::{Vec3, axpy, cross, dot, scale, sub};
+use crate::parallel::comm::SingleProcess;
+use crate::parallel::halo::Halo;
+use crate::parallel::part::Share;
+use crate::parallel::reduce::{CHUNK, det_sum};
 use motile_analysis::params::{InvalidParameter, check_range};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -136,17 +139,6 @@ pub enum ContactError {
     NonFinite(usize),
 }
 
-const CHUNK: usize = 4096;
-
-/// Sum of `f(k)` for `k` in `0..n`, in fixed chunks: the same bits for any thread count.
-pub(crate) fn det_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
-    let partial: Vec<f64> = (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| (c * CHUNK..((c + 1) * CHUNK).min(n)).map(&f).sum())
-        .collect();
-    partial.iter().sum()
-}
-
 /// `[max |min(lam_new, g_new)|, |s|^2, s.y, |y|^2]` with `s = lam_new - lam`, `y = g_new - g`,
 /// summed in fixed chunks (the maximum is exact in any order).
 fn fused_stats(lam: &[f64], lam_new: &[f64], g: &[f64], g_new: &[f64]) -> [f64; 4] {
@@ -181,16 +173,6 @@ fn par_max(n: usize, f: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
         .into_par_iter()
         .map(f)
         .reduce(|| f64::NEG_INFINITY, f64::max)
-}
-
-/// The ranks a contact problem is shared among, and this rank's copies of their rods (see
-/// [`crate::domain`]); one process: [`SingleProcess`] with [`Halo::none`].
-#[derive(Clone, Copy, Debug)]
-pub struct Share<'a> {
-    /// The ranks.
-    pub comm: &'a dyn Comm,
-    /// This rank's copies, in the solver's rod numbering.
-    pub halo: &'a Halo,
 }
 
 /// The BBPGD contact solver; holds only scratch memory.

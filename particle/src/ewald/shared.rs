@@ -1,6 +1,6 @@
-//! The spectral Ewald stresslet sum of [`crate::spectral_ewald`] shared among ranks
+//! The spectral Ewald stresslet sum of [`crate::ewald::spectral`] shared among ranks
 //! (docs/MODEL.md §3a): each rank holds its own points and copies of the others' within the
-//! real-space cutoff ([`crate::domain::Halo`]).
+//! real-space cutoff ([`crate::parallel::halo::Halo`]).
 //!
 //! - Real space: every rank sums over the neighbours of its own points (own points and copies),
 //!   from the same cell list and tables as one process, skipping pairs of two copies; the
@@ -23,25 +23,26 @@
 //! exact sum); the FFTs' factorisation along y and z and the per-plane addition order differ
 //! from the single process's, so the bits do not.
 
-use crate::domain::Comm;
-use crate::ewald::{rpy_fourier_mode_screened, stresslet_fourier_self_gradient};
-use crate::ewald_params::{EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput};
-use crate::gaussian_grid::{MAX_SUPPORT, Window};
-use crate::geometry::{Vec3, dot, floor_i64, wrap_position};
-use crate::periodic::{ErrorEstimate, RpyGeometry, StressletField, SumError, SumReport, check_rpy};
-use crate::point_cells::PointCells;
-use crate::spectral_ewald::{
-    Refinement, check_tolerance, estimate_from, estimate_parts, report_of, rpy_assemble, rpy_real,
-    stresslet_estimates, stresslet_real,
+use crate::ewald::kernels::{rpy_fourier_mode_screened, stresslet_fourier_self_gradient};
+use crate::ewald::params::{EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput};
+use crate::ewald::periodic::{
+    ErrorEstimate, RpyGeometry, StressletField, SumError, SumReport, check_rpy,
 };
-use crate::units::VISCOSITY;
+use crate::ewald::point_cells::PointCells;
+use crate::ewald::spectral::estimates::{
+    estimate_from, estimate_parts, report_of, stresslet_estimates,
+};
+use crate::ewald::spectral::real_space::{rpy_assemble, rpy_real, stresslet_real};
+use crate::ewald::spectral::refinement::{Refinement, check_tolerance};
+use crate::ewald::window::{MAX_SUPPORT, Window};
+use crate::model::geometry::{Vec3, dot, floor_i64, wrap_position};
+use crate::model::units::VISCOSITY;
+use crate::parallel::comm::Comm;
+use crate::parallel::slab_fft::SlabFft;
 use num_complex::Complex64;
 use rayon::prelude::*;
-use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
-use rustfft::{Fft, FftPlanner};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
-use std::sync::Arc;
 
 /// Stresslet components in the spread: `S_00, S_11, S_22, S_01, S_02, S_12`.
 const COMPONENTS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -51,7 +52,7 @@ const SYMMETRIC: [[usize; 3]; 3] = [[0, 3, 4], [3, 1, 5], [4, 5, 2]];
 /// The stresslet sum shared among ranks, with the adaptive level of one process.
 #[derive(Debug)]
 pub struct SharedEwald {
-    /// Requested relative accuracy (the contract of [`crate::spectral_ewald`]).
+    /// Requested relative accuracy (the contract of [`crate::ewald::spectral`]).
     pub tol: f64,
     refine: Refinement,
     report: Option<SumReport>,
@@ -73,22 +74,14 @@ struct Grid {
     win: Window,
     xi: f64,
     l: f64,
-    ranks: usize,
-    me: usize,
-    /// Modes kept along x: `M/2 + 1` (real fields: the others are their conjugates).
-    mx: usize,
-    fft: Arc<dyn Fft<f64>>,
-    ifft: Arc<dyn Fft<f64>>,
-    r2c: Arc<dyn RealToComplex<f64>>,
-    c2r: Arc<dyn ComplexToReal<f64>>,
+    /// The planes of each rank and the distributed FFT.
+    slab: SlabFft,
 }
 
 impl Grid {
     fn new(prm: &EwaldParams, l: f64, comm: &dyn Comm) -> Self {
         let m = prm.modes;
         let win = Window::new(l, prm.xi, m, prm.support, prm.shape);
-        let mut planner = FftPlanner::new();
-        let mut real = RealFftPlanner::new();
         Self {
             m,
             p: win.p,
@@ -96,25 +89,8 @@ impl Grid {
             win,
             xi: prm.xi,
             l,
-            ranks: comm.size(),
-            me: comm.rank(),
-            mx: m / 2 + 1,
-            fft: planner.plan_fft_forward(m),
-            ifft: planner.plan_fft_inverse(m),
-            r2c: real.plan_fft_forward(m),
-            c2r: real.plan_fft_inverse(m),
+            slab: SlabFft::new(m, comm),
         }
-    }
-
-    /// Rank `r`'s planes (or rows): `[r M / P, (r + 1) M / P)`.
-    fn share(&self, r: usize) -> std::ops::Range<usize> {
-        r * self.m / self.ranks..(r + 1) * self.m / self.ranks
-    }
-
-    fn owner(&self, plane: usize) -> usize {
-        (0..self.ranks)
-            .rfind(|&r| r * self.m / self.ranks <= plane)
-            .expect("rank 0 starts at plane 0")
     }
 
     /// The window of a point along each axis (as the single-process grid computes it).
@@ -195,15 +171,15 @@ impl Grid {
             })
             .collect();
         // Planes to their owners: [plane index, values...] per plane.
-        let mut send = vec![Vec::new(); self.ranks];
+        let mut send = vec![Vec::new(); self.slab.ranks];
         for (z, buf) in &touched {
-            let msg = &mut send[self.owner(*z)];
+            let msg = &mut send[self.slab.owner(*z)];
             let z = *z;
             msg.push(z as f64);
             msg.extend_from_slice(buf);
         }
         let got = comm.exchange(send);
-        let own = self.share(self.me);
+        let own = self.slab.share(self.slab.me);
         let mut out: [Vec<f64>; NF] = std::array::from_fn(|_| vec![0.0; own.len() * plane]);
         for msg in &got {
             for chunk in msg.chunks_exact(1 + plane * NF) {
@@ -218,172 +194,6 @@ impl Grid {
         out
     }
 
-    /// Real planes `[z][y][x]` to their spectra along x (half, `mx` modes) and y:
-    /// `[z][y][kx]`.
-    fn forward_xy(&self, real: &mut [f64]) -> Vec<Complex64> {
-        let (m, mx) = (self.m, self.mx);
-        let mut out = vec![Complex64::default(); real.len() / m * mx];
-        real.par_chunks_mut(m * m)
-            .zip(out.par_chunks_mut(m * mx))
-            .for_each_init(
-                || {
-                    let t = vec![Complex64::default(); m * mx];
-                    (self.r2c.make_scratch_vec(), t)
-                },
-                |(scratch, t), (pl, spec)| {
-                    for (row, srow) in pl.chunks_mut(m).zip(spec.chunks_mut(mx)) {
-                        self.r2c
-                            .process_with_scratch(row, srow, scratch)
-                            .expect("r2c lengths");
-                    }
-                    self.along_y(spec, &self.fft, t);
-                },
-            );
-        out
-    }
-
-    /// [`Self::forward_xy`] undone: spectra `[z][y][kx]` (overwritten) to real planes.
-    fn inverse_xy(&self, spec: &mut [Complex64]) -> Vec<f64> {
-        let (m, mx) = (self.m, self.mx);
-        let mut out = vec![0.0; spec.len() / mx * m];
-        spec.par_chunks_mut(m * mx)
-            .zip(out.par_chunks_mut(m * m))
-            .for_each_init(
-                || {
-                    let t = vec![Complex64::default(); m * mx];
-                    (self.c2r.make_scratch_vec(), t)
-                },
-                |(scratch, t), (sp, pl)| {
-                    self.along_y(sp, &self.ifft, t);
-                    for (srow, row) in sp.chunks_mut(mx).zip(pl.chunks_mut(m)) {
-                        // Imaginary parts a real field cannot have (kx = 0 and M/2) are
-                        // round-off here and dropped, as the real part of a complex inverse
-                        // would drop them.
-                        match self.c2r.process_with_scratch(srow, row, scratch) {
-                            Ok(()) | Err(realfft::FftError::InputValues(..)) => {}
-                            Err(e) => panic!("shared grid c2r: {e}"),
-                        }
-                    }
-                },
-            );
-        out
-    }
-
-    /// FFTs along y of one plane `[y][kx]` (in place), through `t` (`M mx` values).
-    fn along_y(&self, pl: &mut [Complex64], f: &Arc<dyn Fft<f64>>, t: &mut [Complex64]) {
-        let (m, mx) = (self.m, self.mx);
-        for y in 0..m {
-            for x in 0..mx {
-                t[x * m + y] = pl[y * mx + x];
-            }
-        }
-        f.process(t);
-        for y in 0..m {
-            for x in 0..mx {
-                pl[y * mx + x] = t[x * m + y];
-            }
-        }
-    }
-
-    /// z slabs `[z][y][kx]` of `fields` to y slabs `[y][kx][z]` (all-to-all).
-    fn to_rows(&self, comm: &dyn Comm, fields: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
-        let (m, mx) = (self.m, self.mx);
-        let (zs, ys) = (self.share(self.me), self.share(self.me));
-        self.transpose(
-            comm,
-            fields,
-            ys.len(),
-            |r| (0..zs.len(), self.share(r)),
-            |z, y, x| (z * m + y) * mx + x,
-            |r| (self.share(r), 0..ys.len()),
-            |z, y, x| (y * mx + x) * m + z,
-        )
-    }
-
-    /// y slabs `[y][kx][z]` back to z slabs `[z][y][kx]` (all-to-all).
-    fn to_planes(&self, comm: &dyn Comm, fields: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
-        let (m, mx) = (self.m, self.mx);
-        let (zs, ys) = (self.share(self.me), self.share(self.me));
-        self.transpose(
-            comm,
-            fields,
-            zs.len(),
-            |r| (self.share(r), 0..ys.len()),
-            |z, y, x| (y * mx + x) * m + z,
-            |r| (0..zs.len(), self.share(r)),
-            |z, y, x| (z * m + y) * mx + x,
-        )
-    }
-
-    /// All-to-all of blocks: to rank `r` the elements `src(z, y, x)` for `(z, y)` in
-    /// `send(r)` (z outer) and every `x < mx`; from rank `r` into `dst(z, y, x)` over `recv(r)`
-    /// in the same order. The result holds `len M mx` elements per field.
-    #[allow(clippy::type_complexity)]
-    fn transpose(
-        &self,
-        comm: &dyn Comm,
-        fields: &[Vec<Complex64>],
-        len: usize,
-        send: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) + Sync,
-        src: impl Fn(usize, usize, usize) -> usize + Sync,
-        recv: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) + Sync,
-        dst: impl Fn(usize, usize, usize) -> usize + Sync,
-    ) -> Vec<Vec<Complex64>> {
-        let (m, mx, me) = (self.m, self.mx, self.me);
-        // This rank's own block is copied directly below, not sent to itself.
-        let messages = (0..self.ranks)
-            .into_par_iter()
-            .map(|r| {
-                if r == me {
-                    return Vec::new();
-                }
-                let (zr, yr) = send(r);
-                let mut v = Vec::with_capacity(fields.len() * zr.len() * yr.len() * mx * 2);
-                for f in fields {
-                    for z in zr.clone() {
-                        for y in yr.clone() {
-                            for x in 0..mx {
-                                let c = f[src(z, y, x)];
-                                v.extend([c.re, c.im]);
-                            }
-                        }
-                    }
-                }
-                v
-            })
-            .collect();
-        let got = comm.exchange(messages);
-        let mut out = vec![vec![Complex64::default(); len * m * mx]; fields.len()];
-        out.par_iter_mut().enumerate().for_each(|(k, f)| {
-            let (zs, ys) = send(me);
-            let (zd, yd) = recv(me);
-            for (z0, z1) in zs.zip(zd) {
-                for (y0, y1) in ys.clone().zip(yd.clone()) {
-                    for x in 0..mx {
-                        f[dst(z1, y1, x)] = fields[k][src(z0, y0, x)];
-                    }
-                }
-            }
-            for (r, msg) in got.iter().enumerate() {
-                if r == me {
-                    continue;
-                }
-                let (zr, yr) = recv(r);
-                let block = 2 * zr.len() * yr.len() * mx;
-                let mut it = msg[k * block..(k + 1) * block].chunks_exact(2);
-                for z in zr {
-                    for y in yr.clone() {
-                        for x in 0..mx {
-                            let c = it.next().expect("a full block");
-                            f[dst(z, y, x)] = Complex64::new(c[0], c[1]);
-                        }
-                    }
-                }
-            }
-        });
-        out
-    }
-
     /// The velocity field on this rank's planes (real, `[z][y][x]` per component) of the
     /// spread sources `s`: their spectra, `kernel(k, |k|^2, exp(-|k|^2 / 4 xi^2), spectra)` at
     /// every kept mode with the window divided out twice, back.
@@ -393,8 +203,8 @@ impl Grid {
         mut s: [Vec<f64>; NF],
         kernel: impl Fn(Vec3, f64, f64, [Complex64; NF]) -> [Complex64; 3] + Sync,
     ) -> [Vec<f64>; 3] {
-        let (m, mx) = (self.m, self.mx);
-        let rows = self.forward(comm, &mut s);
+        let (m, mx) = (self.m, self.slab.mx);
+        let rows = self.slab.forward(comm, &mut s);
         drop(s);
         let scale = 2.0 * PI / self.l;
         let x = 1.0 / (4.0 * self.xi * self.xi);
@@ -410,7 +220,7 @@ impl Grid {
                 (k, (-x * k * k).exp(), (self.win.eta * x * k * k).exp())
             })
             .collect();
-        let ys = self.share(self.me);
+        let ys = self.slab.share(self.slab.me);
         let mut u = vec![vec![Complex64::default(); ys.len() * mx * m]; 3];
         let (u0, rest) = u.split_at_mut(1);
         let (u1, u2) = rest.split_at_mut(1);
@@ -442,32 +252,8 @@ impl Grid {
                 }
             });
         drop(rows);
-        let mut it = self.inverse(comm, u).into_iter();
+        let mut it = self.slab.inverse(comm, u).into_iter();
         std::array::from_fn(|_| it.next().expect("three components"))
-    }
-
-    /// The distributed forward FFT: real fields on this rank's planes (`[z][y][x]`, overwritten)
-    /// to their half spectra on its y rows (`[y][kx][z]`, unnormalised).
-    fn forward(&self, comm: &dyn Comm, fields: &mut [Vec<f64>]) -> Vec<Vec<Complex64>> {
-        let spectra: Vec<Vec<Complex64>> = fields.iter_mut().map(|f| self.forward_xy(f)).collect();
-        let mut rows = self.to_rows(comm, &spectra);
-        drop(spectra);
-        let fz = &self.fft;
-        for f in rows.iter_mut() {
-            f.par_chunks_mut(self.m).for_each(|line| fz.process(line));
-        }
-        rows
-    }
-
-    /// [`Self::forward`] undone (unnormalised: `M^3` times the field).
-    fn inverse(&self, comm: &dyn Comm, mut rows: Vec<Vec<Complex64>>) -> Vec<Vec<f64>> {
-        let fi = &self.ifft;
-        for f in rows.iter_mut() {
-            f.par_chunks_mut(self.m).for_each(|line| fi.process(line));
-        }
-        let mut planes = self.to_planes(comm, &rows);
-        drop(rows);
-        planes.iter_mut().map(|f| self.inverse_xy(f)).collect()
     }
 
     /// Velocity and, with `GRAD`, gradient (`[u_0..2, du_i/dx_l at 3 + 3 i + l]`; zeros
@@ -489,12 +275,12 @@ impl Grid {
             }
         }
         // Requests to owners, then the planes back.
-        let mut ask = vec![Vec::new(); self.ranks];
+        let mut ask = vec![Vec::new(); self.slab.ranks];
         for &z in &need {
-            ask[self.owner(z)].push(z as f64);
+            ask[self.slab.owner(z)].push(z as f64);
         }
         let asked = comm.exchange(ask);
-        let own = self.share(self.me);
+        let own = self.slab.share(self.slab.me);
         let send = asked
             .iter()
             .map(|list| {
@@ -514,9 +300,9 @@ impl Grid {
             .collect();
         let got = comm.exchange(send);
         let mut planes: BTreeMap<usize, &[f64]> = BTreeMap::new();
-        let mut by_owner = vec![Vec::new(); self.ranks];
+        let mut by_owner = vec![Vec::new(); self.slab.ranks];
         for &z in &need {
-            by_owner[self.owner(z)].push(z);
+            by_owner[self.slab.owner(z)].push(z);
         }
         for (r, list) in by_owner.iter().enumerate() {
             for (k, &z) in list.iter().enumerate() {
@@ -831,48 +617,4 @@ fn attempt(
         e2.push(*w);
     }
     Ok((StressletField { u, grad }, e2))
-}
-
-/// The shared grid's distributed FFT alone, for benchmarks (BENCHMARKS.md compares it with
-/// FFTW's MPI interface): `reps` round trips (forward, then inverse) of `fields` real fields
-/// on an `m^3` grid split among the ranks of `comm` as the shared sums split it (collective).
-/// Returns this rank's median seconds per round trip and the largest error of the round trip
-/// against the input (scaled by `m^3`), relative to the input's largest value, over this
-/// rank's planes.
-pub fn fft_round_trip(comm: &dyn Comm, m: usize, fields: usize, reps: usize) -> (f64, f64) {
-    let l = 1.0;
-    let prm = EwaldParams {
-        modes: m,
-        ..EwaldParams::choose(1e-6, 1000, l)
-    };
-    let grid = Grid::new(&prm, l, comm);
-    let own = grid.share(grid.me);
-    let plane = m * m;
-    // A deterministic field of every global index, the same on any rank count.
-    let input: Vec<Vec<f64>> = (0..fields)
-        .map(|f| {
-            (own.start * plane..own.end * plane)
-                .map(|k| ((k * 7 + f * 13) as f64 * 0.618_033_988_7).fract() - 0.5)
-                .collect()
-        })
-        .collect();
-    let mut times = Vec::with_capacity(reps);
-    let mut error = 0.0f64;
-    for _ in 0..reps.max(1) {
-        let mut data = input.clone();
-        // Every rank starts together (a reduction as a barrier), as FFTW's twin does.
-        comm.max(&mut [0.0]);
-        let t = std::time::Instant::now();
-        let rows = grid.forward(comm, &mut data);
-        let back = grid.inverse(comm, rows);
-        times.push(t.elapsed().as_secs_f64());
-        let scale = 1.0 / (m * m * m) as f64;
-        for (a, b) in back.iter().zip(&input) {
-            for (x, y) in a.iter().zip(b) {
-                error = error.max((x * scale - y).abs() / 0.5);
-            }
-        }
-    }
-    times.sort_by(f64::total_cmp);
-    (times[times.len() / 2], error)
 }

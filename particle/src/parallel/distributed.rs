@@ -1,6 +1,6 @@
 //! The particle model on several ranks (docs/MODEL.md §3): spatial slabs along `z`, each rank
 //! owning the rods whose centres lie in its slab, with copies of the other ranks' rods within
-//! contact reach ([`crate::domain::Halo`]). A step ([`Distributed::step`]):
+//! contact reach ([`crate::parallel::halo::Halo`]). A step ([`Distributed::step`]):
 //!
 //! 1. the slab bounds are rebalanced so that each holds as many rods as it can (from a
 //!    histogram of all centres, summed over ranks), and rods whose centres left their slab move
@@ -20,12 +20,15 @@
 //! iteration is the same, but sums over constraints are added per rank and then in rank order,
 //! so their round-off differs. On one rank the step is the single-process step, bit for bit.
 
-use crate::contact::WarmStart;
-use crate::domain::{Comm, Halo};
-use crate::geometry::Vec3;
-use crate::rods::RodSet;
-use crate::step::{Part, StepError, StepReport, Stepper};
-use crate::units::ROD_LENGTH;
+use crate::model::geometry::Vec3;
+use crate::model::rods::RodSet;
+use crate::model::units::ROD_LENGTH;
+use crate::parallel::comm::Comm;
+use crate::parallel::halo::Halo;
+use crate::parallel::part::Part;
+use crate::step::contact::WarmStart;
+use crate::step::report::{StepError, StepReport};
+use crate::step::stepper::Stepper;
 use std::collections::HashMap;
 
 /// Histogram bins per rank for the slab balance.
@@ -475,7 +478,7 @@ impl<C: Comm> Distributed<C> {
         Some((all, out))
     }
 
-    /// The mobility's per-rod state ([`crate::mobility::Mobility::rod_state`]) of the whole box
+    /// The mobility's per-rod state ([`crate::hydro::mobility::Mobility::rod_state`]) of the whole box
     /// on rank 0, in the single-process numbering: empty when some rank has none (before the
     /// first solve) or the mobility keeps none; `None` on the other ranks (collective).
     pub fn gather_rod_state(&self) -> Option<Vec<f64>> {

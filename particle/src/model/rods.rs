@@ -1,7 +1,7 @@
 //! The rods' state (docs/MODEL.md §1): centres wrapped into the periodic box, unit quaternions, and
 //! the periodic images each rod has crossed, so unwrapped trajectories are exact.
 
-use crate::geometry::{Quat, Vec3, quat_axis};
+use crate::model::geometry::{Quat, Vec3, quat_axis};
 use serde::{Deserialize, Serialize};
 
 /// N rigid rods of one shape (length `l = 1`, diameter `b`) in a periodic cube.
@@ -10,7 +10,7 @@ pub struct RodSet {
     /// Box side L (rod lengths).
     pub box_length: f64,
     /// Rod diameter `b` (rod lengths): contacts keep centerlines `b` apart; the mobilities take
-    /// their `eta` from the same `b` (check with [`crate::units::check_diameter`]).
+    /// their `eta` from the same `b` (check with [`crate::model::units::check_diameter`]).
     #[serde(default = "default_diameter")]
     pub diameter: f64,
     /// Centres in `[0, L)^3`.
@@ -45,7 +45,7 @@ pub(crate) fn translate_wrapped(x: &mut Vec3, image: &mut [i64; 3], dx: Vec3, l:
 }
 
 fn default_diameter() -> f64 {
-    crate::units::DEFAULT_DIAMETER
+    crate::model::units::DEFAULT_DIAMETER
 }
 
 impl RodSet {

@@ -12,9 +12,9 @@
 //! slender body and moves no point of the centerline, so it is set to zero (a torque's axial
 //! part does nothing).
 
-use crate::geometry::{Vec3, axpy, dot, scale, sub};
-use crate::rods::RodSet;
-use crate::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
+use crate::model::geometry::{Vec3, axpy, dot, scale, sub};
+use crate::model::rods::RodSet;
+use crate::model::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -49,7 +49,7 @@ pub struct HydroReport {
     /// Number of periodic sums (mobility products) in the step.
     pub sums: usize,
     /// The largest estimated error of the step's sums relative to their tolerance
-    /// ([`crate::periodic::SumReport::worst_ratio`]); 0 without estimates.
+    /// ([`crate::ewald::periodic::SumReport::worst_ratio`]); 0 without estimates.
     pub sum_error_ratio: f64,
     /// Whether every sum of the step met its tolerance by its own estimate.
     pub sum_tolerance_met: bool,
@@ -59,7 +59,7 @@ pub struct HydroReport {
 
 impl HydroReport {
     /// Fold one sum's accuracy report into the step's.
-    pub fn add_sum(&mut self, report: Option<crate::periodic::SumReport>) {
+    pub fn add_sum(&mut self, report: Option<crate::ewald::periodic::SumReport>) {
         if self.sums == 0 {
             self.sum_tolerance_met = true;
         }
@@ -110,11 +110,11 @@ pub enum MobilityError {
         /// `"free"` (swimming only) or `"swimming + contact"`.
         stage: &'static str,
         /// What GMRES reported.
-        source: crate::gmres::GmresError<crate::periodic::SumError>,
+        source: crate::hydro::gmres::GmresError<crate::ewald::periodic::SumError>,
     },
     /// A periodic sum failed.
     #[error(transparent)]
-    Sum(#[from] crate::periodic::SumError),
+    Sum(#[from] crate::ewald::periodic::SumError),
     /// A step shared among ranks asked a mobility that was not built to share.
     #[error("the {0} mobility was not built for a box shared among ranks")]
     NotShared(&'static str),
@@ -159,7 +159,7 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
         0.0
     }
     /// [`Self::predicted_velocities`] on one rank's part of a box shared by several
-    /// (collective; see [`crate::domain`]): `rods` are the rank's own rods, then copies;
+    /// (collective; see [`crate::parallel::comm`]): `rods` are the rank's own rods, then copies;
     /// correct for the own rods (the step copies the owners' values to the copies). The
     /// default is the single-process prediction, right for mobilities that act rod by rod.
     fn predicted_velocities_shared(
@@ -167,7 +167,7 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
         rods: &RodSet,
         p: &[Vec3],
         out: &mut RodVelocities,
-        _part: crate::step::Part<'_>,
+        _part: crate::parallel::part::Part<'_>,
     ) -> Result<(), MobilityError> {
         self.predicted_velocities(rods, p, out)
     }
@@ -206,7 +206,7 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
         p: &[Vec3],
         ft: &[(Vec3, Vec3)],
         out: &mut RodVelocities,
-        _part: crate::step::Part<'_>,
+        _part: crate::parallel::part::Part<'_>,
     ) -> Result<(), MobilityError> {
         self.final_velocities(rods, p, ft, out)
     }
@@ -249,7 +249,7 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
         Vec::new()
     }
 
-    /// The periodic sum's adaptive state ([`crate::periodic::PeriodicStokes::adaptive_state`]),
+    /// The periodic sum's adaptive state ([`crate::ewald::periodic::PeriodicStokes::adaptive_state`]),
     /// for checkpoints; empty without a sum.
     fn sum_state(&self) -> Vec<u32> {
         Vec::new()

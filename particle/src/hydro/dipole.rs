@@ -11,14 +11,14 @@
 //! themselves (force pairs, far field of order `lambda b / r^2`) are not carried in this model,
 //! unlike the slender-body one. Measured consequences belong to the model comparison.
 
-use crate::geometry::{Vec3, cross, dot};
-use crate::mobility::{
+use crate::ewald::periodic::{PeriodicStokes, StressletField};
+use crate::ewald::shared::SharedEwald;
+use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
 };
-use crate::periodic::{PeriodicStokes, StressletField};
-use crate::rods::RodSet;
-use crate::shared_ewald::SharedEwald;
-use crate::units::{ROD_LENGTH, SWIM_SPEED, eta};
+use crate::model::geometry::{Vec3, cross, dot};
+use crate::model::rods::RodSet;
+use crate::model::units::{ROD_LENGTH, SWIM_SPEED, eta};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -44,7 +44,7 @@ pub struct Dipole {
 impl Dipole {
     /// A dipole mobility for rods of diameter `b` on the given periodic sum.
     pub fn new(sum: Box<dyn PeriodicStokes>, diameter: f64) -> Self {
-        let (s, w) = crate::slender::half_rod_rule(4, ROD_LENGTH);
+        let (s, w) = crate::hydro::slender::half_rod_rule(4, ROD_LENGTH);
         Self {
             sum,
             shared: None,
@@ -61,7 +61,7 @@ impl Dipole {
 impl Dipole {
     /// The same mobility able to run on one rank's part of a box shared by several, its sum
     /// then [`SharedEwald`] at tolerance `tol` ([`Mobility::predicted_velocities_shared`]).
-    pub fn shared(mut self, tol: f64) -> Result<Self, crate::periodic::SumError> {
+    pub fn shared(mut self, tol: f64) -> Result<Self, crate::ewald::periodic::SumError> {
         self.shared = Some(SharedEwald::new(tol)?);
         Ok(self)
     }
@@ -136,7 +136,7 @@ impl Mobility for Dipole {
         rods: &RodSet,
         p: &[Vec3],
         out: &mut RodVelocities,
-        part: crate::step::Part<'_>,
+        part: crate::parallel::part::Part<'_>,
     ) -> Result<(), MobilityError> {
         let sigma = vec![stresslet_strength(self.diameter); rods.len()];
         let t = Instant::now();

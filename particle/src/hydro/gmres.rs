@@ -6,7 +6,7 @@
 //! structured error. Vector operations run in parallel; dot products are summed in fixed
 //! chunks and then in chunk order, so results do not depend on the thread count.
 
-use crate::domain::{Comm, SingleProcess};
+use crate::parallel::comm::{Comm, SingleProcess};
 use motile_analysis::params::{InvalidParameter, check_range};
 use rayon::prelude::*;
 
@@ -101,7 +101,7 @@ pub enum GmresError<E> {
 /// `a . b`, summed in fixed chunks in parallel and then in chunk order: the same bits for any
 /// thread count (and, below one chunk, the plain sequential sum); then over ranks.
 fn dot(comm: &dyn Comm, a: &[f64], b: &[f64]) -> f64 {
-    let mut s = [crate::contact::det_sum(a.len(), |i| a[i] * b[i])];
+    let mut s = [crate::parallel::reduce::det_sum(a.len(), |i| a[i] * b[i])];
     comm.sum(&mut s);
     s[0]
 }
@@ -229,7 +229,7 @@ pub fn gmres_shared<O: LinOp>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::domain::ThreadRanks;
+    use crate::parallel::comm::ThreadRanks;
 
     fn dot(a: &[f64], b: &[f64]) -> f64 {
         a.iter().zip(b).map(|(x, y)| x * y).sum()

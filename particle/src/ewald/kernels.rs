@@ -20,7 +20,7 @@
 //! the Fourier integral. The Stokeslet (`a = 0`) real part and its radial derivatives drive
 //! the point-stresslet sums of the dipole model.
 
-use crate::geometry::{Vec3, dot};
+use crate::model::geometry::{Vec3, dot};
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
@@ -299,7 +299,7 @@ pub fn stresslet_fourier_self_gradient(p: Vec3, sigma: f64, xi: f64) -> [Vec3; 3
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::scale;
+    use crate::model::geometry::scale;
     use motile_analysis::quadrature::gauss_legendre;
 
     /// `M_F` by quadrature of its Fourier integral:
@@ -468,8 +468,8 @@ mod tests {
             [0, 1, 2].map(|i| a * p[i] + s * y[i])
         };
         let f = 1.3 / eps;
-        let up = st(crate::geometry::axpy(x, -eps / 2.0, p));
-        let um = st(crate::geometry::axpy(x, eps / 2.0, p));
+        let up = st(crate::model::geometry::axpy(x, -eps / 2.0, p));
+        let um = st(crate::model::geometry::axpy(x, eps / 2.0, p));
         let (u, _) = stresslet_from_derivatives(x, r, p, 1.3, &d(r));
         for i in 0..3 {
             let two = f * (up[i] - um[i]);

@@ -2,8 +2,8 @@
 //! Fourier-space multiplication and the interpolation back) and the real-space parts (every
 //! pair within the cutoff, from the CPU's cell list and with its interpolation tables), each
 //! the twin of the CPU's (`gaussian_grid.rs`, the mode and pair functions of
-//! [`crate::ewald`], `spectral_ewald::{rpy_real, stresslet_real}`), on a
-//! [`motile_gpu::Device`]. [`crate::spectral_ewald::SpectralEwald::with_device`] uses it in
+//! [`crate::ewald::kernels`], `spectral_ewald::{rpy_real, stresslet_real}`), on a
+//! [`motile_gpu::Device`]. [`crate::ewald::spectral::SpectralEwald::with_device`] uses it in
 //! place of the CPU's; the cell list's sort, the corrections, the error estimate and the
 //! refinement stay on the CPU and are shared with the CPU sum, so the accuracy contract is the
 //! same.
@@ -18,10 +18,10 @@
 
 mod launch;
 
-use crate::ewald::{RealSpaceTable, StressletTable};
-use crate::gaussian_grid::Window;
-use crate::geometry::Vec3;
-use crate::point_cells::PointCells;
+use crate::ewald::kernels::{RealSpaceTable, StressletTable};
+use crate::ewald::point_cells::PointCells;
+use crate::ewald::window::Window;
+use crate::model::geometry::Vec3;
 use motile_gpu::{Buffer, Device, Direction, Fft3};
 pub use motile_gpu::{DeviceInfo, GpuError, probe};
 
@@ -275,7 +275,7 @@ impl GpuFourier {
     }
 
     /// The real-space part of the RPY sum (radius `a`, cutoff and table as the CPU's
-    /// [`crate::spectral_ewald::rpy_real`]) at every point of `cells`: `[u_0, u_1, u_2, e2]`
+    /// [`crate::ewald::spectral::real_space::rpy_real`]) at every point of `cells`: `[u_0, u_1, u_2, e2]`
     /// per point in the points' own order, `e2` the error model's weighted strengths with
     /// range `r0`.
     pub(crate) fn rpy_real(
@@ -301,7 +301,7 @@ impl GpuFourier {
     }
 
     /// The real-space part of the stresslet sum (the CPU's
-    /// [`crate::spectral_ewald::stresslet_real`]): per point in its own order, velocity
+    /// [`crate::ewald::spectral::real_space::stresslet_real`]): per point in its own order, velocity
     /// `0..3`, gradient `du_i/dx_m` at `3 + 3 i + m`, and the error model's weighted strengths
     /// at 12.
     pub(crate) fn stresslet_real(

@@ -7,16 +7,16 @@
 //! the kernel, so the sum is converged to round-off (about 1e-13 relative in the tests) and does
 //! not depend on the splitting parameter `xi` (tested). Cost `O(N T)` for `T` targets plus
 //! `O(K^3 (N + T))`: for tests and small problems only. Exclusions and the overlap correction
-//! follow [`crate::ewald`].
+//! follow [`crate::ewald::kernels`].
 
-use crate::ewald::{
+use crate::ewald::kernels::{
     apply_radial, rpy_fourier_free_apply, rpy_fourier_mode, rpy_overlap_correction, rpy_real,
     stokeslet_real_derivatives, stresslet_fourier_mode, stresslet_fourier_self_gradient,
     stresslet_from_derivatives,
 };
-use crate::geometry::{Vec3, dot, sub};
-use crate::periodic::{PeriodicStokes, RpyGeometry, StressletField, SumError, check_rpy};
-use crate::units::VISCOSITY;
+use crate::ewald::periodic::{PeriodicStokes, RpyGeometry, StressletField, SumError, check_rpy};
+use crate::model::geometry::{Vec3, dot, sub};
+use crate::model::units::VISCOSITY;
 use num_complex::Complex64;
 use rayon::prelude::*;
 use std::f64::consts::PI;

@@ -12,103 +12,20 @@
 //!    mobility that restore them (a second complementarity solve, usually with nothing to do);
 //! 6. the true (nonlinear) largest overlap among the constrained pairs after the move.
 
-use crate::cells::CellList;
-use crate::contact::{
-    Constraint, ContactError, ContactParams, ContactReport, ContactSolver, Share,
-};
-use crate::domain::{Comm, Halo, SingleProcess, max_with_key};
-use crate::geometry::{
-    Vec3, axpy, min_image, norm, quat_exp, quat_mul, scale, segment_distance, sub,
-};
-use crate::mobility::{Mobility, RodVelocities};
-use crate::rods::RodSet;
-use crate::units::ROD_LENGTH;
+use crate::hydro::mobility::{Mobility, RodVelocities};
+use crate::model::geometry::{Vec3, axpy, min_image, norm, quat_exp, quat_mul, scale, sub};
+use crate::model::rods::RodSet;
+use crate::model::units::ROD_LENGTH;
+use crate::parallel::comm::SingleProcess;
+use crate::parallel::halo::Halo;
+use crate::parallel::part::{Part, Share};
+use crate::parallel::reduce::max_with_key;
+use crate::step::cells::CellList;
+use crate::step::constraints::{constraint, true_overlap};
+use crate::step::contact::{Constraint, ContactParams, ContactSolver};
+use crate::step::report::{StepError, StepReport};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::time::Instant;
-
-/// What a step did.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct StepReport {
-    /// Contact solver report.
-    pub contact: ContactReport,
-    /// Largest overlap among constrained pairs after the step (rod lengths).
-    pub max_overlap: f64,
-    /// Constraints that needed a correction impulse after the step's velocities were known
-    /// (zero without hydrodynamics; see [`Stepper::step`]).
-    pub correction_active: usize,
-    /// Rounds of the position projection that removed overlaps the linearised step left
-    /// (zero in most steps; see [`Stepper::step`]).
-    pub projections: usize,
-    /// Mean rod speed.
-    pub mean_speed: f64,
-    /// Largest rod speed `max |v|` (beta l).
-    pub max_speed: f64,
-    /// Largest rotation rate `max |w|` (beta): `dt max|w|` is the angle the linearised contact
-    /// constraints neglect the square of.
-    pub max_rotation_rate: f64,
-    /// Polar order `|mean p|`.
-    pub polar_order: f64,
-    /// Sum of all contact forces (zero up to round-off: they are equal and opposite).
-    pub net_contact_force: Vec3,
-    /// Seconds in neighbour search, constraint assembly, free velocities, contact solve, update.
-    pub seconds: [f64; 5],
-    /// What the hydrodynamics did (GMRES iterations and residuals, sums).
-    pub hydro: crate::mobility::HydroReport,
-}
-
-/// Step failures.
-#[derive(Debug, thiserror::Error, PartialEq)]
-pub enum StepError {
-    /// The contact solver failed.
-    #[error(transparent)]
-    Contact(#[from] ContactError),
-    /// Rods overlap beyond the tolerance after the step.
-    #[error(
-        "rods {i} and {j} overlap by {overlap:.3e} l after the step (tolerance {tolerance:.1e} l): reduce dt or increase contact.margin"
-    )]
-    Overlap {
-        /// First rod.
-        i: u32,
-        /// Second rod.
-        j: u32,
-        /// Overlap depth.
-        overlap: f64,
-        /// Tolerance.
-        tolerance: f64,
-    },
-    /// The hydrodynamic solve failed.
-    #[error(transparent)]
-    Hydrodynamics(#[from] crate::mobility::MobilityError),
-    /// A velocity or position became NaN or infinite.
-    #[error("rod {0} has a non-finite velocity or position")]
-    NonFinite(usize),
-    /// A step shared by several ranks with a mobility that is not shared yet.
-    #[error(
-        "the {mobility_name} mobility runs on one process only ({ranks} ranks asked for): run it without mpirun"
-    )]
-    NotShared {
-        /// The mobility's name.
-        mobility_name: &'static str,
-        /// Ranks asked for.
-        ranks: usize,
-    },
-    /// The time step is not a positive finite number.
-    #[error("time step dt = {0} must be positive and finite (units of l / U)")]
-    InvalidTimeStep(f64),
-    /// The rods' diameter is not the one the mobility was built for.
-    #[error(
-        "the rods have diameter {rods} l but the {mobility_name} mobility was built for {mobility} l: build both from one diameter"
-    )]
-    DiameterMismatch {
-        /// The rods' diameter.
-        rods: f64,
-        /// The mobility's.
-        mobility: f64,
-        /// The mobility's name.
-        mobility_name: &'static str,
-    },
-}
 
 /// Advances a [`RodSet`]; owns the mobility, the contact solver and scratch memory only.
 #[derive(Debug)]
@@ -121,7 +38,7 @@ pub struct Stepper {
     contact_force: Vec<Vec3>,
     /// Multipliers of the last step by rod pair (caller's numbering, `i < j`), sorted: the warm
     /// start of the next solve, and part of the state a checkpoint must keep.
-    warm: crate::contact::WarmStart,
+    warm: crate::step::contact::WarmStart,
 }
 
 /// The local mobility without rotation: the projection moves rods by translation only.
@@ -142,7 +59,7 @@ impl Mobility for TranslationOnly<'_> {
         _rods: &RodSet,
         _p: &[Vec3],
         out: &mut RodVelocities,
-    ) -> Result<(), crate::mobility::MobilityError> {
+    ) -> Result<(), crate::hydro::mobility::MobilityError> {
         out.v.iter_mut().for_each(|v| *v = [0.0; 3]);
         out.w.iter_mut().for_each(|w| *w = [0.0; 3]);
         Ok(())
@@ -160,90 +77,6 @@ fn gather(order: &[u32], v: &[Vec3]) -> Vec<Vec3> {
 
 /// Rounds of position projection per step at most.
 const PROJECTIONS: usize = 5;
-
-/// Largest true overlap `b - dist` over the pairs of `cons` (internal indices mapped through
-/// `order` to `rods`, axes `p`), and its pair numbered by `gid` (ties: the smallest pair).
-fn true_overlap(
-    rods: &RodSet,
-    p: &[Vec3],
-    cons: &[Constraint],
-    order: &[u32],
-    gid: &(impl Fn(usize) -> u32 + Sync),
-) -> (f64, (u32, u32)) {
-    cons.par_iter()
-        .map(|c| {
-            let (i, j) = (order[c.i as usize] as usize, order[c.j as usize] as usize);
-            let d = min_image(sub(rods.x[j], rods.x[i]), rods.box_length);
-            let (_, _, dist) =
-                segment_distance(rods.x[i], p[i], axpy(rods.x[i], 1.0, d), p[j], ROD_LENGTH);
-            let (gi, gj) = (gid(i), gid(j));
-            (rods.diameter - dist, (gi.min(gj), gi.max(gj)))
-        })
-        .reduce(
-            || (0.0, (0, 0)),
-            |a, b| {
-                if b.0 > a.0 || (b.0 == a.0 && b.1 < a.1) {
-                    b
-                } else {
-                    a
-                }
-            },
-        )
-}
-
-/// The constraint between rods `i` and `j` of diameter `b` (centres `x`, axes `p`; `d`:
-/// minimum-image vector from `x_i` to `x_j`), if their centerlines are closer than
-/// `b + margin`.
-pub fn constraint(
-    x: &[Vec3],
-    p: &[Vec3],
-    i: u32,
-    j: u32,
-    d: Vec3,
-    diameter: f64,
-    margin: f64,
-) -> Option<Constraint> {
-    let (iu, ju) = (i as usize, j as usize);
-    let xj = axpy(x[iu], 1.0, d);
-    let (s, t, dist) = segment_distance(x[iu], p[iu], xj, p[ju], ROD_LENGTH);
-    let phi = dist - diameter;
-    if phi >= margin {
-        return None;
-    }
-    let ri = scale(s, p[iu]);
-    let rj = scale(t, p[ju]);
-    let sep = sub(axpy(x[iu], 1.0, ri), axpy(xj, 1.0, rj));
-    // Touching centerlines (dist = 0) have no direction: push along the centres' line.
-    let n = if dist > 1e-12 {
-        scale(1.0 / dist, sep)
-    } else {
-        scale(-1.0 / norm(d).max(1e-300), d)
-    };
-    Some(Constraint {
-        i,
-        j,
-        ri,
-        rj,
-        n,
-        phi,
-    })
-}
-
-/// Constraints for the given pairs (slow path for tests and small problems).
-pub fn constraints(
-    rods: &RodSet,
-    p: &[Vec3],
-    pairs: &[(u32, u32)],
-    margin: f64,
-) -> Vec<Constraint> {
-    pairs
-        .iter()
-        .filter_map(|&(i, j)| {
-            let d = min_image(sub(rods.x[j as usize], rods.x[i as usize]), rods.box_length);
-            constraint(&rods.x, p, i, j, d, rods.diameter, margin)
-        })
-        .collect()
-}
 
 impl Stepper {
     /// A stepper with the given mobility and contact settings.
@@ -264,7 +97,7 @@ impl Stepper {
     }
 
     /// Restore the multipliers a checkpoint saved (pairs sorted, as [`Self::warm_start`]).
-    pub fn set_warm_start(&mut self, warm: crate::contact::WarmStart) {
+    pub fn set_warm_start(&mut self, warm: crate::step::contact::WarmStart) {
         self.warm = warm;
     }
 
@@ -311,7 +144,7 @@ impl Stepper {
     }
 
     /// [`Self::step`] for one rank's part of a box shared by several (collective; see
-    /// [`crate::domain`]): `rods` are this rank's own rods followed by copies of other ranks'
+    /// [`crate::parallel::comm`]): `rods` are this rank's own rods followed by copies of other ranks'
     /// rods within reach of them, as `part.halo` says. Every own rod and every copy moves
     /// (the copies with their owners' velocities); the report is the whole box's. Velocities and
     /// contact forces ([`Self::velocities`], [`Self::contact_forces`]) are those of the local
@@ -405,7 +238,7 @@ impl Stepper {
         let fw = gather(order, &self.velocities.w);
         seconds[2] = t2.elapsed().as_secs_f64();
         let t3 = Instant::now();
-        let key = |c: &crate::contact::Constraint| {
+        let key = |c: &crate::step::contact::Constraint| {
             let (a, b) = (
                 gid(order[c.i as usize] as usize),
                 gid(order[c.j as usize] as usize),
@@ -496,8 +329,8 @@ impl Stepper {
             }
         }
         self.contact_force = ft.par_iter().map(|(f, _)| *f).collect();
-        let mut net_contact_force =
-            [0, 1, 2].map(|d| crate::contact::det_sum(owned, |r| self.contact_force[r][d]));
+        let mut net_contact_force = [0, 1, 2]
+            .map(|d| crate::parallel::reduce::det_sum(owned, |r| self.contact_force[r][d]));
         comm.sum(&mut net_contact_force);
         // The first rod with a non-finite velocity (by number over all ranks), then every rod
         // moved (in parallel: each rod's update is its own, so the result does not depend on
@@ -523,7 +356,7 @@ impl Stepper {
             .zip(rods.q.par_iter_mut())
             .zip(vel.par_iter().zip(ang.par_iter()))
             .for_each(|(((x, image), q), (v, w))| {
-                crate::rods::translate_wrapped(x, image, scale(dt, *v), l);
+                crate::model::rods::translate_wrapped(x, image, scale(dt, *v), l);
                 *q = quat_mul(quat_exp(scale(dt, *w)), *q);
             });
         seconds[4] = t4.elapsed().as_secs_f64();
@@ -599,10 +432,10 @@ impl Stepper {
         }
         let total = part.total.max(1) as f64;
         let mut sums = [
-            crate::contact::det_sum(owned, |r| norm(self.velocities.v[r])),
-            crate::contact::det_sum(owned, |r| p_new[r][0]),
-            crate::contact::det_sum(owned, |r| p_new[r][1]),
-            crate::contact::det_sum(owned, |r| p_new[r][2]),
+            crate::parallel::reduce::det_sum(owned, |r| norm(self.velocities.v[r])),
+            crate::parallel::reduce::det_sum(owned, |r| p_new[r][0]),
+            crate::parallel::reduce::det_sum(owned, |r| p_new[r][1]),
+            crate::parallel::reduce::det_sum(owned, |r| p_new[r][2]),
         ];
         comm.sum(&mut sums);
         let mean_speed = sums[0] / total;
@@ -688,20 +521,4 @@ fn unflatten(flat: &[[f64; 6]]) -> Vec<(Vec3, Vec3)> {
     flat.iter()
         .map(|x| ([x[0], x[1], x[2]], [x[3], x[4], x[5]]))
         .collect()
-}
-
-/// This rank's part of a box shared by several ranks (see [`crate::domain`]).
-#[derive(Clone, Copy, Debug)]
-pub struct Part<'a> {
-    /// The ranks.
-    pub comm: &'a dyn Comm,
-    /// Which local rods are this rank's and which are copies.
-    pub halo: &'a Halo,
-    /// Each local rod's number in the whole box (empty: the local numbering is the global one).
-    pub ids: &'a [u32],
-    /// Rods in the whole box.
-    pub total: usize,
-    /// How far beyond its slab a rank holds copies (zero for one process): the reach of the
-    /// shared sums' real-space pairs.
-    pub reach: f64,
 }

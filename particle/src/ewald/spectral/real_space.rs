@@ -1,0 +1,173 @@
+//! The real-space parts of the spectral Ewald sums (docs/MODEL.md §1, the Hasimoto split):
+//! every pair within the cutoff from the point cell list, with the error model's weighted
+//! strengths accumulated per target.
+
+use crate::ewald::kernels::{
+    RealSpaceTable, StressletTable, rpy_fourier_free_apply, rpy_overlap_correction,
+    stresslet_from_derivatives,
+};
+use crate::ewald::params::{ERROR_MODEL_RANGE, EwaldParams};
+use crate::ewald::periodic::RpyGeometry;
+use crate::ewald::point_cells::{Hits, PointCells};
+use crate::model::geometry::{Vec3, dot, min_image};
+use crate::model::units::VISCOSITY;
+use rayon::prelude::*;
+
+/// The real-space part of the RPY sum at every point of `cells` (forces `forces` in the points'
+/// order): every neighbour outside the own group plus the overlap correction, and the error
+/// model's weighted squared strengths, `[u_0, u_1, u_2, e2]` per point.
+pub(crate) fn rpy_real(
+    cells: &PointCells,
+    p: &EwaldParams,
+    a: f64,
+    l: f64,
+    forces: &[Vec3],
+) -> Vec<[f64; 4]> {
+    let xi = p.xi;
+    let table = RealSpaceTable::new(p.cutoff, xi, a);
+    let sorted_forces = cells.sorted_values(forces);
+    let sorted_f2: Vec<f64> = sorted_forces.par_iter().map(|f| dot(*f, *f)).collect();
+    let r0 = ERROR_MODEL_RANGE * p.spacing(l);
+    let r02 = r0 * r0;
+    // Distances first, in a loop of independent iterations (square roots and divisions
+    // overlap), then the table: `(A, B / r^2)` per hit.
+    let distances = |hits: &mut Hits| {
+        let n = hits.len;
+        hits.dist.resize(hits.x.len(), 0.0);
+        hits.inv.resize(hits.x.len(), 0.0);
+        for h in 0..n {
+            let r2 = hits.x[h] * hits.x[h] + hits.y[h] * hits.y[h] + hits.z[h] * hits.z[h];
+            let rn = r2.sqrt();
+            hits.dist[h] = rn;
+            hits.inv[h] = 1.0 / rn;
+        }
+    };
+    let kernel = |hits: &Hits, h: usize| {
+        let rn = hits.dist[h];
+        let (mut ar, mut br2) = table.eval_a_b_r2(rn, hits.inv[h]);
+        if rn < 2.0 * a {
+            let (ac, bc) = rpy_overlap_correction(rn, a);
+            ar += ac;
+            br2 += bc / (rn * rn);
+        }
+        let rn2 = rn * rn;
+        (ar, br2, r02 / (r02 + rn2))
+    };
+    // Per point: velocity and the weighted squared strengths of its neighbours.
+    if cells.n >= 5 {
+        // Both points of a pair get A f + (B / r^2)(r . f) r of the other's force.
+        let f = &sorted_forces;
+        cells.symmetric(
+            p.cutoff,
+            distances,
+            |hits, h, own: &mut [f64; 4], other: &mut [f64; 4]| {
+                let (ar, br2, w) = kernel(hits, h);
+                let r = [hits.x[h], hits.y[h], hits.z[h]];
+                let (j, t) = (hits.index[h] as usize, hits.target);
+                let (fj, ft) = (f[j], f[t]);
+                let (sj, st) = (br2 * dot(r, fj), br2 * dot(r, ft));
+                for d in 0..3 {
+                    own[d] += ar * fj[d] + sj * r[d];
+                    other[d] += ar * ft[d] + st * r[d];
+                }
+                own[3] += w * sorted_f2[j];
+                other[3] += w * sorted_f2[t];
+            },
+            |a, b| {
+                for d in 0..4 {
+                    a[d] += b[d];
+                }
+            },
+        )
+    } else {
+        cells.gather(p.cutoff, |acc: &mut [f64; 4], hits| {
+            distances(hits);
+            for h in 0..hits.len {
+                let (ar, br2, w) = kernel(hits, h);
+                let r = [hits.x[h], hits.y[h], hits.z[h]];
+                let j = hits.index[h] as usize;
+                let f = sorted_forces[j];
+                let s = br2 * dot(r, f);
+                for d in 0..3 {
+                    acc[d] += ar * f[d] + s * r[d];
+                }
+                acc[3] += w * sorted_f2[j];
+            }
+        })
+    }
+}
+
+/// The RPY velocities of the first `real.len()` points from their real-space parts `real`
+/// ([`rpy_real`]) and Fourier parts `fourier(t)`: the own group's direct Fourier-part terms come
+/// out (the point itself included), and the own group enters the error model with the same
+/// weights. Returns the velocities and the error model's weighted strengths.
+pub(crate) fn rpy_assemble(
+    real: Vec<[f64; 4]>,
+    fourier: impl Fn(usize) -> Vec3 + Sync,
+    (points, forces): (&[Vec3], &[Vec3]),
+    (p, geometry): (&EwaldParams, &RpyGeometry),
+) -> (Vec<Vec3>, Vec<f64>) {
+    let (l, a, g, xi) = (geometry.box_length, geometry.radius, geometry.group, p.xi);
+    let r0 = ERROR_MODEL_RANGE * p.spacing(l);
+    let r02 = r0 * r0;
+    real.into_par_iter()
+        .enumerate()
+        .map(|(t, acc)| {
+            let base = (t / g) * g;
+            let uf = fourier(t);
+            let mut ut = [acc[0] + uf[0], acc[1] + uf[1], acc[2] + uf[2]];
+            let mut e2 = acc[3];
+            for j in base..base + g {
+                let r = min_image(
+                    [
+                        points[t][0] - points[j][0],
+                        points[t][1] - points[j][1],
+                        points[t][2] - points[j][2],
+                    ],
+                    l,
+                );
+                let v = rpy_fourier_free_apply(r, forces[j], xi, a);
+                for d in 0..3 {
+                    ut[d] -= v[d];
+                }
+                e2 += r02 / (r02 + dot(r, r)) * dot(forces[j], forces[j]);
+            }
+            (ut.map(|c| c / VISCOSITY), e2)
+        })
+        .unzip()
+}
+
+/// Per point of `cells`: the real-space stresslet velocity, gradient, and the error model's
+/// weighted squared strengths of its neighbours (`p`, `sigma` in the points' order).
+pub(crate) fn stresslet_real(
+    cells: &PointCells,
+    prm: &EwaldParams,
+    l: f64,
+    p: &[Vec3],
+    sigma: &[f64],
+) -> Vec<(Vec3, [Vec3; 3], f64)> {
+    let (ps, ss) = (cells.sorted_values(p), cells.sorted_values(sigma));
+    let table = StressletTable::new(prm.cutoff, prm.xi);
+    let r0 = ERROR_MODEL_RANGE * prm.spacing(l);
+    let r02 = r0 * r0;
+    type Acc = (Vec3, [Vec3; 3], f64);
+    // The full stencil: a symmetric sum would share the table but not the contractions,
+    // which dominate here (measured: no faster).
+    cells.gather(prm.cutoff, |acc: &mut Acc, hits| {
+        for h in 0..hits.len {
+            let j = hits.index[h] as usize;
+            let r = [hits.x[h], hits.y[h], hits.z[h]];
+            let r2 = dot(r, r);
+            let rn = r2.sqrt();
+            let dv = table.eval(rn);
+            let (du, dg) = stresslet_from_derivatives(r, rn, ps[j], ss[j], &dv);
+            for i in 0..3 {
+                acc.0[i] += du[i];
+                for m in 0..3 {
+                    acc.1[i][m] += dg[i][m];
+                }
+            }
+            acc.2 += r02 / (r02 + r2) * ss[j] * ss[j];
+        }
+    })
+}

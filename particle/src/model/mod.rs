@@ -1,0 +1,8 @@
+//! What the particle model is made of (docs/MODEL.md §1): the rods' state, vectors and
+//! quaternions, units and fixed parameters, the hydrodynamic level, initial configurations.
+
+pub mod geometry;
+pub mod init;
+pub mod level;
+pub mod rods;
+pub mod units;
