@@ -25,9 +25,10 @@
 
 use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
 use motile_meanfield::gpu::{Backend, GpuMeanField};
-use motile_meanfield::solver::{
-    MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SpectralGrid,
-};
+use motile_meanfield::solver::grid::SpectralGrid;
+use motile_meanfield::solver::params::MeanFieldParams;
+use motile_meanfield::solver::rhs::MeanFieldRhs;
+use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
 use motile_particle::ewald::gpu::GpuFourier;
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::spectral::SpectralEwald;

@@ -17,9 +17,10 @@
 //! (tested elsewhere); only the time changes.
 
 use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
-use motile_meanfield::solver::{
-    MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SpectralGrid,
-};
+use motile_meanfield::solver::grid::SpectralGrid;
+use motile_meanfield::solver::params::MeanFieldParams;
+use motile_meanfield::solver::rhs::MeanFieldRhs;
+use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;

@@ -7,9 +7,10 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
-use motile_meanfield::solver::{
-    MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SYM, SpectralGrid,
-};
+use motile_meanfield::solver::grid::SpectralGrid;
+use motile_meanfield::solver::params::{MeanFieldParams, SYM};
+use motile_meanfield::solver::rhs::MeanFieldRhs;
+use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
 use std::f64::consts::PI;
 use std::time::Duration;
 

@@ -7,9 +7,11 @@
 
 use motile_analysis::fft3::RealFft3;
 use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
-use motile_meanfield::solver::{
-    ClosureField, MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SYM, SpectralGrid,
-};
+use motile_meanfield::solver::closure_field::ClosureField;
+use motile_meanfield::solver::grid::SpectralGrid;
+use motile_meanfield::solver::params::{MeanFieldParams, SYM};
+use motile_meanfield::solver::rhs::MeanFieldRhs;
+use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
 use num_complex::Complex64;
 use std::f64::consts::PI;
 use std::time::Instant;

@@ -4,7 +4,7 @@
 //! configuration drawn from `Psi(x, p) = (1 + (15/2) Q'(x) : pp) / 4 pi`, whose second moment is
 //! `I/3 + Q'`: the comparison of the two models from one initial condition, docs/MODEL.md §5).
 
-use crate::solver::SYM;
+use crate::solver::params::SYM;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;

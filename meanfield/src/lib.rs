@@ -21,8 +21,8 @@ pub mod prelude {
     pub use crate::closure::BinghamClosure;
     pub use crate::control::StepControl;
     pub use crate::initial::{Perturbation, PerturbationField, from_particles};
-    pub use crate::solver::{
-        MeanFieldError, MeanFieldParams, MeanFieldRhs, MeanFieldStepReport, MeanFieldStepper,
-        SBDF2, SpectralGrid,
-    };
+    pub use crate::solver::grid::SpectralGrid;
+    pub use crate::solver::params::{MeanFieldError, MeanFieldParams};
+    pub use crate::solver::rhs::MeanFieldRhs;
+    pub use crate::solver::stepper::{MeanFieldStepReport, MeanFieldStepper, SBDF2};
 }

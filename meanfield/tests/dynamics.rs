@@ -4,9 +4,10 @@
 //! to the fixed-point tolerance; second-order convergence of SBDF2 on a smooth nonlinear run.
 
 use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE, PAPER_DEGREE};
-use motile_meanfield::solver::{
-    MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF1, SBDF2, SYM, SpectralGrid,
-};
+use motile_meanfield::solver::grid::SpectralGrid;
+use motile_meanfield::solver::params::{MeanFieldParams, SYM};
+use motile_meanfield::solver::rhs::MeanFieldRhs;
+use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF1, SBDF2};
 use std::f64::consts::PI;
 use std::sync::OnceLock;
 

@@ -65,9 +65,10 @@ fn emulated_gpu_step_matches_the_cpu_step() {
 fn parity(n: usize, backend: motile_meanfield::gpu::Backend) {
     use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
     use motile_meanfield::gpu::{GpuError, GpuMeanField};
-    use motile_meanfield::solver::{
-        MeanFieldParams, MeanFieldRhs, MeanFieldStepper, SBDF2, SpectralGrid,
-    };
+    use motile_meanfield::solver::grid::SpectralGrid;
+    use motile_meanfield::solver::params::MeanFieldParams;
+    use motile_meanfield::solver::rhs::MeanFieldRhs;
+    use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
     use num_complex::Complex64;
 
     let grid = SpectralGrid::new(n);

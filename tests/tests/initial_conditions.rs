@@ -8,7 +8,7 @@ use motile_experiments::meanfield_run::particle_state;
 use motile_experiments::particle_run::{ParticleRunConfig, PerturbationConfig, initial_rods};
 use motile_experiments::snapshot::ParticleSnapshot;
 use motile_meanfield::initial::PerturbationField;
-use motile_meanfield::solver::SpectralGrid;
+use motile_meanfield::solver::grid::SpectralGrid;
 use std::f64::consts::PI;
 use std::path::Path;
 

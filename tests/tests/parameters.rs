@@ -3,7 +3,7 @@
 //! line reports under the config's key.
 
 use motile_meanfield::control::StepControl;
-use motile_meanfield::solver::MeanFieldParams;
+use motile_meanfield::solver::params::MeanFieldParams;
 use motile_particle::hydro::gmres::GmresParams;
 use motile_particle::hydro::slender::SlenderParams;
 use motile_particle::step::contact::ContactParams;

@@ -2,7 +2,7 @@
 //! [`RunFailure`] (what failed, when, where the last good state is) inside its `anyhow` chain,
 //! so callers such as the stability maps classify failures by variant, never by message text.
 
-use motile_meanfield::solver::MeanFieldError;
+use motile_meanfield::solver::params::MeanFieldError;
 use motile_particle::hydro::mobility::MobilityError;
 use motile_particle::step::report::StepError;
 

@@ -7,7 +7,8 @@
 #![allow(unsafe_code)]
 
 use super::GpuError;
-use crate::solver::{History, SpectralGrid};
+use crate::solver::grid::SpectralGrid;
+use crate::solver::stepper::History;
 use motile_gpu::{Arg, Buffer, Device, Direction, Fft3, THREADS};
 use num_complex::Complex64;
 

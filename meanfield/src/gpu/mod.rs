@@ -22,10 +22,9 @@
 mod launch;
 
 use crate::closure::BinghamClosure;
-use crate::solver::{
-    History, ImexScheme, MeanFieldError, MeanFieldParams, MeanFieldStepReport, RhsReport, SBDF1,
-    SpectralGrid,
-};
+use crate::solver::grid::SpectralGrid;
+use crate::solver::params::{MeanFieldError, MeanFieldParams, RhsReport};
+use crate::solver::stepper::{History, ImexScheme, MeanFieldStepReport, SBDF1};
 use motile_gpu::Device;
 pub use motile_gpu::DeviceInfo;
 use num_complex::Complex64;
@@ -109,7 +108,7 @@ impl std::fmt::Debug for GpuMeanField {
 }
 
 impl GpuMeanField {
-    /// Upload a state (the same as [`crate::solver::MeanFieldStepper::restore`] takes) to the
+    /// Upload a state (the same as [`crate::solver::stepper::MeanFieldStepper::restore`] takes) to the
     /// device `backend` names and prepare it: kernels, FFT plans, closure tables, wavenumbers,
     /// buffers. `scheme` as the CPU stepper's (the first step is SBDF1 whatever it is).
     #[allow(clippy::too_many_arguments)]
@@ -151,7 +150,7 @@ impl GpuMeanField {
     }
 
     /// The state, downloaded: `(t, Q coefficients, history, u coefficients)`, as
-    /// [`crate::solver::MeanFieldStepper::restore`] takes it (checkpoints, snapshots).
+    /// [`crate::solver::stepper::MeanFieldStepper::restore`] takes it (checkpoints, snapshots).
     pub fn state(&self) -> Result<StateDownload, GpuError> {
         let (q_hat, hist, u_hat) = self.bufs.download_state(&self.dev)?;
         let history = match (self.prev_dt, hist) {
@@ -165,7 +164,7 @@ impl GpuMeanField {
         Ok((self.t, q_hat, history, u_hat))
     }
 
-    /// Advance by `dt` as [`crate::solver::MeanFieldStepper::step`] does (SBDF1 for the first
+    /// Advance by `dt` as [`crate::solver::stepper::MeanFieldStepper::step`] does (SBDF1 for the first
     /// step, then variable-step SBDF2), with the entropy only if asked. Nothing is committed
     /// when the step fails: the fixed point iterates in a work buffer, and the state, the
     /// history and the warm-start velocity change only once the new Q is known to be finite.

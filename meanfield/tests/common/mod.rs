@@ -1,7 +1,7 @@
 //! Initial states shared by the mean-field integration tests.
 #![allow(dead_code)]
 
-use motile_meanfield::solver::SYM;
+use motile_meanfield::solver::params::SYM;
 use std::f64::consts::PI;
 
 /// `I/3` plus `f(x)` added to component `c`, on an `n^3` grid.

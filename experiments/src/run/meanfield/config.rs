@@ -4,7 +4,7 @@
 use crate::rundir::parse_run_config;
 use motile_meanfield::control::StepControl;
 use motile_meanfield::initial::Perturbation;
-use motile_meanfield::solver::MeanFieldParams;
+use motile_meanfield::solver::params::MeanFieldParams;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 

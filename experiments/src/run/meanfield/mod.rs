@@ -16,9 +16,11 @@ use crate::snapshot::FieldSnapshot;
 use crate::{checkpoint, run};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::control::StepControl;
-use motile_meanfield::solver::{
-    MeanFieldError, MeanFieldParams, MeanFieldRhs, MeanFieldStepReport, MeanFieldStepper, RhsEval,
-    SBDF2, SYM, SpectralGrid, TensorCoefficients,
+use motile_meanfield::solver::grid::SpectralGrid;
+use motile_meanfield::solver::params::{MeanFieldError, MeanFieldParams, SYM};
+use motile_meanfield::solver::rhs::{MeanFieldRhs, RhsEval};
+use motile_meanfield::solver::stepper::{
+    MeanFieldStepReport, MeanFieldStepper, SBDF2, TensorCoefficients,
 };
 use std::path::Path;
 use std::time::Instant;

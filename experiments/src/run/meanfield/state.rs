@@ -10,7 +10,8 @@ use anyhow::bail;
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::initial::PerturbationField;
-use motile_meanfield::solver::{History, MeanFieldStepper, SpectralGrid};
+use motile_meanfield::solver::grid::SpectralGrid;
+use motile_meanfield::solver::stepper::{History, MeanFieldStepper};
 use num_complex::Complex64;
 use std::path::{Path, PathBuf};
 
