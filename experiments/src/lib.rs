@@ -10,15 +10,11 @@
 //!   stability and onset maps, cost estimates.
 //!
 //! The modules are also reachable under their short names at the crate root
-//! (`motile_experiments::scene`, `::particle_run`, ...), the paths the CLI and tests use.
+//! (`motile_experiments::campaign::scene`, `::particle_run`, ...), the paths the CLI and tests use.
 #![warn(missing_docs)]
 
 pub mod campaign;
+pub mod cli;
 pub mod io;
 pub mod report;
 pub mod run;
-
-pub use campaign::{demo, estimate, onset, scene, stability, study};
-pub use io::{checkpoint, rundir, snapshot, vtk};
-pub use report::{accuracy, analyze, compare, plot};
-pub use run::{failure, meanfield as meanfield_run, particle as particle_run};

@@ -16,7 +16,7 @@ fn write_fixtures(dir: &Path) {
     w("outside.txt", "1 1 1 1 0 0\n4 4 40 0 0 1\n");
     w("garbage.h5", "this is not an HDF5 file\n");
     // A particle snapshot cut to half its length.
-    let snap = motile_experiments::snapshot::ParticleSnapshot {
+    let snap = motile_experiments::io::snapshot::ParticleSnapshot {
         time: 0.0,
         step: 0,
         box_length: 10.0,

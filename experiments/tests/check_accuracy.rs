@@ -4,9 +4,9 @@
 //! parameter), every output is within the run's tolerance, and the command refuses runs and
 //! snapshots it cannot audit with a message saying why.
 
-use motile_experiments::accuracy::{Audit, audit, render};
-use motile_experiments::particle_run::{ParticleRunConfig, run_particle};
-use motile_experiments::snapshot::{Snapshot, read_snapshot};
+use motile_experiments::io::snapshot::{Snapshot, read_snapshot};
+use motile_experiments::report::accuracy::{Audit, audit, render};
+use motile_experiments::run::particle::{ParticleRunConfig, run_particle};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::reference::EwaldReference;
 use motile_particle::ewald::spectral::SpectralEwald;

@@ -3,9 +3,9 @@
 //! checkpoints skipped for the previous one, divergence ending in a structured error with a
 //! usable checkpoint, and thread-count independence of both models.
 
-use motile_experiments::checkpoint::verify;
-use motile_experiments::rundir::TimeSeries;
-use motile_experiments::snapshot::read_snapshot;
+use motile_experiments::io::checkpoint::verify;
+use motile_experiments::io::rundir::TimeSeries;
+use motile_experiments::io::snapshot::read_snapshot;
 use rand::{RngExt, SeedableRng};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -15,7 +15,7 @@
 
 mod support;
 
-use motile_experiments::rundir::TimeSeries;
+use motile_experiments::io::rundir::TimeSeries;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use support::copy_dir;

@@ -69,8 +69,8 @@ mod with_mpi {
         }
         child.wait_with_output().unwrap()
     }
-    use motile_experiments::particle_run::ParticleCheckpoint;
-    use motile_experiments::snapshot::{Snapshot, read_snapshot};
+    use motile_experiments::io::snapshot::{Snapshot, read_snapshot};
+    use motile_experiments::run::particle::ParticleCheckpoint;
     use motile_particle::step::contact::ContactParams;
 
     /// Final rods, velocities and time-series rows of a finished run in `dir`.

@@ -4,8 +4,8 @@
 //! mean-field peak rate at the linear theory (M3), both saturated at the end, the same time window,
 //! the mean-field run's state at its t_end, and correlations sampled at >= 32 radii.
 
-use motile_experiments::demo::DemoSummary;
-use motile_experiments::scene::{load_scene, run_scene};
+use motile_experiments::campaign::demo::DemoSummary;
+use motile_experiments::campaign::scene::{load_scene, run_scene};
 
 #[test]
 fn the_demo_grows_and_saturates_in_both_models_over_the_same_window() {

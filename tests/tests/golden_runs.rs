@@ -15,11 +15,11 @@
 //! says so and skips instead of comparing bits. They do not depend on the thread count
 //! (checked at 1 and 2 threads).
 
-use motile_experiments::meanfield_run::{
+use motile_experiments::io::snapshot::{Snapshot, read_snapshot};
+use motile_experiments::run::meanfield::{
     parse_config as mf_config, resume_meanfield, run_meanfield,
 };
-use motile_experiments::particle_run::{parse_config as p_config, resume_particle, run_particle};
-use motile_experiments::snapshot::{Snapshot, read_snapshot};
+use motile_experiments::run::particle::{parse_config as p_config, resume_particle, run_particle};
 use std::path::{Path, PathBuf};
 
 /// `(file, FNV-1a 64)` of every file of the particle run, log excluded.

@@ -4,9 +4,9 @@
 //! bit-identical to the uninterrupted one; a GMRES that cannot converge stops the run with a
 //! message that says so and where the last good state is.
 
-use motile_experiments::particle_run::{ParticleRunConfig, resume_particle, run_particle};
-use motile_experiments::rundir::TimeSeries;
-use motile_experiments::snapshot::{Snapshot, read_snapshot};
+use motile_experiments::io::rundir::TimeSeries;
+use motile_experiments::io::snapshot::{Snapshot, read_snapshot};
+use motile_experiments::run::particle::{ParticleRunConfig, resume_particle, run_particle};
 use motile_particle::model::units::DEFAULT_DIAMETER;
 
 fn small(model: &str) -> ParticleRunConfig {
@@ -93,7 +93,7 @@ fn gmres_that_cannot_converge_stops_the_run_with_a_structured_error() {
 fn analyze_handles_a_hydrodynamic_run_whose_first_snapshot_has_no_flow() {
     // Regression: the initial snapshot has no force density (no solve yet), the later ones do;
     // `motile analyze` indexed fields by position and panicked.
-    use motile_experiments::analyze::{AnalyzeOptions, analyze_run};
+    use motile_experiments::report::analyze::{AnalyzeOptions, analyze_run};
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     run_particle(&small("sbt"), &out, false).unwrap();
@@ -125,8 +125,9 @@ fn analyze_handles_a_hydrodynamic_run_whose_first_snapshot_has_no_flow() {
 
 #[test]
 fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
-    use motile_experiments::compare::{compare, particle_to_meanfield};
-    use motile_experiments::meanfield_run::{MeanFieldRunConfig, run_meanfield};
+    use motile_experiments::report::compare::compare;
+    use motile_experiments::run::meanfield::{MeanFieldRunConfig, run_meanfield};
+    use motile_particle::model::units::particle_to_meanfield;
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("p");
     let m = dir.path().join("m");
@@ -255,8 +256,9 @@ fn compare_fits_the_mean_field_growth_rate_of_the_dominant_mode() {
     // A plane wave of Q_xy with wavevector m = (1, 0, 0) on the unit cube grows at
     // gamma = (1/5)/(1 + zeta/15) - D k^2, k = 2 pi |m| (docs/MODEL.md section 4), independent of
     // k apart from diffusion; ||u||_2 grows at the same rate.
-    use motile_experiments::compare::{compare, growth_fit};
-    use motile_experiments::meanfield_run::{MeanFieldRunConfig, run_meanfield};
+    use motile_experiments::report::compare::compare;
+    use motile_experiments::report::curves::growth_fit;
+    use motile_experiments::run::meanfield::{MeanFieldRunConfig, run_meanfield};
     let dir = tempfile::tempdir().unwrap();
     let m = dir.path().join("m");
     let cfg = MeanFieldRunConfig {

@@ -4,9 +4,9 @@
 //! (its second-moment density smoothed onto the grid) carries the particles' `Q` with the
 //! stated Gaussian damping. Checked mode by mode against the perturbation's own field.
 
-use motile_experiments::meanfield_run::particle_state;
-use motile_experiments::particle_run::{ParticleRunConfig, PerturbationConfig, initial_rods};
-use motile_experiments::snapshot::ParticleSnapshot;
+use motile_experiments::io::snapshot::ParticleSnapshot;
+use motile_experiments::run::meanfield::particle_state;
+use motile_experiments::run::particle::{ParticleRunConfig, PerturbationConfig, initial_rods};
 use motile_meanfield::initial::PerturbationField;
 use motile_meanfield::solver::grid::SpectralGrid;
 use std::f64::consts::PI;

@@ -2,8 +2,8 @@
 //! rate, the flow norm respects `||u||_2 <= sqrt(1/(24 pi^2))`, snapshots are analysed by
 //! `motile analyze`, the closure-table cache round-trips, and bad configs name the field.
 
-use motile_experiments::analyze::{AnalyzeOptions, analyze_run};
-use motile_experiments::meanfield_run::{MeanFieldRunConfig, parse_config, run_meanfield};
+use motile_experiments::report::analyze::{AnalyzeOptions, analyze_run};
+use motile_experiments::run::meanfield::{MeanFieldRunConfig, parse_config, run_meanfield};
 use std::f64::consts::PI;
 use std::path::Path;
 
@@ -73,15 +73,15 @@ fn a_short_run_writes_its_final_state() {
     let s = run_meanfield(&cfg, &out, false).unwrap();
     let t = s.timeseries.column("t [mu/|sigma_a|]").unwrap();
     assert_eq!(t, vec![0.0, 0.25, 0.5, 0.75, 1.0], "diagnostic times");
-    let snaps = motile_experiments::rundir::RunDir::open(&out)
+    let snaps = motile_experiments::io::rundir::RunDir::open(&out)
         .unwrap()
         .snapshots()
         .unwrap();
     let times: Vec<f64> = snaps.iter().map(|s| s.time()).collect();
     assert_eq!(times, vec![0.0, 0.5, 1.0], "snapshot times");
-    let ckpts = motile_experiments::rundir::checkpoint_paths(&out.join("checkpoints"));
+    let ckpts = motile_experiments::io::rundir::checkpoint_paths(&out.join("checkpoints"));
     let last = ckpts.last().expect("a checkpoint");
-    let t_ckpt = motile_experiments::checkpoint::H5Reader::open(last)
+    let t_ckpt = motile_experiments::io::checkpoint::H5Reader::open(last)
         .unwrap()
         .attr_f64("time")
         .unwrap();
@@ -101,18 +101,19 @@ fn a_short_run_writes_its_final_state() {
         close(&t, &[0.0, 0.25, 0.5, 0.75, 0.9]),
         "diagnostic times {t:?}"
     );
-    let snaps = motile_experiments::rundir::RunDir::open(&out)
+    let snaps = motile_experiments::io::rundir::RunDir::open(&out)
         .unwrap()
         .snapshots()
         .unwrap();
     let times: Vec<f64> = snaps.iter().map(|s| s.time()).collect();
     assert!(close(&times, &[0.0, 0.5, 0.9]), "snapshot times {times:?}");
     // Resuming the finished run writes nothing again.
-    motile_experiments::meanfield_run::resume_meanfield(&out, false).unwrap();
-    let again = motile_experiments::rundir::TimeSeries::read(&out.join("timeseries.csv")).unwrap();
+    motile_experiments::run::meanfield::resume_meanfield(&out, false).unwrap();
+    let again =
+        motile_experiments::io::rundir::TimeSeries::read(&out.join("timeseries.csv")).unwrap();
     assert_eq!(again.column("t [mu/|sigma_a|]").unwrap(), t);
     assert_eq!(
-        motile_experiments::rundir::RunDir::open(&out)
+        motile_experiments::io::rundir::RunDir::open(&out)
             .unwrap()
             .snapshots()
             .unwrap()
@@ -184,7 +185,7 @@ fn resume_from_a_checkpoint_is_bit_identical() {
     ckpts.sort();
     assert_eq!(ckpts.len(), 2, "{ckpts:?}");
     std::fs::remove_file(ckpts.last().unwrap()).unwrap();
-    let resumed = motile_experiments::meanfield_run::resume_meanfield(&b, false).unwrap();
+    let resumed = motile_experiments::run::meanfield::resume_meanfield(&b, false).unwrap();
     assert!(resumed.steps > 0);
     assert!(
         resumed.q_hat == full.q_hat,
@@ -249,7 +250,7 @@ fn a_failed_step_saves_the_state_before_it_and_resume_continues_from_there() {
         ),
     )
     .unwrap();
-    let resumed = motile_experiments::meanfield_run::resume_meanfield(&b, false).unwrap();
+    let resumed = motile_experiments::run::meanfield::resume_meanfield(&b, false).unwrap();
     assert!(
         resumed.q_hat == full.q_hat,
         "resumed state differs from the uninterrupted run"
@@ -274,8 +275,8 @@ fn a_run_starts_from_a_snapshot_on_the_same_or_another_grid() {
     let a = dir.path().join("a");
     run_meanfield(&first, &a, false).unwrap();
     let snap_path = a.join("snapshots").join("snap_000001.h5");
-    let snap = match motile_experiments::snapshot::read_snapshot(&snap_path).unwrap() {
-        motile_experiments::snapshot::Snapshot::Field(s) => s,
+    let snap = match motile_experiments::io::snapshot::read_snapshot(&snap_path).unwrap() {
+        motile_experiments::io::snapshot::Snapshot::Field(s) => s,
         _ => panic!("expected a field snapshot"),
     };
     assert!((snap.time - 1.0).abs() < 1e-12);
@@ -293,12 +294,12 @@ fn a_run_starts_from_a_snapshot_on_the_same_or_another_grid() {
         // Its first snapshot (t = 0) holds the loaded Q: equal on the same grid, and on the
         // finer grid equal at the points the two grids share (every third point of 12 is every
         // second of 8), since the state is band-limited below both Nyquist modes (2/3 rule).
-        let s0 = match motile_experiments::snapshot::read_snapshot(
+        let s0 = match motile_experiments::io::snapshot::read_snapshot(
             &out.join("snapshots").join("snap_000000.h5"),
         )
         .unwrap()
         {
-            motile_experiments::snapshot::Snapshot::Field(s) => s,
+            motile_experiments::io::snapshot::Snapshot::Field(s) => s,
             _ => panic!("expected a field snapshot"),
         };
         let mut err: f64 = 0.0;
@@ -409,7 +410,7 @@ fn a_plane_wave_that_drives_no_flow_does_not_stall_the_fixed_point() {
 fn the_random_initial_condition_is_the_same_function_on_every_grid() {
     // A resolution study must start every grid from the same Q: the grid-16 points are the
     // even points of the grid-32 one, and the values there must agree to round-off.
-    use motile_experiments::meanfield_run::{MeanFieldRunConfig, initial_state};
+    use motile_experiments::run::meanfield::{MeanFieldRunConfig, initial_state};
     let cfg = |grid| MeanFieldRunConfig {
         grid,
         mode_max: 2,

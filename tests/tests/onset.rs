@@ -2,7 +2,7 @@
 //! seeded perturbation, the chart and table written, and a second call reuses the finished runs
 //! (same settings) instead of running them again.
 
-use motile_experiments::onset::{OnsetOptions, onset};
+use motile_experiments::campaign::onset::{OnsetOptions, onset};
 use motile_particle::model::level::Hydrodynamics;
 
 #[test]

@@ -3,10 +3,10 @@
 //! files are well-formed XML; bad configs and bad initial files fail with messages that name
 //! the field or the file and the offending rods.
 
-use motile_experiments::particle_run::{
+use motile_experiments::io::snapshot::{Snapshot, read_snapshot};
+use motile_experiments::run::particle::{
     ParticleRunConfig, load_configuration, parse_config, resume_particle, run_particle,
 };
-use motile_experiments::snapshot::{Snapshot, read_snapshot};
 use motile_tests::{h5py_available, run_python};
 use std::path::Path;
 
@@ -111,7 +111,7 @@ fn resume_with_a_smaller_dt_continues_from_the_checkpoint_time() {
     let resumed = resume_particle(&a, false).unwrap();
     assert_eq!(resumed.steps, 200, "0.1 to 0.3 at dt = 0.001");
     assert_eq!(resumed.final_step, 300);
-    let ts = motile_experiments::rundir::TimeSeries::read(&a.join("timeseries.csv")).unwrap();
+    let ts = motile_experiments::io::rundir::TimeSeries::read(&a.join("timeseries.csv")).unwrap();
     let t = ts.column("t [1/beta]").unwrap();
     let gaps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     assert!(

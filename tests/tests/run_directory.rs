@@ -2,10 +2,10 @@
 //! analysed, and opened by h5py (files written by h5py are read by motile too). The analysis
 //! of a mean-field plane wave gives the exact norm `A / sqrt(2)`.
 
-use motile_experiments::analyze::{AnalyzeOptions, analyze, analyze_run};
-use motile_experiments::demo::{DemoConfig, write_demo_run};
-use motile_experiments::rundir::{RunDir, TimeSeries};
-use motile_experiments::snapshot::{FieldSnapshot, Snapshot, read_snapshot};
+use motile_experiments::campaign::demo::{DemoConfig, write_demo_run};
+use motile_experiments::io::rundir::{RunDir, TimeSeries};
+use motile_experiments::io::snapshot::{FieldSnapshot, Snapshot, read_snapshot};
+use motile_experiments::report::analyze::{AnalyzeOptions, analyze, analyze_run};
 use motile_tests::{h5py_available, run_python};
 use std::f64::consts::PI;
 

@@ -4,10 +4,10 @@
 //! failed step saved as the last good state with a typed failure, and resume after the cause
 //! is fixed.
 
-use motile_experiments::checkpoint;
-use motile_experiments::failure::{FailureKind, RunFailure};
+use motile_experiments::io::checkpoint;
+use motile_experiments::io::rundir::TimeSeries;
+use motile_experiments::run::failure::{FailureKind, RunFailure};
 use motile_experiments::run::{self, RunIo, RunModel, StepFailure};
-use motile_experiments::rundir::TimeSeries;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 

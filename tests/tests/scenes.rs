@@ -2,7 +2,8 @@
 //! shortened, runs end to end and writes the comparison figures; running it again skips what
 //! is done; a run directory with other settings is refused; bad scene files name the problem.
 
-use motile_experiments::scene::{BUILTIN, RunConfig, load_scene, parse_scene, run_scene};
+use motile_experiments::campaign::run_config::RunConfig;
+use motile_experiments::campaign::scene::{BUILTIN, load_scene, parse_scene, run_scene};
 
 #[test]
 fn every_builtin_scene_parses_and_states_its_level() {
@@ -148,7 +149,7 @@ fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
 
 #[test]
 fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
-    use motile_experiments::study::study;
+    use motile_experiments::campaign::study::study;
     let scene = parse_scene(
         r#"
 [scene]
@@ -214,7 +215,7 @@ hydrodynamics = "sbt"
 /// fraction), a small mean-field run at its own size, and counts the run's steps.
 #[test]
 fn cost_estimates_time_steps_at_a_proxy_size_and_count_the_run() {
-    use motile_experiments::estimate::{PROXY_RODS, estimate};
+    use motile_experiments::campaign::estimate::{PROXY_RODS, estimate};
     let text = r#"
 [scene]
 name = "est"

@@ -5,8 +5,8 @@
 //! known exactly: the shot-noise level of a random configuration and the ballistic mean squared
 //! displacement `(U t)^2`.
 
-use crate::rundir::RunDir;
-use crate::snapshot::{ParticleSnapshot, PointForces};
+use crate::io::rundir::RunDir;
+use crate::io::snapshot::{ParticleSnapshot, PointForces};
 use motile_analysis::quadrature::gauss_legendre;
 use motile_particle::model::init::isotropic_orientation;
 use rand::{RngExt, SeedableRng};
@@ -170,7 +170,7 @@ pub struct DemoSummary {
 impl DemoSummary {
     /// Read the summary of a finished demo scene in `out`.
     pub fn read(out: &Path) -> anyhow::Result<Self> {
-        use crate::compare::{growth_fit, norm_curve};
+        use crate::report::curves::{growth_fit, norm_curve};
         let p = norm_curve(&out.join("particle"))?;
         let m = norm_curve(&out.join("meanfield"))?;
         let last_fifth = |t: &[f64], u: &[f64]| {
@@ -182,9 +182,9 @@ impl DemoSummary {
         };
         let (ps, pg) = last_fifth(&p.t, &p.u);
         let (ms, mg) = last_fifth(&m.t, &m.u);
-        let cfg: crate::meanfield_run::MeanFieldRunConfig = crate::rundir::read_run_config(
+        let cfg: crate::run::meanfield::MeanFieldRunConfig = crate::io::rundir::read_run_config(
             &out.join("meanfield"),
-            crate::meanfield_run::MeanFieldRunConfig::validate,
+            crate::run::meanfield::MeanFieldRunConfig::validate,
         )?;
         let csv = std::fs::read_to_string(out.join("compare").join("velocity_correlation.csv"))?;
         // Rows `"label",r/L,value` (the label may hold commas): the fewest radii in (0, 1/2]
@@ -255,7 +255,7 @@ impl DemoSummary {
 /// The mean-field bound `||u||_2 <= sqrt(1/(24 pi^2))` (docs/MODEL.md §4), which holds once
 /// `tr Q = 1`, checked on the demo's mean-field run in `out/meanfield`.
 pub fn meanfield_bound_line(out: &Path) -> anyhow::Result<String> {
-    let ts = crate::rundir::TimeSeries::read(&out.join("meanfield").join("timeseries.csv"))?;
+    let ts = crate::io::rundir::TimeSeries::read(&out.join("meanfield").join("timeseries.csv"))?;
     let u = ts.column("u_l2 [L |sigma_a|/mu]").unwrap_or_default();
     let bound = (1.0 / (24.0 * std::f64::consts::PI.powi(2))).sqrt();
     let peak = u.iter().copied().fold(0.0, f64::max);
@@ -273,8 +273,8 @@ pub fn meanfield_bound_line(out: &Path) -> anyhow::Result<String> {
 pub fn free_swimmers(
     out: &Path,
     cfg: &DemoConfig,
-) -> anyhow::Result<(crate::rundir::TimeSeries, Vec<String>)> {
-    use crate::analyze::{AnalyzeOptions, analyze_run};
+) -> anyhow::Result<(crate::io::rundir::TimeSeries, Vec<String>)> {
+    use crate::report::analyze::{AnalyzeOptions, analyze_run};
     write_demo_run(out, cfg)?;
     let opts = AnalyzeOptions::default();
     let report = analyze_run(out, &opts)?;

@@ -5,9 +5,9 @@
 //! `N log N` (the fast sums, the FFTs and the contact solver's cell lists all scale so) and
 //! multiplied by the run's step count.
 
-use crate::meanfield_run::{self, MeanFieldRunConfig};
-use crate::particle_run::{self, ParticleRunConfig};
-use crate::scene::RunConfig;
+use crate::campaign::run_config::RunConfig;
+use crate::run::meanfield::{self, MeanFieldRunConfig};
+use crate::run::particle::{self, ParticleRunConfig};
 use anyhow::Context;
 use std::path::Path;
 use std::time::Instant;
@@ -153,7 +153,7 @@ fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<Co
     let run = |steps: f64| {
         let mut p = proxy.clone();
         p.t_end = steps * c.dt;
-        move |dir: &Path| particle_run::run_particle(&p, dir, false).map(|s| s.steps)
+        move |dir: &Path| particle::run_particle(&p, dir, false).map(|s| s.steps)
     };
     let measured = step_time(scratch, run)?;
     Ok(CostEstimate {
@@ -177,7 +177,7 @@ fn estimate_meanfield(c: &MeanFieldRunConfig, scratch: &Path) -> anyhow::Result<
     let run = |steps: f64| {
         let mut p = proxy.clone();
         p.t_end = steps * dt;
-        move |dir: &Path| meanfield_run::run_meanfield(&p, dir, false).map(|s| s.steps)
+        move |dir: &Path| meanfield::run_meanfield(&p, dir, false).map(|s| s.steps)
     };
     let measured = step_time(scratch, run)?;
     let (size, measured_size) = (c.grid.pow(3), proxy.grid.pow(3));

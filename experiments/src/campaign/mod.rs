@@ -4,6 +4,7 @@
 pub mod demo;
 pub mod estimate;
 pub mod onset;
+pub mod run_config;
 pub mod scene;
 pub mod stability;
 pub mod study;

@@ -5,11 +5,11 @@
 //! against `L nu` (growth rates scale with `nu`, the onset box with `1/nu`), beside the
 //! continuum's rate (M3) in the same units, which has no onset in `L`.
 
-use crate::compare::{MIN_GROWTH_FACTOR, MIN_R_SQUARED};
+use crate::io::rundir::TimeSeries;
 use crate::io::write_atomic;
-use crate::particle_run::{self, ParticleRunConfig, PerturbationConfig};
-use crate::plot::{Chart, Series, line_chart};
-use crate::rundir::TimeSeries;
+use crate::report::curves::{MIN_GROWTH_FACTOR, MIN_R_SQUARED};
+use crate::report::plot::{Chart, Series, line_chart};
+use crate::run::particle::{self, ParticleRunConfig, PerturbationConfig};
 use anyhow::Context;
 use motile_analysis::stats::{GrowthFit, growth_phase};
 use motile_particle::model::level::Hydrodynamics;
@@ -122,7 +122,7 @@ pub fn onset(
             let ts_path = dir.join("timeseries.csv");
             // A finished run with the same settings is reused (a scan can be extended or
             // re-charted without running its cells again); anything else is run afresh.
-            let finished = crate::rundir::read_run_config::<ParticleRunConfig>(
+            let finished = crate::io::rundir::read_run_config::<ParticleRunConfig>(
                 &dir,
                 ParticleRunConfig::validate,
             )
@@ -142,7 +142,7 @@ pub fn onset(
             } else {
                 crate::io::remove_old_run(&dir)?;
                 let t = std::time::Instant::now();
-                let summary = particle_run::run_particle(&cfg, &dir, false)
+                let summary = particle::run_particle(&cfg, &dir, false)
                     .with_context(|| format!("onset run nu = {nu}, L/l = {l}"))?;
                 let seconds = t.elapsed().as_secs_f64();
                 write_atomic(&seconds_file, format!("{seconds}\n").as_bytes())?;

@@ -21,13 +21,14 @@
 //! box_length = 8.0
 //! ```
 
-use crate::analyze::{AnalyzeOptions, analyze_run};
-use crate::compare::{self, CompareReport};
-use crate::estimate;
+use crate::campaign::estimate;
+use crate::campaign::run_config::RunConfig;
+use crate::io::rundir::{RunDir, read_run_config};
 use crate::io::write_atomic;
-use crate::meanfield_run::{self, MeanFieldRunConfig};
-use crate::particle_run::{self, ParticleRunConfig};
-use crate::rundir::{RunDir, read_run_config};
+use crate::report::analyze::{AnalyzeOptions, analyze_run};
+use crate::report::compare::{self, CompareReport};
+use crate::run::meanfield::{self, MeanFieldRunConfig};
+use crate::run::particle::{self, ParticleRunConfig};
 use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -73,7 +74,7 @@ pub struct SceneInfo {
     /// What it costs on the reference machine (2 cores).
     pub cost: String,
     /// Time a few steps of each run and print its estimated cost before it starts
-    /// ([`crate::estimate`]). Default false.
+    /// ([`crate::campaign::estimate`]). Default false.
     #[serde(default)]
     pub estimate: bool,
 }
@@ -89,45 +90,6 @@ pub struct SceneRun {
     /// The run's config (keys as in `motile particle run` / `motile meanfield run`).
     #[serde(default)]
     pub config: toml::Table,
-}
-
-/// A run config resolved from a scene.
-#[derive(Clone, Debug, PartialEq)]
-pub enum RunConfig {
-    /// A particle run.
-    Particle(ParticleRunConfig),
-    /// A mean-field run.
-    MeanField(MeanFieldRunConfig),
-}
-
-impl RunConfig {
-    /// Model name as in run directories.
-    pub fn model(&self) -> &'static str {
-        match self {
-            RunConfig::Particle(_) => "particle",
-            RunConfig::MeanField(_) => "meanfield",
-        }
-    }
-
-    /// One line describing the run's size.
-    pub fn describe(&self) -> String {
-        match self {
-            RunConfig::Particle(c) => format!(
-                "particle, {} rods, L/l = {}, nu = {}, {}, dt = {}, t_end = {}",
-                c.rods
-                    .unwrap_or((c.volume_fraction * c.box_length.powi(3)).round() as usize),
-                c.box_length,
-                c.volume_fraction,
-                c.hydrodynamics,
-                c.dt,
-                c.t_end
-            ),
-            RunConfig::MeanField(c) => format!(
-                "mean-field, {}^3, zeta = {}, D = {}, t_end = {}",
-                c.grid, c.zeta, c.diffusion, c.t_end
-            ),
-        }
-    }
 }
 
 /// A scene ready to run: its description and resolved runs.
@@ -167,8 +129,8 @@ pub fn parse_scene(text: &str, origin: &str) -> anyhow::Result<Scene> {
         let text = toml::to_string(&r.config)?;
         let label = PathBuf::from(where_.clone());
         let cfg = match r.model.as_str() {
-            "particle" => RunConfig::Particle(particle_run::parse_config(&text, &label)?),
-            "meanfield" => RunConfig::MeanField(meanfield_run::parse_config(&text, &label)?),
+            "particle" => RunConfig::Particle(particle::parse_config(&text, &label)?),
+            "meanfield" => RunConfig::MeanField(meanfield::parse_config(&text, &label)?),
             other => {
                 bail!("{where_}: model = \"{other}\" is not one of \"particle\", \"meanfield\"")
             }
@@ -296,14 +258,10 @@ pub fn run_scene(
         ));
         let t0 = std::time::Instant::now();
         let steps = match (cfg, resume) {
-            (RunConfig::Particle(c), false) => particle_run::run_particle(c, &dir, progress)?.steps,
-            (RunConfig::Particle(_), true) => particle_run::resume_particle(&dir, progress)?.steps,
-            (RunConfig::MeanField(c), false) => {
-                meanfield_run::run_meanfield(c, &dir, progress)?.steps
-            }
-            (RunConfig::MeanField(_), true) => {
-                meanfield_run::resume_meanfield(&dir, progress)?.steps
-            }
+            (RunConfig::Particle(c), false) => particle::run_particle(c, &dir, progress)?.steps,
+            (RunConfig::Particle(_), true) => particle::resume_particle(&dir, progress)?.steps,
+            (RunConfig::MeanField(c), false) => meanfield::run_meanfield(c, &dir, progress)?.steps,
+            (RunConfig::MeanField(_), true) => meanfield::resume_meanfield(&dir, progress)?.steps,
         };
         analyze_run(&dir, &AnalyzeOptions::default())
             .with_context(|| format!("analysing {}", dir.display()))?;

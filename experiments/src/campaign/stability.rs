@@ -4,12 +4,12 @@
 //! tolerance, contact solver or GMRES not converging, non-finite values; realizability lost,
 //! fixed point not converging), drawn as a map (PNG, SVG) with the CSV behind it.
 
-use crate::failure::{FailureKind, RunFailure};
+use crate::io::rundir::TimeSeries;
 use crate::io::write_atomic;
-use crate::meanfield_run::{self, MeanFieldRunConfig};
-use crate::particle_run::{self, ParticleRunConfig};
-use crate::plot::{OutcomeMap, outcome_map};
-use crate::rundir::TimeSeries;
+use crate::report::plot::{OutcomeMap, outcome_map};
+use crate::run::failure::{FailureKind, RunFailure};
+use crate::run::meanfield::{self, MeanFieldRunConfig};
+use crate::run::particle::{self, ParticleRunConfig};
 use anyhow::Context;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -224,7 +224,7 @@ pub fn particle_map(
             &format!("nu = {nu}, dt = {dt}"),
             (dt, nu, c.t_end),
             ("max_overlap", true),
-            |d| particle_run::run_particle(&c, d, false).map(|_| ()),
+            |d| particle::run_particle(&c, d, false).map(|_| ()),
             event,
         )?);
     }
@@ -270,7 +270,7 @@ pub fn meanfield_map(
         }
     }
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    meanfield_run::closure_tables(base.closure_degree)?;
+    meanfield::closure_tables(base.closure_degree)?;
     let mut cells = Vec::new();
     for (n, dt, c) in configs {
         let dir = out.join("runs").join(format!("meanfield_{n}_dt{dt}"));
@@ -279,7 +279,7 @@ pub fn meanfield_map(
             &format!("grid {n}^3, dt_max = {dt}"),
             (dt, n as f64, c.t_end),
             ("min_eigenvalue", false),
-            |d| meanfield_run::run_meanfield(&c, d, false).map(|_| ()),
+            |d| meanfield::run_meanfield(&c, d, false).map(|_| ()),
             event,
         )?);
     }

@@ -11,12 +11,13 @@
 //! the rods' end positions from the reference's, relative to the RMS distance travelled
 //! (swimming dominates it, so it is the weaker test of the flow).
 
+use crate::campaign::run_config::RunConfig;
+use crate::campaign::scene::Scene;
+use crate::io::rundir::TimeSeries;
 use crate::io::write_atomic;
-use crate::meanfield_run::{self, MeanFieldRunConfig};
-use crate::particle_run::{self, ParticleRunConfig};
-use crate::plot::{Series, log_chart};
-use crate::rundir::TimeSeries;
-use crate::scene::{RunConfig, Scene};
+use crate::report::plot::{Series, log_chart};
+use crate::run::meanfield::{self, MeanFieldRunConfig};
+use crate::run::particle::{self, ParticleRunConfig};
 use anyhow::{Context, bail};
 use motile_particle::model::geometry::{norm, sub};
 use std::fmt::Write as _;
@@ -191,13 +192,13 @@ pub fn study(
         crate::io::remove_old_run(&dir)?;
         // One-time costs stay out of the timing: closure tables are built (and cached) first.
         if let RunConfig::MeanField(c) = cfg {
-            meanfield_run::closure_tables(c.closure_degree)?;
+            meanfield::closure_tables(c.closure_degree)?;
         }
         let t0 = std::time::Instant::now();
         let outcome: Result<Outcome, anyhow::Error> = match cfg {
             RunConfig::Particle(c) => {
-                let x0 = particle_run::initial_rods(c)?.unwrapped();
-                particle_run::run_particle(c, &dir, false).and_then(|s| {
+                let x0 = particle::initial_rods(c)?.unwrapped();
+                particle::run_particle(c, &dir, false).and_then(|s| {
                     let ts = TimeSeries::read(&dir.join("timeseries.csv"))?;
                     Ok(Outcome {
                         t: ts.column("t [1/beta]").unwrap_or_default(),
@@ -206,15 +207,13 @@ pub fn study(
                     })
                 })
             }
-            RunConfig::MeanField(c) => {
-                meanfield_run::run_meanfield(c, &dir, false).map(|s| Outcome {
-                    t: s.timeseries.column("t [mu/|sigma_a|]").unwrap_or_default(),
-                    u: s.timeseries
-                        .column("u_l2 [L |sigma_a|/mu]")
-                        .unwrap_or_default(),
-                    x: None,
-                })
-            }
+            RunConfig::MeanField(c) => meanfield::run_meanfield(c, &dir, false).map(|s| Outcome {
+                t: s.timeseries.column("t [mu/|sigma_a|]").unwrap_or_default(),
+                u: s.timeseries
+                    .column("u_l2 [L |sigma_a|/mu]")
+                    .unwrap_or_default(),
+                x: None,
+            }),
         };
         let seconds = t0.elapsed().as_secs_f64();
         event(&format!(

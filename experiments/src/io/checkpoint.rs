@@ -6,8 +6,8 @@
 //! a flipped bit is skipped with a warning and the previous one used. The `.h5` files stay
 //! plain HDF5 for h5py.
 
+use crate::io::rundir::checkpoint_paths;
 use crate::io::{IoError, fs_err, write_atomic};
-use crate::rundir::checkpoint_paths;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -113,7 +113,7 @@ pub const LAST_GOOD: &str = "last_good.h5";
 /// edited since, e.g. a larger iteration cap), else the newest intact regular checkpoint.
 /// Skipped (damaged) checkpoints are printed as warnings and logged.
 pub fn load_for_resume<T>(
-    run: &crate::rundir::RunDir,
+    run: &crate::io::rundir::RunDir,
     read: impl FnMut(&Path) -> anyhow::Result<T>,
 ) -> anyhow::Result<(PathBuf, T)> {
     let stale = run.remove_stale_temporaries();

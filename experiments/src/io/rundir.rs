@@ -3,7 +3,7 @@
 //! ```text
 //! <run>/config.toml        the fully resolved config ([motile] version, model, seed + the model's own)
 //! <run>/timeseries.csv     one row per diagnostic time; header names carry units
-//! <run>/snapshots/snap_NNNNNN.h5   HDF5 snapshots (crate::snapshot)
+//! <run>/snapshots/snap_NNNNNN.h5   HDF5 snapshots (crate::io::snapshot)
 //! <run>/checkpoints/       restart files (written by the models' runners)
 //! <run>/run.log            what the run did, with wall-clock stamps
 //! <run>/analysis/          written by `motile analyze`
@@ -11,8 +11,8 @@
 //!
 //! Every file except the append-only log is written atomically ([`crate::io::write_atomic`]).
 
+use crate::io::snapshot::{Snapshot, read_snapshot};
 use crate::io::{IoError, fs_err, write_atomic};
-use crate::snapshot::{Snapshot, read_snapshot};
 use serde::Serialize;
 use std::fs;
 use std::io::Write;

@@ -9,9 +9,9 @@
 //! requested tolerance and the sum's own estimate, and of the rod motion the outputs produce
 //! (the flow part of (P2)-(P3) for `"sbt"`, Jeffery's rotation for `"dipole"`).
 
-use crate::particle_run::ParticleRunConfig;
-use crate::rundir::{RunDir, read_run_config};
-use crate::snapshot::{ParticleSnapshot, Snapshot, read_snapshot};
+use crate::io::rundir::{RunDir, read_run_config};
+use crate::io::snapshot::{ParticleSnapshot, Snapshot, read_snapshot};
+use crate::run::particle::ParticleRunConfig;
 use anyhow::{Context, bail};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry, SumReport};
 use motile_particle::ewald::reference::EwaldReference;

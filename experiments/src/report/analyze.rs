@@ -1,10 +1,10 @@
 //! `motile analyze`: correlation functions, norms and trajectory statistics of a run's
 //! snapshots (docs/MODEL.md §6), written to `<run>/analysis/`.
 
+use crate::io::rundir::{RunDir, TimeSeries};
+use crate::io::snapshot::{FieldSnapshot, ParticleSnapshot, PointForces, Snapshot};
 use crate::io::{IoError, write_atomic};
-use crate::plot::{Chart, Series, line_chart};
-use crate::rundir::{RunDir, TimeSeries};
-use crate::snapshot::{FieldSnapshot, ParticleSnapshot, PointForces, Snapshot};
+use crate::report::plot::{Chart, Series, line_chart};
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_analysis::correlation::{
     CorrelationOptions, OrderParameter, RadialCorrelation, Spectrum, grid_coefficients,

@@ -4,4 +4,5 @@
 pub mod accuracy;
 pub mod analyze;
 pub mod compare;
+pub mod curves;
 pub mod plot;

@@ -11,8 +11,8 @@
 //! the state before it with the model, which writes it as `checkpoints/last_good.h5`; the error
 //! is a [`RunFailure`] naming it. At the end `finish` writes the final outputs.
 //!
-//! Adapters: the particle model ([`crate::particle_run`]), the mean-field model
-//! ([`crate::meanfield_run`]); a test drives a third, free swimmers with an exact answer,
+//! Adapters: the particle model ([`crate::run::particle`]), the mean-field model
+//! ([`crate::run::meanfield`]); a test drives a third, free swimmers with an exact answer,
 //! through the same loop.
 
 pub mod failure;
@@ -57,9 +57,9 @@ impl std::fmt::Display for Device {
     }
 }
 
-use crate::checkpoint::{self, LAST_GOOD};
-use crate::failure::{FailureKind, RunFailure};
-use crate::rundir::{RunDir, TimeSeries, read_run_config};
+use crate::io::checkpoint::{self, LAST_GOOD};
+use crate::io::rundir::{RunDir, TimeSeries, read_run_config};
+use crate::run::failure::{FailureKind, RunFailure};
 use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::de::DeserializeOwned;

@@ -12,7 +12,7 @@
 //! launch under `mpirun` with more than one rank is refused rather than run P times into one
 //! directory. With one rank, or without `mpirun`, nothing here is used.
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use motile_particle::parallel::comm::Comm;
 use std::sync::OnceLock;
 
@@ -99,32 +99,6 @@ static TRAFFIC: [std::sync::atomic::AtomicU64; 2] = [
     std::sync::atomic::AtomicU64::new(0),
     std::sync::atomic::AtomicU64::new(0),
 ];
-
-/// A follower's life: wait for the leader's orders until it says stop.
-pub fn follow(comm: &'static dyn Comm) -> anyhow::Result<()> {
-    let mut model = None;
-    loop {
-        let m = broadcast(comm, None);
-        let order = *m.first().context("empty order from rank 0")? as u8;
-        match order {
-            o if o == Order::Stop as u8 => return Ok(()),
-            o if o == Order::Start as u8 => {
-                model = Some(crate::particle_run::Follower::start(comm, &m[1..])?);
-            }
-            o if o == Order::Step as u8 || o == Order::Gather as u8 => {
-                let Some(f) = model.as_mut() else {
-                    bail!("rank {}: order {order} before the start", comm.rank());
-                };
-                if o == Order::Step as u8 {
-                    f.step(m[1]);
-                } else {
-                    f.gather();
-                }
-            }
-            _ => bail!("rank {}: unknown order {order} from rank 0", comm.rank()),
-        }
-    }
-}
 
 /// Ranks under `mpirun` as the environment tells them (OpenMPI, MPICH, Slurm), if more than one.
 pub fn launched_ranks() -> Option<usize> {

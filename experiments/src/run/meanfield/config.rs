@@ -1,14 +1,13 @@
 //! The mean-field run's config (`config.toml`): every key with its default and allowed range,
 //! validated with messages that name the field.
 
-use crate::rundir::parse_run_config;
+use crate::io::rundir::parse_run_config;
+use crate::run::Device;
 use motile_meanfield::control::StepControl;
 use motile_meanfield::initial::Perturbation;
 use motile_meanfield::solver::params::MeanFieldParams;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
-
-pub use crate::run::Device;
 
 /// Configuration of a mean-field run (units: box side 1, time mu/|sigma_a|).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -173,7 +172,7 @@ impl MeanFieldRunConfig {
     /// Check every field; the message names the field, the value, the allowed range and the
     /// unit (time in mu/|sigma_a|, lengths in box sides).
     pub fn validate(&self) -> Result<(), String> {
-        let chk = crate::rundir::range;
+        let chk = crate::io::rundir::range;
         let time = "mu/|sigma_a|";
         if !(8..=256).contains(&self.grid) || self.grid % 2 == 1 {
             return Err(format!(

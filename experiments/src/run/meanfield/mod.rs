@@ -11,9 +11,11 @@ mod state;
 pub use config::*;
 pub use state::*;
 
-use crate::rundir::{RunDir, TimeSeries};
-use crate::snapshot::FieldSnapshot;
-use crate::{checkpoint, run};
+use crate::io::checkpoint;
+use crate::io::rundir::{RunDir, TimeSeries};
+use crate::io::snapshot::FieldSnapshot;
+use crate::run;
+use crate::run::Device;
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::control::StepControl;
 use motile_meanfield::solver::grid::SpectralGrid;
@@ -292,7 +294,7 @@ impl MeanFieldModel {
         self.failed(e.into(), &e.to_string(), dt)
     }
 
-    fn failed(&self, kind: crate::failure::FailureKind, e: &str, dt: f64) -> run::StepFailure {
+    fn failed(&self, kind: crate::run::failure::FailureKind, e: &str, dt: f64) -> run::StepFailure {
         let step = self.clock.steps + 1;
         let t = self.stepper.t();
         run::StepFailure::Step {
@@ -305,7 +307,11 @@ impl MeanFieldModel {
 
     /// A failure to read the state back from the device.
     fn device_failure(&self, e: anyhow::Error) -> run::StepFailure {
-        self.failed(crate::failure::FailureKind::Device, &format!("{e:#}"), 0.0)
+        self.failed(
+            crate::run::failure::FailureKind::Device,
+            &format!("{e:#}"),
+            0.0,
+        )
     }
 }
 
@@ -475,7 +481,7 @@ impl run::RunModel for MeanFieldModel {
                 }
                 Err(EngineError::Model(e)) => return Err(self.failure(&e, this_dt)),
                 Err(EngineError::Device(e)) => {
-                    return Err(self.failed(crate::failure::FailureKind::Device, &e, this_dt));
+                    return Err(self.failed(crate::run::failure::FailureKind::Device, &e, this_dt));
                 }
             }
         };
@@ -487,8 +493,8 @@ impl run::RunModel for MeanFieldModel {
                 .first()
                 .map(|p| p.display().to_string())
                 .unwrap_or_else(|| "none".into());
-            return Err(run::StepFailure::Stop(crate::failure::RunFailure {
-                kind: crate::failure::FailureKind::Realizability,
+            return Err(run::StepFailure::Stop(crate::run::failure::RunFailure {
+                kind: crate::run::failure::FailureKind::Realizability,
                 step: clock.steps,
                 t,
                 message: format!(

@@ -3,9 +3,8 @@
 //! driver's clock and the checkpoint codec.
 
 use super::config::MeanFieldRunConfig;
-use crate::checkpoint;
-use crate::io::write_atomic;
-use crate::snapshot::{Snapshot, read_snapshot};
+use crate::io::snapshot::{Snapshot, read_snapshot};
+use crate::io::{checkpoint, write_atomic};
 use anyhow::bail;
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_meanfield::closure::BinghamClosure;
@@ -72,7 +71,7 @@ pub fn snapshot_state(path: &Path, n: usize, smoothing: f64) -> anyhow::Result<[
 /// The second-moment field of a particle snapshot on the `n^3` grid, smoothed by a Gaussian of
 /// `smoothing` box sides ([`motile_meanfield::initial::from_particles`]); errors name the file.
 pub fn particle_state(
-    snap: &crate::snapshot::ParticleSnapshot,
+    snap: &crate::io::snapshot::ParticleSnapshot,
     n: usize,
     smoothing: f64,
     path: &Path,

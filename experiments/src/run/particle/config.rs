@@ -1,7 +1,7 @@
 //! The particle run's config (`config.toml`): every key with its default and allowed range,
 //! validated with messages that name the field; the mobility it selects.
 
-use crate::rundir::{parse_run_config, range};
+use crate::io::rundir::{parse_run_config, range};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::gmres::GmresParams;
@@ -376,7 +376,7 @@ pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig
 
 /// The mobility of one rank's part of a box shared by several: the dipole and slender-body
 /// levels' sums are the shared one ([`motile_particle::ewald::shared`]).
-pub(super) fn shared_mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
+pub(crate) fn shared_mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
     if cfg.device == crate::run::Device::Gpu {
         anyhow::bail!(
             "device = \"gpu\": the GPU sums run in one process, not shared among MPI ranks; run one process with the GPU, or the ranks with device = \"cpu\""

@@ -2,9 +2,8 @@
 //! a snapshot or a text table, checked for overlaps) and the checkpoint codec.
 
 use super::config::ParticleRunConfig;
-use crate::checkpoint;
-use crate::io::IoError;
-use crate::snapshot::{Snapshot, read_snapshot};
+use crate::io::snapshot::{Snapshot, read_snapshot};
+use crate::io::{IoError, checkpoint};
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_meanfield::initial::PerturbationField;

@@ -1,0 +1,119 @@
+//! `motile stability particle|meanfield|onset`.
+
+use crate::campaign::onset::{OnsetOptions, onset};
+use crate::campaign::stability::{meanfield_map, particle_map};
+use crate::run::meanfield::MeanFieldRunConfig;
+use crate::run::particle::ParticleRunConfig;
+use motile_particle::model::level::Hydrodynamics;
+use std::path::PathBuf;
+
+/// Arguments of `motile stability`.
+#[derive(clap::Args, Debug)]
+pub struct StabilityArgs {
+    /// "particle", "meanfield" or "onset".
+    pub model: String,
+    /// Time steps (particle dt, 1/beta; mean-field dt_max), comma-separated
+    /// [default: particle 0.005,0.01,0.02,0.04; mean-field 0.05,0.1,0.2,0.4,0.8].
+    #[arg(long, value_delimiter = ',')]
+    pub dts: Option<Vec<f64>>,
+    /// Particle: volume fractions [default: 0.625,2,5; onset: 3.75,5].
+    #[arg(long, value_delimiter = ',')]
+    pub fractions: Option<Vec<f64>>,
+    /// Mean-field: grids [default: 8,16,32].
+    #[arg(long, value_delimiter = ',')]
+    pub grids: Option<Vec<usize>>,
+    /// Particle: box side L/l [default: 6].
+    #[arg(long, default_value_t = 6.0)]
+    pub box_length: f64,
+    /// Onset: values of L nu, comma-separated [default: 30,45,60].
+    #[arg(long, value_delimiter = ',')]
+    pub box_nu: Option<Vec<f64>>,
+    /// Onset: amplitude of the seeded perturbation [default: 0.025].
+    #[arg(long)]
+    pub amplitude: Option<f64>,
+    /// Particle and onset: hydrodynamics [default: sbt].
+    #[arg(long, default_value = "sbt")]
+    pub hydrodynamics: Hydrodynamics,
+    /// Mean-field: diffusion D [default: 1e-4, the paper's].
+    #[arg(long, default_value_t = 1e-4)]
+    pub diffusion: f64,
+    /// Mean-field: CFL number [default: 2, the largest allowed, so dt_max is the step until
+    /// the flow is strong].
+    #[arg(long, default_value_t = 2.0)]
+    pub cfl: f64,
+    /// End time of each run [default: particle 2, mean-field 60]; onset: end time times nu [default: 40].
+    #[arg(long)]
+    pub t_end: Option<f64>,
+    /// Output directory.
+    #[arg(long, default_value = "runs/stability")]
+    pub out: PathBuf,
+}
+
+/// Map the model's failures (or the onset) and print the table.
+pub fn run(a: StabilityArgs) -> anyhow::Result<()> {
+    let mut event = |line: &str| println!("{line}");
+    let out = a.out;
+    if a.model == "onset" {
+        let d = OnsetOptions::default();
+        let opts = OnsetOptions {
+            fractions: a.fractions.unwrap_or(d.fractions.clone()),
+            box_nu: a.box_nu.unwrap_or(d.box_nu.clone()),
+            hydrodynamics: a.hydrodynamics,
+            dt: a.dts.and_then(|v| v.first().copied()).unwrap_or(d.dt),
+            t_end_nu: a.t_end.unwrap_or(d.t_end_nu),
+            amplitude: a.amplitude.unwrap_or(d.amplitude),
+            ..d
+        };
+        onset(&opts, &out, &mut event)?;
+        println!("{}", std::fs::read_to_string(out.join("onset.md"))?);
+        println!("wrote {}", out.join("onset.png").display());
+        return Ok(());
+    }
+    let md = match a.model.as_str() {
+        "particle" => {
+            let base = ParticleRunConfig {
+                box_length: a.box_length,
+                hydrodynamics: a.hydrodynamics,
+                t_end: a.t_end.unwrap_or(2.0),
+                diagnostic_interval: 0.05,
+                ..ParticleRunConfig::default()
+            };
+            particle_map(
+                &base,
+                &a.dts.unwrap_or(vec![0.005, 0.01, 0.02, 0.04]),
+                &a.fractions.unwrap_or(vec![0.625, 2.0, 5.0]),
+                &out,
+                &mut event,
+            )?
+            .1
+        }
+        "meanfield" => {
+            let base = MeanFieldRunConfig {
+                diffusion: a.diffusion,
+                cfl: a.cfl,
+                t_end: a.t_end.unwrap_or(60.0),
+                mode_max: 2,
+                step_retries: 0,
+                diagnostic_interval: 1.0,
+                ..Default::default()
+            };
+            meanfield_map(
+                &base,
+                &a.dts.unwrap_or(vec![0.05, 0.1, 0.2, 0.4, 0.8]),
+                &a.grids.unwrap_or(vec![8, 16, 32]),
+                &out,
+                &mut event,
+            )?
+            .1
+        }
+        other => anyhow::bail!(
+            "stability: model \"{other}\" is not one of \"particle\", \"meanfield\", \"onset\""
+        ),
+    };
+    println!("{md}");
+    println!(
+        "wrote {}",
+        out.join(format!("stability_{}.png", a.model)).display()
+    );
+    Ok(())
+}

@@ -1,0 +1,47 @@
+//! `motile study KNOB`.
+
+use crate::campaign::scene::load_scene;
+use crate::campaign::study::study;
+use std::path::PathBuf;
+
+/// Arguments of `motile study`.
+#[derive(clap::Args, Debug)]
+pub struct StudyArgs {
+    /// The knob.
+    pub knob: String,
+    /// Scene whose run is the base (its first run of the knob's model).
+    #[arg(long, default_value = "demo")]
+    pub scene: String,
+    /// Values to sweep, comma-separated [default: the knob's list].
+    #[arg(long, value_delimiter = ',')]
+    pub values: Option<Vec<String>>,
+    /// End time of each run [default: the scene run's].
+    #[arg(long)]
+    pub t_end: Option<f64>,
+    /// Stated accuracy (relative error) [default: 1e-2].
+    #[arg(long, default_value_t = 1e-2)]
+    pub accuracy: f64,
+    /// Output directory.
+    #[arg(long, default_value = "runs/study")]
+    pub out: PathBuf,
+}
+
+/// Run the study and print its table.
+pub fn run(a: StudyArgs) -> anyhow::Result<()> {
+    let s = load_scene(&a.scene)?;
+    let report = study(
+        &s,
+        &a.knob,
+        a.values,
+        a.t_end,
+        a.accuracy,
+        &a.out,
+        &mut |line| println!("{line}"),
+    )?;
+    println!("{}", report.markdown);
+    println!(
+        "wrote {}",
+        a.out.join(format!("study_{}.png", a.knob)).display()
+    );
+    Ok(())
+}

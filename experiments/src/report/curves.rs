@@ -1,0 +1,337 @@
+//! What `motile compare` reads from each run (docs/MODEL.md §5), in the mean-field unit system:
+//! the velocity norm against time and its growth phase, the time-averaged correlation functions,
+//! trajectory statistics and velocity slices. Particle time `t_mf = t_p nu / (8 eta mu)`,
+//! particle velocity (reported normalised by `beta L`) `u_mf = (u_p / (beta L)) 8 eta mu / nu`;
+//! mean-field runs are already in those units.
+
+use crate::io::rundir::{RunDir, TimeSeries, read_run_config};
+use crate::io::snapshot::Snapshot;
+use crate::report::analyze::{AnalyzeOptions, analyze};
+use crate::run::meanfield::MeanFieldRunConfig;
+use crate::run::particle::ParticleRunConfig;
+use anyhow::{Context, bail};
+use motile_analysis::correlation::velocity_spectrum;
+use motile_analysis::stats::{GrowthFit, correlation_length, growth_phase};
+use motile_particle::model::units::{DEFAULT_DIAMETER, VISCOSITY, continuum_growth_rate};
+use std::path::{Path, PathBuf};
+
+/// One run's velocity norm in mean-field units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormCurve {
+    /// Legend label (model, size, level).
+    pub label: String,
+    /// The run directory.
+    pub run: PathBuf,
+    /// Times, `mu/|sigma_a|`.
+    pub t: Vec<f64>,
+    /// `||u||_2`, `L |sigma_a| / mu`.
+    pub u: Vec<f64>,
+    /// The run's last time in its own unit (1/beta or mu/|sigma_a|).
+    pub t_end_own: f64,
+    /// The continuum's linear growth rate for this run, mean-field units (docs/MODEL.md (M3)):
+    /// `(1/5)/(1 + zeta/15) - D k^2` with the run's `zeta` and, for a mean-field run, its `D`
+    /// and smallest perturbed wavenumber; particles have no `D`.
+    pub theory_rate: f64,
+}
+
+use motile_particle::model::units::particle_to_meanfield;
+
+fn column(ts: &TimeSeries, prefix: &str, path: &Path) -> anyhow::Result<Vec<f64>> {
+    let c = ts
+        .columns
+        .iter()
+        .position(|c| c.starts_with(prefix))
+        .with_context(|| format!("{}: no column `{prefix}`", path.display()))?;
+    Ok(ts.rows.iter().map(|r| r[c]).collect())
+}
+
+/// Read one run's velocity norm, converted to mean-field units.
+pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
+    let dir = RunDir::open(run)?;
+    let model = dir.header()?.model;
+    let ts_path = run.join("timeseries.csv");
+    let ts = TimeSeries::read(&ts_path)?;
+    match model.as_str() {
+        "particle" => {
+            let cfg: ParticleRunConfig = read_run_config(run, ParticleRunConfig::validate)?;
+            if !cfg.hydrodynamics.has_flow() {
+                bail!(
+                    "{}: a particle run without hydrodynamics has no flow to compare (hydrodynamics = \"none\")",
+                    run.display()
+                );
+            }
+            let l = cfg.box_length;
+            let n = cfg
+                .rods
+                .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
+            let nu = n as f64 / (l * l * l);
+            let t = column(&ts, "t [", &ts_path)?;
+            // The box-scale modes (every |m_i| <= 1) where the instability begins and where the
+            // continuum's grid and the rods' sampling noise do not differ; runs written before
+            // that column existed fall back to all analysis modes.
+            let box_scale = ts
+                .columns
+                .iter()
+                .any(|c| c.starts_with("velocity_norm_box"));
+            let u = if box_scale {
+                column(&ts, "velocity_norm_box", &ts_path)?
+            } else {
+                column(&ts, "velocity_norm", &ts_path)?
+            };
+            let t_end_own = t.last().copied().unwrap_or(0.0);
+            let (t, u) = t
+                .iter()
+                .zip(&u)
+                .map(|(t, u)| particle_to_meanfield(*t, *u, nu, cfg.diameter))
+                .unzip();
+            let zeta = motile_particle::model::units::zeta(nu, cfg.diameter);
+            Ok(NormCurve {
+                label: format!(
+                    "particle L/l = {l}, nu = {nu:.3} ({}{})",
+                    cfg.hydrodynamics,
+                    if box_scale { ", box-scale modes" } else { "" }
+                ),
+                run: run.into(),
+                t,
+                u,
+                t_end_own,
+                theory_rate: continuum_growth_rate(zeta),
+            })
+        }
+        "meanfield" => {
+            let cfg: MeanFieldRunConfig = read_run_config(run, MeanFieldRunConfig::validate)?;
+            let t = column(&ts, "t [", &ts_path)?;
+            let m = if cfg.initial == "plane_wave" {
+                cfg.wavevector
+                    .iter()
+                    .map(|v| (v * v) as f64)
+                    .sum::<f64>()
+                    .sqrt()
+            } else {
+                cfg.mode_min as f64
+            };
+            let k = 2.0 * std::f64::consts::PI * m;
+            Ok(NormCurve {
+                label: format!(
+                    "mean field {}^3, zeta = {}, D = {}",
+                    cfg.grid, cfg.zeta, cfg.diffusion
+                ),
+                run: run.into(),
+                t_end_own: t.last().copied().unwrap_or(0.0),
+                t,
+                u: column(&ts, "u_l2", &ts_path)?,
+                theory_rate: continuum_growth_rate(cfg.zeta) - cfg.diffusion * k * k,
+            })
+        }
+        other => bail!("{}: cannot compare a run of kind `{other}`", run.display()),
+    }
+}
+
+/// Mean squared displacement and orientation autocorrelation of a particle run against time
+/// (particle units: the rods' own clock is the natural one for trajectories).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrajectoryCurve {
+    /// Legend label.
+    pub label: String,
+    /// Snapshot times, 1/beta.
+    pub t: Vec<f64>,
+    /// `<|x(t) - x(0)|^2>`, l^2.
+    pub msd: Vec<f64>,
+    /// `<p(t) . p(0)>`.
+    pub orientation: Vec<f64>,
+}
+
+/// A run's time-averaged velocity autocorrelation in mean-field units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CorrCurve {
+    /// Legend label, with the averaging window.
+    pub label: String,
+    /// `r / L`.
+    pub r: Vec<f64>,
+    /// `Corr[u](r)`, `(L |sigma_a| / mu)^2`.
+    pub value: Vec<f64>,
+}
+
+/// What the in-memory analysis of one run gives the comparison.
+pub(crate) struct RunAnalysis {
+    /// `Corr[u](r)` averaged over the snapshots with `t >= t_start`, mean-field units; `None`
+    /// if the snapshots carry no flow.
+    pub(crate) corr_u: Option<CorrCurve>,
+    /// The velocity slice of the last snapshot (see [`velocity_slice`]).
+    pub(crate) slice: Option<(usize, Vec<f64>, f64)>,
+    pub(crate) traj: Option<TrajectoryCurve>,
+    /// `Corr[c], Corr[n], Corr[Q]` normalised by their value at 0, against `r / L`.
+    pub(crate) order: Vec<(String, Vec<(f64, f64)>)>,
+    /// Particle runs: `(L/l, nu)`.
+    pub(crate) particle: Option<(f64, f64)>,
+    /// Correlation lengths (first zero of each time-averaged correlation), `r / L`, by field.
+    pub(crate) lengths: Vec<(String, f64)>,
+    /// Fields whose L2 norm is at most [`ZERO_FIELD_NORM`] (identically zero by construction).
+    pub(crate) zero_fields: Vec<String>,
+}
+
+/// One run's snapshots, read once: its Corr[u], order-parameter correlations, velocity slice
+/// and, for particle runs, trajectory statistics.
+pub(crate) fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis> {
+    let dir = RunDir::open(run)?;
+    let snaps = dir.snapshots()?;
+    // Concentrated particle runs keep their structure at the rod scale: resolve r ~ l/2 there
+    // (2 L/l modes, at most 64) instead of the default L/(2l).
+    let pcfg: Option<ParticleRunConfig> = if dir.header()?.model == "particle" {
+        Some(read_run_config(run, ParticleRunConfig::validate)?)
+    } else {
+        None
+    };
+    let modes = pcfg
+        .as_ref()
+        .filter(|c| c.volume_fraction > 1.0)
+        .map(|c| ((2.0 * c.box_length).ceil() as usize).clamp(4, 64));
+    let opts = AnalyzeOptions {
+        t_start,
+        modes,
+        ..AnalyzeOptions::default()
+    };
+    let report = analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
+    let slice = match snaps.last() {
+        Some(last) => velocity_slice(last, pcfg.as_ref().map_or(DEFAULT_DIAMETER, |c| c.diameter))
+            .map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?,
+        None => None,
+    };
+    let traj = (report.kind == "particle").then(|| TrajectoryCurve {
+        label: label.into(),
+        t: report.snapshots.iter().map(|s| s.time).collect(),
+        msd: report
+            .snapshots
+            .iter()
+            .map(|s| s.msd.unwrap_or(f64::NAN))
+            .collect(),
+        orientation: report
+            .snapshots
+            .iter()
+            .map(|s| s.orientation.unwrap_or(f64::NAN))
+            .collect(),
+    });
+    let unit = if pcfg.is_some() {
+        "1/beta"
+    } else {
+        "mu/|sigma_a|"
+    };
+    let mut particle = None;
+    let (r_scale, v_scale) = if let Some(cfg) = &pcfg {
+        let l = cfg.box_length;
+        let n = cfg
+            .rods
+            .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
+        let nu = n as f64 / (l * l * l);
+        particle = Some((l, nu));
+        let s = motile_particle::model::units::meanfield_time_unit(nu, cfg.diameter);
+        (1.0 / l, s * s)
+    } else {
+        (1.0, 1.0)
+    };
+    // Fields identically zero by construction (the mean-field c = tr Q - 1 while tr Q = 1) have
+    // no correlation to normalise: left out of the charts and named in the table instead.
+    let zero_fields: Vec<String> = report
+        .mean
+        .iter()
+        .filter(|(_, c)| c.at_zero().abs().sqrt() <= ZERO_FIELD_NORM)
+        .map(|(n, _)| n.clone())
+        .collect();
+    let lengths = report
+        .mean
+        .iter()
+        .filter(|(n, _)| !zero_fields.contains(n))
+        .map(|(n, c)| {
+            (
+                n.clone(),
+                correlation_length(&c.r, &c.value).map_or(f64::NAN, |z| z * r_scale),
+            )
+        })
+        .collect();
+    let order = report
+        .mean
+        .iter()
+        .filter(|(n, c)| n != "u" && c.at_zero() > 0.0 && !zero_fields.contains(n))
+        .map(|(n, c)| {
+            let c0 = c.at_zero();
+            (
+                n.clone(),
+                c.r.iter()
+                    .zip(&c.value)
+                    .map(|(r, v)| (r * r_scale, v / c0))
+                    .collect(),
+            )
+        })
+        .collect();
+    let corr_u = report
+        .mean
+        .iter()
+        .find(|(n, _)| n == "u")
+        .map(|(_, c)| CorrCurve {
+            label: format!(
+                "{label}, {} snapshot(s) from t = {t_start:.3} [{unit}]",
+                report.window_count
+            ),
+            r: c.r.iter().map(|r| r * r_scale).collect(),
+            value: c.value.iter().map(|v| v * v_scale).collect(),
+        });
+    Ok(RunAnalysis {
+        corr_u,
+        slice,
+        traj,
+        order,
+        particle,
+        lengths,
+        zero_fields,
+    })
+}
+
+/// The velocity magnitude on the plane z = 0 of a snapshot, in mean-field units:
+/// `(n, values)` with `values[y n + x]`. Particle runs: the velocity field of the snapshot's
+/// force density on `min(2 L/l, 64)` modes per side (docs/MODEL.md §6, doublet neglected); mean-field
+/// runs: the snapshot's grid. `None` if the snapshot has no flow.
+/// `diameter`: the particle run's rod diameter, which sets the time unit of the conversion.
+pub fn velocity_slice(
+    snap: &Snapshot,
+    diameter: f64,
+) -> Result<Option<(usize, Vec<f64>, f64)>, motile_analysis::nufft::NufftError> {
+    let (n, grid, time): (usize, [Vec<f64>; 3], f64) = match snap {
+        Snapshot::Particle(p) => {
+            let Some(f) = &p.forces else {
+                return Ok(None);
+            };
+            let l = p.box_length;
+            let nu = p.positions.len() as f64 / (l * l * l);
+            let modes = ((2.0 * l) as usize).clamp(8, 64) & !1;
+            let spec = velocity_spectrum(&f.points, &f.forces, l, VISCOSITY, modes, 1e-6)?;
+            // u / (beta L) to mean-field units.
+            let s = motile_particle::model::units::meanfield_time_unit(nu, diameter) / l;
+            let g = [0, 1, 2].map(|c| spec.to_grid(c).into_iter().map(|v| v * s).collect());
+            (modes, g, particle_to_meanfield(p.time, 0.0, nu, diameter).0)
+        }
+        Snapshot::Field(f) => (f.grid, f.u.clone(), f.time),
+    };
+    let slice = (0..n * n)
+        .map(|k| (0..3).map(|c| grid[c][k].powi(2)).sum::<f64>().sqrt())
+        .collect();
+    Ok(Some((n, slice, time)))
+}
+
+/// A field whose time-averaged `||Phi||_2` is at most this is identically zero (round-off), not
+/// physics: the mean-field `c = tr Q - 1` with `tr Q = 1` conserved.
+pub const ZERO_FIELD_NORM: f64 = 1e-10;
+
+/// Smallest growth and fit quality that make a growth phase (docs/MODEL.md §6).
+pub const MIN_GROWTH_FACTOR: f64 = 3.0;
+/// See [`MIN_GROWTH_FACTOR`].
+pub const MIN_R_SQUARED: f64 = 0.9;
+
+/// The growth rate of `||u||_2` in a run's growth phase ([`growth_phase`]: from its first
+/// sample to where the local growth rate falls below 40% of its largest value, before nonlinear
+/// saturation, or to the end if it never does). The flag says whether that is a growth phase: the norm grew by at least [`MIN_GROWTH_FACTOR`]
+/// with `R^2` at least [`MIN_R_SQUARED`]. Without one (a particle run at its noise level, a
+/// decay) the fit is over the whole run and only its growth factor and `R^2` are reported, not
+/// its rate. `None` with fewer than 3 samples.
+pub fn growth_fit(c: &NormCurve) -> Option<(GrowthFit, bool)> {
+    growth_phase(&c.t, &c.u, MIN_GROWTH_FACTOR, MIN_R_SQUARED)
+}
