@@ -7,6 +7,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 rm -rf device-bin
 mkdir -p device-bin
+# The gpu build replaces target/release/motile: the default build is put back at the end.
+if [ -f target/release/motile ]; then
+  cp target/release/motile target/release/.motile-default
+  trap 'cp target/release/.motile-default target/release/motile' EXIT
+fi
 cargo build --release -p motile-experiments --features gpu --bin motile --example gpu_bench \
   --example scaling
 cp target/release/motile target/release/examples/gpu_bench target/release/examples/scaling \

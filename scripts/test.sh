@@ -18,6 +18,11 @@ if ! command -v c++ >/dev/null 2>&1 && ! command -v g++ >/dev/null 2>&1 \
 fi
 export MOTILE_REQUIRE_CXX=1
 cargo test --release --workspace
+# The feature builds below replace target/release/motile (the MPI build would then need
+# libmpi to start): the default build, which the README's first command uses, is put back
+# however this script ends.
+cp target/release/motile target/release/.motile-default
+trap 'cp target/release/.motile-default target/release/motile' EXIT
 # The optional GPU back-end builds everywhere (CUDA is loaded at run time); its parity tests run
 # where a GPU is present and say why they were skipped elsewhere (MOTILE_REQUIRE_GPU=1 makes a
 # missing GPU a failure). All GPU kernels also run here through the host emulation: against

@@ -23,8 +23,9 @@
 //! particle sums' Fourier part only: their real space, the contacts and everything else stay
 //! on the CPU threads, so the particle rows measure that split.
 
+use motile_gpu::Backend;
 use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
-use motile_meanfield::gpu::{Backend, GpuMeanField};
+use motile_meanfield::gpu::GpuMeanField;
 use motile_meanfield::solver::grid::SpectralGrid;
 use motile_meanfield::solver::params::MeanFieldParams;
 use motile_meanfield::solver::rhs::MeanFieldRhs;
@@ -91,19 +92,22 @@ struct Bench {
 }
 
 impl Bench {
-    fn fourier(&self) -> GpuFourier {
+    fn backend(&self) -> Backend {
         if self.emulate {
-            GpuFourier::host_emulation().expect("host emulation")
+            Backend::HostEmulation
         } else {
-            GpuFourier::cuda().expect("CUDA device")
+            Backend::Cuda
         }
+    }
+
+    fn fourier(&self) -> GpuFourier {
+        GpuFourier::open(self.backend()).expect("the device")
     }
 
     fn gpu_bytes(&self) -> Option<usize> {
         self.probe.memory().ok().flatten().map(|(used, _)| used)
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn push(
         &mut self,
         case: &str,
@@ -148,23 +152,6 @@ impl Bench {
         let params = MeanFieldParams::default();
         let q = meanfield_state(n);
         let mut cpu = MeanFieldStepper::new(&grid, &q, SBDF2);
-        let backend = if self.emulate {
-            Backend::HostEmulation
-        } else {
-            Backend::Cuda
-        };
-        let mut gpu = GpuMeanField::open(
-            backend,
-            &grid,
-            closure,
-            &params,
-            SBDF2,
-            cpu.t,
-            &cpu.q_hat,
-            cpu.history(),
-            &cpu.u_hat,
-        )
-        .expect("the GPU stepper");
         let reps = if n >= 256 { 1 } else { self.reps };
         let rhs = MeanFieldRhs {
             grid: &grid,
@@ -172,6 +159,7 @@ impl Bench {
             params: &params,
             with_entropy: false,
         };
+        let mut gpu = GpuMeanField::open(self.backend(), &rhs, &cpu).expect("the GPU stepper");
         let dt = 0.01;
         let tg = time(reps, || {
             gpu.step(dt, false).expect("GPU step");
@@ -313,11 +301,11 @@ fn main() {
     let small = std::env::args().any(|a| a == "--small");
     let cases = arg("--cases").unwrap_or_else(|| "mf,sum,dipole,sbt".into());
     let reps: usize = arg("--reps").map_or(3, |r| r.parse().expect("--reps"));
-    let probe = if emulate {
-        GpuFourier::host_emulation()
+    let probe = GpuFourier::open(if emulate {
+        Backend::HostEmulation
     } else {
-        GpuFourier::cuda()
-    };
+        Backend::Cuda
+    });
     let probe = match probe {
         Ok(p) => p,
         Err(e) => {

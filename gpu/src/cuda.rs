@@ -1,8 +1,9 @@
 //! The CUDA device: cudarc over the driver, NVRTC and cuFFT, each loaded at run time.
 #![allow(unsafe_code)]
 
-use crate::launch::THREADS;
-use crate::{Arg, Data, DeviceInfo, GpuError};
+use crate::buffer::{Data, Element};
+use crate::error::{DeviceInfo, GpuError};
+use crate::kernel::{Arg, THREADS};
 use cudarc::cufft::{CudaFft, sys::cufftType, sys::double2};
 use cudarc::driver::{
     CudaContext, CudaFunction, CudaSlice, CudaStream, LaunchConfig, PushKernelArg,
@@ -132,40 +133,44 @@ impl Cuda {
         Ok((total - free, total))
     }
 
-    pub(crate) fn upload(&self, data: &[f64]) -> Result<CudaSlice<f64>, GpuError> {
+    pub(crate) fn upload<T: Element>(&self, data: &[T]) -> Result<CudaSlice<T>, GpuError> {
         if data.is_empty() {
             return self.zeros(0);
         }
         self.stream.clone_htod(data).map_err(driver)
     }
 
-    pub(crate) fn upload_into(&self, data: &[f64], s: &mut CudaSlice<f64>) -> Result<(), GpuError> {
+    pub(crate) fn upload_into<T: Element>(
+        &self,
+        data: &[T],
+        s: &mut CudaSlice<T>,
+    ) -> Result<(), GpuError> {
         if data.is_empty() {
             return Ok(());
         }
         self.stream.memcpy_htod(data, s).map_err(driver)
     }
 
-    pub(crate) fn zeros(&self, len: usize) -> Result<CudaSlice<f64>, GpuError> {
+    pub(crate) fn zeros<T: Element>(&self, len: usize) -> Result<CudaSlice<T>, GpuError> {
         // A zero-length allocation is refused by the driver: one value stands behind an empty
         // buffer (its `Buffer::len` stays 0).
-        self.stream.alloc_zeros::<f64>(len.max(1)).map_err(driver)
+        self.stream.alloc_zeros::<T>(len.max(1)).map_err(driver)
     }
 
-    pub(crate) fn zero(&self, s: &mut CudaSlice<f64>) -> Result<(), GpuError> {
+    pub(crate) fn zero<T: Element>(&self, s: &mut CudaSlice<T>) -> Result<(), GpuError> {
         self.stream.memset_zeros(s).map_err(driver)
     }
 
-    pub(crate) fn download(&self, s: &CudaSlice<f64>) -> Result<Vec<f64>, GpuError> {
+    pub(crate) fn download<T: Element>(&self, s: &CudaSlice<T>) -> Result<Vec<T>, GpuError> {
         self.stream.clone_dtoh(s).map_err(driver)
     }
 
-    pub(crate) fn download_range(
+    pub(crate) fn download_range<T: Element>(
         &self,
-        s: &CudaSlice<f64>,
+        s: &CudaSlice<T>,
         at: usize,
         len: usize,
-    ) -> Result<Vec<f64>, GpuError> {
+    ) -> Result<Vec<T>, GpuError> {
         self.stream
             .clone_dtoh(&s.slice(at..at + len))
             .map_err(driver)
@@ -215,7 +220,7 @@ impl Cuda {
     }
 
     /// # Safety
-    /// As [`crate::Device::launch`].
+    /// As `Device::launch`.
     pub(crate) unsafe fn launch(
         &self,
         kernel: &str,
@@ -229,18 +234,22 @@ impl Cuda {
         let mut b = self.stream.launch_builder(f);
         for a in args.iter_mut() {
             match a {
-                Arg::In(buf) => match &buf.data {
-                    Data::Cuda(s) => b.arg(s),
-                    _ => return Err(crate::foreign()),
-                },
-                Arg::Out(buf) => match &mut buf.data {
-                    Data::Cuda(s) => b.arg(s),
-                    _ => return Err(crate::foreign()),
-                },
-                Arg::Int(i) => b.arg(&*i),
-                Arg::Long(i) => b.arg(&*i),
-                Arg::Real(x) => b.arg(&*x),
-            };
+                Arg::InF64(buf) => push_in(&mut b, &buf.data)?,
+                Arg::OutF64(buf) => push_out(&mut b, &mut buf.data)?,
+                Arg::InI32(buf) => push_in(&mut b, &buf.data)?,
+                Arg::OutI32(buf) => push_out(&mut b, &mut buf.data)?,
+                Arg::InU32(buf) => push_in(&mut b, &buf.data)?,
+                Arg::OutU32(buf) => push_out(&mut b, &mut buf.data)?,
+                Arg::Int(i) => {
+                    b.arg(&*i);
+                }
+                Arg::Long(i) => {
+                    b.arg(&*i);
+                }
+                Arg::Real(x) => {
+                    b.arg(&*x);
+                }
+            }
         }
         let cfg = LaunchConfig {
             grid_dim: (blocks, 1, 1),
@@ -285,13 +294,41 @@ pub(crate) fn inverse(
 }
 
 /// Copy `len` values of `src` from `src_at` into `dst` from `dst_at`.
-pub(crate) fn copy(
+pub(crate) fn copy<T: Element>(
     c: &Cuda,
-    (src, src_at): (&CudaSlice<f64>, usize),
-    (dst, dst_at): (&mut CudaSlice<f64>, usize),
+    (src, src_at): (&CudaSlice<T>, usize),
+    (dst, dst_at): (&mut CudaSlice<T>, usize),
     len: usize,
 ) -> Result<(), GpuError> {
     let from = src.slice(src_at..src_at + len);
     let mut to = dst.slice_mut(dst_at..dst_at + len);
     c.stream.memcpy_dtod(&from, &mut to).map_err(driver)
+}
+
+/// Push a buffer the kernel reads.
+fn push_in<'a, T: Element>(
+    b: &mut cudarc::driver::LaunchArgs<'a>,
+    d: &'a Data<T>,
+) -> Result<(), GpuError> {
+    match d {
+        Data::Cuda(s) => {
+            b.arg(s);
+            Ok(())
+        }
+        _ => Err(GpuError::foreign()),
+    }
+}
+
+/// Push a buffer the kernel writes.
+fn push_out<'a, T: Element>(
+    b: &mut cudarc::driver::LaunchArgs<'a>,
+    d: &'a mut Data<T>,
+) -> Result<(), GpuError> {
+    match d {
+        Data::Cuda(s) => {
+            b.arg(s);
+            Ok(())
+        }
+        _ => Err(GpuError::foreign()),
+    }
 }

@@ -2,8 +2,9 @@
 //! defines CUDA's built-ins, loaded as a shared library, every thread run in turn.
 #![allow(unsafe_code)]
 
-use crate::launch::THREADS;
-use crate::{Arg, Data, GpuError};
+use crate::buffer::Data;
+use crate::error::GpuError;
+use crate::kernel::{Arg, THREADS};
 use std::collections::HashMap;
 use std::ffi::{CStr, c_char, c_void};
 use std::process::Command;
@@ -11,8 +12,7 @@ use std::process::Command;
 /// What the kernels see of CUDA: thread indices (one thread at a time, so a plain global is
 /// enough), qualifiers as no-ops, `atomicAdd` as a plain add (nothing runs concurrently), and
 /// per kernel an entry point that runs every thread of every block and one that describes its
-/// parameter types (`i` const double* or const double2*, `o` double* or double2*, `n` int,
-/// `l` long long, `r` double). Shared memory and `__syncthreads` run each block's threads as OS
+/// parameter types (the codes of `kernel::c_type_code`). Shared memory and `__syncthreads` run each block's threads as OS
 /// threads with a barrier (the source is compiled that way when it uses `__syncthreads`).
 const PRELUDE: &str = r#"
 #include <cmath>
@@ -67,6 +67,10 @@ template <> struct motile_code<const double*> { static constexpr char c = 'i'; }
 template <> struct motile_code<double*> { static constexpr char c = 'o'; };
 template <> struct motile_code<const double2*> { static constexpr char c = 'i'; };
 template <> struct motile_code<double2*> { static constexpr char c = 'o'; };
+template <> struct motile_code<const int*> { static constexpr char c = 'j'; };
+template <> struct motile_code<int*> { static constexpr char c = 'p'; };
+template <> struct motile_code<const unsigned*> { static constexpr char c = 'u'; };
+template <> struct motile_code<unsigned*> { static constexpr char c = 'v'; };
 template <> struct motile_code<int> { static constexpr char c = 'n'; };
 template <> struct motile_code<long long> { static constexpr char c = 'l'; };
 template <> struct motile_code<double> { static constexpr char c = 'r'; };
@@ -236,7 +240,7 @@ impl Host {
     }
 
     /// # Safety
-    /// As [`crate::Device::launch`] (the types are checked here; the indices are not).
+    /// As `Device::launch` (the types are checked here; the indices are not).
     pub(crate) unsafe fn launch(
         &self,
         kernel: &str,
@@ -251,8 +255,7 @@ impl Host {
         if &given != signature {
             return Err(GpuError::Input(format!(
                 "kernel {kernel} takes parameters ({signature}) but was given ({given}) \
-                 (i const double* or double2*, o double* or double2*, n int, l long long, \
-                 r double)"
+                 (the codes of motile_gpu::c_type_code)"
             )));
         }
         // Each parameter's value in an aligned 8-byte slot, then a pointer to it (CUDA's
@@ -260,16 +263,12 @@ impl Host {
         let mut values: Vec<u64> = Vec::with_capacity(args.len());
         for a in args.iter_mut() {
             let slot = match a {
-                Arg::In(b) => match &b.data {
-                    Data::Host(v) => v.as_ptr() as usize as u64,
-                    #[allow(unreachable_patterns)]
-                    _ => return Err(crate::foreign()),
-                },
-                Arg::Out(b) => match &mut b.data {
-                    Data::Host(v) => v.as_mut_ptr() as usize as u64,
-                    #[allow(unreachable_patterns)]
-                    _ => return Err(crate::foreign()),
-                },
+                Arg::InF64(b) => host_ptr(&b.data)?,
+                Arg::OutF64(b) => host_ptr_mut(&mut b.data)?,
+                Arg::InI32(b) => host_ptr(&b.data)?,
+                Arg::OutI32(b) => host_ptr_mut(&mut b.data)?,
+                Arg::InU32(b) => host_ptr(&b.data)?,
+                Arg::OutU32(b) => host_ptr_mut(&mut b.data)?,
                 Arg::Int(i) => {
                     let mut w = [0u8; 8];
                     w[..4].copy_from_slice(&i.to_ne_bytes());
@@ -294,5 +293,23 @@ impl Host {
         // (the lock); the indices the kernel touches are the caller's contract.
         unsafe { run(blocks, THREADS, params.as_mut_ptr()) };
         Ok(())
+    }
+}
+
+/// The address of a host buffer's values, as a kernel parameter slot.
+fn host_ptr<T: crate::buffer::Element>(d: &Data<T>) -> Result<u64, GpuError> {
+    match d {
+        Data::Host(v) => Ok(v.as_ptr() as usize as u64),
+        #[allow(unreachable_patterns)]
+        _ => Err(GpuError::foreign()),
+    }
+}
+
+/// [`host_ptr`] of a buffer the kernel writes.
+fn host_ptr_mut<T: crate::buffer::Element>(d: &mut Data<T>) -> Result<u64, GpuError> {
+    match d {
+        Data::Host(v) => Ok(v.as_mut_ptr() as usize as u64),
+        #[allow(unreachable_patterns)]
+        _ => Err(GpuError::foreign()),
     }
 }

@@ -1,14 +1,17 @@
-//! The host emulation against what it stands in for: kernels run every thread once, arguments
-//! are checked against the kernel's parameter types, and the transforms have cuFFT's layout
-//! and scaling (a plane wave lands on the one mode the layout in the crate doc names).
+//! The host emulation against what it stands in for: kernels run every thread once, integer
+//! buffers keep their type, kernel declarations are checked against their source, and the
+//! transforms have cuFFT's layout and scaling (a plane wave lands on the one mode the layout in
+//! the crate doc names).
 //!
 //! Launching a kernel is unsafe (nothing checks its indices): every launch below says why its
 //! indices fit.
 #![allow(unsafe_code)]
 
-use motile_gpu::{Arg, Device, Direction, GpuError};
+use motile_gpu::{Backend, Buffer, Device, Direction, GpuError, KernelSet};
 
-const SOURCE: &str = r#"
+motile_gpu::kernels! {
+    /// The test kernels.
+    const KERNELS = r#"
 extern "C" __global__ void axpy(const double* x, double* y, double a, int n) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
@@ -19,12 +22,30 @@ extern "C" __global__ void count(double* c, int n) {
     if (i >= n) return;
     atomicAdd(&c[0], 1.0);
 }
+extern "C" __global__ void widths(const int* start, const unsigned int* weight,
+                                  unsigned int* out, int n) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    out[i] = (unsigned int)(start[i + 1] - start[i]) * weight[i];
+}
 "#;
+    /// `y += a x`.
+    struct Axpy = "axpy" { x: &'a Buffer<f64>, y: &'a mut Buffer<f64>, a: f64, n: i32 }
+    /// Counts the threads that run.
+    struct Count = "count" { c: &'a mut Buffer<f64>, n: i32 }
+    /// Integer buffers: `out[i] = (start[i + 1] - start[i]) weight[i]`.
+    struct Widths = "widths" {
+        start: &'a Buffer<i32>,
+        weight: &'a Buffer<u32>,
+        out: &'a mut Buffer<u32>,
+        n: i32,
+    }
+}
 
-/// The emulation, or `None` (and why) where no C++ compiler runs; `MOTILE_REQUIRE_CXX=1`
-/// makes that a failure.
-fn device() -> Option<Device> {
-    match Device::host_emulation(SOURCE, &["axpy", "count"]) {
+/// The emulation of `set`, or `None` (and why) where no C++ compiler runs;
+/// `MOTILE_REQUIRE_CXX=1` makes that a failure.
+fn open(set: &KernelSet) -> Option<Device> {
+    match Device::open(Backend::HostEmulation, set) {
         Ok(d) => Some(d),
         Err(GpuError::NoDevice(why)) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
             eprintln!("skipped: {why}");
@@ -34,25 +55,27 @@ fn device() -> Option<Device> {
     }
 }
 
+fn device() -> Option<Device> {
+    open(&KERNELS)
+}
+
 #[test]
-fn kernels_run_every_thread_once_and_arguments_are_checked() {
+fn kernels_run_every_thread_once() {
     let Some(dev) = device() else { return };
     let n = 1000; // four blocks, the last one partly idle
     let x: Vec<f64> = (0..n).map(|i| i as f64).collect();
     let xb = dev.upload(&x).unwrap();
     let mut yb = dev.upload(&vec![1.0; n]).unwrap();
-    // SAFETY: axpy(const double* x, double* y, double a, int n) reads x[i] and writes y[i]
-    // for i < n = len(x) = len(y).
+    // SAFETY: axpy reads x[i] and writes y[i] for i < n = len(x) = len(y).
     unsafe {
         dev.launch(
-            "axpy",
             n,
-            &mut [
-                Arg::In(&xb),
-                Arg::Out(&mut yb),
-                Arg::Real(2.0),
-                Arg::Int(n as i32),
-            ],
+            Axpy {
+                x: &xb,
+                y: &mut yb,
+                a: 2.0,
+                n: n as i32,
+            },
         )
     }
     .unwrap();
@@ -61,36 +84,81 @@ fn kernels_run_every_thread_once_and_arguments_are_checked() {
         assert_eq!(*v, 1.0 + 2.0 * i as f64, "y[{i}]");
     }
     let mut c = dev.zeros(1).unwrap();
-    // SAFETY: count(double* c, int n) adds to c[0] only.
-    unsafe { dev.launch("count", n, &mut [Arg::Out(&mut c), Arg::Int(n as i32)]) }.unwrap();
+    // SAFETY: count adds to c[0] only.
+    unsafe {
+        dev.launch(
+            n,
+            Count {
+                c: &mut c,
+                n: n as i32,
+            },
+        )
+    }
+    .unwrap();
     assert_eq!(
         dev.download(&c).unwrap(),
         vec![n as f64],
         "threads that ran"
     );
-    // Arguments in the wrong order, and an unknown kernel: errors, nothing run.
-    // SAFETY: refused before the kernel runs (the types do not match).
-    let wrong = unsafe {
+}
+
+#[test]
+fn integer_buffers_stay_integers() {
+    let Some(dev) = device() else { return };
+    let start: Vec<i32> = vec![0, 3, 3, 10, 2_000_000_000];
+    let weight: Vec<u32> = vec![1, 7, 2, 2];
+    let sb = dev.upload(&start).unwrap();
+    let wb = dev.upload(&weight).unwrap();
+    let mut out = dev.zeros::<u32>(4).unwrap();
+    // SAFETY: widths reads start[i], start[i + 1] (5 values) and weight[i], writes out[i],
+    // for i < 4.
+    unsafe {
         dev.launch(
-            "axpy",
-            n,
-            &mut [
-                Arg::Out(&mut yb),
-                Arg::In(&xb),
-                Arg::Real(2.0),
-                Arg::Int(n as i32),
-            ],
+            4,
+            Widths {
+                start: &sb,
+                weight: &wb,
+                out: &mut out,
+                n: 4,
+            },
         )
-    };
-    let msg = wrong.expect_err("swapped arguments").to_string();
-    assert!(
-        msg.contains("takes parameters (iorn) but was given (oirn)"),
-        "{msg}"
+    }
+    .unwrap();
+    assert_eq!(
+        dev.download(&out).unwrap(),
+        vec![3, 0, 14, 3_999_999_980],
+        "integer arithmetic beyond f64's exact 2^53 is not at stake here, but the types are"
     );
-    // SAFETY: refused: no such kernel.
-    let unknown = unsafe { dev.launch("nope", 1, &mut []) };
-    assert!(unknown.is_err(), "an unknown kernel");
-    assert_eq!(dev.download(&yb).unwrap(), y, "nothing ran");
+}
+
+#[test]
+fn a_declaration_that_differs_from_its_source_is_refused() {
+    motile_gpu::kernels! {
+        const SWAPPED = r#"extern "C" __global__ void axpy(const double* x, double* y, double a, int n) {}"#;
+        struct Axpy2 = "axpy" { y: &'a mut Buffer<f64>, x: &'a Buffer<f64>, a: f64, n: i32 }
+    }
+    motile_gpu::kernels! {
+        const RETYPED = r#"extern "C" __global__ void axpy(const double* x, double* y, double a, int n) {}"#;
+        struct Axpy3 = "axpy" { x: &'a Buffer<f64>, y: &'a mut Buffer<f64>, a: f64, n: i64 }
+    }
+    motile_gpu::kernels! {
+        const MISSING = r#"extern "C" __global__ void axpy(const double* x, double* y, double a, int n) {}"#;
+        struct Axpy4 = "axpy" { x: &'a Buffer<f64>, y: &'a mut Buffer<f64>, a: f64 }
+        struct Absent = "absent" { x: &'a Buffer<f64> }
+    }
+    let e = SWAPPED.check().unwrap_err();
+    assert!(e.contains("parameter 0: the source has `x`"), "{e}");
+    let e = RETYPED.check().unwrap_err();
+    assert!(e.contains("parameter 3"), "{e}");
+    let e = MISSING.check().unwrap_err();
+    assert!(
+        e.contains("the source has 4 parameters, the declaration 3"),
+        "{e}"
+    );
+    KERNELS.check().unwrap();
+    // Opening refuses it before compiling anything.
+    let e = Device::open(Backend::HostEmulation, &SWAPPED).unwrap_err();
+    assert!(matches!(e, GpuError::Input(_)), "{e}");
 }
 
 #[test]
@@ -171,14 +239,15 @@ extern "C" __global__ void partial_sums(const double* v, long long n, double* pa
     if (t == 0) partial[blockIdx.x] = shared[0];
 }
 "#;
-    let dev = match Device::host_emulation(REDUCE, &["partial_sums"]) {
-        Ok(d) => d,
-        Err(GpuError::NoDevice(why)) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
-            eprintln!("skipped: {why}");
-            return;
+    motile_gpu::kernels! {
+        const SET = REDUCE;
+        struct PartialSums = "partial_sums" {
+            v: &'a Buffer<f64>,
+            n: i64,
+            partial: &'a mut Buffer<f64>,
         }
-        Err(e) => panic!("host emulation: {e}"),
-    };
+    }
+    let Some(dev) = open(&SET) else { return };
     let n = 700usize; // three blocks, the last partly empty
     let v: Vec<f64> = (0..n).map(|i| (i % 7) as f64 + 0.5).collect();
     let vb = dev.upload(&v).unwrap();
@@ -187,9 +256,12 @@ extern "C" __global__ void partial_sums(const double* v, long long n, double* pa
     // i < n and writes partial[block] for the 3 blocks launched.
     unsafe {
         dev.launch(
-            "partial_sums",
             n,
-            &mut [Arg::In(&vb), Arg::Long(n as i64), Arg::Out(&mut pb)],
+            PartialSums {
+                v: &vb,
+                n: n as i64,
+                partial: &mut pb,
+            },
         )
     }
     .unwrap();

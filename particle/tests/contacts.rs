@@ -10,7 +10,7 @@ use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::{DEFAULT_DIAMETER, eta};
 use motile_particle::step::constraints::constraints;
-use motile_particle::step::contact::{Constraint, ContactParams, ContactSolver};
+use motile_particle::step::contact::{Constraint, ContactParams, ContactProblem, ContactSolver};
 use motile_particle::step::stepper::Stepper;
 
 fn rods(box_length: f64, x: Vec<Vec3>, p: Vec<Vec3>) -> RodSet {
@@ -201,16 +201,15 @@ fn dense_problem(r: &RodSet, cons: &[Constraint], dt: f64) -> (Vec<Vec<f64>>, Ve
         e[k] = 1.0;
         let ft = {
             // Index the constraints by solving a trivial problem first.
-            let _ = solver.solve(
+            let problem = ContactProblem {
                 cons,
-                &p,
-                &free_v,
-                &free_w,
-                &mob,
+                p: &p,
+                free_v: &free_v,
+                free_w: &free_w,
+                mobility: &mob,
                 dt,
-                &ContactParams::default(),
-                &[],
-            );
+            };
+            let _ = solver.solve(problem, &ContactParams::default(), &[]);
             solver.forces(cons, &e, p.len())
         };
         for (row, c) in cons.iter().enumerate() {
@@ -294,12 +293,14 @@ fn bbpgd_agrees_with_projected_gauss_seidel() {
     let free_w = vec![[0.0; 3]; 6];
     let (lam, report) = solver
         .solve(
-            &cons,
-            &po,
-            &po,
-            &free_w,
-            &LocalDrag::default(),
-            dt,
+            ContactProblem {
+                cons: &cons,
+                p: &po,
+                free_v: &po,
+                free_w: &free_w,
+                mobility: &LocalDrag::default(),
+                dt,
+            },
             &params,
             &[],
         )

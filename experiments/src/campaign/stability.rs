@@ -117,17 +117,14 @@ fn run_cell(
     })
 }
 
-/// Write the map's CSV, PNG and SVG as `out/<stem>.*`.
-#[allow(clippy::too_many_arguments)]
+/// Write the map's CSV, PNG and SVG as `out/<stem>.*`: `(stem, title)` name it, `(y_name,
+/// merit_name)` its vertical axis and the merit of a run that ended well, `(dts, ys)` its axes.
 fn write_map(
     out: &Path,
-    stem: &str,
-    title: &str,
-    y_name: &str,
-    dts: &[f64],
-    ys: &[f64],
+    (stem, title): (&str, &str),
+    (y_name, merit_name): (&str, &str),
+    (dts, ys): (&[f64], &[f64]),
     cells: &[Cell],
-    merit_name: &str,
 ) -> anyhow::Result<String> {
     let mut csv = format!("dt,{y_name},outcome,t_reached,wall_seconds,{merit_name},message\n");
     for c in cells {
@@ -234,13 +231,10 @@ pub fn particle_map(
     );
     let md = write_map(
         out,
-        "stability_particle",
-        &title,
-        "volume fraction nu",
-        dts,
-        fractions,
+        ("stability_particle", &title),
+        ("volume fraction nu", "max overlap [l]"),
+        (dts, fractions),
         &cells,
-        "max overlap [l]",
     )?;
     Ok((cells, md))
 }
@@ -290,13 +284,10 @@ pub fn meanfield_map(
     let ys: Vec<f64> = grids.iter().map(|&n| n as f64).collect();
     let md = write_map(
         out,
-        "stability_meanfield",
-        &title,
-        "grid points per side",
-        dts,
-        &ys,
+        ("stability_meanfield", &title),
+        ("grid points per side", "min eig Q/trQ"),
+        (dts, &ys),
         &cells,
-        "min eig Q/trQ",
     )?;
     Ok((cells, md))
 }

@@ -34,18 +34,12 @@ pub enum Device {
     Gpu,
 }
 
-/// With `device = "gpu"`: whether `MOTILE_GPU_BACKEND=emulation` asks for the host emulation
-/// of the GPU kernels (the same kernels compiled by the C++ compiler and run on the CPU: slow,
-/// for testing the GPU path end to end on machines without a GPU) instead of CUDA.
-#[cfg_attr(not(feature = "gpu"), allow(dead_code))]
-pub(crate) fn gpu_emulated() -> anyhow::Result<bool> {
-    match std::env::var("MOTILE_GPU_BACKEND").as_deref() {
-        Err(_) | Ok("") | Ok("cuda") => Ok(false),
-        Ok("emulation") => Ok(true),
-        Ok(other) => anyhow::bail!(
-            "MOTILE_GPU_BACKEND = \"{other}\": allowed \"cuda\" (the default) or \"emulation\""
-        ),
-    }
+/// With `device = "gpu"`: the device `MOTILE_GPU_BACKEND` names (CUDA by default; `emulation`
+/// is the host emulation of the GPU kernels, the same kernels compiled by the C++ compiler and
+/// run on the CPU: slow, for testing the GPU path end to end on machines without a GPU).
+#[cfg(feature = "gpu")]
+pub(crate) fn gpu_backend() -> anyhow::Result<motile_gpu::Backend> {
+    Ok(motile_gpu::Backend::from_env()?)
 }
 
 impl std::fmt::Display for Device {

@@ -28,7 +28,7 @@ __device__ double2 times_i(double2 z, double k) {
 
 // After a forward transform: scale by 1/n^3, and zero the modes the 2/3 rule drops.
 extern "C" __global__ void scale_dealias(double2* c, long long count, int n, double scale,
-                                         const double* keep, int dealias) {
+                                         const int* keep, int dealias) {
     long long t = blockIdx.x * (long long)blockDim.x + threadIdx.x;
     if (t >= count) return;
     int h = n / 2 + 1;
@@ -36,7 +36,7 @@ extern "C" __global__ void scale_dealias(double2* c, long long count, int n, dou
     int a = (int)(s % h);
     long long row = s / h;
     int b = (int)(row % n), d = (int)(row / n);
-    bool kept = !dealias || (3 * a <= n && keep[b] != 0.0 && keep[d] != 0.0);
+    bool kept = !dealias || (3 * a <= n && keep[b] != 0 && keep[d] != 0);
     double2 v = c[t];
     c[t] = kept ? make_double2(v.x * scale, v.y * scale) : make_double2(0.0, 0.0);
 }

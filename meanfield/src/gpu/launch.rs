@@ -1,37 +1,25 @@
-//! The device side of [`super::GpuMeanField`]: the buffers, the transforms and every kernel
+//! The device side of the GPU mean-field step: the buffers, the transforms and every kernel
 //! launch, on a [`motile_gpu::Device`] (CUDA, or the host emulation of the same kernels). The
-//! only module of the crate that allows `unsafe`: a kernel launch cannot be checked by the
-//! compiler, so each one states why its arguments match the kernel's signature in
-//! `kernels.cu` and why every index it touches lies inside the buffers it is given (the host
-//! emulation also checks the parameter types at run time).
+//! only module of the crate that allows `unsafe`: the arguments' number, order and types are
+//! the declarations' of `signatures.rs` (checked against `kernels.cu`), but the indices a kernel
+//! touches are not checked by anything, so each launch states why they lie inside the buffers
+//! it is given.
 #![allow(unsafe_code)]
 
-use super::GpuError;
+use crate::gpu::error::GpuError;
+use crate::gpu::signatures::{
+    ChangePartials, ClosureField, Contract, DerivativeSpectra, ExplicitTerms, ImexUpdate,
+    NonfinitePartials, NormPartials, ReportPartials, ScaleDealias, Stokes, StrainFromGradient,
+    StrainSpectra,
+};
 use crate::solver::grid::SpectralGrid;
 use crate::solver::stepper::History;
-use motile_gpu::{Arg, Buffer, Device, Direction, Fft3, THREADS};
+use motile_gpu::{Buffer, Device, Direction, Fft3, THREADS};
 use num_complex::Complex64;
 
 /// Flow speed below which the fixed point's change is measured absolutely (solver.rs
 /// `FLOW_FLOOR`).
 const FLOW_FLOOR: f64 = 1e-14;
-
-/// The kernels of `kernels.cu`.
-pub(super) const KERNELS: [&str; 13] = [
-    "scale_dealias",
-    "strain_spectra",
-    "derivative_spectra",
-    "stokes",
-    "imex_update",
-    "change_partials",
-    "norm_partials",
-    "report_partials",
-    "nonfinite_partials",
-    "strain_from_gradient",
-    "contract",
-    "explicit_terms",
-    "closure_field",
-];
 
 // The block reductions of kernels.cu sum REDUCE_THREADS = 256 values per block in shared
 // memory: every launch must have exactly that many threads per block.
@@ -43,11 +31,11 @@ fn blocks(elements: usize) -> usize {
     elements.div_ceil(THREADS as usize).max(1)
 }
 
-/// The grid's wavenumber tables (solver.rs `SpectralGrid`), `keep` as 0/1.
+/// The grid's wavenumber tables (solver.rs `SpectralGrid`), `keep` as 0/1 ints.
 pub(super) struct Wavenumbers {
     k1: Vec<f64>,
     k2: Vec<f64>,
-    keep: Vec<f64>,
+    keep: Vec<i32>,
 }
 
 impl Wavenumbers {
@@ -56,7 +44,7 @@ impl Wavenumbers {
         Self {
             k1: k1.to_vec(),
             k2: k2.to_vec(),
-            keep: keep.iter().map(|&k| f64::from(u8::from(k))).collect(),
+            keep: keep.iter().map(|&k| i32::from(k)).collect(),
         }
     }
 }
@@ -87,7 +75,7 @@ pub(super) struct Buffers {
     fft: Fft3,
     k1: Buffer,
     k2: Buffer,
-    keep: Buffer,
+    keep: Buffer<i32>,
     coef: Buffer,
     q_hat: Buffer,
     q_prev: Buffer,
@@ -275,17 +263,16 @@ impl Buffers {
         // block's three partials.
         unsafe {
             dev.launch(
-                "closure_field",
                 self.n_len,
-                &mut [
-                    Arg::In(&self.q),
-                    Arg::Out(&mut self.s21),
-                    Arg::In(&self.coef),
-                    Arg::Int(deg as i32),
-                    Arg::Int(i32::from(with_entropy)),
-                    Arg::Long(self.n_len as i64),
-                    Arg::Out(&mut self.partial),
-                ],
+                ClosureField {
+                    q: &self.q,
+                    s21: &mut self.s21,
+                    coef: &self.coef,
+                    deg: deg as i32,
+                    with_entropy: i32::from(with_entropy),
+                    N: self.n_len as i64,
+                    partial: &mut self.partial,
+                },
             )
         }?;
         let r = self.reduce(dev, blocks(self.n_len), 3, &[0, 1])?;
@@ -299,14 +286,13 @@ impl Buffers {
         // writes out[c S + s] for c < 6.
         unsafe {
             dev.launch(
-                "strain_spectra",
                 self.s_len,
-                &mut [
-                    Arg::In(&self.u_work),
-                    Arg::Out(&mut self.spec),
-                    Arg::Int(self.n as i32),
-                    Arg::In(&self.k1),
-                ],
+                StrainSpectra {
+                    u: &self.u_work,
+                    out: &mut self.spec,
+                    n: self.n as i32,
+                    k1: &self.k1,
+                },
             )
         }?;
         self.inverse_many(dev, 6, Field::E)
@@ -328,17 +314,16 @@ impl Buffers {
         // thread p < N reads and writes index c N + p for c < 6 and s21[21 p..21 p + 21].
         unsafe {
             dev.launch(
-                "contract",
                 self.n_len,
-                &mut [
-                    Arg::In(&self.s21),
-                    Arg::In(&self.e),
-                    Arg::In(&self.q),
-                    Arg::Real(zeta),
-                    Arg::Out(&mut self.se),
-                    Arg::Long(self.n_len as i64),
-                    Arg::Int(i32::from(stress)),
-                ],
+                Contract {
+                    s21: &self.s21,
+                    e: &self.e,
+                    q: &self.q,
+                    zeta,
+                    out: &mut self.se,
+                    N: self.n_len as i64,
+                    stress: i32::from(stress),
+                },
             )
         }
         .map_err(GpuError::from)
@@ -358,21 +343,20 @@ impl Buffers {
             Spectra::Nonlinear => &mut self.nl,
         };
         // SAFETY: scale_dealias(double2* c, long long count, int n, double scale,
-        // const double* keep, int dealias): the target holds at least `count` complex values
-        // (6 S for the explicit terms, 18 S for spec), keep n doubles; thread t < count
+        // const int* keep, int dealias): the target holds at least `count` complex values
+        // (6 S for the explicit terms, 18 S for spec), keep n ints; thread t < count
         // touches c[t] only.
         unsafe {
             dev.launch(
-                "scale_dealias",
                 total,
-                &mut [
-                    Arg::Out(target),
-                    Arg::Long(total as i64),
-                    Arg::Int(self.n as i32),
-                    Arg::Real(1.0 / self.n_len as f64),
-                    Arg::In(&self.keep),
-                    Arg::Int(i32::from(dealias)),
-                ],
+                ScaleDealias {
+                    c: target,
+                    count: total as i64,
+                    n: self.n as i32,
+                    scale: 1.0 / self.n_len as f64,
+                    keep: &self.keep,
+                    dealias: i32::from(dealias),
+                },
             )
         }
         .map_err(GpuError::from)
@@ -385,15 +369,14 @@ impl Buffers {
         // s < S reads sigma[c S + s] and writes u[i S + s].
         unsafe {
             dev.launch(
-                "stokes",
                 self.s_len,
-                &mut [
-                    Arg::In(&self.spec),
-                    Arg::Out(&mut self.u_new),
-                    Arg::Int(self.n as i32),
-                    Arg::In(&self.k1),
-                    Arg::In(&self.k2),
-                ],
+                Stokes {
+                    sigma: &self.spec,
+                    u: &mut self.u_new,
+                    n: self.n as i32,
+                    k1: &self.k1,
+                    k2: &self.k2,
+                },
             )
         }
         .map_err(GpuError::from)
@@ -405,14 +388,13 @@ impl Buffers {
         // both hold 3 S values, partial at least 2 per block; thread s < S reads index c S + s.
         unsafe {
             dev.launch(
-                "change_partials",
                 self.s_len,
-                &mut [
-                    Arg::In(&self.u_new),
-                    Arg::In(&self.u_work),
-                    Arg::Int(self.n as i32),
-                    Arg::Out(&mut self.partial),
-                ],
+                ChangePartials {
+                    a: &self.u_new,
+                    b: &self.u_work,
+                    n: self.n as i32,
+                    partial: &mut self.partial,
+                },
             )
         }?;
         let r = self.reduce(dev, blocks(self.s_len), 2, &[])?;
@@ -435,13 +417,12 @@ impl Buffers {
         // e 6 N doubles; thread p < N touches index c N + p only.
         unsafe {
             dev.launch(
-                "strain_from_gradient",
                 self.n_len,
-                &mut [
-                    Arg::In(&self.g),
-                    Arg::Out(&mut self.e),
-                    Arg::Long(self.n_len as i64),
-                ],
+                StrainFromGradient {
+                    g: &self.g,
+                    e: &mut self.e,
+                    N: self.n_len as i64,
+                },
             )
         }?;
         self.contract(dev, 0.0, false)
@@ -459,15 +440,14 @@ impl Buffers {
         // >= 3 comps S; thread s < S writes out[(m 3 + dir) S + s] for m < comps.
         unsafe {
             dev.launch(
-                "derivative_spectra",
                 self.s_len,
-                &mut [
-                    Arg::In(input),
-                    Arg::Out(&mut self.spec),
-                    Arg::Int(comps as i32),
-                    Arg::Int(self.n as i32),
-                    Arg::In(&self.k1),
-                ],
+                DerivativeSpectra {
+                    c: input,
+                    out: &mut self.spec,
+                    comps: comps as i32,
+                    n: self.n as i32,
+                    k1: &self.k1,
+                },
             )
         }
         .map_err(GpuError::from)
@@ -483,17 +463,16 @@ impl Buffers {
         // dq 18 N, se 6 N, vals 6 N doubles; thread p < N touches index m N + p only.
         unsafe {
             dev.launch(
-                "explicit_terms",
                 self.n_len,
-                &mut [
-                    Arg::In(&self.ug),
-                    Arg::In(&self.g),
-                    Arg::In(&self.q),
-                    Arg::In(&self.dq),
-                    Arg::In(&self.se),
-                    Arg::Out(&mut self.vals),
-                    Arg::Long(self.n_len as i64),
-                ],
+                ExplicitTerms {
+                    ug: &self.ug,
+                    g: &self.g,
+                    q: &self.q,
+                    dq: &self.dq,
+                    se: &self.se,
+                    out: &mut self.vals,
+                    N: self.n_len as i64,
+                },
             )
         }?;
         let (s, n) = (self.s_len, self.n_len);
@@ -510,13 +489,12 @@ impl Buffers {
         // least one value per block.
         unsafe {
             dev.launch(
-                "nonfinite_partials",
                 count,
-                &mut [
-                    Arg::In(src),
-                    Arg::Long(count as i64),
-                    Arg::Out(&mut self.partial),
-                ],
+                NonfinitePartials {
+                    v: src,
+                    count: count as i64,
+                    partial: &mut self.partial,
+                },
             )
         }?;
         Ok(self.reduce(dev, blocks(count), 1, &[])?[0] > 0.0)
@@ -537,16 +515,15 @@ impl Buffers {
         // partial at least 4 per block; thread p < N reads index c N + p only.
         unsafe {
             dev.launch(
-                "report_partials",
                 self.n_len,
-                &mut [
-                    Arg::In(&self.ug),
-                    Arg::In(&self.e),
-                    Arg::In(&self.q),
-                    Arg::In(&self.se),
-                    Arg::Long(self.n_len as i64),
-                    Arg::Out(&mut self.partial),
-                ],
+                ReportPartials {
+                    ug: &self.ug,
+                    e: &self.e,
+                    q: &self.q,
+                    se: &self.se,
+                    N: self.n_len as i64,
+                    partial: &mut self.partial,
+                },
             )
         }?;
         let r = self.reduce(dev, blocks(self.n_len), 4, &[0])?;
@@ -559,20 +536,18 @@ impl Buffers {
         // values, partial at least one per block; thread s < S reads index c S + s.
         unsafe {
             dev.launch(
-                "norm_partials",
                 self.s_len,
-                &mut [
-                    Arg::In(&self.u_work),
-                    Arg::Int(self.n as i32),
-                    Arg::Out(&mut self.partial),
-                ],
+                NormPartials {
+                    u: &self.u_work,
+                    n: self.n as i32,
+                    partial: &mut self.partial,
+                },
             )
         }?;
         Ok(self.reduce(dev, blocks(self.s_len), 1, &[])?[0])
     }
 
     /// The IMEX update into `q_new`.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn imex(
         &mut self,
         dev: &Device,
@@ -588,25 +563,24 @@ impl Buffers {
         // spectra hold 6 S values each, k2 n doubles; thread s < S touches index c S + s.
         unsafe {
             dev.launch(
-                "imex_update",
                 self.s_len,
-                &mut [
-                    Arg::In(&self.q_hat),
-                    Arg::In(&self.nl),
-                    Arg::In(&self.q_prev),
-                    Arg::In(&self.nl_prev),
-                    Arg::Out(&mut self.q_new),
-                    Arg::Int(self.n as i32),
-                    Arg::In(&self.k2),
-                    Arg::Real(a[0]),
-                    Arg::Real(a[1]),
-                    Arg::Real(a[2]),
-                    Arg::Real(bcoef[0]),
-                    Arg::Real(bcoef[1]),
-                    Arg::Real(dt),
-                    Arg::Real(diffusion),
-                    Arg::Int(i32::from(two)),
-                ],
+                ImexUpdate {
+                    q: &self.q_hat,
+                    nl: &self.nl,
+                    q_prev: &self.q_prev,
+                    nl_prev: &self.nl_prev,
+                    out: &mut self.q_new,
+                    n: self.n as i32,
+                    k2: &self.k2,
+                    a0: a[0],
+                    a1: a[1],
+                    a2: a[2],
+                    b0: bcoef[0],
+                    b1: bcoef[1],
+                    dt,
+                    diffusion,
+                    two: i32::from(two),
+                },
             )
         }
         .map_err(GpuError::from)

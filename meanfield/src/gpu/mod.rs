@@ -6,82 +6,32 @@
 //! from run to run). Only reports cross the bus during a step: a handful of doubles per
 //! reduction.
 //!
-//! The device is a [`motile_gpu::Device`]: CUDA, loaded at run time (cudarc's dynamic loading:
-//! a build needs no CUDA toolkit, and on a machine without a driver [`probe`] and
-//! [`GpuMeanField::open`] return [`GpuError::NoDevice`] instead of panicking), or the host
-//! emulation ([`Backend::HostEmulation`]: the same kernels compiled by the C++ compiler
-//! and run on the CPU, transforms in cuFFT's layout), which lets the kernels and the code around
-//! them be tested on machines without a GPU. Kernel launches are the only unsafe code of the
-//! crate, in `launch.rs`.
+//! The device is a [`motile_gpu::Device`] opened with a [`motile_gpu::Backend`]: CUDA, loaded at
+//! run time (cudarc's dynamic loading: a build needs no CUDA toolkit, and on a machine without a
+//! driver [`GpuMeanField::open`] returns `motile_gpu::GpuError::NoDevice` instead of
+//! panicking), or the host emulation (the same kernels compiled by the C++ compiler and run on
+//! the CPU, transforms in cuFFT's layout), which lets the kernels and the code around them be
+//! tested on machines without a GPU. Kernels are declared in `signatures.rs`; their launches
+//! are the only unsafe code of the crate, in `launch.rs`.
 //!
 //! Parity with the CPU step (three steps within 1e-12 relative, the fixed point's iteration
 //! count pinned) is tested in `meanfield/tests/gpu.rs`: on the host emulation wherever a C++
 //! compiler runs, and on CUDA where a GPU is present (it says it was skipped elsewhere, and
 //! fails instead with `MOTILE_REQUIRE_GPU=1`).
 
+mod error;
 mod launch;
+mod signatures;
+
+pub use error::GpuError;
 
 use crate::closure::BinghamClosure;
-use crate::solver::grid::SpectralGrid;
+use crate::gpu::signatures::KERNELS;
 use crate::solver::params::{MeanFieldError, MeanFieldParams, RhsReport};
-use crate::solver::stepper::{History, ImexScheme, MeanFieldStepReport, SBDF1};
-use motile_gpu::Device;
-pub use motile_gpu::DeviceInfo;
+use crate::solver::rhs::MeanFieldRhs;
+use crate::solver::stepper::{History, ImexScheme, MeanFieldStepReport, MeanFieldStepper, SBDF1};
+use motile_gpu::{Backend, Device};
 use num_complex::Complex64;
-
-/// Why the GPU path is unavailable or failed.
-#[derive(Debug, thiserror::Error)]
-pub enum GpuError {
-    /// No CUDA driver library, or no device.
-    #[error("no CUDA device found: {0}")]
-    NoDevice(String),
-    /// A CUDA driver call failed.
-    #[error("CUDA driver: {0}")]
-    Driver(String),
-    /// NVRTC could not compile the kernels.
-    #[error("compiling the mean-field kernels with NVRTC: {0}")]
-    Compile(String),
-    /// cuFFT failed.
-    #[error("cuFFT: {0}")]
-    Fft(String),
-    /// The step itself failed, as it would on the CPU.
-    #[error(transparent)]
-    Step(#[from] MeanFieldError),
-    /// A call that does not fit the device's buffers or kernels (a defect of this module).
-    #[error("device call: {0}")]
-    Input(String),
-}
-
-impl From<motile_gpu::GpuError> for GpuError {
-    fn from(e: motile_gpu::GpuError) -> Self {
-        use motile_gpu::GpuError as G;
-        match e {
-            G::NoDevice(s) => Self::NoDevice(s),
-            G::Driver(s) => Self::Driver(s),
-            G::Compile(s) => Self::Compile(s),
-            G::Fft(s) => Self::Fft(s),
-            G::Input(s) => Self::Input(s),
-        }
-    }
-}
-
-/// Look for a CUDA device without touching it further: the driver library, NVRTC and cuFFT
-/// must load, and device 0 must answer.
-pub fn probe() -> Result<DeviceInfo, GpuError> {
-    Ok(motile_gpu::probe()?)
-}
-
-/// The kernels' source (compiled when a device is opened).
-const SOURCE: &str = include_str!("kernels.cu");
-
-/// Which device [`GpuMeanField::open`] opens.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Backend {
-    /// CUDA device 0 ([`GpuError::NoDevice`] where there is none).
-    Cuda,
-    /// The host emulation of the same kernels (slow: for tests on machines without a GPU).
-    HostEmulation,
-}
 
 /// The mean-field state and its stepper on the device.
 pub struct GpuMeanField {
@@ -108,25 +58,25 @@ impl std::fmt::Debug for GpuMeanField {
 }
 
 impl GpuMeanField {
-    /// Upload a state (the same as [`crate::solver::stepper::MeanFieldStepper::restore`] takes) to the
-    /// device `backend` names and prepare it: kernels, FFT plans, closure tables, wavenumbers,
-    /// buffers. `scheme` as the CPU stepper's (the first step is SBDF1 whatever it is).
-    #[allow(clippy::too_many_arguments)]
+    /// Upload the CPU stepper's state (its time, Q, history, warm-start velocity and scheme)
+    /// to the device `backend` names and prepare the step of `rhs` (grid, closure tables,
+    /// parameters) there: kernels, FFT plans, tables, wavenumbers, buffers. The first step is
+    /// SBDF1 without a history, as on the CPU.
     pub fn open(
         backend: Backend,
-        grid: &SpectralGrid,
-        closure: &BinghamClosure,
-        params: &MeanFieldParams,
-        scheme: ImexScheme,
-        t: f64,
-        q_hat: &[Vec<Complex64>; 6],
-        history: Option<&History>,
-        u_hat: &[Vec<Complex64>; 3],
+        rhs: &MeanFieldRhs<'_>,
+        stepper: &MeanFieldStepper,
     ) -> Result<Self, GpuError> {
-        let dev = match backend {
-            Backend::Cuda => Device::cuda(SOURCE, &launch::KERNELS)?,
-            Backend::HostEmulation => Device::host_emulation(SOURCE, &launch::KERNELS)?,
-        };
+        let dev = Device::open(backend, &KERNELS)?;
+        let (grid, closure, params): (_, &BinghamClosure, &MeanFieldParams) =
+            (rhs.grid, rhs.closure, rhs.params);
+        let (scheme, t, q_hat, history, u_hat): (ImexScheme, _, _, Option<&History>, _) = (
+            stepper.scheme,
+            stepper.t,
+            &stepper.q_hat,
+            stepper.history(),
+            &stepper.u_hat,
+        );
         let n = grid.n;
         let coef: Vec<f64> = closure.coefficients().iter().flatten().copied().collect();
         let wavenumbers = launch::Wavenumbers::of(grid);

@@ -278,7 +278,7 @@ impl GaussianGrid {
                 |rows, k| {
                     with_support!(
                         p,
-                        gather_gradient_point::<3>(pts, k, m, plane, &work, rows, alpha, h)
+                        gather_gradient_point::<3>(pts, k, (m, plane), (&work, rows), (alpha, h))
                     )
                 },
             )
@@ -651,16 +651,14 @@ fn gather_point<const NF: usize, const P: usize>(
 
 /// [`gather_point`] with the gradient: the footprint rows weighted by `wz wy`, `wz wy'` and
 /// `wz' wy`, then the x window and its derivative. Returns `[u_c, then du_c/dx_m at
-/// 3 + 3 c + m]` for `NF = 3`; `rows` is scratch of `3 P NF` values.
+/// 3 + 3 c + m]` for `NF = 3`; `(m, plane)` the grid's size and plane stride, `work` the
+/// field, `rows` scratch of `3 P NF` values, `(alpha, h)` the window's exponent and spacing.
 fn gather_gradient_point<const NF: usize, const P: usize>(
     pts: &GridPoints,
     k: usize,
-    m: usize,
-    plane: usize,
-    work: &[f64],
-    rows: &mut [f64],
-    alpha: f64,
-    h: f64,
+    (m, plane): (usize, usize),
+    (work, rows): (&[f64], &mut [f64]),
+    (alpha, h): (f64, f64),
 ) -> [f64; 12] {
     assert_eq!(NF, 3, "gradients of three fields");
     let xb = m + P;

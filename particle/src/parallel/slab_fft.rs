@@ -12,6 +12,9 @@ use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::{Fft, FftPlanner};
 use std::sync::Arc;
 
+/// A block of a transpose: a range of planes (z) and a range of rows (y).
+type Block = (std::ops::Range<usize>, std::ops::Range<usize>);
+
 /// The planes of each rank and the plans of the distributed FFT of an `M^3` grid.
 pub(crate) struct SlabFft {
     pub(crate) m: usize,
@@ -126,12 +129,15 @@ impl SlabFft {
         let (zs, ys) = (self.share(self.me), self.share(self.me));
         self.transpose(
             comm,
-            fields,
-            ys.len(),
-            |r| (0..zs.len(), self.share(r)),
-            |z, y, x| (z * m + y) * mx + x,
-            |r| (self.share(r), 0..ys.len()),
-            |z, y, x| (y * mx + x) * m + z,
+            (fields, ys.len()),
+            (
+                |r| (0..zs.len(), self.share(r)),
+                |z, y, x| (z * m + y) * mx + x,
+            ),
+            (
+                |r| (self.share(r), 0..ys.len()),
+                |z, y, x| (y * mx + x) * m + z,
+            ),
         )
     }
 
@@ -141,28 +147,33 @@ impl SlabFft {
         let (zs, ys) = (self.share(self.me), self.share(self.me));
         self.transpose(
             comm,
-            fields,
-            zs.len(),
-            |r| (self.share(r), 0..ys.len()),
-            |z, y, x| (y * mx + x) * m + z,
-            |r| (0..zs.len(), self.share(r)),
-            |z, y, x| (z * m + y) * mx + x,
+            (fields, zs.len()),
+            (
+                |r| (self.share(r), 0..ys.len()),
+                |z, y, x| (y * mx + x) * m + z,
+            ),
+            (
+                |r| (0..zs.len(), self.share(r)),
+                |z, y, x| (z * m + y) * mx + x,
+            ),
         )
     }
 
     /// All-to-all of blocks: to rank `r` the elements `src(z, y, x)` for `(z, y)` in
     /// `send(r)` (z outer) and every `x < mx`; from rank `r` into `dst(z, y, x)` over `recv(r)`
     /// in the same order. The result holds `len M mx` elements per field.
-    #[allow(clippy::type_complexity)]
     fn transpose(
         &self,
         comm: &dyn Comm,
-        fields: &[Vec<Complex64>],
-        len: usize,
-        send: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) + Sync,
-        src: impl Fn(usize, usize, usize) -> usize + Sync,
-        recv: impl Fn(usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) + Sync,
-        dst: impl Fn(usize, usize, usize) -> usize + Sync,
+        (fields, len): (&[Vec<Complex64>], usize),
+        (send, src): (
+            impl Fn(usize) -> Block + Sync,
+            impl Fn(usize, usize, usize) -> usize + Sync,
+        ),
+        (recv, dst): (
+            impl Fn(usize) -> Block + Sync,
+            impl Fn(usize, usize, usize) -> usize + Sync,
+        ),
     ) -> Vec<Vec<Complex64>> {
         let (m, mx, me) = (self.m, self.mx, self.me);
         // This rank's own block is copied directly below, not sent to itself.

@@ -175,6 +175,25 @@ fn par_max(n: usize, f: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
         .reduce(|| f64::NEG_INFINITY, f64::max)
 }
 
+/// One contact problem (docs/MODEL.md §3): the constraints, the rods' axes, the velocities the
+/// rods would have without contacts, the local mobility that turns contact forces into
+/// velocities, and the time step.
+#[derive(Clone, Copy, Debug)]
+pub struct ContactProblem<'a> {
+    /// The constraints.
+    pub cons: &'a [Constraint],
+    /// Each rod's axis.
+    pub p: &'a [Vec3],
+    /// Velocities without contacts.
+    pub free_v: &'a [Vec3],
+    /// Angular velocities without contacts.
+    pub free_w: &'a [Vec3],
+    /// The local mobility.
+    pub mobility: &'a dyn Mobility,
+    /// The time step.
+    pub dt: f64,
+}
+
 /// The BBPGD contact solver; holds only scratch memory.
 #[derive(Debug, Default)]
 pub struct ContactSolver {
@@ -242,14 +261,12 @@ impl ContactSolver {
     fn apply(
         &mut self,
         share: Share<'_>,
-        cons: &[Constraint],
-        p: &[Vec3],
-        mob: &dyn Mobility,
-        dt: f64,
+        problem: &ContactProblem<'_>,
         lambda: &[f64],
         shift: &[f64],
         out: &mut [f64],
     ) {
+        let (cons, p, mob, dt) = (problem.cons, problem.p, problem.mobility, problem.dt);
         let n = p.len();
         self.vel.resize(n, ([0.0; 3], [0.0; 3]));
         let (start, entries) = (&self.rod_start, &self.rod_entries);
@@ -307,21 +324,16 @@ impl ContactSolver {
     /// Solve for the multipliers given the free velocities; returns `lambda` and a report.
     pub fn solve(
         &mut self,
-        cons: &[Constraint],
-        p: &[Vec3],
-        free_v: &[Vec3],
-        free_w: &[Vec3],
-        mob: &dyn Mobility,
-        dt: f64,
+        problem: ContactProblem<'_>,
         params: &ContactParams,
         initial: &[f64],
     ) -> Result<(Vec<f64>, ContactReport), ContactError> {
-        let halo = Halo::none(p.len());
+        let halo = Halo::none(problem.p.len());
         let share = Share {
             comm: &SingleProcess,
             halo: &halo,
         };
-        self.solve_shared(share, cons, p, free_v, free_w, mob, dt, params, initial)
+        self.solve_shared(share, problem, params, initial)
     }
 
     /// [`Self::solve`] for one rank's part of a problem shared by several (collective): `cons`
@@ -332,15 +344,18 @@ impl ContactSolver {
     pub fn solve_shared(
         &mut self,
         share: Share<'_>,
-        cons: &[Constraint],
-        p: &[Vec3],
-        free_v: &[Vec3],
-        free_w: &[Vec3],
-        mob: &dyn Mobility,
-        dt: f64,
+        problem: ContactProblem<'_>,
         params: &ContactParams,
         initial: &[f64],
     ) -> Result<(Vec<f64>, ContactReport), ContactError> {
+        let ContactProblem {
+            cons,
+            p,
+            free_v,
+            free_w,
+            dt,
+            ..
+        } = problem;
         let comm = share.comm;
         let m = cons.len();
         let mut total = [m as f64];
@@ -380,7 +395,7 @@ impl ContactSolver {
         let (mut lam, mut g) = if warm > 0.0 {
             let lam: Vec<f64> = initial.iter().map(|l| l.max(0.0)).collect();
             let mut g = vec![0.0; m];
-            self.apply(share, cons, p, mob, dt, &lam, &q, &mut g);
+            self.apply(share, &problem, &lam, &q, &mut g);
             (lam, g)
         } else {
             (vec![0.0; m], q.clone())
@@ -398,7 +413,7 @@ impl ContactSolver {
                     }
                 })
                 .collect();
-            self.apply(share, cons, p, mob, dt, &gp, &[], &mut ag);
+            self.apply(share, &problem, &gp, &[], &mut ag);
             let gg = global_sum(det_sum(m, |k| gp[k] * gp[k]));
             let gag = global_sum(det_sum(m, |k| gp[k] * ag[k]));
             let mut alpha = if gag > 0.0 { gg / gag } else { 1.0 };
@@ -410,7 +425,7 @@ impl ContactSolver {
                     .par_iter_mut()
                     .enumerate()
                     .for_each(|(k, l)| *l = (lam[k] - alpha * g[k]).max(0.0));
-                self.apply(share, cons, p, mob, dt, &lam_new, &q, &mut g_new);
+                self.apply(share, &problem, &lam_new, &q, &mut g_new);
                 // Residual and the three Barzilai-Borwein products in one fixed-chunk pass.
                 let [r, ss, sy, yy] = fused_stats(&lam, &lam_new, &g, &g_new);
                 let (r, [ss, sy, yy]) = if comm.size() == 1 {

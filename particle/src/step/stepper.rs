@@ -22,7 +22,7 @@ use crate::parallel::part::{Part, Share};
 use crate::parallel::reduce::max_with_key;
 use crate::step::cells::CellList;
 use crate::step::constraints::{constraint, true_overlap};
-use crate::step::contact::{Constraint, ContactParams, ContactSolver};
+use crate::step::contact::{Constraint, ContactParams, ContactProblem, ContactSolver};
 use crate::step::report::{StepError, StepReport};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -253,17 +253,17 @@ impl Stepper {
                     .map_or(0.0, |k| self.warm[k].1)
             })
             .collect();
-        let (lambda, contact) = self.solver.solve_shared(
-            share,
-            &cons,
-            &ps,
-            &fv,
-            &fw,
-            self.mobility.as_ref(),
+        let problem = ContactProblem {
+            cons: &cons,
+            p: &ps,
+            free_v: &fv,
+            free_w: &fw,
+            mobility: self.mobility.as_ref(),
             dt,
-            &self.contact,
-            &initial,
-        )?;
+        };
+        let (lambda, contact) =
+            self.solver
+                .solve_shared(share, problem, &self.contact, &initial)?;
         let mut warm: Vec<((u32, u32), f64)> = cons
             .iter()
             .zip(&lambda)
@@ -297,17 +297,17 @@ impl Stepper {
         if total_constraints[0] > 0.0 {
             let av = gather(order, &self.velocities.v);
             let aw = gather(order, &self.velocities.w);
-            let (dlambda, _) = self.solver.solve_shared(
-                share,
-                &cons,
-                &ps,
-                &av,
-                &aw,
-                self.mobility.as_ref(),
+            let problem = ContactProblem {
+                cons: &cons,
+                p: &ps,
+                free_v: &av,
+                free_w: &aw,
+                mobility: self.mobility.as_ref(),
                 dt,
-                &self.contact,
-                &[],
-            )?;
+            };
+            let (dlambda, _) = self
+                .solver
+                .solve_shared(share, problem, &self.contact, &[])?;
             let mut active = [dlambda.iter().filter(|l| **l > 0.0).count() as f64];
             comm.sum(&mut active);
             correction_active = active[0] as usize;
@@ -393,17 +393,17 @@ impl Stepper {
                 .collect();
             let zero = vec![[0.0; 3]; n];
             let translation = TranslationOnly(self.mobility.as_ref());
-            let (lambda, _) = self.solver.solve_shared(
-                share,
-                &again,
-                &ps,
-                &zero,
-                &zero,
-                &translation,
+            let problem = ContactProblem {
+                cons: &again,
+                p: &ps,
+                free_v: &zero,
+                free_w: &zero,
+                mobility: &translation,
                 dt,
-                &self.contact,
-                &[],
-            )?;
+            };
+            let (lambda, _) = self
+                .solver
+                .solve_shared(share, problem, &self.contact, &[])?;
             let mut pft = self.rod_forces(&again, &lambda, order, part);
             if shared {
                 // The owners' totals on their copies too, so that copies move with them.

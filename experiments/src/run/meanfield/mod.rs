@@ -147,23 +147,15 @@ impl Engine {
         if cfg.device == Device::Gpu {
             #[cfg(feature = "gpu")]
             {
-                let backend = if run::gpu_emulated()? {
-                    motile_meanfield::gpu::Backend::HostEmulation
-                } else {
-                    motile_meanfield::gpu::Backend::Cuda
-                };
-                let gpu = motile_meanfield::gpu::GpuMeanField::open(
-                    backend,
+                let rhs = MeanFieldRhs {
                     grid,
                     closure,
                     params,
-                    cpu.scheme,
-                    cpu.t,
-                    &cpu.q_hat,
-                    cpu.history(),
-                    &cpu.u_hat,
-                )
-                .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
+                    with_entropy: false,
+                };
+                let gpu =
+                    motile_meanfield::gpu::GpuMeanField::open(run::gpu_backend()?, &rhs, &cpu)
+                        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
                 return Ok(Self {
                     cpu,
                     gpu: Some(gpu),

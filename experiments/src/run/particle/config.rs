@@ -411,16 +411,12 @@ pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobili
     })
 }
 
-/// The fast sum with its Fourier part on CUDA device 0: an error, never a CPU fallback, where
-/// there is none.
+/// The fast sum with its Fourier part on the GPU (`MOTILE_GPU_BACKEND` says which device, CUDA
+/// by default): an error, never a CPU fallback, where there is none.
 #[cfg(feature = "gpu")]
 fn gpu_sum(tol: f64) -> anyhow::Result<SpectralEwald> {
-    let dev = if crate::run::gpu_emulated()? {
-        motile_particle::ewald::gpu::GpuFourier::host_emulation()
-    } else {
-        motile_particle::ewald::gpu::GpuFourier::cuda()
-    }
-    .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
+    let dev = motile_particle::ewald::gpu::GpuFourier::open(crate::run::gpu_backend()?)
+        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
     Ok(SpectralEwald::with_device(tol, dev)?)
 }
 

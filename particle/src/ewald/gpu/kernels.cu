@@ -1,7 +1,9 @@
-// The Fourier part of the spectral Ewald sums on a GPU: the twins of gaussian_grid.rs (spread,
+// The spectral Ewald sums on a GPU: the twins of grid.rs (spread,
 // the mode multiplication of convolve, gather, gather_gradient) and of the mode functions of
-// ewald.rs (rpy_fourier_mode_screened, the stresslet's force density). Compiled by NVRTC, or
-// by the host C++ compiler for the emulation (motile-gpu), so: plain C++, no shared memory.
+// ewald/kernels.rs (rpy_fourier_mode_screened, the stresslet's force density), and the real-space pair
+// sums (spectral/real_space.rs). Compiled by NVRTC, or by the host C++ compiler for the
+// emulation (motile-gpu), so: plain C++, no shared memory. Each kernel's parameters are
+// declared once more in signatures.rs (checked against this file when a device opens it).
 //
 // Layouts: points as x, y, z triples; point values field-major (field c of point i at
 // c n + i); grids M^3 per field, x fastest; half spectra M M (M/2 + 1) complex values per
@@ -87,7 +89,7 @@ __device__ bool mode_of(long long s, int m, double l, double* k, double* k2) {
 
 // u^ = s(k) (I - k k / k^2) f^ times the window correction h^3 exp(eta k^2 / 4 xi^2), with
 // s(k) = (1 + k^2 / 4 xi^2) exp(-k^2 / 4 xi^2) (1 - a^2 k^2 / 6)^2 / (k^2 vol) (mu = 1): the
-// RPY kernel of ewald.rs. Writes the three output spectra of mode s; f the three force
+// RPY kernel of ewald/kernels.rs. Writes the three output spectra of mode s; f the three force
 // spectra.
 __device__ void rpy_mode(const double* f, double* out, long long s, long long slen,
                          const double* k, double k2, double xi, double a, double l,
@@ -105,7 +107,7 @@ __device__ void rpy_mode(const double* f, double* out, long long s, long long sl
 }
 
 // The RPY Fourier multiplication: three force spectra in, three velocity spectra out.
-extern "C" __global__ void rpy_modes(const double* in, double* out, int m, double l,
+extern "C" __global__ void rpy_modes(const double* input, double* out, int m, double l,
                                      double xi, double a, double eta, double h) {
     long long s = (long long)blockIdx.x * blockDim.x + threadIdx.x;
     long long slen = (long long)m * m * (m / 2 + 1);
@@ -117,8 +119,8 @@ extern "C" __global__ void rpy_modes(const double* in, double* out, int m, doubl
     }
     double f[6];
     for (int c = 0; c < 3; ++c) {
-        f[2 * c] = in[2 * (c * slen + s)];
-        f[2 * c + 1] = in[2 * (c * slen + s) + 1];
+        f[2 * c] = input[2 * (c * slen + s)];
+        f[2 * c + 1] = input[2 * (c * slen + s) + 1];
     }
     rpy_mode(f, out, s, slen, k, k2, xi, a, l, eta, h);
 }
@@ -126,7 +128,7 @@ extern "C" __global__ void rpy_modes(const double* in, double* out, int m, doubl
 // The stresslet Fourier multiplication: six spectra of the stresslet components (xx, yy, zz,
 // xy, xz, yz) in; the force density f^_i = -i sum_j S^_ij k_j; three velocity spectra out (a
 // point force's, a = 0). The gradient comes from the window's derivative in the gather.
-extern "C" __global__ void stresslet_modes(const double* in, double* out, int m, double l,
+extern "C" __global__ void stresslet_modes(const double* input, double* out, int m, double l,
                                            double xi, double eta, double h) {
     long long s = (long long)blockIdx.x * blockDim.x + threadIdx.x;
     long long slen = (long long)m * m * (m / 2 + 1);
@@ -143,8 +145,8 @@ extern "C" __global__ void stresslet_modes(const double* in, double* out, int m,
         double re = 0.0, im = 0.0;
         for (int j = 0; j < 3; ++j) {
             long long at = 2 * (comp[i][j] * slen + s);
-            re += in[at] * k[j];
-            im += in[at + 1] * k[j];
+            re += input[at] * k[j];
+            im += input[at + 1] * k[j];
         }
         // -i (re + i im) = im - i re
         f[2 * i] = im;
@@ -203,7 +205,7 @@ extern "C" __global__ void gather(const double* pts, const double* grid, double*
 }
 
 // ---------------------------------------------------------------------------------------------
-// The real-space RPY sum (twin of spectral_ewald.rs rpy_real with ewald.rs RealSpaceTable and
+// The real-space RPY sum (twin of spectral/real_space.rs rpy_real with ewald/kernels.rs RealSpaceTable and
 // rpy_overlap_correction): per target, every point of another group within the cutoff,
 // A f + (B / r^2)(r . f) r, and the error model's weighted strengths. Points in cell order
 // (point_cells.rs: positions wrapped into [0, L), cells of side >= cutoff / 2, x fastest).
@@ -216,7 +218,7 @@ __device__ double min_image_wrapped(double c, double l) {
     return c;
 }
 
-// Cubic Lagrange interpolation on a uniform table of nt intervals at x = r / h (ewald.rs
+// Cubic Lagrange interpolation on a uniform table of nt intervals at x = r / h (ewald/kernels.rs
 // lagrange4): the first of the four nodes, and their weights in w.
 __device__ long long lagrange4(double x, int nt, double* w) {
     long long i = (long long)x;
@@ -268,11 +270,11 @@ __device__ void rpy_pair(const double* r, const double* f, double f2, const doub
 // with r the minimum-image offset target minus source. Few cells (fewer than five per axis):
 // every point; else the 5^3 stencil of cells around the target's.
 template <typename Pair>
-__device__ void for_each_neighbour(int t, const double* pos, const double* group,
-                                   const double* start, int npts, int ncell, double l,
+__device__ void for_each_neighbour(int t, const double* pos, const int* group,
+                                   const int* start, int npts, int ncell, double l,
                                    double cutoff, Pair& pair) {
     double yt[3] = {pos[3 * t], pos[3 * t + 1], pos[3 * t + 2]};
-    double gt = group[t];
+    int gt = group[t];
     double c2 = cutoff * cutoff;
     if (ncell < 5) {
         for (int j = 0; j < npts; ++j) {
@@ -333,10 +335,10 @@ struct RpyPair {
     }
 };
 
-// Per target t (cell order): pos, force 3 per point, group and cell starts as doubles (exact
-// integers), table 2 (nt + 1) values (A_F, B_F / r^2 at r = k h); out 4 per point.
-extern "C" __global__ void rpy_real(const double* pos, const double* force, const double* group,
-                                    const double* start, const double* table, double* out,
+// Per target t (cell order): pos, force 3 per point, group and cell starts (ints), table
+// 2 (nt + 1) values (A_F, B_F / r^2 at r = k h); out 4 per point.
+extern "C" __global__ void rpy_real(const double* pos, const double* force, const int* group,
+                                    const int* start, const double* table, double* out,
                                     int npts, int ncell, int nt, double l, double cutoff,
                                     double inv_h, double c, double ca, double cb, double a,
                                     double r0sq) {
@@ -348,7 +350,7 @@ extern "C" __global__ void rpy_real(const double* pos, const double* force, cons
 }
 
 // ---------------------------------------------------------------------------------------------
-// The real-space stresslet sum (twin of spectral_ewald.rs stresslet_real with ewald.rs
+// The real-space stresslet sum (twin of spectral/real_space.rs stresslet_real with ewald/kernels.rs
 // StressletTable and stresslet_from_derivatives): per target, velocity, gradient and the
 // error model's weighted strengths of every other stresslet within the cutoff.
 
@@ -418,12 +420,12 @@ struct StressletPair {
     }
 };
 
-// Per target t (cell order): pos and orient 3 per point, sigma, group and cell starts, table
+// Per target t (cell order): pos and orient 3 per point, sigma, group and cell starts (ints), table
 // 5 (nt + 1) values ([A', A'', C, C', C''] of the Fourier part at r = k h); out 13 per point
 // (velocity, gradient d u_i / d x_m at 3 + 3 i + m, weighted strengths).
 extern "C" __global__ void stresslet_real(const double* pos, const double* orient,
-                                          const double* sigma, const double* group,
-                                          const double* start, const double* table, double* out,
+                                          const double* sigma, const int* group,
+                                          const int* start, const double* table, double* out,
                                           int npts, int ncell, int nt, double l, double cutoff,
                                           double inv_h, double xi, double r_direct,
                                           double r0sq) {

@@ -1,42 +1,33 @@
 //! The spectral Ewald sums on a GPU (feature `gpu`): the Fourier part (spreading, FFTs, the
 //! Fourier-space multiplication and the interpolation back) and the real-space parts (every
 //! pair within the cutoff, from the CPU's cell list and with its interpolation tables), each
-//! the twin of the CPU's (`gaussian_grid.rs`, the mode and pair functions of
-//! [`crate::ewald::kernels`], `spectral_ewald::{rpy_real, stresslet_real}`), on a
+//! the twin of the CPU's (`ewald/grid.rs`, the mode and pair functions of
+//! [`crate::ewald::kernels`], `ewald/spectral/real_space.rs`), on a
 //! [`motile_gpu::Device`]. [`crate::ewald::spectral::SpectralEwald::with_device`] uses it in
 //! place of the CPU's; the cell list's sort, the corrections, the error estimate and the
 //! refinement stay on the CPU and are shared with the CPU sum, so the accuracy contract is the
 //! same.
 //!
-//! The device is CUDA ([`GpuFourier::cuda`]) or the host emulation
-//! ([`GpuFourier::host_emulation`]: the same kernels compiled by the C++ compiler and run on
-//! one CPU thread, for tests on machines without a GPU). Each sum uploads the points and their
+//! The device is opened by [`GpuFourier::open`] with a [`motile_gpu::Backend`]: CUDA, or the
+//! host emulation (the same kernels compiled by the C++ compiler and run on the CPU, for tests
+//! on machines without a GPU). The points and the cell list stay on the device while the
+//! caller's generation is the same (the products of one GMRES solve); each sum uploads its
 //! values and downloads the gathered values; the grids, spectra and FFT plans stay on the
-//! device from sum to sum (rebuilt when the grid size changes).
+//! device from sum to sum (rebuilt when the grid size changes). Kernels are declared in
+//! `signatures.rs` and launched in `launch.rs`.
 //!
 //! On a GPU the spreading's atomic adds make the last bits vary from run to run.
 
 mod launch;
+mod signatures;
 
+pub(crate) use launch::Geometry;
+
+use crate::ewald::gpu::signatures::KERNELS;
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use crate::ewald::point_cells::PointCells;
-use crate::ewald::window::Window;
 use crate::model::geometry::Vec3;
-use motile_gpu::{Buffer, Device, Direction, Fft3};
-pub use motile_gpu::{DeviceInfo, GpuError, probe};
-
-/// The kernels' source (compiled when a device is opened).
-const SOURCE: &str = include_str!("kernels.cu");
-
-/// The kernels of [`SOURCE`].
-const KERNELS: [&str; 6] = [
-    "spread",
-    "rpy_modes",
-    "stresslet_modes",
-    "gather",
-    "rpy_real",
-    "stresslet_real",
-];
+use motile_gpu::{Backend, Buffer, Device, Direction, Fft3, GpuError};
 
 /// The device and what stays on it between sums.
 #[derive(Debug)]
@@ -46,7 +37,15 @@ pub struct GpuFourier {
     /// The last points uploaded (as given, and the cell list's layout), with the caller's
     /// generation: the products of one GMRES solve reuse them instead of uploading again.
     points: Option<(u64, Buffer)>,
-    cells: Option<(u64, [Buffer; 3])>,
+    cells: Option<(u64, CellBuffers)>,
+}
+
+/// The cell list's layout on the device: sorted positions, each point's group, cell starts.
+#[derive(Debug)]
+struct CellBuffers {
+    pos: Buffer,
+    group: Buffer<i32>,
+    start: Buffer<i32>,
 }
 
 /// Plans and buffers for one grid size.
@@ -70,30 +69,12 @@ pub(crate) struct Input {
     pub(crate) spectra: Buffer,
 }
 
-/// The window and box of one sum.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Geometry {
-    pub(crate) window: Window,
-    pub(crate) m: usize,
-    pub(crate) l: f64,
-    pub(crate) xi: f64,
-}
-
 impl GpuFourier {
-    /// CUDA device 0 (kernels compiled by NVRTC): [`GpuError::NoDevice`] where there is none.
-    pub fn cuda() -> Result<Self, GpuError> {
+    /// The device `backend` names, with the kernels compiled: [`GpuError::NoDevice`] where
+    /// there is none.
+    pub fn open(backend: Backend) -> Result<Self, GpuError> {
         Ok(Self {
-            dev: Device::cuda(SOURCE, &KERNELS)?,
-            grid: None,
-            points: None,
-            cells: None,
-        })
-    }
-
-    /// The host emulation of the same kernels (slow; for tests on machines without a GPU).
-    pub fn host_emulation() -> Result<Self, GpuError> {
-        Ok(Self {
-            dev: Device::host_emulation(SOURCE, &KERNELS)?,
+            dev: Device::open(backend, &KERNELS)?,
             grid: None,
             points: None,
             cells: None,
@@ -217,7 +198,7 @@ impl GpuFourier {
 
     /// The cell list's layout on the device (sorted positions, groups, cell starts) for the
     /// points of `generation`: the cached upload, or a new one.
-    fn cells(&mut self, generation: u64, cells: &PointCells) -> Result<[Buffer; 3], GpuError> {
+    fn cells(&mut self, generation: u64, cells: &PointCells) -> Result<CellBuffers, GpuError> {
         if !cells.all_own() {
             return Err(GpuError::Input(
                 "the device's real-space sums take every point as a target".into(),
@@ -225,48 +206,61 @@ impl GpuFourier {
         }
         if let Some((g, b)) = self.cells.take()
             && g == generation
-            && b[0].len() == 3 * cells.members.len()
+            && b.pos.len() == 3 * cells.members.len()
         {
             return Ok(b);
         }
         let dev = &self.dev;
-        let group: Vec<f64> = cells.group.iter().map(|&g| f64::from(g)).collect();
-        let start: Vec<f64> = cells.start.iter().map(|&s| s as f64).collect();
-        Ok([
-            dev.upload(cells.sorted.as_flattened())?,
-            dev.upload(&group)?,
-            dev.upload(&start)?,
-        ])
+        let to_int = |v: usize, what: &str| {
+            i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
+        };
+        let group = cells
+            .group
+            .iter()
+            .map(|&g| to_int(g as usize, "group"))
+            .collect::<Result<Vec<i32>, _>>()?;
+        let start = cells
+            .start
+            .iter()
+            .map(|&s| to_int(s, "cell start"))
+            .collect::<Result<Vec<i32>, _>>()?;
+        Ok(CellBuffers {
+            pos: dev.upload(cells.sorted.as_flattened())?,
+            group: dev.upload(&group)?,
+            start: dev.upload(&start)?,
+        })
     }
 
     /// Run a real-space kernel and return its `K` outputs per point in the points' own order.
     fn real_space<const K: usize>(
         &mut self,
         generation: u64,
-        which: launch::Real,
+        which: launch::Real<'_>,
         cells: &PointCells,
-        values: [&Buffer; 2],
-        (table, nodes, reals): (&[f64], usize, Vec<f64>),
+        (table, nodes): (&[f64], usize),
+        (cutoff, inv_h, r0): (f64, f64, f64),
     ) -> Result<Vec<[f64; K]>, GpuError> {
         let n = cells.members.len();
-        let [pos, group, start] = self.cells(generation, cells)?;
+        let cb = self.cells(generation, cells)?;
         let dev = &self.dev;
         let table = dev.upload(table)?;
         let mut out = dev.zeros(K * n)?;
         let inputs = launch::RealSpace {
-            pos: &pos,
-            values,
-            group: &group,
-            start: &start,
+            pos: &cb.pos,
+            group: &cb.group,
+            start: &cb.start,
             table: &table,
             npts: n,
             ncell: cells.n,
             nodes,
-            reals,
+            l: cells.l,
+            cutoff,
+            inv_h,
+            r0sq: r0 * r0,
         };
         launch::real_space(dev, which, &inputs, &mut out)?;
         let sorted = dev.download(&out)?;
-        self.cells = Some((generation, [pos, group, start]));
+        self.cells = Some((generation, cb));
         let mut result = vec![[0.0; K]; n];
         for (k, &i) in cells.members.iter().enumerate() {
             result[i as usize].copy_from_slice(&sorted[K * k..K * (k + 1)]);
@@ -290,13 +284,18 @@ impl GpuFourier {
         let force = self
             .dev
             .upload(cells.sorted_values(forces).as_flattened())?;
-        let reals = vec![cells.l, cutoff, inv_h, c, ca, cb, a, r0 * r0];
         self.real_space(
             generation,
-            launch::Real::Rpy,
+            launch::Real::Rpy {
+                force: &force,
+                c,
+                ca,
+                cb,
+                a,
+            },
             cells,
-            [&force, &force],
-            (&g, nodes, reals),
+            (&g, nodes),
+            (cutoff, inv_h, r0),
         )
     }
 
@@ -315,13 +314,17 @@ impl GpuFourier {
         let (inv_h, nodes, xi, r_direct, g) = table.parts();
         let orient = self.dev.upload(cells.sorted_values(p).as_flattened())?;
         let strength = self.dev.upload(&cells.sorted_values(sigma))?;
-        let reals = vec![cells.l, cutoff, inv_h, xi, r_direct, r0 * r0];
         self.real_space(
             generation,
-            launch::Real::Stresslet,
+            launch::Real::Stresslet {
+                orient: &orient,
+                sigma: &strength,
+                xi,
+                r_direct,
+            },
             cells,
-            [&orient, &strength],
-            (&g, nodes, reals),
+            (&g, nodes),
+            (cutoff, inv_h, r0),
         )
     }
 

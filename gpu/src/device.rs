@@ -1,0 +1,219 @@
+//! An open device (CUDA or the host emulation), its compiled kernels, and buffers on it.
+
+use crate::buffer::{Buffer, Data, Element};
+#[cfg(feature = "cuda")]
+use crate::cuda;
+use crate::error::GpuError;
+use crate::host;
+use crate::kernel::KernelSet;
+
+/// Which device to open: the one way both models open theirs ([`Device::open`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// CUDA device 0 ([`GpuError::NoDevice`] where there is none, or without the `cuda`
+    /// feature).
+    Cuda,
+    /// The host emulation of the same kernels (slow: for tests on machines without a GPU).
+    HostEmulation,
+}
+
+impl Backend {
+    /// `MOTILE_GPU_BACKEND`: unset or `cuda` for [`Backend::Cuda`], `emulation` for
+    /// [`Backend::HostEmulation`]; any other value is an error naming the allowed ones.
+    pub fn from_env() -> Result<Self, GpuError> {
+        match std::env::var("MOTILE_GPU_BACKEND").as_deref() {
+            Err(_) | Ok("") | Ok("cuda") => Ok(Backend::Cuda),
+            Ok("emulation") => Ok(Backend::HostEmulation),
+            Ok(other) => Err(GpuError::Input(format!(
+                "MOTILE_GPU_BACKEND = \"{other}\": allowed \"cuda\" (the default) or \"emulation\""
+            ))),
+        }
+    }
+}
+
+/// An open device and its compiled kernels.
+#[derive(Debug)]
+pub struct Device {
+    pub(crate) inner: Inner,
+}
+
+#[derive(Debug)]
+pub(crate) enum Inner {
+    Host(host::Host),
+    #[cfg(feature = "cuda")]
+    Cuda(cuda::Cuda),
+}
+
+impl Device {
+    /// Open `backend` with the kernels of `set` compiled (NVRTC, or the C++ compiler for the
+    /// emulation), after checking each kernel's declaration against the source
+    /// ([`KernelSet::check`]).
+    pub fn open(backend: Backend, set: &KernelSet) -> Result<Self, GpuError> {
+        set.check().map_err(GpuError::Input)?;
+        let names = set.names();
+        let inner = match backend {
+            Backend::HostEmulation => Inner::Host(host::Host::compile(set.source, &names)?),
+            #[cfg(feature = "cuda")]
+            Backend::Cuda => Inner::Cuda(cuda::Cuda::open(set.source, &names)?),
+            #[cfg(not(feature = "cuda"))]
+            Backend::Cuda => {
+                return Err(GpuError::NoDevice(
+                    "built without CUDA support (feature `cuda`)".into(),
+                ));
+            }
+        };
+        Ok(Self { inner })
+    }
+
+    /// What this device is, for logs and reports.
+    pub fn describe(&self) -> String {
+        match &self.inner {
+            Inner::Host(h) => h.describe(),
+            #[cfg(feature = "cuda")]
+            Inner::Cuda(c) => c.describe(),
+        }
+    }
+
+    /// `(bytes in use, total bytes)` of the device's memory (all processes), or `None` on the
+    /// host emulation.
+    pub fn memory(&self) -> Result<Option<(usize, usize)>, GpuError> {
+        match &self.inner {
+            Inner::Host(_) => Ok(None),
+            #[cfg(feature = "cuda")]
+            Inner::Cuda(c) => c.memory().map(Some),
+        }
+    }
+
+    /// A buffer holding a copy of `data`.
+    pub fn upload<T: Element>(&self, data: &[T]) -> Result<Buffer<T>, GpuError> {
+        let len = data.len();
+        let data = match &self.inner {
+            Inner::Host(_) => Data::Host(data.to_vec()),
+            #[cfg(feature = "cuda")]
+            Inner::Cuda(c) => Data::Cuda(c.upload(data)?),
+        };
+        Ok(Buffer { len, data })
+    }
+
+    /// Copy `data` into `buf`, which must have its length.
+    pub fn upload_into<T: Element>(&self, data: &[T], buf: &mut Buffer<T>) -> Result<(), GpuError> {
+        if data.len() != buf.len {
+            return Err(GpuError::Input(format!(
+                "{} values into a buffer of {}",
+                data.len(),
+                buf.len
+            )));
+        }
+        match (&self.inner, &mut buf.data) {
+            (Inner::Host(_), Data::Host(v)) => v.copy_from_slice(data),
+            #[cfg(feature = "cuda")]
+            (Inner::Cuda(c), Data::Cuda(s)) => c.upload_into(data, s)?,
+            #[allow(unreachable_patterns)]
+            _ => return Err(GpuError::foreign()),
+        }
+        Ok(())
+    }
+
+    /// A buffer of `len` zeros.
+    pub fn zeros<T: Element>(&self, len: usize) -> Result<Buffer<T>, GpuError> {
+        let data = match &self.inner {
+            Inner::Host(_) => Data::Host(vec![T::default(); len]),
+            #[cfg(feature = "cuda")]
+            Inner::Cuda(c) => Data::Cuda(c.zeros(len)?),
+        };
+        Ok(Buffer { len, data })
+    }
+
+    /// Set every value of `buf` to zero.
+    pub fn zero<T: Element>(&self, buf: &mut Buffer<T>) -> Result<(), GpuError> {
+        match (&self.inner, &mut buf.data) {
+            (Inner::Host(_), Data::Host(v)) => v.fill(T::default()),
+            #[cfg(feature = "cuda")]
+            (Inner::Cuda(c), Data::Cuda(s)) => c.zero(s)?,
+            #[allow(unreachable_patterns)]
+            _ => return Err(GpuError::foreign()),
+        }
+        Ok(())
+    }
+
+    /// The values of `buf` (waits for the device's queued work).
+    pub fn download<T: Element>(&self, buf: &Buffer<T>) -> Result<Vec<T>, GpuError> {
+        if buf.len == 0 {
+            return Ok(Vec::new());
+        }
+        match (&self.inner, &buf.data) {
+            (Inner::Host(_), Data::Host(v)) => Ok(v.clone()),
+            #[cfg(feature = "cuda")]
+            (Inner::Cuda(c), Data::Cuda(s)) => c.download(s),
+            #[allow(unreachable_patterns)]
+            _ => Err(GpuError::foreign()),
+        }
+    }
+
+    /// `len` values of `buf` from `at` (waits for the device's queued work).
+    pub fn download_range<T: Element>(
+        &self,
+        buf: &Buffer<T>,
+        at: usize,
+        len: usize,
+    ) -> Result<Vec<T>, GpuError> {
+        if at + len > buf.len {
+            return Err(GpuError::Input(format!(
+                "{len} values from {at} of a buffer of {}",
+                buf.len
+            )));
+        }
+        if len == 0 {
+            return Ok(Vec::new());
+        }
+        match (&self.inner, &buf.data) {
+            (Inner::Host(_), Data::Host(v)) => Ok(v[at..at + len].to_vec()),
+            #[cfg(feature = "cuda")]
+            (Inner::Cuda(c), Data::Cuda(s)) => c.download_range(s, at, len),
+            #[allow(unreachable_patterns)]
+            _ => Err(GpuError::foreign()),
+        }
+    }
+
+    /// Copy `len` values of `src` from `src_at` into `dst` from `dst_at`.
+    pub fn copy<T: Element>(
+        &self,
+        (src, src_at): (&Buffer<T>, usize),
+        (dst, dst_at): (&mut Buffer<T>, usize),
+        len: usize,
+    ) -> Result<(), GpuError> {
+        if src_at + len > src.len || dst_at + len > dst.len {
+            return Err(GpuError::Input(format!(
+                "copying {len} values from {src_at} of {} into {dst_at} of {}",
+                src.len, dst.len
+            )));
+        }
+        match (&self.inner, &src.data, &mut dst.data) {
+            (Inner::Host(_), Data::Host(a), Data::Host(b)) => {
+                b[dst_at..dst_at + len].copy_from_slice(&a[src_at..src_at + len]);
+                Ok(())
+            }
+            #[cfg(feature = "cuda")]
+            (Inner::Cuda(c), Data::Cuda(a), Data::Cuda(b)) => {
+                cuda::copy(c, (a, src_at), (b, dst_at), len)
+            }
+            #[allow(unreachable_patterns)]
+            _ => Err(GpuError::foreign()),
+        }
+    }
+}
+
+/// Look for a CUDA device without using it: the driver library, NVRTC and cuFFT must load and
+/// device 0 must answer. Without the `cuda` feature: [`GpuError::NoDevice`].
+pub fn probe() -> Result<crate::error::DeviceInfo, GpuError> {
+    #[cfg(feature = "cuda")]
+    {
+        cuda::probe()
+    }
+    #[cfg(not(feature = "cuda"))]
+    {
+        Err(GpuError::NoDevice(
+            "built without CUDA support (feature `cuda`)".into(),
+        ))
+    }
+}

@@ -1,0 +1,211 @@
+//! Batched 3D real FFTs on a device: cuFFT's `D2Z`/`Z2D` (unnormalised), or on the host
+//! emulation [`motile_analysis::fft3::RealFft3`] in cuFFT's layout and scaling.
+
+use crate::buffer::{Buffer, Data};
+#[cfg(feature = "cuda")]
+use crate::cuda;
+use crate::device::{Device, Inner};
+use crate::error::GpuError;
+
+/// A plan for batches of 3D real transforms of `M^3` grids.
+#[derive(Debug)]
+pub struct Fft3 {
+    m: usize,
+    batch: usize,
+    direction: Direction,
+    inner: FftInner,
+}
+
+enum FftInner {
+    Host(motile_analysis::fft3::RealFft3),
+    #[cfg(feature = "cuda")]
+    Cuda {
+        forward: Option<cudarc::cufft::CudaFft>,
+        inverse: Option<cudarc::cufft::CudaFft>,
+    },
+}
+
+/// Which transforms a plan does (each cuFFT plan holds a work area about the size of its data,
+/// so a plan is made only for the directions asked for).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Direction {
+    /// Real to half spectrum.
+    Forward,
+    /// Half spectrum to real.
+    Inverse,
+    /// Both.
+    Both,
+}
+
+impl std::fmt::Debug for FftInner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FftInner::Host(_) => f.write_str("Host"),
+            #[cfg(feature = "cuda")]
+            FftInner::Cuda { .. } => f.write_str("cuFFT"),
+        }
+    }
+}
+
+impl Fft3 {
+    /// `f64` values of a batch of real fields, `batch M^3`.
+    pub fn real_len(&self) -> usize {
+        self.batch * self.m.pow(3)
+    }
+
+    /// `f64` values of a batch of half spectra, `2 batch M M (M/2 + 1)`.
+    pub fn complex_len(&self) -> usize {
+        2 * self.batch * self.spectrum_len()
+    }
+
+    /// Complex values of one half spectrum, `M M (M/2 + 1)`.
+    pub fn spectrum_len(&self) -> usize {
+        self.m * self.m * (self.m / 2 + 1)
+    }
+}
+
+impl Device {
+    /// A plan for batches of `batch` real transforms of `m^3` grids in the directions asked for.
+    pub fn fft3(&self, m: usize, batch: usize, direction: Direction) -> Result<Fft3, GpuError> {
+        if m < 2 || batch == 0 {
+            return Err(GpuError::Input(format!(
+                "an FFT plan of {batch} grids of {m}^3"
+            )));
+        }
+        let inner = match &self.inner {
+            Inner::Host(_) => FftInner::Host(motile_analysis::fft3::RealFft3::new([m; 3])),
+            #[cfg(feature = "cuda")]
+            Inner::Cuda(c) => {
+                let (forward, inverse) = c.fft3(
+                    m,
+                    batch,
+                    (
+                        direction != Direction::Inverse,
+                        direction != Direction::Forward,
+                    ),
+                )?;
+                FftInner::Cuda { forward, inverse }
+            }
+        };
+        Ok(Fft3 {
+            m,
+            batch,
+            direction,
+            inner,
+        })
+    }
+
+    /// Forward transforms (`sum_x f(x) exp(-i k x)`) of the batch of real fields at
+    /// `real[real_at..]` into the half spectra at `spectra[spectra_at..]` (offsets in `f64`
+    /// values; the complex offset must be even).
+    pub fn forward(
+        &self,
+        plan: &Fft3,
+        (real, real_at): (&Buffer, usize),
+        (spectra, spectra_at): (&mut Buffer, usize),
+    ) -> Result<(), GpuError> {
+        check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        if plan.direction == Direction::Inverse {
+            return Err(GpuError::Input(
+                "a forward transform with an inverse-only plan".into(),
+            ));
+        }
+        let (n, s) = (plan.real_len(), plan.spectrum_len());
+        match (&plan.inner, &real.data, &mut spectra.data) {
+            (FftInner::Host(fft), Data::Host(x), Data::Host(y)) => {
+                let m3 = plan.m.pow(3);
+                let mut out = vec![num_complex::Complex64::default(); s];
+                for b in 0..plan.batch {
+                    fft.forward(&x[real_at + b * m3..real_at + (b + 1) * m3], &mut out);
+                    let y = &mut y[spectra_at + 2 * b * s..spectra_at + 2 * (b + 1) * s];
+                    for (j, z) in out.iter().enumerate() {
+                        y[2 * j] = z.re;
+                        y[2 * j + 1] = z.im;
+                    }
+                }
+                Ok(())
+            }
+            #[cfg(feature = "cuda")]
+            (
+                FftInner::Cuda {
+                    forward: Some(forward),
+                    ..
+                },
+                Data::Cuda(x),
+                Data::Cuda(y),
+            ) => cuda::forward(forward, (x, real_at, n), (y, spectra_at, plan.batch * s)),
+            #[allow(unreachable_patterns)]
+            _ => {
+                let _ = n;
+                Err(GpuError::foreign())
+            }
+        }
+    }
+
+    /// Inverse transforms (`sum_k c(k) exp(+i k x)`, unnormalised) of the batch of half spectra
+    /// at `spectra[spectra_at..]` (which may be overwritten, as cuFFT does) into the real
+    /// fields at `real[real_at..]`.
+    pub fn inverse(
+        &self,
+        plan: &Fft3,
+        (spectra, spectra_at): (&mut Buffer, usize),
+        (real, real_at): (&mut Buffer, usize),
+    ) -> Result<(), GpuError> {
+        check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        if plan.direction == Direction::Forward {
+            return Err(GpuError::Input(
+                "an inverse transform with a forward-only plan".into(),
+            ));
+        }
+        let (n, s) = (plan.real_len(), plan.spectrum_len());
+        match (&plan.inner, &mut spectra.data, &mut real.data) {
+            (FftInner::Host(fft), Data::Host(y), Data::Host(x)) => {
+                let m3 = plan.m.pow(3);
+                let mut spec = vec![num_complex::Complex64::default(); s];
+                for b in 0..plan.batch {
+                    let y = &y[spectra_at + 2 * b * s..spectra_at + 2 * (b + 1) * s];
+                    for (j, z) in spec.iter_mut().enumerate() {
+                        *z = num_complex::Complex64::new(y[2 * j], y[2 * j + 1]);
+                    }
+                    fft.inverse(&mut spec, &mut x[real_at + b * m3..real_at + (b + 1) * m3]);
+                }
+                Ok(())
+            }
+            #[cfg(feature = "cuda")]
+            (
+                FftInner::Cuda {
+                    inverse: Some(inverse),
+                    ..
+                },
+                Data::Cuda(y),
+                Data::Cuda(x),
+            ) => cuda::inverse(inverse, (y, spectra_at, plan.batch * s), (x, real_at, n)),
+            #[allow(unreachable_patterns)]
+            _ => {
+                let _ = n;
+                Err(GpuError::foreign())
+            }
+        }
+    }
+}
+
+fn check_fft(
+    plan: &Fft3,
+    (real, real_at): (usize, usize),
+    (complex, complex_at): (usize, usize),
+) -> Result<(), GpuError> {
+    if real_at + plan.real_len() > real
+        || complex_at + plan.complex_len() > complex
+        || complex_at % 2 != 0
+    {
+        return Err(GpuError::Input(format!(
+            "FFT of {} grids of {}^3 needs {} real values from {real_at} and {} complex-pair \
+             values from {complex_at} (even); the buffers hold {real} and {complex}",
+            plan.batch,
+            plan.m,
+            plan.real_len(),
+            plan.complex_len()
+        )));
+    }
+    Ok(())
+}

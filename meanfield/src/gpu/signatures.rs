@@ -1,0 +1,147 @@
+//! The kernels of `kernels.cu`, each one's parameters declared once as a struct of named, typed
+//! arguments (checked against `kernels.cu` when a device opens them, and by a test here).
+//! Spectra are `double2` arrays (interleaved `f64` pairs); `N` is the grid's point count.
+#![allow(non_snake_case)]
+
+use motile_gpu::Buffer;
+
+motile_gpu::kernels! {
+    /// `kernels.cu` and its kernels.
+    pub(super) const KERNELS = include_str!("kernels.cu");
+
+    /// Scale `count` spectrum values and zero the modes the 2/3 rule drops.
+    pub(super) struct ScaleDealias = "scale_dealias" {
+        c: &'a mut Buffer<f64>,
+        count: i64,
+        n: i32,
+        scale: f64,
+        keep: &'a Buffer<i32>,
+        dealias: i32,
+    }
+
+    /// The spectra of E from those of u.
+    pub(super) struct StrainSpectra = "strain_spectra" {
+        u: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        n: i32,
+        k1: &'a Buffer<f64>,
+    }
+
+    /// The spectra of the first derivatives of `comps` fields.
+    pub(super) struct DerivativeSpectra = "derivative_spectra" {
+        c: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        comps: i32,
+        n: i32,
+        k1: &'a Buffer<f64>,
+    }
+
+    /// The Stokes solve: u from the stress spectra.
+    pub(super) struct Stokes = "stokes" {
+        sigma: &'a Buffer<f64>,
+        u: &'a mut Buffer<f64>,
+        n: i32,
+        k1: &'a Buffer<f64>,
+        k2: &'a Buffer<f64>,
+    }
+
+    /// The IMEX update of Q.
+    pub(super) struct ImexUpdate = "imex_update" {
+        q: &'a Buffer<f64>,
+        nl: &'a Buffer<f64>,
+        q_prev: &'a Buffer<f64>,
+        nl_prev: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        n: i32,
+        k2: &'a Buffer<f64>,
+        a0: f64,
+        a1: f64,
+        a2: f64,
+        b0: f64,
+        b1: f64,
+        dt: f64,
+        diffusion: f64,
+        two: i32,
+    }
+
+    /// Block partials of the fixed point's change `|a - b|^2` and norm `|a|^2`.
+    pub(super) struct ChangePartials = "change_partials" {
+        a: &'a Buffer<f64>,
+        b: &'a Buffer<f64>,
+        n: i32,
+        partial: &'a mut Buffer<f64>,
+    }
+
+    /// Block partials of `|u|^2` over the spectrum.
+    pub(super) struct NormPartials = "norm_partials" {
+        u: &'a Buffer<f64>,
+        n: i32,
+        partial: &'a mut Buffer<f64>,
+    }
+
+    /// Block partials of the report's grid sums.
+    pub(super) struct ReportPartials = "report_partials" {
+        ug: &'a Buffer<f64>,
+        e: &'a Buffer<f64>,
+        q: &'a Buffer<f64>,
+        se: &'a Buffer<f64>,
+        N: i64,
+        partial: &'a mut Buffer<f64>,
+    }
+
+    /// Block counts of non-finite values.
+    pub(super) struct NonfinitePartials = "nonfinite_partials" {
+        v: &'a Buffer<f64>,
+        count: i64,
+        partial: &'a mut Buffer<f64>,
+    }
+
+    /// E on the grid from the velocity gradient.
+    pub(super) struct StrainFromGradient = "strain_from_gradient" {
+        g: &'a Buffer<f64>,
+        e: &'a mut Buffer<f64>,
+        N: i64,
+    }
+
+    /// `S:E` (or the stress `-Q + zeta S:E`) per grid point.
+    pub(super) struct Contract = "contract" {
+        s21: &'a Buffer<f64>,
+        e: &'a Buffer<f64>,
+        q: &'a Buffer<f64>,
+        zeta: f64,
+        out: &'a mut Buffer<f64>,
+        N: i64,
+        stress: i32,
+    }
+
+    /// The explicit terms of the Q equation per grid point.
+    pub(super) struct ExplicitTerms = "explicit_terms" {
+        ug: &'a Buffer<f64>,
+        g: &'a Buffer<f64>,
+        q: &'a Buffer<f64>,
+        dq: &'a Buffer<f64>,
+        se: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        N: i64,
+    }
+
+    /// The closure per grid point (eigenframes and table moments), with block partials of the
+    /// eigenvalue bounds and the entropy.
+    pub(super) struct ClosureField = "closure_field" {
+        q: &'a Buffer<f64>,
+        s21: &'a mut Buffer<f64>,
+        coef: &'a Buffer<f64>,
+        deg: i32,
+        with_entropy: i32,
+        N: i64,
+        partial: &'a mut Buffer<f64>,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn declarations_match_the_source() {
+        super::KERNELS.check().unwrap();
+    }
+}

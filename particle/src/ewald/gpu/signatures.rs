@@ -1,0 +1,111 @@
+//! The kernels of `kernels.cu`, each one's parameters declared once as a struct of named, typed
+//! arguments (checked against `kernels.cu` when a device opens them, and by a test here).
+
+use motile_gpu::Buffer;
+
+motile_gpu::kernels! {
+    /// `kernels.cu` and its kernels.
+    pub(crate) const KERNELS = include_str!("kernels.cu");
+
+    /// Spread `nf` fields of `n` points onto `nf` grids of `m^3` (atomic adds).
+    pub(crate) struct Spread = "spread" {
+        pts: &'a Buffer<f64>,
+        vals: &'a Buffer<f64>,
+        grid: &'a mut Buffer<f64>,
+        n: i32,
+        nf: i32,
+        m: i32,
+        p: i32,
+        l: f64,
+        h: f64,
+        alpha: f64,
+        norm: f64,
+    }
+
+    /// The RPY multiplication of three force spectra (sphere radius `a`).
+    pub(crate) struct RpyModes = "rpy_modes" {
+        input: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        m: i32,
+        l: f64,
+        xi: f64,
+        a: f64,
+        eta: f64,
+        h: f64,
+    }
+
+    /// The point-force velocities of the force density of six stresslet spectra.
+    pub(crate) struct StressletModes = "stresslet_modes" {
+        input: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        m: i32,
+        l: f64,
+        xi: f64,
+        eta: f64,
+        h: f64,
+    }
+
+    /// Gather three fields at `n` points, with the window's derivative if `gradient` is 1.
+    pub(crate) struct Gather = "gather" {
+        pts: &'a Buffer<f64>,
+        grid: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        n: i32,
+        gradient: i32,
+        m: i32,
+        p: i32,
+        l: f64,
+        h: f64,
+        alpha: f64,
+        norm: f64,
+    }
+
+    /// The real-space RPY sum at every point of a cell list.
+    pub(crate) struct RpyReal = "rpy_real" {
+        pos: &'a Buffer<f64>,
+        force: &'a Buffer<f64>,
+        group: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        table: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        npts: i32,
+        ncell: i32,
+        nt: i32,
+        l: f64,
+        cutoff: f64,
+        inv_h: f64,
+        c: f64,
+        ca: f64,
+        cb: f64,
+        a: f64,
+        r0sq: f64,
+    }
+
+    /// The real-space stresslet sum at every point of a cell list.
+    pub(crate) struct StressletReal = "stresslet_real" {
+        pos: &'a Buffer<f64>,
+        orient: &'a Buffer<f64>,
+        sigma: &'a Buffer<f64>,
+        group: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        table: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        npts: i32,
+        ncell: i32,
+        nt: i32,
+        l: f64,
+        cutoff: f64,
+        inv_h: f64,
+        xi: f64,
+        r_direct: f64,
+        r0sq: f64,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn declarations_match_the_source() {
+        super::KERNELS.check().unwrap();
+    }
+}
