@@ -186,18 +186,65 @@ pub fn parse_run_config<C: serde::de::DeserializeOwned>(
     let mut table: toml::Table =
         toml::from_str(text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     table.remove("motile");
-    let cfg: C = table.try_into().map_err(|e: toml::de::Error| {
-        anyhow::anyhow!("{}: {}", path.display(), with_suggestion(e.message()))
+    let cfg: C = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
+        |e: serde_path_to_error::Error<toml::de::Error>| {
+            let at = e.path().to_string();
+            let message = with_suggestion(e.inner().message());
+            // The path ends at the key the error is about (a field that failed, or an unknown
+            // key).
+            let line = line_of_key(text, &at).map_or(String::new(), |n| format!(" line {n}:"));
+            if at == "." || message.starts_with("unknown key") {
+                anyhow::anyhow!("{}:{line} {message}", path.display())
+            } else {
+                anyhow::anyhow!("{}:{line} `{at}`: {message}", path.display())
+            }
+        },
+    )?;
+    validate(&cfg).map_err(|e| {
+        // Validation messages start with the key: `contact.margin = 0.001 is ...`.
+        let key = e.split(" = ").next().unwrap_or_default();
+        let line = (!key.contains(' '))
+            .then(|| line_of_key(text, key))
+            .flatten()
+            .map_or(String::new(), |n| format!(" line {n}:"));
+        anyhow::anyhow!("{}:{line} {e}", path.display())
     })?;
-    validate(&cfg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(cfg)
+}
+
+/// The line (1-based) of `key` (`a` or `table.a`) in a TOML text: the line that assigns it at
+/// the top level or under its `[table]` header. `None` where it cannot be found (a key written
+/// in another form, such as an inline table).
+fn line_of_key(text: &str, key: &str) -> Option<usize> {
+    let (table, name) = match key.rsplit_once('.') {
+        Some((t, n)) => (t, n),
+        None => ("", key),
+    };
+    let mut current = String::new();
+    for (k, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if let Some(h) = t.strip_prefix('[').and_then(|h| h.split(']').next()) {
+            current = h.trim().to_string();
+            continue;
+        }
+        let assigned = t.split('=').next().map(|k| k.trim().trim_matches('"'));
+        if current == table && t.contains('=') && assigned == Some(name) {
+            return Some(k + 1);
+        }
+    }
+    None
 }
 
 /// Rewrite serde's "unknown field `x`, expected one of `a`, `b`" as a message that names the
 /// closest valid key (edit distance), e.g. "unknown key `zetta`; did you mean `zeta`?".
 fn with_suggestion(message: &str) -> String {
     let Some(rest) = message.strip_prefix("unknown field `") else {
-        return message.to_string();
+        // Serde's Rust type names in the words of a config file.
+        return message
+            .replace("expected f64", "expected a number")
+            .replace("expected usize", "expected a whole number")
+            .replace("expected u64", "expected a whole number")
+            .replace("expected u32", "expected a whole number");
     };
     let Some((key, expected)) = rest.split_once('`') else {
         return message.to_string();
