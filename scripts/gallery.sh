@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Copy the README gallery's figures (SVG; heat maps PNG) from the run directories into docs/gallery/.
-# The runs themselves are made by the commands listed in README.md ("Gallery").
+# Copy the gallery (docs/gallery.md)'s figures (SVG; heat maps PNG) from the run directories into docs/gallery/.
+# The runs themselves are made by the commands listed in docs/gallery.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=docs/gallery

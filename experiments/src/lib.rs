@@ -7,10 +7,8 @@
 //! - [`io`]: run directories, verified checkpoints, HDF5 snapshots, VTK files, atomic writes;
 //! - [`report`]: analysis of finished runs, comparison of runs, figures, accuracy audits;
 //! - [`campaign`]: scenes (named sets of runs), the demo, studies of accuracy against cost,
-//!   stability and onset maps, cost estimates.
-//!
-//! The modules are also reachable under their short names at the crate root
-//! (`motile_experiments::campaign::scene`, `::particle_run`, ...), the paths the CLI and tests use.
+//!   stability and onset maps, cost estimates;
+//! - [`cli`]: the `motile` commands, one module each (`main.rs` only parses and dispatches).
 #![warn(missing_docs)]
 
 pub mod campaign;

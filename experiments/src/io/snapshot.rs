@@ -1,7 +1,7 @@
 //! HDF5 snapshots of both models, and their validation on load.
 //!
 //! Layout (all lengths in rod lengths `l` for particle runs and box lengths `L` for mean-field
-//! runs, times in the model's own unit; see README "Run directories"):
+//! runs, times in the model's own unit; see docs/run-directory.md):
 //!
 //! Particle snapshot, root attributes `kind = "particle"`, `time`, `step`, `box_length`,
 //! `motile_version`; datasets `positions (N, 3)`, `orientations (N, 3)` (unit vectors),
