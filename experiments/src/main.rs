@@ -7,6 +7,7 @@ use motile_experiments::cli::analyze::AnalyzeArgs;
 use motile_experiments::cli::check_accuracy::CheckAccuracyArgs;
 use motile_experiments::cli::compare::CompareArgs;
 use motile_experiments::cli::demo::DemoArgs;
+use motile_experiments::cli::fidelity::FidelityArgs;
 use motile_experiments::cli::model_run::RunArgs;
 use motile_experiments::cli::resume::ResumeArgs;
 use motile_experiments::cli::scene_run::SceneArgs;
@@ -73,6 +74,10 @@ enum Command {
     CheckAccuracy(CheckAccuracyArgs),
     /// Continue a stopped or killed run from its newest checkpoint, bit for bit.
     Resume(ResumeArgs),
+    /// Pair fidelity of the hydrodynamic levels: two rods at centre distances 0.5-5 l with
+    /// random orientations, each level's flow-induced velocities against slender-body theory's
+    /// (OUT/pair_fidelity.{png,svg,csv,md}).
+    Fidelity(FidelityArgs),
     /// The main job, the `demo` scene (experiments/scenes/demo.toml): pushers above the
     /// instability in both models from one initial condition. A particle run with slender-body
     /// hydrodynamics (8 640 rods at nu = 5 in a box of 12 rod lengths, to t = 8.5/beta) in
@@ -112,6 +117,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Study(a) => cli::study::run(a),
         Command::CheckAccuracy(a) => cli::check_accuracy::run(a),
         Command::Resume(a) => cli::resume::run(a),
+        Command::Fidelity(a) => cli::fidelity::run(a),
         Command::Demo(a) => cli::demo::run(a),
     }
 }

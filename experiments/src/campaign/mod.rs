@@ -3,6 +3,7 @@
 
 pub mod demo;
 pub mod estimate;
+pub mod fidelity;
 pub mod onset;
 pub mod run_config;
 pub mod scene;

@@ -5,6 +5,7 @@ pub mod analyze;
 pub mod check_accuracy;
 pub mod compare;
 pub mod demo;
+pub mod fidelity;
 pub mod model_run;
 pub mod resume;
 pub mod scene_run;

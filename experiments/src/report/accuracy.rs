@@ -162,7 +162,10 @@ pub fn audit(run_dir: &Path, snapshot: Option<usize>, targets: usize) -> anyhow:
     let l = snap.box_length;
     let mut fast = SpectralEwald::new(tol)?;
     match cfg.hydrodynamics {
-        Hydrodynamics::Sbt => audit_sbt(&cfg, path, &snap, targets, &mut fast),
+        // Both sum the RPY flow of the snapshot's force densities at the rods' nodes.
+        Hydrodynamics::Sbt | Hydrodynamics::SbtExplicit => {
+            audit_sbt(&cfg, path, &snap, targets, &mut fast)
+        }
         Hydrodynamics::Dipole => audit_dipole(path, &snap, cfg.diameter, targets, &mut fast),
         Hydrodynamics::None => unreachable!("refused above: no flow, no sums"),
     }

@@ -3,6 +3,7 @@
 //! slender-body equation.
 
 pub mod dipole;
+pub mod explicit;
 pub mod gmres;
 pub mod mobility;
 pub mod slender;

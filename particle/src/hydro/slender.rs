@@ -227,7 +227,7 @@ impl P4<'_> {
 }
 
 /// `[u]_l` and `[s u]_l` of one rod's node values.
-fn moments(u: &[Vec3], s: &[f64], w: &[f64]) -> (Vec3, Vec3) {
+pub(crate) fn moments(u: &[Vec3], s: &[f64], w: &[f64]) -> (Vec3, Vec3) {
     let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
     for ((uj, sj), wj) in u.iter().zip(s).zip(w) {
         for d in 0..3 {
@@ -301,14 +301,7 @@ impl SlenderBody {
 
     /// Node positions `x_n + s_j p_n`.
     pub fn node_positions(&self, rods: &RodSet, p: &[Vec3]) -> Vec<Vec3> {
-        let m = self.s.len();
-        (0..rods.len() * m)
-            .into_par_iter()
-            .map(|k| {
-                let (n, j) = (k / m, k % m);
-                [0, 1, 2].map(|d| rods.x[n][d] + self.s[j] * p[n][d])
-            })
-            .collect()
+        node_positions(&rods.x, p, &self.s)
     }
 
     /// Solve (P4) with right-hand side `rhs` (the own rods') from the warm start `x`; returns
@@ -376,20 +369,43 @@ impl SlenderBody {
     }
 
     /// Rigid-body velocities (P2)-(P3) from the flow at the nodes, without the swimming and
-    /// contact terms: `v = [u]_l / l`, `w = p x (12/l^3)(I - pp)[s u]_l`.
+    /// contact terms ([`flow_velocities`]).
     fn flow_velocities(&self, p: &[Vec3], u: &[Vec3]) -> Vec<(Vec3, Vec3)> {
-        let m = self.s.len();
-        let l = ROD_LENGTH;
-        u.par_chunks_exact(m)
-            .zip(p)
-            .map(|(un, pn)| {
-                let (ubar, su) = moments(un, &self.s, &self.w);
-                let c = dot(*pn, su);
-                let pdot = [0, 1, 2].map(|d| 12.0 / (l * l * l) * (su[d] - c * pn[d]));
-                (ubar.map(|v| v / l), cross(*pn, pdot))
-            })
-            .collect()
+        flow_velocities(p, u, (&self.s, &self.w))
     }
+}
+
+/// Rigid-body velocities (P2)-(P3) of rods with axes `p` from the flow `u` at their nodes
+/// (`M` per rod, the rule `(s, w)`), without the swimming and contact terms:
+/// `v = [u]_l / l`, `w = p x (12/l^3)(I - pp)[s u]_l`.
+pub(crate) fn flow_velocities(
+    p: &[Vec3],
+    u: &[Vec3],
+    (s, w): (&[f64], &[f64]),
+) -> Vec<(Vec3, Vec3)> {
+    let m = s.len();
+    let l = ROD_LENGTH;
+    u.par_chunks_exact(m)
+        .zip(p)
+        .map(|(un, pn)| {
+            let (ubar, su) = moments(un, s, w);
+            let c = dot(*pn, su);
+            let pdot = [0, 1, 2].map(|d| 12.0 / (l * l * l) * (su[d] - c * pn[d]));
+            (ubar.map(|v| v / l), cross(*pn, pdot))
+        })
+        .collect()
+}
+
+/// Node positions `x_n + s_j p_n` of rods with centres `x` and axes `p`.
+pub(crate) fn node_positions(x: &[Vec3], p: &[Vec3], s: &[f64]) -> Vec<Vec3> {
+    let m = s.len();
+    (0..x.len() * m)
+        .into_par_iter()
+        .map(|k| {
+            let (n, j) = (k / m, k % m);
+            [0, 1, 2].map(|d| x[n][d] + s[j] * p[n][d])
+        })
+        .collect()
 }
 
 impl SlenderBody {

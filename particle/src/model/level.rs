@@ -14,19 +14,23 @@ pub enum Hydrodynamics {
     None,
     /// Point stresslets in the periodic flow of all the others (docs/MODEL.md §2, D1-D2).
     Dipole,
+    /// Slender-body theory with explicit densities: each rod the force density of an isolated
+    /// swimmer, one periodic RPY sum per step, no GMRES (docs/MODEL.md §2a).
+    SbtExplicit,
     /// Slender-body theory with the periodic RPY sum inside GMRES (docs/MODEL.md §1, P1-P5).
     Sbt,
 }
 
 impl Hydrodynamics {
     /// Every level, in the order of increasing fidelity.
-    pub const ALL: [Hydrodynamics; 3] = [Self::None, Self::Dipole, Self::Sbt];
+    pub const ALL: [Hydrodynamics; 4] = [Self::None, Self::Dipole, Self::SbtExplicit, Self::Sbt];
 
-    /// The configuration name (`"none"`, `"dipole"`, `"sbt"`).
+    /// The configuration name (`"none"`, `"dipole"`, `"sbt-explicit"`, `"sbt"`).
     pub fn name(self) -> &'static str {
         match self {
             Self::None => "none",
             Self::Dipole => "dipole",
+            Self::SbtExplicit => "sbt-explicit",
             Self::Sbt => "sbt",
         }
     }
@@ -45,7 +49,7 @@ impl fmt::Display for Hydrodynamics {
 
 /// An unknown level name; the message names the allowed ones.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("hydrodynamics = \"{0}\" is not one of \"none\", \"dipole\", \"sbt\"")]
+#[error("hydrodynamics = \"{0}\" is not one of \"none\", \"dipole\", \"sbt-explicit\", \"sbt\"")]
 pub struct UnknownHydrodynamics(pub String);
 
 impl FromStr for Hydrodynamics {
@@ -83,7 +87,7 @@ mod tests {
         let e = "stokesian".parse::<Hydrodynamics>().unwrap_err();
         assert_eq!(
             e.to_string(),
-            "hydrodynamics = \"stokesian\" is not one of \"none\", \"dipole\", \"sbt\""
+            "hydrodynamics = \"stokesian\" is not one of \"none\", \"dipole\", \"sbt-explicit\", \"sbt\""
         );
     }
 }

@@ -4,5 +4,6 @@
 pub mod geometry;
 pub mod init;
 pub mod level;
+pub mod linear_theory;
 pub mod rods;
 pub mod units;

@@ -4,6 +4,7 @@
 use crate::io::rundir::{parse_run_config, range};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::explicit::ExplicitSlender;
 use motile_particle::hydro::gmres::GmresParams;
 use motile_particle::hydro::mobility::{LocalDrag, Mobility};
 use motile_particle::hydro::slender::{SlenderBody, SlenderParams, default_rpy_radius};
@@ -388,6 +389,9 @@ pub(crate) fn shared_mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn
         Hydrodynamics::Dipole => {
             Box::new(Dipole::new(sum()?, cfg.diameter).shared(h.sum_tolerance)?)
         }
+        Hydrodynamics::SbtExplicit => {
+            Box::new(ExplicitSlender::new(h.slender(cfg.diameter), sum()?).shared(h.sum_tolerance)?)
+        }
         Hydrodynamics::Sbt => {
             Box::new(SlenderBody::new(h.slender(cfg.diameter), sum()?).shared(h.sum_tolerance)?)
         }
@@ -406,6 +410,9 @@ pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobili
     };
     Ok(match cfg.hydrodynamics {
         Hydrodynamics::Dipole => Box::new(Dipole::new(sum()?, cfg.diameter)),
+        Hydrodynamics::SbtExplicit => {
+            Box::new(ExplicitSlender::new(h.slender(cfg.diameter), sum()?))
+        }
         Hydrodynamics::Sbt => Box::new(SlenderBody::new(h.slender(cfg.diameter), sum()?)),
         Hydrodynamics::None => Box::new(LocalDrag::new(cfg.diameter)),
     })
