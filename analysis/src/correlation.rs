@@ -21,6 +21,7 @@
 use crate::fft3::{Direction, Fft3};
 use crate::nufft::{NufftError, NufftPlan, mode_of};
 use num_complex::Complex64;
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Options for correlation functions.
@@ -280,6 +281,55 @@ pub fn velocity_spectrum(
         components: u,
         weights: vec![1.0; 3],
     })
+}
+
+/// The velocity spectrum (A1) at a few integer wavevectors `m` (`k = 2 pi m / L`) by direct sums,
+/// `u~(k) = (I - kk/|k|^2) / (mu |V| |k|^2) . sum_j f_j exp(-i k . y_j)`: the same coefficients
+/// [`velocity_spectrum`] returns at those modes, exactly and in `O(N)` per mode (for the lowest
+/// box modes at every diagnostic time). `m = 0` gives zeros.
+pub fn velocity_modes(
+    y: &[[f64; 3]],
+    f: &[[f64; 3]],
+    box_length: f64,
+    mu: f64,
+    modes: &[[i64; 3]],
+) -> Vec<[Complex64; 3]> {
+    let vol = box_length.powi(3);
+    modes
+        .iter()
+        .map(|m| {
+            let k = m.map(|c| 2.0 * PI * c as f64 / box_length);
+            let k2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
+            if k2 == 0.0 {
+                return [Complex64::default(); 3];
+            }
+            // Fixed chunks summed in order: the same bits for any thread count.
+            const CHUNK: usize = 4096;
+            let parts: Vec<[Complex64; 3]> = (0..y.len().div_ceil(CHUNK))
+                .into_par_iter()
+                .map(|c| {
+                    let mut acc = [Complex64::default(); 3];
+                    for j in c * CHUNK..((c + 1) * CHUNK).min(y.len()) {
+                        let phase = -(k[0] * y[j][0] + k[1] * y[j][1] + k[2] * y[j][2]);
+                        let e = Complex64::new(phase.cos(), phase.sin());
+                        for d in 0..3 {
+                            acc[d] += e * f[j][d];
+                        }
+                    }
+                    acc
+                })
+                .collect();
+            let mut fk = [Complex64::default(); 3];
+            for p in &parts {
+                for d in 0..3 {
+                    fk[d] += p[d];
+                }
+            }
+            let kf = k[0] * fk[0] + k[1] * fk[1] + k[2] * fk[2];
+            let s = 1.0 / (mu * vol * k2);
+            std::array::from_fn(|d| (fk[d] - kf * (k[d] / k2)) * s)
+        })
+        .collect()
 }
 
 /// Spherically averaged inverse transform of a power spectrum on a `modes^3` cube (centred mode

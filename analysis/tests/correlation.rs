@@ -4,7 +4,8 @@
 //! velocity spectrum of a sinusoidal force density is the exact Stokes solution.
 
 use motile_analysis::correlation::{
-    CorrelationOptions, OrderParameter, grid_coefficients, particle_coefficients, velocity_spectrum,
+    CorrelationOptions, OrderParameter, grid_coefficients, particle_coefficients, velocity_modes,
+    velocity_spectrum,
 };
 use motile_analysis::nufft::direct_type1;
 use num_complex::Complex64;
@@ -218,4 +219,45 @@ fn spectrum_to_grid_is_the_inverse_transform_of_a_single_mode() {
         worst = worst.max((v - exact).abs());
     }
     assert!(worst < 1e-14, "worst error {worst:e}");
+}
+
+/// The direct modes are the spectrum's coefficients at those modes (to the NUFFT's tolerance),
+/// on random points with force-free (swimmer-like) pairs of forces.
+#[test]
+fn direct_velocity_modes_are_the_spectrum_at_those_modes() {
+    let (l, mu, modes) = (7.0, 1.0, 8usize);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let mut y = Vec::new();
+    let mut f = Vec::new();
+    for _ in 0..500 {
+        let x: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.0..l));
+        let p: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        y.push(x);
+        f.push(p);
+        y.push(std::array::from_fn(|d| x[d] + 0.3 * p[d]));
+        f.push(p.map(|v| -v));
+    }
+    let spec = velocity_spectrum(&y, &f, l, mu, modes, 1e-10).unwrap();
+    let wanted = [[1i64, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 2, 1]];
+    let direct = velocity_modes(&y, &f, l, mu, &wanted);
+    let half = (modes / 2) as i64;
+    let scale = spec
+        .components
+        .iter()
+        .flatten()
+        .map(|c| c.norm())
+        .fold(0.0, f64::max);
+    for (m, u) in wanted.iter().zip(&direct) {
+        let i = m.map(|c| (c + half) as usize);
+        let idx = (i[2] * modes + i[1]) * modes + i[0];
+        for d in 0..3 {
+            let e = (u[d] - spec.components[d][idx]).norm();
+            assert!(
+                e < 1e-8 * scale,
+                "mode {m:?} component {d}: {} vs {} ({e:.1e})",
+                u[d],
+                spec.components[d][idx]
+            );
+        }
+    }
 }

@@ -69,6 +69,12 @@ pub struct ParticleRunConfig {
     pub checkpoints_kept: usize,
     /// Write a VTK PolyData file (.vtp) with each snapshot, and a .pvd index. Default true.
     pub vtk: bool,
+    /// Also write `modes.csv`: the flow's complex amplitudes at the three lowest box modes
+    /// (`m = (1,0,0), (0,1,0), (0,0,1)`) at every diagnostic time, for fits of the lowest
+    /// mode's complex growth rate. Default false (then the key is left out of the resolved
+    /// config); needs hydrodynamics.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub lowest_modes: bool,
     /// Contact solver settings.
     pub contact: ContactParams,
 }
@@ -94,6 +100,7 @@ impl Default for ParticleRunConfig {
             checkpoint_wall_seconds: 900.0,
             checkpoints_kept: 3,
             vtk: true,
+            lowest_modes: false,
             contact: ContactParams::default(),
         }
     }
@@ -306,6 +313,12 @@ impl ParticleRunConfig {
         if self.device == crate::run::Device::Gpu && self.hydrodynamics == Hydrodynamics::None {
             return Err(
                 "device = \"gpu\": the GPU does the hydrodynamic sums, and hydrodynamics = \"none\" has none; use hydrodynamics = \"dipole\" or \"sbt\", or device = \"cpu\""
+                    .into(),
+            );
+        }
+        if self.lowest_modes && !self.hydrodynamics.has_flow() {
+            return Err(
+                "lowest_modes = true: the modes are those of the flow, and hydrodynamics = \"none\" has none"
                     .into(),
             );
         }

@@ -13,13 +13,13 @@ pub use config::*;
 pub use ranked::follow;
 pub use state::*;
 
-use crate::io::rundir::RunDir;
+use crate::io::rundir::{RunDir, TimeSeries};
 use crate::io::snapshot::{Kinematics, ParticleSnapshot, PointForces};
 use crate::io::vtk::{write_pvd, write_rods_vtp};
 use crate::run;
 use crate::run::particle::ranked::Ranked;
 use anyhow::{Context, bail};
-use motile_analysis::correlation::{CorrelationOptions, velocity_spectrum};
+use motile_analysis::correlation::{CorrelationOptions, velocity_modes, velocity_spectrum};
 use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
 use motile_particle::step::contact::WarmStart;
@@ -98,6 +98,9 @@ pub struct ParticleModel {
     before: Option<ParticleCheckpoint>,
     window: (Instant, u64),
     notes: Vec<String>,
+    /// `modes.csv` (with `lowest_modes`): loaded at the first step of an invocation, rows
+    /// after the state it starts from dropped (they are written again).
+    modes: Option<TimeSeries>,
 }
 
 impl std::fmt::Debug for ParticleModel {
@@ -158,6 +161,7 @@ impl ParticleModel {
             } else {
                 Vec::new()
             },
+            modes: None,
         })
     }
 
@@ -432,6 +436,12 @@ impl run::RunModel for ParticleModel {
                 "t = {t:.3}, {rate:.1} steps/s, {} contacts, max overlap {:.1e}",
                 c.active, report.max_overlap
             ));
+            if self.cfg.lowest_modes
+                && let Some(b) = &before
+            {
+                let row = lowest_modes(&self.stepper, &b.rods, t);
+                self.push_modes(io, row)?;
+            }
         }
         if step.is_multiple_of(snap) {
             let kin = match synced {
@@ -478,6 +488,63 @@ impl run::RunModel for ParticleModel {
             .as_ref()
             .context("no failed step: nothing to save as the last good state")?
             .write(path)?;
+        Ok(())
+    }
+}
+
+/// The wavevectors of `modes.csv`: the three lowest box modes.
+const LOWEST_MODES: [[i64; 3]; 3] = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
+
+/// Columns of `modes.csv`: time, then per lowest mode the real and imaginary parts of the
+/// flow's three components (A1, units of `beta l`).
+pub fn mode_columns() -> Vec<String> {
+    let mut c = vec!["t [1/beta]".to_string()];
+    for m in ["100", "010", "001"] {
+        for d in ["x", "y", "z"] {
+            for part in ["re", "im"] {
+                c.push(format!("u_{m}_{d}_{part} [beta l]"));
+            }
+        }
+    }
+    c
+}
+
+/// A row of `modes.csv` at time `t` from the force density of the state `at`.
+fn lowest_modes(stepper: &Stepper, at: &RodSet, t: f64) -> Vec<f64> {
+    let mut row = vec![t];
+    match stepper.mobility().force_density() {
+        Some(fd) => {
+            let (points, forces) = fd.point_forces(at, &at.orientations());
+            for u in velocity_modes(&points, &forces, at.box_length, VISCOSITY, &LOWEST_MODES) {
+                for c in u {
+                    row.extend([c.re, c.im]);
+                }
+            }
+        }
+        None => row.extend([0.0; 18]),
+    }
+    row
+}
+
+impl ParticleModel {
+    /// Append a row to `modes.csv` (loading the file at the first row of an invocation and
+    /// dropping rows after the state the invocation started from).
+    fn push_modes(&mut self, io: &run::RunIo, row: Vec<f64>) -> anyhow::Result<()> {
+        let path = io.run.path().join("modes.csv");
+        let columns = mode_columns();
+        let t0 = row[0] - self.cfg.diagnostic_interval * 0.5;
+        let modes = self.modes.get_or_insert_with(|| {
+            let mut ts = TimeSeries::read(&path)
+                .ok()
+                .filter(|ts| ts.columns == columns)
+                .unwrap_or_else(|| {
+                    TimeSeries::new(&columns.iter().map(String::as_str).collect::<Vec<_>>())
+                });
+            ts.rows.retain(|r| r[0] < t0);
+            ts
+        });
+        modes.push(row);
+        modes.write(&path)?;
         Ok(())
     }
 }
