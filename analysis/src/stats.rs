@@ -270,6 +270,90 @@ pub fn orientation_autocorrelation(p0: &[[f64; 3]], pt: &[[f64; 3]]) -> f64 {
         / p0.len() as f64
 }
 
+/// A complex growth rate fitted to the amplitudes of one real field's modes (a pair of
+/// conjugate rates `sigma`, `conj(sigma)`, or two real rates), from [`fit_complex_rate`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ComplexRateFit {
+    /// The dominant rate: largest real part, `Im >= 0` (the beat of the amplitude's norm has
+    /// the angular frequency `2 Im sigma`).
+    pub sigma: num_complex::Complex64,
+    /// The other root: `conj(sigma)` for a complex pair, the second real rate otherwise.
+    pub other: num_complex::Complex64,
+    /// The window.
+    pub t0: f64,
+    /// The window's end.
+    pub t1: f64,
+    /// Fraction of the data's squared norm the two-rate recurrence explains (1 when exact).
+    pub r_squared: f64,
+    /// The lag (samples) of the recurrence.
+    pub lag: usize,
+}
+
+/// Fit `x(t) = A e^{sigma t} + B e^{sigma' t}` with one pair of rates shared by every series of
+/// `series` (complex amplitudes sampled at the evenly spaced times `t`) over the window
+/// `[t0, t1]`: the least-squares linear recurrence `x(t + 2 h) = c1 x(t + h) + c0 x(t)` with
+/// real `c0`, `c1` (a real field's modes carry `sigma` and `conj(sigma)` together, or two real
+/// rates), whose roots are `e^{sigma h}`. The lag `h` is a whole number of samples, chosen so
+/// that `|sigma| h` is not too small for the recurrence to resolve (`h` about a fifth of the
+/// window). `None` with too few samples or a degenerate system.
+pub fn fit_complex_rate(
+    t: &[f64],
+    series: &[Vec<num_complex::Complex64>],
+    t0: f64,
+    t1: f64,
+) -> Option<ComplexRateFit> {
+    use num_complex::Complex64;
+    let idx: Vec<usize> = (0..t.len()).filter(|&k| t[k] >= t0 && t[k] <= t1).collect();
+    if idx.len() < 7 {
+        return None;
+    }
+    let (first, n) = (idx[0], idx.len());
+    let dt = (t[idx[n - 1]] - t[first]) / (n - 1) as f64;
+    let lag = (n / 5).max(1);
+    // Normal equations of the real 2x2 least-squares problem.
+    let (mut a11, mut a12, mut a22, mut b1, mut b2, mut yy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for s in series {
+        for k in first..first + n - 2 * lag {
+            let (x0, x1, x2) = (s[k], s[k + lag], s[k + 2 * lag]);
+            for (p0, p1, p2) in [(x0.re, x1.re, x2.re), (x0.im, x1.im, x2.im)] {
+                a11 += p1 * p1;
+                a12 += p1 * p0;
+                a22 += p0 * p0;
+                b1 += p1 * p2;
+                b2 += p0 * p2;
+                yy += p2 * p2;
+            }
+        }
+    }
+    let det = a11 * a22 - a12 * a12;
+    if det.abs() <= 1e-14 * (a11 * a22).abs() || yy == 0.0 {
+        return None;
+    }
+    let c1 = (b1 * a22 - b2 * a12) / det;
+    let c0 = (a11 * b2 - a12 * b1) / det;
+    // Residual of the recurrence against the data it predicts.
+    let res = yy - 2.0 * (c1 * b1 + c0 * b2) + c1 * c1 * a11 + 2.0 * c1 * c0 * a12 + c0 * c0 * a22;
+    let disc = Complex64::new(c1 * c1 + 4.0 * c0, 0.0).sqrt();
+    let roots = [(c1 + disc) / 2.0, (c1 - disc) / 2.0];
+    let h = lag as f64 * dt;
+    let mut rates = roots.map(|z| z.ln() / h);
+    rates.sort_by(|a, b| b.re.total_cmp(&a.re));
+    let sigma = Complex64::new(rates[0].re, rates[0].im.abs());
+    let other = if rates[0].im.abs() > 0.0 {
+        sigma.conj()
+    } else {
+        rates[1]
+    };
+    Some(ComplexRateFit {
+        sigma,
+        other,
+        t0: t[first],
+        t1: t[first + n - 1],
+        r_squared: (1.0 - res / yy).clamp(0.0, 1.0),
+        lag,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -416,5 +500,45 @@ mod tests {
         let p0 = [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
         let pt = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         assert!((orientation_autocorrelation(&p0, &pt) - 0.5).abs() < 1e-15);
+    }
+
+    #[test]
+    fn complex_rates_of_beating_and_of_real_modes_are_recovered() {
+        use num_complex::Complex64;
+        let t: Vec<f64> = (0..200).map(|k| k as f64 * 0.5).collect();
+        let sigma = Complex64::new(0.028, 0.065);
+        // Three modes of a real field: each a sum of e^{sigma t} and e^{conj(sigma) t} with its
+        // own amplitudes, plus a little noise.
+        let series: Vec<Vec<Complex64>> = (0..3)
+            .map(|m| {
+                let a = Complex64::new(1.0 + m as f64, 0.3);
+                let b = Complex64::new(0.4, -0.7 * m as f64);
+                t.iter()
+                    .enumerate()
+                    .map(|(k, &t)| {
+                        let noise = 1e-3 * (((k * 7919 + m * 104729) % 1000) as f64 / 1000.0 - 0.5);
+                        a * (sigma * t).exp() + b * (sigma.conj() * t).exp() + noise
+                    })
+                    .collect()
+            })
+            .collect();
+        let f = fit_complex_rate(&t, &series, 0.0, 99.5).unwrap();
+        assert!(
+            (f.sigma - sigma).norm() < 2e-3 * sigma.norm() && f.r_squared > 0.999,
+            "{f:?}"
+        );
+        // Two real rates (a growing and a decaying mode).
+        let series: Vec<Vec<Complex64>> = vec![
+            t.iter()
+                .map(|&t| Complex64::new((0.05 * t).exp() + 2.0 * (-0.02 * t).exp(), 0.0))
+                .collect(),
+        ];
+        let f = fit_complex_rate(&t, &series, 0.0, 60.0).unwrap();
+        assert!(
+            (f.sigma.re - 0.05).abs() < 1e-6
+                && f.sigma.im == 0.0
+                && (f.other.re + 0.02).abs() < 1e-6,
+            "{f:?}"
+        );
     }
 }

@@ -149,7 +149,7 @@ fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
 
 #[test]
 fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
-    use motile_experiments::campaign::study::study;
+    use motile_experiments::campaign::study::{StudyOptions, study};
     let scene = parse_scene(
         r#"
 [scene]
@@ -174,7 +174,14 @@ hydrodynamics = "sbt"
     .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let values = Some(vec!["0.04".to_string(), "0.02".to_string()]);
-    let report = study(&scene, "dt", values, None, 0.5, dir.path(), &mut |_| {}).unwrap();
+    let opts = StudyOptions {
+        knob: "dt".into(),
+        values,
+        t_end: None,
+        accuracy: 0.5,
+        run: None,
+    };
+    let report = study(&scene, &opts, dir.path(), &mut |_| {}).unwrap();
     let p = &report.points;
     assert_eq!(p.len(), 3);
     assert!(p[2].reference && p[2].value == "0.0025" && p[2].error == 0.0);

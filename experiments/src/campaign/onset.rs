@@ -1,9 +1,14 @@
 //! `motile stability onset`: where the particle model starts to behave like the continuum
-//! (docs/MODEL.md §5). For each volume fraction `nu` and each value of `L nu`, a particle run
-//! from the same seeded perturbation of the continuum's initial field (box-scale modes,
-//! `|m| = 1`), its box-scale velocity fitted for a growth rate; the chart shows `gamma / nu`
-//! against `L nu` (growth rates scale with `nu`, the onset box with `1/nu`), beside the
-//! continuum's rate (M3) in the same units, which has no onset in `L`.
+//! (docs/MODEL.md §5, §5b). For each volume fraction `nu` and each box (values of `L nu`, or box
+//! sides given directly), a particle run from the same seeded perturbation of the continuum's
+//! initial field (box-scale modes, `|m| = 1`), its box-scale velocity fitted for a growth rate;
+//! with a flow, the amplitudes of the lowest box modes (`modes.csv`) are fitted for a complex
+//! rate (the lowest mode beats between the onset and `L/l` about 87 at `nu = 0.625`), and the
+//! rods' effective rotational diffusion is measured from their orientation autocorrelation
+//! `<p(t).p(0)> = exp(-2 d_r t)`. The table sets each beside the linear theory of the box
+//! ([`motile_particle::model::linear_theory`]) without diffusion and with the measured `d_r`.
+//! The chart shows `gamma / nu` against `L nu` (growth rates scale with `nu`, the onset box
+//! with `1/nu`), beside the continuum's rate (M3) in the same units and the box theory's.
 
 use crate::io::rundir::TimeSeries;
 use crate::io::write_atomic;
@@ -11,8 +16,9 @@ use crate::report::curves::{MIN_GROWTH_FACTOR, MIN_R_SQUARED};
 use crate::report::plot::{Chart, Series, line_chart};
 use crate::run::particle::{self, ParticleRunConfig, PerturbationConfig};
 use anyhow::Context;
-use motile_analysis::stats::{GrowthFit, growth_phase};
+use motile_analysis::stats::{ComplexRateFit, GrowthFit, fit_complex_rate, growth_phase};
 use motile_particle::model::level::Hydrodynamics;
+use motile_particle::model::linear_theory::{growth_rate, lowest_mode};
 use motile_particle::model::units::{
     DEFAULT_DIAMETER, continuum_growth_rate, meanfield_time_unit, zeta,
 };
@@ -37,6 +43,16 @@ pub struct OnsetOptions {
     pub amplitude: f64,
     /// Fast-sum tolerance.
     pub sum_tolerance: f64,
+    /// Box sides (rod lengths) to run at every volume fraction, in place of `box_nu` when not
+    /// empty.
+    pub boxes: Vec<f64>,
+    /// End time (1/beta) in place of `t_end_nu / nu`.
+    pub t_end: Option<f64>,
+    /// Time between snapshots (1/beta), which the rotational diffusion is measured from; by
+    /// default only the first and last.
+    pub snapshot_interval: Option<f64>,
+    /// Contact margin (rod lengths); the default's where `None`.
+    pub contact_margin: Option<f64>,
 }
 
 impl Default for OnsetOptions {
@@ -49,6 +65,10 @@ impl Default for OnsetOptions {
             t_end_nu: 40.0,
             amplitude: 0.025,
             sum_tolerance: 1e-2,
+            boxes: Vec::new(),
+            t_end: None,
+            snapshot_interval: None,
+            contact_margin: None,
         }
     }
 }
@@ -66,6 +86,11 @@ pub struct OnsetPoint {
     pub fit: Option<GrowthFit>,
     /// Whether the fit is a growth phase (grew by 3 with R^2 >= 0.9).
     pub grew: bool,
+    /// The complex rate fitted to the lowest box modes (runs with a flow).
+    pub complex: Option<ComplexRateFit>,
+    /// The effective rotational diffusion (1/beta) from `<p(t).p(0)> = exp(-2 d_r t)` over the
+    /// snapshots before the flow saturates; `None` without enough snapshots.
+    pub rotational_diffusion: Option<f64>,
     /// Wall seconds.
     pub seconds: f64,
 }
@@ -94,9 +119,16 @@ pub fn onset(
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let mut points = Vec::new();
     for &nu in &opts.fractions {
-        for &lnu in &opts.box_nu {
-            let l = (10.0 * lnu / nu).round() / 10.0;
-            let t_end = opts.t_end_nu / nu;
+        let sides: Vec<f64> = if opts.boxes.is_empty() {
+            opts.box_nu
+                .iter()
+                .map(|lnu| (10.0 * lnu / nu).round() / 10.0)
+                .collect()
+        } else {
+            opts.boxes.clone()
+        };
+        for l in sides {
+            let t_end = opts.t_end.unwrap_or(opts.t_end_nu / nu);
             let mut cfg = ParticleRunConfig {
                 box_length: l,
                 volume_fraction: nu,
@@ -111,11 +143,21 @@ pub fn onset(
                     ..PerturbationConfig::default()
                 },
                 diagnostic_interval: (t_end / 40.0 / opts.dt).round().max(1.0) * opts.dt,
-                snapshot_interval: t_end,
+                snapshot_interval: opts.snapshot_interval.unwrap_or(t_end),
                 checkpoint_interval: t_end,
                 vtk: false,
+                lowest_modes: opts.hydrodynamics.has_flow(),
                 ..ParticleRunConfig::default()
             };
+            if opts.boxes.is_empty() {
+                // The earlier scans' diagnostic cadence (their runs are reused as they are).
+            } else {
+                // Fixed boxes: a row every half time unit, for the complex fits.
+                cfg.diagnostic_interval = (0.5 / opts.dt).round().max(1.0) * opts.dt;
+            }
+            if let Some(m) = opts.contact_margin {
+                cfg.contact.margin = m;
+            }
             cfg.hydro.sum_tolerance = opts.sum_tolerance;
             let dir = out.join(format!("nu{nu}_L{l}"));
             let seconds_file = dir.join("onset_seconds.txt");
@@ -154,6 +196,19 @@ pub fn onset(
                 .column("velocity_norm_box [beta L]")
                 .context("box-scale velocity column")?;
             let (fit, grew) = box_scale_fit(&time, &u);
+            // The lowest modes until the flow saturates (its box norm past a quarter of its
+            // largest value after growing tenfold), else the whole run.
+            let u_max = u.iter().copied().fold(0.0, f64::max);
+            let saturated = if u_max > 10.0 * u.first().copied().unwrap_or(u_max) {
+                time.iter()
+                    .zip(&u)
+                    .find(|(_, v)| **v > 0.25 * u_max)
+                    .map_or(t_end, |(t, _)| *t)
+            } else {
+                t_end
+            };
+            let complex = complex_fit(&dir, saturated)?;
+            let rotational_diffusion = rotational_diffusion(&dir, saturated.min(0.5 * t_end))?;
             event(&format!(
                 "nu = {nu}, L/l = {l} ({rods} rods, {seconds:.0} s{}): {}",
                 if finished { ", done already" } else { "" },
@@ -168,12 +223,25 @@ pub fn onset(
                     if grew { " (growth phase)" } else { "" }
                 ))
             ));
+            if let Some(c) = &complex {
+                event(&format!(
+                    "    lowest modes: sigma = {:.4} {:+.4} i over [{:.1}, {:.1}] (R^2 {:.3}); d_r = {}",
+                    c.sigma.re,
+                    c.sigma.im,
+                    c.t0,
+                    c.t1,
+                    c.r_squared,
+                    rotational_diffusion.map_or("-".into(), |d| format!("{d:.2e}"))
+                ));
+            }
             points.push(OnsetPoint {
                 nu,
                 box_length: l,
                 rods,
                 fit,
                 grew,
+                complex,
+                rotational_diffusion,
                 seconds,
             });
         }
@@ -182,7 +250,208 @@ pub fn onset(
     Ok(points)
 }
 
+/// The complex rate of the lowest box modes of the run in `dir` (its `modes.csv`) up to `t1`.
+fn complex_fit(dir: &Path, t1: f64) -> anyhow::Result<Option<ComplexRateFit>> {
+    let path = dir.join("modes.csv");
+    if !path.exists() {
+        return Ok(None);
+    }
+    let ts = TimeSeries::read(&path)?;
+    let t = ts.column("t [1/beta]").context("modes.csv: time column")?;
+    // One series per mode and flow component: columns 1 + 2 k (re) and 2 + 2 k (im).
+    let series: Vec<Vec<num_complex::Complex64>> = (0..9)
+        .map(|k| {
+            ts.rows
+                .iter()
+                .map(|r| num_complex::Complex64::new(r[1 + 2 * k], r[2 + 2 * k]))
+                .collect()
+        })
+        .filter(|s: &Vec<num_complex::Complex64>| s.iter().any(|z| z.norm() > 0.0))
+        .collect();
+    Ok(fit_complex_rate(&t, &series, 0.0, t1))
+}
+
+/// The effective rotational diffusion of the rods of the run in `dir`: a least-squares fit of
+/// `ln <p(t).p(0)> = -2 d_r t` over its snapshots up to `t1` (`None` with fewer than three).
+pub fn rotational_diffusion(dir: &Path, t1: f64) -> anyhow::Result<Option<f64>> {
+    use crate::io::snapshot::Snapshot;
+    let paths = crate::io::rundir::RunDir::open(dir)?.snapshot_paths()?;
+    let mut first: Option<Vec<[f64; 3]>> = None;
+    let mut points = Vec::new();
+    for p in paths {
+        let Snapshot::Particle(s) = crate::io::snapshot::read_snapshot(&p)? else {
+            continue;
+        };
+        if s.time > t1 + 1e-9 {
+            break;
+        }
+        let p0 = first.get_or_insert_with(|| s.orientations.clone());
+        let c = motile_analysis::stats::orientation_autocorrelation(p0, &s.orientations);
+        if c > 0.0 {
+            points.push((s.time, c.ln()));
+        }
+    }
+    if points.len() < 3 {
+        return Ok(None);
+    }
+    // Through the origin: ln C(0) = 0.
+    let (num, den) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (t, y)| (a + t * y, b + t * t));
+    Ok(Some(-num / den / 2.0))
+}
+
+/// The linear theory's dominant rate of the lowest box mode (`None` where it is damped).
+fn theory(nu: f64, box_length: f64, d_r: f64) -> Option<num_complex::Complex64> {
+    growth_rate(nu, DEFAULT_DIAMETER, lowest_mode(box_length), d_r).map(|g| g.sigma)
+}
+
+/// The table and charts of a scan over box sides at fixed volume fractions: each run's
+/// lowest-mode complex rate beside the box theory's, without diffusion and with the rotational
+/// diffusion measured in the runs.
+fn write_box_scan(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow::Result<()> {
+    let fmt = |z: Option<num_complex::Complex64>| {
+        z.map_or("damped".into(), |z| format!("{:.4} {:+.4}i", z.re, z.im))
+    };
+    let mut csv = String::from(
+        "nu,L/l,rods,sigma_re,sigma_im,modes_r_squared,t0,t1,box_rate,box_r_squared,box_growth_factor,d_r,theory_re,theory_im,theory_dr_re,theory_dr_im,seconds\n",
+    );
+    let mut md = format!(
+        "# Growth of the lowest box mode ({} model)\n\nEach run starts from the same seeded perturbation of the isotropic state (box-scale modes |m| = 1, amplitude {}). Measured: the complex rate of the lowest box modes' flow amplitudes (modes.csv; a two-rate linear recurrence shared by the three modes and their components, fitted from the start until the box-scale norm passes a quarter of its largest value), and the rods' rotational diffusion from <p(t).p(0)> = exp(-2 d_r t) over the snapshots before that. Theory: the dispersion relation of docs/MODEL.md §5b for the lowest mode k = 2 pi/L, without diffusion and with the measured d_r. Rates in 1/beta.\n\n| nu | L/l | rods | measured sigma | R^2 | window | box-norm growth | d_r | theory (d_r = 0) | theory (measured d_r) | Re: measured / theory | wall (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        opts.hydrodynamics, opts.amplitude
+    );
+    for p in points {
+        let sigma = p.complex.map(|c| c.sigma);
+        let th = theory(p.nu, p.box_length, 0.0);
+        let d_r = p.rotational_diffusion.unwrap_or(0.0).max(0.0);
+        let thd = theory(p.nu, p.box_length, d_r);
+        let c = p.complex;
+        writeln!(
+            csv,
+            "{},{},{},{:e},{:e},{},{},{},{:e},{},{},{:e},{:e},{:e},{:e},{:e},{:.1}",
+            p.nu,
+            p.box_length,
+            p.rods,
+            sigma.map_or(f64::NAN, |z| z.re),
+            sigma.map_or(f64::NAN, |z| z.im),
+            c.map_or(f64::NAN, |c| c.r_squared),
+            c.map_or(f64::NAN, |c| c.t0),
+            c.map_or(f64::NAN, |c| c.t1),
+            p.fit.as_ref().map_or(f64::NAN, |g| g.rate),
+            p.fit.as_ref().map_or(f64::NAN, |g| g.r_squared),
+            p.fit.as_ref().map_or(f64::NAN, |g| g.growth_factor),
+            p.rotational_diffusion.unwrap_or(f64::NAN),
+            th.map_or(f64::NAN, |z| z.re),
+            th.map_or(f64::NAN, |z| z.im),
+            thd.map_or(f64::NAN, |z| z.re),
+            thd.map_or(f64::NAN, |z| z.im),
+            p.seconds
+        )?;
+        let ratio = match (sigma, th) {
+            (Some(m), Some(t)) if t.re > 0.0 => format!("{:.2}", m.re / t.re),
+            _ => "-".into(),
+        };
+        writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} | {:.0} |",
+            p.nu,
+            p.box_length,
+            p.rods,
+            fmt(sigma),
+            c.map_or("-".into(), |c| format!("{:.3}", c.r_squared)),
+            c.map_or("-".into(), |c| format!("{:.0}-{:.0}", c.t0, c.t1)),
+            p.fit.as_ref().map_or("-".into(), |g| format!(
+                "x{:.1}, R^2 {:.2}{}",
+                g.growth_factor,
+                g.r_squared,
+                if p.grew { " (growth phase)" } else { "" }
+            )),
+            p.rotational_diffusion
+                .map_or("-".into(), |d| format!("{d:.1e}")),
+            fmt(th),
+            fmt(thd),
+            p.seconds
+        )?;
+    }
+    write_atomic(&out.join("onset.csv"), csv.as_bytes())?;
+    write_atomic(&out.join("onset.md"), md.as_bytes())?;
+    // Charts: the real and imaginary parts against L/l, the theory as curves.
+    let (lo, hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| {
+        (a.min(p.box_length), b.max(p.box_length))
+    });
+    let d_mean = {
+        let d: Vec<f64> = points
+            .iter()
+            .filter_map(|p| p.rotational_diffusion)
+            .collect();
+        if d.is_empty() {
+            0.0
+        } else {
+            (d.iter().sum::<f64>() / d.len() as f64).max(0.0)
+        }
+    };
+    for (stem, title, y_label, part) in [
+        (
+            "onset",
+            "Growth rate of the lowest box mode against the box (nu fixed)",
+            "Re sigma [beta]",
+            0,
+        ),
+        (
+            "onset_frequency",
+            "Frequency of the lowest box mode (its norm beats at 2 Im sigma)",
+            "Im sigma [beta]",
+            1,
+        ),
+    ] {
+        let pick = |z: num_complex::Complex64| if part == 0 { z.re } else { z.im };
+        let mut series = Vec::new();
+        for &nu in &opts.fractions {
+            series.push(Series {
+                label: format!(
+                    "particles, nu = {nu} ({}, lowest modes)",
+                    opts.hydrodynamics
+                ),
+                points: points
+                    .iter()
+                    .filter(|p| p.nu == nu)
+                    .filter_map(|p| p.complex.map(|c| (p.box_length, pick(c.sigma))))
+                    .collect(),
+            });
+            for (d, label) in [
+                (0.0, format!("box theory, nu = {nu}, no diffusion")),
+                (
+                    d_mean,
+                    format!("box theory, nu = {nu}, d_r = {d_mean:.1e} (measured)"),
+                ),
+            ] {
+                let curve: Vec<(f64, f64)> = (0..=80)
+                    .map(|k| lo + (hi - lo) * k as f64 / 80.0)
+                    .filter_map(|l| theory(nu, l, d).map(|z| (l, pick(z))))
+                    .collect();
+                series.push(Series {
+                    label,
+                    points: curve,
+                });
+            }
+        }
+        line_chart(
+            &out.join(stem),
+            &Chart {
+                title,
+                x_label: "box side L/l",
+                y_label,
+                series,
+            },
+        )?;
+    }
+    Ok(())
+}
+
 fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow::Result<()> {
+    if !opts.boxes.is_empty() {
+        return write_box_scan(points, opts, out);
+    }
     let mut csv = String::from(
         "nu,L/l,L nu,rods,rate [1/beta],rate_std_error,rate/nu,continuum_rate/nu,r_squared,growth_factor,growth_phase,t0,t1,seconds\n",
     );

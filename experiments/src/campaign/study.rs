@@ -33,7 +33,12 @@ pub const KNOBS: [(&str, &str, &str, &str); 7] = [
         "1e-8",
     ),
     ("quadrature_points", "particle", "2,4,8", "16"),
-    ("hydrodynamics", "particle", "none,dipole", "sbt"),
+    (
+        "hydrodynamics",
+        "particle",
+        "none,dipole,sbt-explicit",
+        "sbt",
+    ),
     ("dt", "particle", "0.04,0.02,0.01,0.005", "0.0025"),
     ("meanfield_dt", "meanfield", "0.4,0.2,0.1,0.05", "0.0125"),
     ("grid", "meanfield", "8,12,16,24", "32"),
@@ -123,18 +128,36 @@ struct Outcome {
     x: Option<(Positions, Positions)>,
 }
 
-/// Sweep `knob_name` over `values` (default: the knob's list) on the first run of `scene` of the
-/// knob's model, each to `t_end` (default: the run's own), into `out/runs/<knob>_<value>`;
-/// write `out/study_<knob>.{csv,md,png,svg}`. `event` gets a line per run.
+/// What a study sweeps.
+#[derive(Clone, Debug, Default)]
+pub struct StudyOptions {
+    /// The knob.
+    pub knob: String,
+    /// Values to sweep (default: the knob's list).
+    pub values: Option<Vec<String>>,
+    /// End time of each run (default: the scene run's own).
+    pub t_end: Option<f64>,
+    /// The stated accuracy (relative error) the cheapest setting must meet.
+    pub accuracy: f64,
+    /// The scene run to sweep (default: its first run of the knob's model).
+    pub run: Option<String>,
+}
+
+/// Sweep `opts.knob` over its values on a run of `scene` of the knob's model, each to its end
+/// time, into `out/runs/<knob>_<value>`; write `out/study_<knob>.{csv,md,png,svg}`. `event`
+/// gets a line per run.
 pub fn study(
     scene: &Scene,
-    knob_name: &str,
-    values: Option<Vec<String>>,
-    t_end: Option<f64>,
-    accuracy: f64,
+    opts: &StudyOptions,
     out: &Path,
     event: &mut dyn FnMut(&str),
 ) -> anyhow::Result<StudyReport> {
+    let (knob_name, values, t_end, accuracy) = (
+        opts.knob.as_str(),
+        opts.values.clone(),
+        opts.t_end,
+        opts.accuracy,
+    );
     let (name, model, defaults, reference) = knob(knob_name)?;
     if !(accuracy > 0.0 && accuracy < 1.0) {
         bail!("--accuracy = {accuracy} is outside the allowed range (0, 1)");
@@ -142,12 +165,15 @@ pub fn study(
     let base = scene
         .runs
         .iter()
-        .find(|(_, c)| c.model() == model)
+        .find(|(n, c)| c.model() == model && opts.run.as_ref().is_none_or(|r| r == n))
         .map(|(_, c)| c.clone())
         .with_context(|| {
             format!(
-                "scene {} has no {model} run for the knob {name}",
-                scene.info.name
+                "scene {} has no {model} run{} for the knob {name}",
+                scene.info.name,
+                opts.run
+                    .as_ref()
+                    .map_or(String::new(), |r| format!(" named {r}"))
             )
         })?;
     let mut settings: Vec<(String, bool)> = values

@@ -31,6 +31,15 @@ pub struct StabilityArgs {
     /// Onset: amplitude of the seeded perturbation [default: 0.025].
     #[arg(long)]
     pub amplitude: Option<f64>,
+    /// Onset: box sides L/l, comma-separated, in place of --box-nu (a scan at fixed volume
+    /// fractions, each run's lowest modes fitted for a complex rate beside the box theory;
+    /// --t-end is then the end time itself).
+    #[arg(long, value_delimiter = ',')]
+    pub boxes: Option<Vec<f64>>,
+    /// Onset: time between snapshots (1/beta), which the rotational diffusion is measured from
+    /// [default: the first and last only].
+    #[arg(long)]
+    pub snapshot_interval: Option<f64>,
     /// Particle and onset: hydrodynamics [default: sbt].
     #[arg(long, default_value = "sbt")]
     pub hydrodynamics: Hydrodynamics,
@@ -55,13 +64,24 @@ pub fn run(a: StabilityArgs) -> anyhow::Result<()> {
     let out = a.out;
     if a.model == "onset" {
         let d = OnsetOptions::default();
+        let boxes = a.boxes.unwrap_or_default();
+        let dt = a.dts.and_then(|v| v.first().copied()).unwrap_or(d.dt);
         let opts = OnsetOptions {
             fractions: a.fractions.unwrap_or(d.fractions.clone()),
             box_nu: a.box_nu.unwrap_or(d.box_nu.clone()),
             hydrodynamics: a.hydrodynamics,
-            dt: a.dts.and_then(|v| v.first().copied()).unwrap_or(d.dt),
-            t_end_nu: a.t_end.unwrap_or(d.t_end_nu),
+            dt,
+            t_end_nu: if boxes.is_empty() {
+                a.t_end.unwrap_or(d.t_end_nu)
+            } else {
+                d.t_end_nu
+            },
+            t_end: if boxes.is_empty() { None } else { a.t_end },
             amplitude: a.amplitude.unwrap_or(d.amplitude),
+            snapshot_interval: a.snapshot_interval,
+            // The contact solver needs a margin of at least 2.5 U dt.
+            contact_margin: (2.5 * dt > 0.1).then_some(3.0 * dt),
+            boxes,
             ..d
         };
         onset(&opts, &out, &mut event)?;

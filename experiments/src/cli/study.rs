@@ -1,7 +1,7 @@
 //! `motile study KNOB`.
 
 use crate::campaign::scene::load_scene;
-use crate::campaign::study::study;
+use crate::campaign::study::{StudyOptions, study};
 use std::path::PathBuf;
 
 /// Arguments of `motile study`.
@@ -21,6 +21,9 @@ pub struct StudyArgs {
     /// Stated accuracy (relative error) [default: 1e-2].
     #[arg(long, default_value_t = 1e-2)]
     pub accuracy: f64,
+    /// The scene run to sweep [default: its first run of the knob's model].
+    #[arg(long)]
+    pub run: Option<String>,
     /// Output directory.
     #[arg(long, default_value = "runs/study")]
     pub out: PathBuf,
@@ -29,15 +32,14 @@ pub struct StudyArgs {
 /// Run the study and print its table.
 pub fn run(a: StudyArgs) -> anyhow::Result<()> {
     let s = load_scene(&a.scene)?;
-    let report = study(
-        &s,
-        &a.knob,
-        a.values,
-        a.t_end,
-        a.accuracy,
-        &a.out,
-        &mut |line| println!("{line}"),
-    )?;
+    let opts = StudyOptions {
+        knob: a.knob.clone(),
+        values: a.values,
+        t_end: a.t_end,
+        accuracy: a.accuracy,
+        run: a.run,
+    };
+    let report = study(&s, &opts, &a.out, &mut |line| println!("{line}"))?;
     println!("{}", report.markdown);
     println!(
         "wrote {}",
