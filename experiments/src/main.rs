@@ -13,6 +13,7 @@ use motile_experiments::cli::resume::ResumeArgs;
 use motile_experiments::cli::scene_run::SceneArgs;
 use motile_experiments::cli::stability::StabilityArgs;
 use motile_experiments::cli::study::StudyArgs;
+use motile_experiments::cli::theory::TheoryArgs;
 use motile_experiments::io::checkpoint::Interrupted;
 use motile_experiments::run::ranks;
 use std::process::ExitCode;
@@ -78,6 +79,9 @@ enum Command {
     /// random orientations, each level's flow-induced velocities against slender-body theory's
     /// (OUT/pair_fidelity.{png,svg,csv,md}).
     Fidelity(FidelityArgs),
+    /// The linear theory of the periodic box (docs/MODEL.md section 5b): the lowest mode's
+    /// growth rate for swimmers at volume fraction nu in boxes of given sides, and the onset box.
+    Theory(TheoryArgs),
     /// The main job, the `demo` scene (experiments/scenes/demo.toml): pushers above the
     /// instability in both models from one initial condition. A particle run with slender-body
     /// hydrodynamics (8 640 rods at nu = 5 in a box of 12 rod lengths, to t = 8.5/beta) in
@@ -118,6 +122,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::CheckAccuracy(a) => cli::check_accuracy::run(a),
         Command::Resume(a) => cli::resume::run(a),
         Command::Fidelity(a) => cli::fidelity::run(a),
+        Command::Theory(a) => cli::theory::run(a),
         Command::Demo(a) => cli::demo::run(a),
     }
 }

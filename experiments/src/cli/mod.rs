@@ -11,6 +11,7 @@ pub mod resume;
 pub mod scene_run;
 pub mod stability;
 pub mod study;
+pub mod theory;
 
 use crate::io::rundir::TimeSeries;
 
