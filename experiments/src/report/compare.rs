@@ -11,9 +11,11 @@ use crate::io::write_atomic;
 use crate::report::curves::{
     CorrCurve, NormCurve, TrajectoryCurve, ZERO_FIELD_NORM, analyse, growth_fit, norm_curve,
 };
-use crate::report::plot::{Chart, Panel, Series, heatmaps, line_chart};
+use crate::report::plot::{Chart, Panel, Series, heatmaps, line_chart, semilog_chart};
 use anyhow::{Context, bail};
 use motile_analysis::stats::window_average;
+use motile_particle::model::linear_theory::onset_box;
+use motile_particle::model::units::{DEFAULT_DIAMETER, SWIM_SPEED};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -32,8 +34,9 @@ pub struct CompareReport {
 
 /// Compare `runs` and write `velocity_norm.{png,svg,csv}`, `summary.{csv,md}`,
 /// `velocity_correlation.{png,svg,csv}` and, for particle runs, `msd.{png,svg}`,
-/// `orientation.{png,svg}` and `trajectories.csv` into `out`. Time averages are over the second half of
-/// each run (a stated window; the table and the legend say which).
+/// `orientation.{png,svg}` and `trajectories.csv`, the series summary `series.{csv,md}` and
+/// `saturated_norm.{png,svg}` into `out`. Time averages are over each run's saturated state
+/// ([`saturated_from`]; the table and the legends say which).
 ///
 /// Everything is written into a staging folder beside `out` first and moved into `out` only
 /// when all of it succeeded: a comparison that fails (a damaged snapshot, an unreadable run)
@@ -68,6 +71,22 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     result
 }
 
+/// Where a run's saturated state starts (mean-field units): the later of the end of its growth
+/// phase and half the run (without a growth phase, half the run). Time averages (the norm, the
+/// correlations) are taken from there to the end.
+pub fn saturated_from(c: &NormCurve) -> f64 {
+    let half = 0.5 * c.t.last().copied().unwrap_or(0.0);
+    match growth_fit(c) {
+        Some((g, true)) => g.t1.max(half),
+        _ => half,
+    }
+}
+
+/// A run's time in its own unit from mean-field units.
+fn own_time(c: &NormCurve, t_mf: f64) -> f64 {
+    c.particle.as_ref().map_or(t_mf, |p| t_mf * p.time_unit)
+}
+
 /// [`compare`] writing straight into `out`.
 fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     let curves = runs
@@ -83,14 +102,14 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     }
     write_atomic(&out.join("velocity_norm.csv"), csv.as_bytes())?;
     let mut md = String::from(
-        "| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth phase (t) | growth rate over the phase (peak local rate), mean-field units | R^2, grew by | linear theory (M3) |\n|---|---|---|---|---|---|---|---|---|\n",
+        "Time averages are over each run's saturated state: from the later of the end of its growth phase and half the run, to its end (samples correlated over a few diagnostic intervals: the standard error comes from batch means over up to 10 contiguous blocks). Particle runs start at their sampling noise, about 1/sqrt(N) in each box mode, while the continuum starts from a seeded perturbation, so the particle curves start apart.\n\n| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth phase (t) | growth rate over the phase (peak local rate), mean-field units | R^2, grew by | linear theory (M3) |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut scsv = String::from(
         "run,label,t0,t1,mean_u_l2,std_error,samples,growth_phase,growth_t0,growth_t1,growth_rate,growth_rate_std_error,peak_rate,r_squared,growth_factor,theory_rate\n",
     );
     for c in &curves {
         let t1 = c.t.last().copied().unwrap_or(0.0);
-        let t0 = 0.5 * t1;
+        let t0 = saturated_from(c);
         let w = window_average(&c.t, &c.u, t0, t1);
         let g = growth_fit(c);
         let (gw, gr, gq) = match &g {
@@ -156,20 +175,58 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     }
     write_atomic(&out.join("summary.md"), md.as_bytes())?;
     write_atomic(&out.join("summary.csv"), scsv.as_bytes())?;
-    line_chart(
+    // The norm on a log axis, each run's linear theory drawn as a slope from its first
+    // sample: the box theory's Re sigma for particles (docs/MODEL.md §5b), M3 for the mean
+    // field.
+    let u_max = curves
+        .iter()
+        .flat_map(|c| c.u.iter().copied())
+        .fold(0.0, f64::max);
+    let theory: Vec<Series> = curves
+        .iter()
+        .filter_map(|c| {
+            let (rate, what) = match &c.particle {
+                Some(p) => (
+                    p.box_theory.map(|s| s.re)?,
+                    format!("L/l = {} box theory", p.box_length),
+                ),
+                None => (c.theory_rate, "M3".to_string()),
+            };
+            let (&t0, &u0) = (c.t.first()?, c.u.first()?);
+            if rate <= 0.0 || u0 <= 0.0 {
+                return None;
+            }
+            let t_hit = t0 + (2.0 * u_max / u0).ln() / rate;
+            let t1 = t_hit.min(c.t.last().copied().unwrap_or(t0));
+            Some(Series {
+                label: format!("linear theory ({what}): rate {rate:.3}"),
+                points: (0..=20)
+                    .map(|k| {
+                        let t = t0 + (t1 - t0) * k as f64 / 20.0;
+                        (t, u0 * (rate * (t - t0)).exp())
+                    })
+                    .collect(),
+            })
+        })
+        .collect();
+    semilog_chart(
         &out.join("velocity_norm"),
         &Chart {
-            title: "Velocity norm, mean-field units (docs/MODEL.md section 5)",
+            title: "Velocity norm (particles: box-scale modes), mean-field units",
             x_label: "t [mu/|sigma_a|]",
             y_label: "||u||_2 [L |sigma_a|/mu]",
             series: curves
                 .iter()
                 .map(|c| Series {
-                    label: c.label.clone(),
+                    label: match &c.particle {
+                        Some(p) => format!("{} (N = {}, from its noise)", c.label, p.rods),
+                        None => c.label.clone(),
+                    },
                     points: c.t.iter().copied().zip(c.u.iter().copied()).collect(),
                 })
                 .collect(),
         },
+        &theory,
     )?;
     // Each run's snapshots analysed once: Corr[u] and order-parameter correlations over its second
     // half (in its own time unit), the last snapshot's velocity slice, trajectories.
@@ -177,10 +234,18 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     let mut trajectories = Vec::new();
     let mut order: Vec<(String, Vec<Series>)> = Vec::new();
     let mut panels = Vec::new();
+    // Velocity slices of every run at one time: the latest all of them reached.
+    let common = curves
+        .iter()
+        .filter_map(|c| c.t.last().copied())
+        .fold(f64::INFINITY, f64::min);
     let analyses = runs
         .iter()
         .zip(&curves)
-        .map(|(run, c)| analyse(run, &c.label, 0.5 * c.t_end_own))
+        .map(|(run, c)| {
+            let slice_at = common.is_finite().then(|| own_time(c, common));
+            analyse(run, &c.label, own_time(c, saturated_from(c)), slice_at)
+        })
         .collect::<anyhow::Result<Vec<_>>>()?;
     // Concentrated suspensions (every run a particle run with nu > 1) keep their structure at
     // the rod scale: their order-parameter correlations are read against r/l (docs/MODEL.md §7).
@@ -189,7 +254,7 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         .all(|a| a.particle.is_some_and(|(_, nu)| nu > 1.0));
     let mut lcsv = String::from("run,label,field,correlation_length [L],correlation_length [l]\n");
     let mut lmd = String::from(
-        "\n| run | correlation lengths (first zero of the time-averaged Corr, second half): r/L (r/l for particle runs) |\n|---|---|\n",
+        "\n| run | correlation lengths (first zero of the Corr averaged over the saturated state): r/L (r/l for particle runs) |\n|---|---|\n",
     );
     for ((run, c), a) in runs.iter().zip(&curves).zip(&analyses) {
         let mut cells = Vec::new();
@@ -218,6 +283,16 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         writeln!(lmd, "| {} | {} |", c.label, cells.join("; ")).expect("string");
     }
     write_atomic(&out.join("correlation_lengths.csv"), lcsv.as_bytes())?;
+    let corr_zero: Vec<f64> = analyses
+        .iter()
+        .map(|a| {
+            a.lengths
+                .iter()
+                .find(|(n, _)| n == "u")
+                .map_or(f64::NAN, |x| x.1)
+        })
+        .collect();
+    write_series(&curves, &corr_zero, out)?;
     md.push_str(&lmd);
     write_atomic(&out.join("summary.md"), md.as_bytes())?;
     for (c, a) in curves.iter().zip(analyses) {
@@ -230,21 +305,28 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
             });
         }
         trajectories.extend(a.traj);
-        let to_l = match (concentrated, a.particle) {
-            (true, Some((l, _))) => l,
-            _ => 1.0,
-        };
         for (name, points) in a.order {
-            let points: Vec<(f64, f64)> = points.into_iter().map(|(r, v)| (r * to_l, v)).collect();
+            // c and n (particle runs only) decay within a rod length: against r/l up to 5 l.
+            // Q against r/L, or r/l where every run is concentrated.
+            let rod_scale = name == "c" || name == "n";
+            let to_l = match (concentrated || rod_scale, a.particle) {
+                (true, Some((l, _))) => l,
+                _ => 1.0,
+            };
+            let points: Vec<(f64, f64)> = points
+                .into_iter()
+                .map(|(r, v)| (r * to_l, v))
+                .filter(|(r, _)| !rod_scale || *r <= 5.0)
+                .collect();
             match order.iter_mut().find(|(n, _)| *n == name) {
                 Some((_, series)) => series.push(Series {
-                    label: c.label.clone(),
+                    label: format!("{} ({} snapshots)", c.label, a.window_count),
                     points,
                 }),
                 None => order.push((
                     name,
                     vec![Series {
-                        label: c.label.clone(),
+                        label: format!("{} ({} snapshots)", c.label, a.window_count),
                         points,
                     }],
                 )),
@@ -262,11 +344,12 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     }
     // Order-parameter correlations, one chart per field, shapes compared (normalised at 0).
     for (name, series) in &order {
+        let in_l = concentrated || name == "c" || name == "n";
         line_chart(
             &out.join(format!("correlation_{name}")),
             &Chart {
-                title: &format!("Corr[{name}](r) / Corr[{name}](0), second half of each run"),
-                x_label: if concentrated { "r / l" } else { "r / L" },
+                title: &format!("Corr[{name}](r) / Corr[{name}](0), saturated state of each run"),
+                x_label: if in_l { "r / l" } else { "r / L" },
                 y_label: &format!("Corr[{name}](r) / Corr[{name}](0)"),
                 series: series.clone(),
             },
@@ -320,6 +403,22 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
                                 )
                                 .collect(),
                         })
+                        .chain((pick == 0).then(|| {
+                            // Free swimming: ballistic at the swimming speed.
+                            let t_max = trajectories
+                                .iter()
+                                .flat_map(|tr| tr.t.iter().copied())
+                                .fold(0.0, f64::max);
+                            Series {
+                                label: "(U t)^2, ballistic at the swimming speed".into(),
+                                points: (0..=40)
+                                    .map(|k| {
+                                        let t = t_max * k as f64 / 40.0;
+                                        (t, (SWIM_SPEED * t).powi(2))
+                                    })
+                                    .collect(),
+                            }
+                        }))
                         .collect(),
                 },
             )?;
@@ -353,6 +452,129 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         trajectories,
         table: md,
     })
+}
+
+/// The series summary (`series.csv`, `series.md`): one row per run with its model, size, level,
+/// growth rate with its window, R^2 and growth factor, the saturated norm with its standard
+/// error, and the first zero of the time-averaged Corr[u] (units of L); and, with
+/// particle runs, the saturated norm against L/l beside the continuum's, with the onset of the
+/// box's linear theory marked (`saturated_norm.{png,svg}`).
+fn write_series(curves: &[NormCurve], corr_zero: &[f64], out: &Path) -> anyhow::Result<()> {
+    let mut csv = String::from(
+        "model,L/l,rods,level,growth_phase,growth_rate [mf],growth_t0 [mf],growth_t1 [mf],r_squared,growth_factor,theory_rate [mf],saturated_from [mf],mean_u_l2 [mf],std_error,samples,batches,corr_u_first_zero [L]\n",
+    );
+    let mut md = String::from(
+        "# Series summary\n\nOne row per run, mean-field units. Growth: the least-squares rate of ln ||u||_2 over the growth phase (docs/MODEL.md §6), with its window, R^2 and growth factor; theory: the box's linear theory (Re sigma of the lowest mode, docs/MODEL.md §5b) for particles, M3 for the continuum. Saturated norm: the time average from the later of the growth phase's end and half the run, to its end; standard error from batch means over up to 10 contiguous blocks (samples within a block are correlated; blocks are taken as independent).\n\n| run | L/l | rods | level | growth rate (window, R^2, grown by) | theory | saturated ||u||_2 | samples | first zero of Corr[u] (L) |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let mut points = Vec::new();
+    let mut continuum = Vec::new();
+    for (c, &zero) in curves.iter().zip(corr_zero) {
+        let g = growth_fit(c);
+        let t1 = c.t.last().copied().unwrap_or(0.0);
+        let s0 = saturated_from(c);
+        let w = window_average(&c.t, &c.u, s0, t1);
+        let (model, l, rods, level, theory) = match &c.particle {
+            Some(p) => (
+                "particle",
+                p.box_length,
+                p.rods.to_string(),
+                p.level.clone(),
+                p.box_theory.map_or(f64::NAN, |s| s.re),
+            ),
+            None => (
+                "meanfield",
+                f64::NAN,
+                "-".to_string(),
+                "continuum".to_string(),
+                c.theory_rate,
+            ),
+        };
+        let (grew, rate, g0, g1, r2, gf) = match &g {
+            Some((g, p)) => (*p, g.rate, g.t0, g.t1, g.r_squared, g.growth_factor),
+            None => (false, f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN),
+        };
+        writeln!(
+            csv,
+            "{model},{l},{rods},{level},{grew},{rate:e},{g0:e},{g1:e},{r2},{gf},{theory:e},{s0:e},{:e},{:e},{},{},{zero:e}",
+            w.mean, w.std_error, w.samples, w.batches
+        )?;
+        writeln!(
+            md,
+            "| {} | {} | {rods} | {level} | {} | {} | {:.4e} +- {:.1e} (from t = {s0:.1}) | {} | {} |",
+            c.label,
+            if l.is_nan() {
+                "-".into()
+            } else {
+                format!("{l}")
+            },
+            if grew {
+                format!("{rate:.4} ({g0:.1}-{g1:.1}, R^2 {r2:.3}, x{gf:.0})")
+            } else {
+                format!("no growth phase (R^2 {r2:.2}, x{gf:.1})")
+            },
+            if theory.is_nan() {
+                "damped".into()
+            } else {
+                format!("{theory:.4}")
+            },
+            w.mean,
+            w.std_error,
+            w.samples,
+            if zero.is_nan() {
+                "no zero".into()
+            } else {
+                format!("{zero:.3}")
+            }
+        )?;
+        match &c.particle {
+            Some(p) => points.push((p.box_length, w.mean, p.nu)),
+            None => continuum.push((c.label.clone(), w.mean)),
+        }
+    }
+    write_atomic(&out.join("series.csv"), csv.as_bytes())?;
+    write_atomic(&out.join("series.md"), md.as_bytes())?;
+    if points.is_empty() {
+        return Ok(());
+    }
+    let (x_lo, x_hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| {
+        (a.min(p.0), b.max(p.0))
+    });
+    let nu = points[0].2;
+    let onset = onset_box(nu, DEFAULT_DIAMETER, 0.0, (2.0, 1000.0));
+    let x_lo = onset.map_or(x_lo, |o| o.min(x_lo)) * 0.9;
+    let x_hi = x_hi * 1.1;
+    let y_hi = points
+        .iter()
+        .map(|p| p.1)
+        .chain(continuum.iter().map(|c| c.1))
+        .fold(0.0, f64::max)
+        * 1.2;
+    let mut series = vec![Series {
+        label: format!("particles, nu = {nu:.3}"),
+        points: points.iter().map(|p| (p.0, p.1)).collect(),
+    }];
+    for (label, mean) in &continuum {
+        series.push(Series {
+            label: label.clone(),
+            points: vec![(x_lo, *mean), (x_hi, *mean)],
+        });
+    }
+    if let Some(o) = onset {
+        series.push(Series {
+            label: format!("onset of the lowest box mode (linear theory): L/l = {o:.1}"),
+            points: vec![(o, 0.0), (o, y_hi)],
+        });
+    }
+    line_chart(
+        &out.join("saturated_norm"),
+        &Chart {
+            title: "Saturated velocity norm against the box (time average), mean-field units",
+            x_label: "L / l",
+            y_label: "time-averaged ||u||_2 [L |sigma_a|/mu]",
+            series,
+        },
+    )?;
+    Ok(())
 }
 
 #[cfg(test)]

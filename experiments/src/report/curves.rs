@@ -32,6 +32,26 @@ pub struct NormCurve {
     /// `(1/5)/(1 + zeta/15) - D k^2` with the run's `zeta` and, for a mean-field run, its `D`
     /// and smallest perturbed wavenumber; particles have no `D`.
     pub theory_rate: f64,
+    /// Particle runs: what the series summary needs.
+    pub particle: Option<ParticleInfo>,
+}
+
+/// A particle run's size and level, and its box theory.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParticleInfo {
+    /// Box side `L/l`.
+    pub box_length: f64,
+    /// Rods.
+    pub rods: usize,
+    /// Volume fraction.
+    pub nu: f64,
+    /// The hydrodynamic level.
+    pub level: String,
+    /// The lowest box mode's rate in the box's linear theory without diffusion
+    /// (docs/MODEL.md §5b), mean-field units; `None` where the mode is damped.
+    pub box_theory: Option<num_complex::Complex64>,
+    /// The run's own time unit in mean-field units' terms: `t_mf = t_p / unit`.
+    pub time_unit: f64,
 }
 
 use motile_particle::model::units::particle_to_meanfield;
@@ -85,17 +105,29 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 .map(|(t, u)| particle_to_meanfield(*t, *u, nu, cfg.diameter))
                 .unzip();
             let zeta = motile_particle::model::units::zeta(nu, cfg.diameter);
+            let time_unit = motile_particle::model::units::meanfield_time_unit(nu, cfg.diameter);
+            let box_theory = motile_particle::model::linear_theory::growth_rate(
+                nu,
+                cfg.diameter,
+                motile_particle::model::linear_theory::lowest_mode(l),
+                0.0,
+            )
+            .map(|g| g.sigma * time_unit);
             Ok(NormCurve {
-                label: format!(
-                    "particle L/l = {l}, nu = {nu:.3} ({}{})",
-                    cfg.hydrodynamics,
-                    if box_scale { ", box-scale modes" } else { "" }
-                ),
+                label: format!("particle L/l = {l}, nu = {nu:.3} ({})", cfg.hydrodynamics),
                 run: run.into(),
                 t,
                 u,
                 t_end_own,
                 theory_rate: continuum_growth_rate(zeta),
+                particle: Some(ParticleInfo {
+                    box_length: l,
+                    rods: n,
+                    nu,
+                    level: cfg.hydrodynamics.to_string(),
+                    box_theory,
+                    time_unit,
+                }),
             })
         }
         "meanfield" => {
@@ -121,6 +153,7 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 t,
                 u: column(&ts, "u_l2", &ts_path)?,
                 theory_rate: continuum_growth_rate(cfg.zeta) - cfg.diffusion * k * k,
+                particle: None,
             })
         }
         other => bail!("{}: cannot compare a run of kind `{other}`", run.display()),
@@ -162,6 +195,8 @@ pub(crate) struct RunAnalysis {
     pub(crate) traj: Option<TrajectoryCurve>,
     /// `Corr[c], Corr[n], Corr[Q]` normalised by their value at 0, against `r / L`.
     pub(crate) order: Vec<(String, Vec<(f64, f64)>)>,
+    /// Snapshots in the averaging window.
+    pub(crate) window_count: usize,
     /// Particle runs: `(L/l, nu)`.
     pub(crate) particle: Option<(f64, f64)>,
     /// Correlation lengths (first zero of each time-averaged correlation), `r / L`, by field.
@@ -170,13 +205,20 @@ pub(crate) struct RunAnalysis {
     pub(crate) zero_fields: Vec<String>,
 }
 
-/// One run's snapshots, read once: its Corr[u], order-parameter correlations, velocity slice
-/// and, for particle runs, trajectory statistics.
-pub(crate) fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<RunAnalysis> {
+/// One run's snapshots, read once: its Corr[u] and order-parameter correlations averaged over
+/// the snapshots from `t_start`, the velocity slice of the snapshot nearest `slice_at` (at or
+/// before it; the last without one), and, for particle runs, trajectory statistics. Times in
+/// the run's own unit.
+pub(crate) fn analyse(
+    run: &Path,
+    label: &str,
+    t_start: f64,
+    slice_at: Option<f64>,
+) -> anyhow::Result<RunAnalysis> {
     let dir = RunDir::open(run)?;
     let snaps = dir.snapshots()?;
-    // Concentrated particle runs keep their structure at the rod scale: resolve r ~ l/2 there
-    // (2 L/l modes, at most 64) instead of the default L/(2l).
+    // Particle runs: the order parameters c and n decay within a rod length, so resolve
+    // r ~ l/2 (2 L/l modes, at most 128) instead of the default L/(2l).
     let pcfg: Option<ParticleRunConfig> = if dir.header()?.model == "particle" {
         Some(read_run_config(run, ParticleRunConfig::validate)?)
     } else {
@@ -184,15 +226,26 @@ pub(crate) fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<R
     };
     let modes = pcfg
         .as_ref()
-        .filter(|c| c.volume_fraction > 1.0)
-        .map(|c| ((2.0 * c.box_length).ceil() as usize).clamp(4, 64));
+        .map(|c| ((2.0 * c.box_length).ceil() as usize).clamp(4, 128));
     let opts = AnalyzeOptions {
         t_start,
         modes,
         ..AnalyzeOptions::default()
     };
     let report = analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
-    let slice = match snaps.last() {
+    let time_of = |s: &Snapshot| match s {
+        Snapshot::Particle(p) => p.time,
+        Snapshot::Field(f) => f.time,
+    };
+    let chosen = match slice_at {
+        Some(t) => snaps
+            .iter()
+            .rev()
+            .find(|s| time_of(s) <= t + 1e-9)
+            .or(snaps.first()),
+        None => snaps.last(),
+    };
+    let slice = match chosen {
         Some(last) => velocity_slice(last, pcfg.as_ref().map_or(DEFAULT_DIAMETER, |c| c.diameter))
             .map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?,
         None => None,
@@ -280,6 +333,7 @@ pub(crate) fn analyse(run: &Path, label: &str, t_start: f64) -> anyhow::Result<R
         slice,
         traj,
         order,
+        window_count: report.window_count,
         particle,
         lengths,
         zero_fields,

@@ -409,6 +409,91 @@ where
     root.present().map_err(|e| e.to_string())
 }
 
+/// A chart with a linear x axis and a logarithmic y axis: `series` as solid curves, `dashed`
+/// as dashed reference lines (a theory's slope, a level), to `<stem>.png` and `<stem>.svg`.
+pub fn semilog_chart(
+    stem: &Path,
+    chart: &Chart,
+    dashed: &[Series],
+) -> Result<(), crate::io::IoError> {
+    render(
+        stem,
+        (1000, 650),
+        |a| draw_semilog(a, chart, dashed),
+        |a| draw_semilog(a, chart, dashed),
+    )
+}
+
+fn draw_semilog<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    chart: &Chart,
+    dashed: &[Series],
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (x0, x1) = range(&chart.series, |p| p.0);
+    let ys: Vec<f64> = chart
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.1))
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    let lo = ys.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ys.iter().copied().fold(0.0, f64::max);
+    let (y0, y1) = if lo.is_finite() && hi > 0.0 {
+        (lo / 2.0, hi * 2.0)
+    } else {
+        (0.1, 10.0)
+    };
+    let mut c = ChartBuilder::on(&root)
+        .caption(chart.title, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(85)
+        .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+        .map_err(|e| e.to_string())?;
+    c.configure_mesh()
+        .x_desc(chart.x_label)
+        .y_desc(chart.y_label)
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .y_labels(12)
+        .y_label_formatter(&|v| format!("{v:.1e}"))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let clip = |p: &(f64, f64)| p.1 > 0.0 && p.1 >= y0 && p.1 <= y1 && p.0 >= x0 && p.0 <= x1;
+    for (i, s) in chart.series.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        c.draw_series(LineSeries::new(
+            s.points.iter().copied().filter(|p| p.1 > 0.0),
+            color.stroke_width(2),
+        ))
+        .map_err(|e| e.to_string())?
+        .label(s.label.clone())
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    }
+    for (i, s) in dashed.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()].mix(0.9);
+        let pts: Vec<(f64, f64)> = s.points.iter().copied().filter(clip).collect();
+        c.draw_series(DashedLineSeries::new(pts, 8, 5, color.stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label(s.label.clone())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 8, y), (x + 12, y), (x + 20, y)], color)
+            });
+    }
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())
+}
+
 /// A log-log chart of `series` (the first drawn with point markers), each point of `labels`
 /// annotated with its text, to `<stem>.png` and `<stem>.svg`.
 pub fn log_chart(
