@@ -61,15 +61,34 @@ fn agree(what: &str, audited: (f64, f64), here: (f64, f64), a: &Audit) {
 
 #[test]
 fn the_audit_of_a_slender_body_run_matches_a_direct_computation() {
+    audit_of_an_rpy_run("sbt");
+}
+
+/// The explicit level's sum is of force-free data: every rod an isolated swimmer's density.
+#[test]
+fn the_audit_of_an_explicit_density_run_matches_a_direct_computation() {
+    audit_of_an_rpy_run("sbt-explicit");
+}
+
+fn audit_of_an_rpy_run(level: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("sbt");
-    let cfg = short_run("sbt", 5.0, &out);
+    let out = dir.path().join(level);
+    let cfg = short_run(level, 5.0, &out);
     let a = audit(&out, None, 64).unwrap();
     assert_eq!(a.targets, 64, "16 rods of 4 points");
     let Snapshot::Particle(snap) = read_snapshot(&a.snapshot).unwrap() else {
         panic!("particle snapshot")
     };
     let pf = snap.forces.expect("force data");
+    if level == "sbt-explicit" {
+        // Force-free rods: each rod's weighted forces sum to zero.
+        for (k, rod) in pf.forces.chunks_exact(4).enumerate() {
+            let net: f64 = (0..3)
+                .map(|d| rod.iter().map(|f| f[d]).sum::<f64>().abs())
+                .sum();
+            assert!(net < 1e-14, "rod {k}: net force {net:e}");
+        }
+    }
     let geo = RpyGeometry {
         box_length: snap.box_length,
         radius: cfg.hydro.slender(cfg.diameter).rpy_radius,

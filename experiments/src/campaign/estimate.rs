@@ -36,7 +36,16 @@ pub struct CostEstimate {
     pub steps: u64,
     /// Whether `steps` is a lower bound.
     pub steps_at_least: bool,
+    /// Seconds per step on a GPU and how they were estimated: particle runs with a flow, the
+    /// hydrodynamic sums at the throughput an H200 measured ([`GPU_POINTS_PER_SECOND`]) and the
+    /// rest of the step as timed here (the measured step less its mobility, scaled as
+    /// `N log N`); mean-field runs, the H200's measured 256^3 step scaled as `N log N`.
+    pub gpu: Option<(f64, &'static str)>,
 }
+
+/// Points per second of the RPY sum an H200 reached on a 1e7-point product at tolerance 1e-4
+/// (BENCHMARKS.md, "GPU: a lent H200"): what a GPU estimate assumes for the sums.
+pub const GPU_POINTS_PER_SECOND: f64 = 3.91e6;
 
 impl CostEstimate {
     /// Estimated wall seconds of the whole run.
@@ -54,14 +63,21 @@ impl CostEstimate {
                 self.measured_size, self.unit, self.measured_step_seconds
             )
         };
+        let gpu = self.gpu.map_or(String::new(), |(g, how)| {
+            format!(
+                "; on a GPU about {g:.3} s/step = {} ({how})",
+                human_duration(g * self.steps as f64)
+            )
+        });
         format!(
-            "{:.3} s/step at {} {}{scaled} x {}{} steps = {}",
+            "{:.3} s/step at {} {}{scaled} x {}{} steps = {} on {} CPU threads{gpu}",
             self.step_seconds,
             self.size,
             self.unit,
             if self.steps_at_least { ">= " } else { "" },
             self.steps,
-            human_duration(self.seconds())
+            human_duration(self.seconds()),
+            rayon::current_num_threads()
         )
     }
 }
@@ -156,14 +172,43 @@ fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<Co
         move |dir: &Path| particle::run_particle(&p, dir, false).map(|s| s.steps)
     };
     let measured = step_time(scratch, run)?;
+    let ratio = nlogn_ratio(size, measured_size);
+    // The mobility alone at the proxy size (after one call that builds its plans): what a GPU
+    // would take over.
+    let gpu_step_seconds = if c.hydrodynamics.has_flow() {
+        let rods = particle::initial_rods(&proxy)?;
+        let p = rods.orientations();
+        let mut mobility = particle::config::mobility(&proxy)?;
+        let mut out = motile_particle::hydro::mobility::RodVelocities::zeros(rods.len());
+        mobility.free_velocities(&rods, &p, &mut out)?;
+        let t = Instant::now();
+        mobility.free_velocities(&rods, &p, &mut out)?;
+        let hydro = t.elapsed().as_secs_f64();
+        let points = size * c.hydro.quadrature_points;
+        let sums_per_step = if c.hydrodynamics == motile_particle::model::level::Hydrodynamics::Sbt
+        {
+            // GMRES: about ten products per step on the dilute runs (BENCHMARKS.md).
+            10.0
+        } else {
+            1.0
+        };
+        Some((
+            (measured - hydro).max(0.0) * ratio
+                + sums_per_step * points as f64 / GPU_POINTS_PER_SECOND,
+            "the sums at the 3.9e6 points/s an H200 measured, BENCHMARKS.md; the rest of the step on these CPU threads",
+        ))
+    } else {
+        None
+    };
     Ok(CostEstimate {
         unit: "rods",
         measured_size,
         size,
         measured_step_seconds: measured,
-        step_seconds: measured * nlogn_ratio(size, measured_size),
+        step_seconds: measured * ratio,
         steps: (c.t_end / c.dt - 1e-9).ceil() as u64,
         steps_at_least: false,
+        gpu: gpu_step_seconds,
     })
 }
 
@@ -189,6 +234,11 @@ fn estimate_meanfield(c: &MeanFieldRunConfig, scratch: &Path) -> anyhow::Result<
         step_seconds: measured * nlogn_ratio(size, measured_size),
         steps: (c.t_end / dt - 1e-9).ceil() as u64,
         steps_at_least: true,
+        // The H200 measured 0.0992 s per step at 256^3 (BENCHMARKS.md).
+        gpu: Some((
+            0.0992 * nlogn_ratio(size, 256usize.pow(3)),
+            "the H200's measured 0.0992 s/step at 256^3, scaled as N log N; BENCHMARKS.md",
+        )),
     })
 }
 

@@ -102,7 +102,7 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     }
     write_atomic(&out.join("velocity_norm.csv"), csv.as_bytes())?;
     let mut md = String::from(
-        "Time averages are over each run's saturated state: from the later of the end of its growth phase and half the run, to its end (samples correlated over a few diagnostic intervals: the standard error comes from batch means over up to 10 contiguous blocks). Particle runs start at their sampling noise, about 1/sqrt(N) in each box mode, while the continuum starts from a seeded perturbation, so the particle curves start apart.\n\n| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth phase (t) | growth rate over the phase (peak local rate), mean-field units | R^2, grew by | linear theory (M3) |\n|---|---|---|---|---|---|---|---|---|\n",
+        "| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth phase (t) | growth rate over the phase (peak local rate), mean-field units | R^2, grew by | linear theory (M3) |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut scsv = String::from(
         "run,label,t0,t1,mean_u_l2,std_error,samples,growth_phase,growth_t0,growth_t1,growth_rate,growth_rate_std_error,peak_rate,r_squared,growth_factor,theory_rate\n",
@@ -294,6 +294,7 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         .collect();
     write_series(&curves, &corr_zero, out)?;
     md.push_str(&lmd);
+    md.push_str("\nTime averages are over each run's saturated state: from the later of the end of its growth phase and half the run, to its end (samples correlated over a few diagnostic intervals: the standard error comes from batch means over up to 10 contiguous blocks). Particle runs start at their sampling noise, about 1/sqrt(N) in each box mode, while the continuum starts from a seeded perturbation, so the particle curves start apart.\n");
     write_atomic(&out.join("summary.md"), md.as_bytes())?;
     for (c, a) in curves.iter().zip(analyses) {
         correlations.extend(a.corr_u);

@@ -217,8 +217,8 @@ pub(crate) fn analyse(
 ) -> anyhow::Result<RunAnalysis> {
     let dir = RunDir::open(run)?;
     let snaps = dir.snapshots()?;
-    // Particle runs: the order parameters c and n decay within a rod length, so resolve
-    // r ~ l/2 (2 L/l modes, at most 128) instead of the default L/(2l).
+    // Concentrated particle runs keep their structure at the rod scale: resolve r ~ l/2 there
+    // (2 L/l modes, at most 64) instead of the default L/(2l).
     let pcfg: Option<ParticleRunConfig> = if dir.header()?.model == "particle" {
         Some(read_run_config(run, ParticleRunConfig::validate)?)
     } else {
@@ -226,13 +226,25 @@ pub(crate) fn analyse(
     };
     let modes = pcfg
         .as_ref()
-        .map(|c| ((2.0 * c.box_length).ceil() as usize).clamp(4, 128));
+        .filter(|c| c.volume_fraction > 1.0)
+        .map(|c| ((2.0 * c.box_length).ceil() as usize).clamp(4, 64));
     let opts = AnalyzeOptions {
         t_start,
         modes,
         ..AnalyzeOptions::default()
     };
-    let report = analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
+    let mut report =
+        analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
+    // Dilute particle runs: c and n decay within a rod length, so their correlations come from
+    // 2 L/l modes (at most 128; r ~ l/2 resolved), the flow's and Q's from the default modes.
+    if let Some(c) = pcfg.as_ref().filter(|c| c.volume_fraction <= 1.0) {
+        let fine = ((2.0 * c.box_length).ceil() as usize).clamp(4, 128);
+        for (name, corr) in rod_scale_correlations(&snaps, t_start, fine)? {
+            if let Some(slot) = report.mean.iter_mut().find(|(n, _)| *n == name) {
+                slot.1 = corr;
+            }
+        }
+    }
     let time_of = |s: &Snapshot| match s {
         Snapshot::Particle(p) => p.time,
         Snapshot::Field(f) => f.time,
@@ -338,6 +350,51 @@ pub(crate) fn analyse(
         lengths,
         zero_fields,
     })
+}
+
+/// `Corr[c]` and `Corr[n]` of the particle snapshots from `t_start`, averaged, on `modes`
+/// Fourier modes per axis.
+fn rod_scale_correlations(
+    snaps: &[Snapshot],
+    t_start: f64,
+    modes: usize,
+) -> anyhow::Result<Vec<(String, motile_analysis::correlation::RadialCorrelation)>> {
+    use motile_analysis::correlation::{CorrelationOptions, OrderParameter, particle_coefficients};
+    let opts = CorrelationOptions {
+        modes: Some(modes),
+        ..CorrelationOptions::default()
+    };
+    let mut out = Vec::new();
+    for (name, which) in [
+        ("c", OrderParameter::Concentration),
+        ("n", OrderParameter::Polarity),
+    ] {
+        let mut sum: Option<motile_analysis::correlation::RadialCorrelation> = None;
+        let mut count = 0usize;
+        for s in snaps {
+            let Snapshot::Particle(p) = s else { continue };
+            if p.time < t_start - 1e-9 {
+                continue;
+            }
+            let corr =
+                particle_coefficients(&p.positions, &p.orientations, p.box_length, which, &opts)?
+                    .correlation(None);
+            count += 1;
+            match &mut sum {
+                Some(acc) => acc
+                    .value
+                    .iter_mut()
+                    .zip(&corr.value)
+                    .for_each(|(a, v)| *a += v),
+                None => sum = Some(corr),
+            }
+        }
+        if let Some(mut acc) = sum {
+            acc.value.iter_mut().for_each(|v| *v /= count as f64);
+            out.push((name.to_string(), acc));
+        }
+    }
+    Ok(out)
 }
 
 /// The velocity magnitude on the plane z = 0 of a snapshot, in mean-field units:

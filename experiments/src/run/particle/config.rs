@@ -413,7 +413,7 @@ pub(crate) fn shared_mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn
 }
 
 /// The mobility named by `hydrodynamics` (validated).
-pub(super) fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
+pub fn mobility(cfg: &ParticleRunConfig) -> anyhow::Result<Box<dyn Mobility>> {
     let h = &cfg.hydro;
     let sum = || -> anyhow::Result<Box<SpectralEwald>> {
         Ok(Box::new(match cfg.device {
