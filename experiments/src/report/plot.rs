@@ -147,6 +147,20 @@ fn legend_corner(
 /// Series with at most this many points are drawn with a marker at each.
 const SPARSE_POINTS: usize = 12;
 
+/// The font of every chart's text, carried by the binary (DejaVu Sans; its licence is
+/// `experiments/assets/DejaVuSans-LICENSE.txt`), so drawing needs no system font library.
+static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+
+/// Register [`FONT`] as "sans-serif" once.
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // The font is valid OpenType (a test draws with it); a failure would only leave text
+        // out of the PNG charts.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
 /// Render one figure twice, to `<stem>.png` and `<stem>.svg`, each written atomically (the PNG
 /// through a hidden temporary file, since the bitmap backend writes to a path).
 fn render(
@@ -155,6 +169,7 @@ fn render(
     png: impl FnOnce(DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
     svg: impl FnOnce(DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Result<(), String>,
 ) -> Result<(), crate::io::IoError> {
+    register_font();
     let png_path = stem.with_extension("png");
     let err = |m: String| crate::io::IoError::Content {
         path: png_path.clone(),
@@ -416,6 +431,21 @@ pub fn semilog_chart(
     chart: &Chart,
     dashed: &[Series],
 ) -> Result<(), crate::io::IoError> {
+    // Less than a decade and a half of data reads better on a linear axis (a log axis labels
+    // only its decades).
+    let ys: Vec<f64> = chart
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.1))
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    let lo = ys.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ys.iter().copied().fold(0.0, f64::max);
+    if !(hi / lo >= 30.0) {
+        let mut linear = chart.clone();
+        linear.series.extend(dashed.iter().cloned());
+        return line_chart(stem, &linear);
+    }
     render(
         stem,
         (1000, 650),
