@@ -441,7 +441,8 @@ pub fn semilog_chart(
         .collect();
     let lo = ys.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = ys.iter().copied().fold(0.0, f64::max);
-    if !(hi / lo >= 30.0) {
+    let wide = hi / lo >= 30.0;
+    if !wide {
         let mut linear = chart.clone();
         linear.series.extend(dashed.iter().cloned());
         return line_chart(stem, &linear);
