@@ -17,6 +17,16 @@ copy runs/dilute/compare/velocity_correlation dilute_velocity_correlation
 copy runs/dilute/compare/velocity_slice dilute_velocity_slice png
 copy runs/paper-dilute/compare/velocity_norm paper_dilute_velocity_norm
 copy runs/paper-dilute/compare/velocity_correlation paper_dilute_velocity_correlation
+copy runs/paper-dilute/compare/saturated_norm paper_dilute_saturated_norm
+for f in c n Q; do copy runs/paper-dilute/compare/correlation_$f paper_dilute_correlation_$f; done
+copy runs/paper-dilute/compare/msd paper_dilute_msd
+copy runs/paper-dilute/compare/velocity_slice paper_dilute_velocity_slice png
+copy runs/paper-dilute/compare/series paper_dilute_series csv
+copy runs/fidelity/pair_fidelity pair_fidelity
+copy runs/onset-0.625/onset onset_0.625
+copy runs/onset-0.625/onset_frequency onset_0.625_frequency
+for L in 16 24 32; do copy runs/study-hydro-L$L/study_hydrodynamics study_hydrodynamics_L$L; done
+copy runs/study-dt-explicit/study_dt study_dt_explicit
 copy runs/concentrated/compare/correlation_Q concentrated_correlation_Q
 copy runs/concentrated/compare/msd concentrated_msd
 copy runs/concentrated/compare/orientation concentrated_orientation

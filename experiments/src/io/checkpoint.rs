@@ -159,6 +159,22 @@ pub fn install_signal_handlers() -> std::io::Result<()> {
     Ok(())
 }
 
+/// Ask running loops to stop at the next step boundary with a checkpoint, as `signal` would
+/// (for callers that handle interrupts themselves, such as the Python module, instead of
+/// installing the signal handlers).
+pub fn request_stop(signal: i32) {
+    SIGNAL
+        .get_or_init(|| Arc::new(AtomicUsize::new(0)))
+        .store(signal.max(1) as usize, Ordering::Relaxed);
+}
+
+/// Forget an earlier stop request (before starting another run in the same process).
+pub fn clear_stop() {
+    if let Some(f) = SIGNAL.get() {
+        f.store(0, Ordering::Relaxed);
+    }
+}
+
 /// The signal that asked the run to stop, if any.
 pub fn stop_requested() -> Option<i32> {
     SIGNAL

@@ -230,6 +230,30 @@ pub fn resume<M: RunModel>(out: &Path, progress: bool) -> anyhow::Result<(M, Loo
     drive(model, &run, ts, progress, false)
 }
 
+/// What a progress observer is told after each step: `(position, length, model time)` in the
+/// units of [`RunModel::progress`].
+pub type ProgressHook = Box<dyn Fn(u64, u64, f64) + Send + Sync>;
+
+static PROGRESS_HOOK: std::sync::Mutex<Option<ProgressHook>> = std::sync::Mutex::new(None);
+
+/// Observe every run loop's progress in this process (replacing an earlier observer; `None`
+/// removes it): for callers without a terminal, such as a notebook.
+pub fn set_progress_hook(hook: Option<ProgressHook>) {
+    *PROGRESS_HOOK
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = hook;
+}
+
+fn report_progress(position: u64, length: u64, time: f64) {
+    if let Some(h) = PROGRESS_HOOK
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .as_ref()
+    {
+        h(position, length, time);
+    }
+}
+
 /// Write a numbered checkpoint (`checkpoints/ckpt_STEP.h5`), keep the newest few, and drop
 /// the state saved after an earlier failure (the new checkpoint supersedes it).
 fn write_regular<M: RunModel>(model: &M, run: &RunDir) -> anyhow::Result<PathBuf> {
@@ -333,6 +357,7 @@ fn drive<M: RunModel>(
             }
         }
         io.bar.set_position(model.progress().2);
+        report_progress(model.progress().2, len, model.time());
     }
     match model.finish(&mut io, model.steps() > start_steps) {
         Ok(true) => {

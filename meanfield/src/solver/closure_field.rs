@@ -85,6 +85,13 @@ fn contract_point(m: &[f64; 21], e: [f64; 6]) -> [f64; 6] {
 }
 
 impl ClosureField {
+    /// The lab-frame fourth moment `c S_(ij)(kl)` at every point: 21 numbers, the upper
+    /// triangle row by row of the symmetric 6x6 matrix over the components `SYM` (see the
+    /// field's documentation).
+    pub fn tensors(&self) -> &[[f64; 21]] {
+        &self.s
+    }
+
     /// Evaluate the closure for grid values `q` (six components); the entropy (a diagnostic)
     /// only if asked. Per block of points: the eigen-decompositions of `Q / tr Q`, one table
     /// product, the lab-frame tensors.
