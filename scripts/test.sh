@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The README's test command: installs what a fresh machine lacks (Python h5py + numpy for the
-# HDF5 interoperability tests), then runs the whole test suite in release mode.
+# HDF5 interoperability tests and the Python module's) and a C++ compiler, runs the whole test
+# suite in release mode, then builds the Python module and runs its tests (pytest).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if ! python3 -c "import h5py, numpy" 2>/dev/null; then
+if ! python3 -c "import h5py, numpy, pytest" 2>/dev/null; then
   python3 -m pip install --quiet -r bench/requirements-test.txt
 fi
 export MOTILE_REQUIRE_H5PY=1
@@ -18,6 +19,11 @@ if ! command -v c++ >/dev/null 2>&1 && ! command -v g++ >/dev/null 2>&1 \
 fi
 export MOTILE_REQUIRE_CXX=1
 cargo test --release --workspace
+# The Python module (python/, outside the cargo workspace): built by maturin through pip, in
+# this target folder (it reuses the crates just compiled), then its tests, which also run the
+# motile binary just built (target/release/motile) to compare runs bit for bit.
+CARGO_TARGET_DIR="$PWD/target" python3 -m pip install --quiet ./python
+python3 -m pytest -q python/tests
 # The feature builds below replace target/release/motile (the MPI build would then need
 # libmpi to start): the default build, which the README's first command uses, is put back
 # however this script ends.

@@ -153,16 +153,7 @@ pub fn particle_coefficients(
     let inv_n = 1.0 / n.max(1) as f64;
     let (fields, weights): (Vec<Vec<Complex64>>, Vec<f64>) = match which {
         OrderParameter::Concentration => (vec![vec![Complex64::new(inv_n, 0.0); n]], vec![1.0]),
-        OrderParameter::Polarity => (
-            (0..3)
-                .map(|d| {
-                    p.iter()
-                        .map(|q| Complex64::new(q[d] * inv_n, 0.0))
-                        .collect()
-                })
-                .collect(),
-            vec![1.0; 3],
-        ),
+        OrderParameter::Polarity => return sampled_vector_coefficients(x, p, box_length, opts),
         OrderParameter::Nematic => {
             let mut f = Vec::new();
             let mut w = Vec::new();
@@ -188,6 +179,43 @@ pub fn particle_coefficients(
         box_length,
         components,
         weights,
+    })
+}
+
+/// Fourier coefficients of a vector field sampled at `N` points (`x`, values `v`), the point
+/// field `(1/N) sum_n v_n |V| delta(x - x_n)`: `Phi~(k) = (1/N) sum_n v_n exp(-i k.x_n)` by a
+/// type-1 NUFFT at `opts.tolerance`. The polarity of [`particle_coefficients`] (with `v = p`),
+/// and the velocity autocorrelation of any code's particles (with `v` their velocities).
+pub fn sampled_vector_coefficients(
+    x: &[[f64; 3]],
+    v: &[[f64; 3]],
+    box_length: f64,
+    opts: &CorrelationOptions,
+) -> Result<Spectrum, NufftError> {
+    if v.len() != x.len() {
+        return Err(NufftError::Length {
+            which: 0,
+            got: v.len(),
+            expected: x.len(),
+        });
+    }
+    let modes = opts.modes_for(box_length);
+    let mut plan = NufftPlan::new([modes; 3], opts.tolerance)?;
+    plan.set_points(x, box_length)?;
+    let inv_n = 1.0 / x.len().max(1) as f64;
+    let fields: Vec<Vec<Complex64>> = (0..3)
+        .map(|d| {
+            v.iter()
+                .map(|q| Complex64::new(q[d] * inv_n, 0.0))
+                .collect()
+        })
+        .collect();
+    let refs: Vec<&[Complex64]> = fields.iter().map(|f| f.as_slice()).collect();
+    Ok(Spectrum {
+        modes,
+        box_length,
+        components: plan.type1(&refs)?,
+        weights: vec![1.0; 3],
     })
 }
 
