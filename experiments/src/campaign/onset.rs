@@ -53,6 +53,10 @@ pub struct OnsetOptions {
     pub snapshot_interval: Option<f64>,
     /// Contact margin (rod lengths); the default's where `None`.
     pub contact_margin: Option<f64>,
+    /// With fixed boxes: run each box at least this many periods of its lowest mode where the
+    /// box theory (no diffusion) makes it a complex pair, `periods 2 pi / |Im sigma|`, if that
+    /// is longer than the end time.
+    pub periods: Option<f64>,
 }
 
 impl Default for OnsetOptions {
@@ -69,6 +73,7 @@ impl Default for OnsetOptions {
             t_end: None,
             snapshot_interval: None,
             contact_margin: None,
+            periods: None,
         }
     }
 }
@@ -128,7 +133,7 @@ pub fn onset(
             opts.boxes.clone()
         };
         for l in sides {
-            let t_end = opts.t_end.unwrap_or(opts.t_end_nu / nu);
+            let t_end = run_length(opts, nu, l);
             let mut cfg = ParticleRunConfig {
                 box_length: l,
                 volume_fraction: nu,
@@ -299,6 +304,18 @@ pub fn rotational_diffusion(dir: &Path, t1: f64) -> anyhow::Result<Option<f64>> 
         .iter()
         .fold((0.0, 0.0), |(a, b), (t, y)| (a + t * y, b + t * t));
     Ok(Some(-num / den / 2.0))
+}
+
+/// How long the run of box `l` at `nu` lasts: the end time, or with `opts.periods` the
+/// theory's periods of the lowest mode if longer (rounded up to a whole 10/beta).
+fn run_length(opts: &OnsetOptions, nu: f64, l: f64) -> f64 {
+    let base = opts.t_end.unwrap_or(opts.t_end_nu / nu);
+    match (opts.periods, theory(nu, l, 0.0)) {
+        (Some(p), Some(s)) if s.im.abs() > 1e-9 && !opts.boxes.is_empty() => {
+            base.max((p * 2.0 * std::f64::consts::PI / s.im.abs() / 10.0).ceil() * 10.0)
+        }
+        _ => base,
+    }
 }
 
 /// The linear theory's dominant rate of the lowest box mode (`None` where it is damped).
@@ -548,6 +565,28 @@ mod tests {
         // nu = 0.625: zeta = 0.1421, gamma = 0.2/(1 + zeta/15) = 0.19812, times nu/(8 eta).
         let r = continuum_rate(0.625, DEFAULT_DIAMETER);
         assert!((r - 0.19812 * 0.625 / (8.0 * 0.183234)).abs() < 1e-4, "{r}");
+    }
+
+    #[test]
+    fn runs_last_the_asked_periods_of_the_lowest_mode() {
+        let opts = OnsetOptions {
+            boxes: vec![20.0, 32.0, 50.0, 100.0],
+            t_end: Some(100.0),
+            periods: Some(2.0),
+            ..OnsetOptions::default()
+        };
+        // L/l = 50: sigma = 0.02774 +- 0.06456 i, two periods 194.6 -> 200; L/l = 32: 106.8
+        // -> 110; damped (20) and real (100) boxes keep the end time.
+        let t: Vec<f64> = [20.0, 32.0, 50.0, 100.0]
+            .iter()
+            .map(|&l| run_length(&opts, 0.625, l))
+            .collect();
+        assert_eq!(t, vec![100.0, 110.0, 200.0, 100.0]);
+        let plain = OnsetOptions {
+            periods: None,
+            ..opts
+        };
+        assert_eq!(run_length(&plain, 0.625, 50.0), 100.0);
     }
 
     #[test]

@@ -36,6 +36,10 @@ pub struct StabilityArgs {
     /// --t-end is then the end time itself).
     #[arg(long, value_delimiter = ',')]
     pub boxes: Option<Vec<f64>>,
+    /// Onset with --boxes: run each box at least this many periods of its lowest mode where the
+    /// box theory makes it a complex pair (2 pi/|Im sigma| each; the end time is the longer).
+    #[arg(long)]
+    pub periods: Option<f64>,
     /// Onset: time between snapshots (1/beta), which the rotational diffusion is measured from
     /// [default: the first and last only].
     #[arg(long)]
@@ -79,6 +83,7 @@ pub fn run(a: StabilityArgs) -> anyhow::Result<()> {
             t_end: if boxes.is_empty() { None } else { a.t_end },
             amplitude: a.amplitude.unwrap_or(d.amplitude),
             snapshot_interval: a.snapshot_interval,
+            periods: a.periods,
             // The contact solver needs a margin of at least 2.5 U dt.
             contact_margin: (2.5 * dt > 0.1).then_some(3.0 * dt),
             boxes,

@@ -60,19 +60,12 @@ pub fn run(a: TheoryArgs) -> anyhow::Result<()> {
             println!("| {l} | {} |", show(l, 0.0));
         }
     }
-    for d in [0.0, d_r] {
-        if d == 0.0 && d_r > 0.0 {
-            continue;
-        }
+    // Without diffusion, then with the given one (if any).
+    let rates: &[f64] = if d_r > 0.0 { &[0.0, d_r] } else { &[0.0] };
+    for &d in rates {
         match onset_box(a.nu, b, d, (2.0, 1000.0)) {
-            Some(l) => println!("onset (d_r = {d:e}): the lowest mode grows for L/l > {l:.2}"),
-            None => println!("onset (d_r = {d:e}): none found between L/l = 2 and 1000"),
-        }
-    }
-    if d_r > 0.0 {
-        match onset_box(a.nu, b, 0.0, (2.0, 1000.0)) {
-            Some(l) => println!("onset (d_r = 0): the lowest mode grows for L/l > {l:.2}"),
-            None => println!("onset (d_r = 0): none found between L/l = 2 and 1000"),
+            Some(l) => println!("onset (d_r = {d}): the lowest mode grows for L/l > {l:.2}"),
+            None => println!("onset (d_r = {d}): none found between L/l = 2 and 1000"),
         }
     }
     Ok(())
