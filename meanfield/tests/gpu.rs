@@ -5,7 +5,8 @@
 //! agree to 1e-12 relative, or, where the CPU step itself is more sensitive than that, within
 //! the CPU step's own response to perturbing Q by a few ulps (the closure's evaluation
 //! amplifies round-off: 1e-15 in Q gives 6e-12 in Q and 2e-10 in u after one step on this
-//! state); every number of the step reports within 1e-10.
+//! state); every number of the step reports within 1e-10, or within ten times the CPU step's
+//! own response to that perturbation where that is larger.
 //!
 //! Twice: on the host emulation of the kernels (the same source compiled by the C++ compiler
 //! and run on the CPU, transforms in cuFFT's layout; 16^3; skipped with the reason where no C++
@@ -106,7 +107,7 @@ fn parity(n: usize, backend: Backend) {
             with_entropy: true,
         };
         let rc = cpu.step(&rhs, dt).unwrap();
-        cpu_ulps.step(&rhs, dt).unwrap();
+        let ru = cpu_ulps.step(&rhs, dt).unwrap();
         let rg = gpu.step(dt, true).unwrap();
         let (t, q_hat, _, u_hat) = gpu.state().unwrap();
         let (dq, du) = (rel(&cpu.q_hat, &q_hat), rel(&cpu.u_hat, &u_hat));
@@ -125,19 +126,39 @@ fn parity(n: usize, backend: Backend) {
              step's response to a 1e-15 perturbation of Q ({sq:.2e}, {su:.2e})"
         );
         assert_eq!(rc.rhs.iterations, rg.rhs.iterations, "pinned iterations");
-        for (name, a, b) in [
-            ("u_l2", rc.u_l2, rg.u_l2),
-            ("u_max", rc.u_max, rg.u_max),
-            ("e_l2", rc.e_l2, rg.e_l2),
-            ("e_dot_q", rc.e_dot_q, rg.e_dot_q),
-            ("min_eigenvalue", rc.min_eigenvalue, rg.min_eigenvalue),
-            ("max_eigenvalue", rc.max_eigenvalue, rg.max_eigenvalue),
-            ("entropy", rc.entropy, rg.entropy),
+        // Report numbers: within 1e-10, or within ten times the CPU step's own response to the
+        // perturbation (of that number, or of u for the numbers computed from u): a maximum
+        // over grid points of an inverse transform can move more than the spectrum's largest
+        // relative change (measured on an H200: u_max 4.4e-10 apart while u was 2.3e-11
+        // apart, against the CPU's 7.5e-11 response in u).
+        for (name, a, b, a_ulps, from_u) in [
+            ("u_l2", rc.u_l2, rg.u_l2, ru.u_l2, true),
+            ("u_max", rc.u_max, rg.u_max, ru.u_max, true),
+            ("e_l2", rc.e_l2, rg.e_l2, ru.e_l2, true),
+            ("e_dot_q", rc.e_dot_q, rg.e_dot_q, ru.e_dot_q, true),
+            (
+                "min_eigenvalue",
+                rc.min_eigenvalue,
+                rg.min_eigenvalue,
+                ru.min_eigenvalue,
+                false,
+            ),
+            (
+                "max_eigenvalue",
+                rc.max_eigenvalue,
+                rg.max_eigenvalue,
+                ru.max_eigenvalue,
+                false,
+            ),
+            ("entropy", rc.entropy, rg.entropy, ru.entropy, false),
         ] {
             let d = (a - b).abs() / a.abs().max(1e-300);
+            let own = (a - a_ulps).abs() / a.abs().max(1e-300);
+            let bound = (10.0 * own.max(if from_u { su } else { sq })).max(1e-10);
             assert!(
-                d <= 1e-10,
-                "step {k}: {name} {a} (CPU) vs {b} (GPU): {d:.2e}"
+                d <= bound,
+                "step {k}: {name} {a} (CPU) vs {b} (GPU): {d:.2e}, above 1e-10 and ten times \
+                 the CPU's own response ({own:.2e}; u {su:.2e}, Q {sq:.2e})"
             );
         }
         // The fixed point's last change is itself relative to |u| and small (about 1e-8 after
