@@ -220,9 +220,13 @@ pub fn fidelity(opts: &FidelityOptions, out: &Path) -> anyhow::Result<String> {
         ]
     })
     .collect();
+    let title = format!(
+        "{} rod pairs per distance, random orientations: error against slender-body theory",
+        opts.pairs
+    );
     log_chart(
         &out.join("pair_fidelity"),
-        "Two rods: error of the flow-induced velocities against slender-body theory",
+        &title,
         "centre distance d / l",
         "relative error",
         &series,

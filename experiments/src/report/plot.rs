@@ -352,6 +352,9 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
+    // Room around the points: half a decade where labels sit right of the points, less
+    // without labels (every series then gets markers).
+    let room = if labels.is_empty() { 1.3 } else { 3.0 };
     let positive = |pick: fn(&(f64, f64)) -> f64| {
         let vals: Vec<f64> = series
             .iter()
@@ -361,8 +364,7 @@ where
         let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = vals.iter().copied().fold(0.0, f64::max);
         if lo.is_finite() && hi > 0.0 {
-            // Half a decade of room on each side (labels sit right of the points).
-            (lo / 3.0, hi * 3.0)
+            (lo / room, hi * room)
         } else {
             (0.1, 10.0)
         }
@@ -395,11 +397,12 @@ where
         .map_err(|e| e.to_string())?
         .label(s.label.clone())
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-        if i == 0 {
+        if i == 0 || labels.is_empty() {
+            let r = if labels.is_empty() { 3 } else { 5 };
             c.draw_series(
                 s.points
                     .iter()
-                    .map(|&(x, y)| Circle::new((x, y), 5, color.filled())),
+                    .map(|&(x, y)| Circle::new((x, y), r, color.filled())),
             )
             .map_err(|e| e.to_string())?;
         }
