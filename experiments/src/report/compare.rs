@@ -334,11 +334,12 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
             }
         }
     }
-    // Velocity magnitude on z = 0 at each run's last snapshot, side by side, one colour scale.
+    // Velocity magnitude on z = 0 of every run at one time (each run's snapshot nearest the
+    // latest time all runs reached), side by side, one colour scale.
     if !panels.is_empty() {
         heatmaps(
             &out.join("velocity_slice"),
-            "|u| on the plane z = 0, last snapshot, mean-field units",
+            "|u| on the plane z = 0 at the latest time all runs reached, mean-field units",
             "|u| [L |sigma_a|/mu]",
             &panels,
         )?;

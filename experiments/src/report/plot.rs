@@ -248,12 +248,12 @@ where
         .map_err(|e| e.to_string())?;
     // Panels on the left, the shared colour bar (with its scale and unit) on the right.
     let width = root.dim_in_pixel().0;
-    let (main, bar) = root.split_horizontally(width.saturating_sub(130));
+    let (main, bar) = root.split_horizontally(width.saturating_sub(150));
     let mut cb = ChartBuilder::on(&bar)
         .margin(10)
         .margin_top(40)
         .margin_bottom(45)
-        .y_label_area_size(75)
+        .y_label_area_size(95)
         .build_cartesian_2d(0.0..1.0, lo..(lo + span))
         .map_err(|e| e.to_string())?;
     cb.configure_mesh()
@@ -261,7 +261,7 @@ where
         .disable_x_axis()
         .y_desc(scale_label)
         .y_labels(6)
-        .y_label_formatter(&|v| format!("{v:.2e}"))
+        .y_label_formatter(&|v| format!("{v:.1e}"))
         .label_style(("sans-serif", 12))
         .axis_desc_style(("sans-serif", 14))
         .draw()
