@@ -65,6 +65,21 @@ impl Device {
         Ok(Self { inner })
     }
 
+    /// On the host emulation, run the blocks of every later launch in a new random order (`seed`
+    /// nonzero; 0 restores the order in turn), so that a race between blocks shows as results
+    /// that vary from launch to launch; returns whether it applies (not on CUDA, where the
+    /// hardware chooses the order).
+    pub fn shuffle_blocks(&self, seed: u64) -> bool {
+        match &self.inner {
+            Inner::Host(h) => {
+                h.shuffle_blocks(seed);
+                true
+            }
+            #[cfg(feature = "cuda")]
+            Inner::Cuda(_) => false,
+        }
+    }
+
     /// What this device is, for logs and reports.
     pub fn describe(&self) -> String {
         match &self.inner {

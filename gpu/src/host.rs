@@ -9,15 +9,19 @@ use std::collections::HashMap;
 use std::ffi::{CStr, c_char, c_void};
 use std::process::Command;
 
-/// What the kernels see of CUDA: thread indices (one thread at a time, so a plain global is
-/// enough), qualifiers as no-ops, `atomicAdd` as a plain add (nothing runs concurrently), and
+/// What the kernels see of CUDA: thread indices (thread-local), qualifiers as no-ops, atomics
+/// (`atomicAdd` on double, int and unsigned, `atomicCAS` on int) under one lock, and
 /// per kernel an entry point that runs every thread of every block and one that describes its
-/// parameter types (the codes of `kernel::c_type_code`). Shared memory and `__syncthreads` run each block's threads as OS
-/// threads with a barrier (the source is compiled that way when it uses `__syncthreads`).
+/// parameter types (the codes of `kernel::c_type_code`). A kernel that calls `__syncthreads`
+/// runs each block's threads as concurrent OS threads with a barrier (its `__shared__` arrays
+/// static: one block at a time); the others run their threads in turn. Blocks run in turn, or
+/// shuffled at every launch (`Device::shuffle_blocks`), to expose races between blocks.
 const PRELUDE: &str = r#"
 #include <cmath>
 #include <math.h>
 #include <cstddef>
+#include <cstdio>
+#include <cstdlib>
 #include <utility>
 #include <thread>
 #include <mutex>
@@ -36,11 +40,21 @@ static motile_dim3 blockDim, gridDim;
 #define __launch_bounds__(...)
 // Shared memory: one block runs at a time, so a static array is the block's.
 #define __shared__ static
-static inline double atomicAdd(double* p, double v) {
-    static std::mutex m;
-    std::lock_guard<std::mutex> g(m);
-    double old = *p;
+// Atomics: one lock for all of them (threaded launches run a block's threads concurrently).
+static std::mutex motile_atomic_lock;
+template <typename T> static inline T motile_atomic_add(T* p, T v) {
+    std::lock_guard<std::mutex> g(motile_atomic_lock);
+    T old = *p;
     *p = old + v;
+    return old;
+}
+static inline double atomicAdd(double* p, double v) { return motile_atomic_add(p, v); }
+static inline int atomicAdd(int* p, int v) { return motile_atomic_add(p, v); }
+static inline unsigned atomicAdd(unsigned* p, unsigned v) { return motile_atomic_add(p, v); }
+static inline int atomicCAS(int* p, int compare, int v) {
+    std::lock_guard<std::mutex> g(motile_atomic_lock);
+    int old = *p;
+    if (old == compare) *p = v;
     return old;
 }
 // The barrier of the block's threads (threaded launches only).
@@ -61,7 +75,16 @@ struct motile_barrier {
     }
 };
 static motile_barrier motile_block_barrier;
-#define __syncthreads() motile_block_barrier.wait()
+static thread_local bool motile_in_threaded_launch = false;
+static inline void motile_syncthreads() {
+    if (!motile_in_threaded_launch) {
+        std::fprintf(stderr, "host emulation: __syncthreads in a kernel run thread by thread "
+                             "(declare its __shared__ memory in the kernel's own body)\n");
+        std::abort();
+    }
+    motile_block_barrier.wait();
+}
+#define __syncthreads() motile_syncthreads()
 template <typename T> struct motile_code;
 template <> struct motile_code<const double*> { static constexpr char c = 'i'; };
 template <> struct motile_code<double*> { static constexpr char c = 'o'; };
@@ -82,39 +105,60 @@ template <typename... A, std::size_t... I>
 static void motile_call(void (*f)(A...), void** a, std::index_sequence<I...>) {
     f(*static_cast<A*>(a[I])...);
 }
+// The order blocks run in: in turn, or (motile_set_shuffle with a nonzero seed) a new random
+// permutation at every launch, so that a kernel whose result depends on the order of its
+// blocks (a race between blocks) gives different results from launch to launch.
+static unsigned long long motile_shuffle = 0, motile_launches = 0;
+extern "C" void motile_set_shuffle(unsigned long long seed) { motile_shuffle = seed; }
+static std::vector<unsigned> motile_block_order(unsigned grid) {
+    std::vector<unsigned> order(grid);
+    for (unsigned b = 0; b < grid; ++b) order[b] = b;
+    if (motile_shuffle != 0) {
+        unsigned long long x = motile_shuffle + 0x9E3779B97F4A7C15ull * ++motile_launches;
+        for (unsigned b = grid; b > 1; --b) {
+            x ^= x >> 30; x *= 0xBF58476D1CE4E5B9ull; x ^= x >> 27; x *= 0x94D049BB133111EBull;
+            x ^= x >> 31;
+            std::swap(order[b - 1], order[x % b]);
+        }
+    }
+    return order;
+}
 // Every thread of every block. Kernels without __syncthreads run their threads one after
-// another on the calling thread; with it (MOTILE_THREADED), each thread of a block is an OS
-// thread, the blocks one after another, a barrier between blocks.
-template <typename... A>
+// another on the calling thread; kernels with it (threaded) run each thread of a block as an
+// OS thread, concurrently (the barrier and the atomics synchronise them, anything else races
+// as on a GPU), the blocks one after another, a barrier between blocks.
+template <bool Threaded, typename... A>
 static void motile_launch(void (*f)(A...), unsigned grid, unsigned block, void** a) {
     gridDim = {grid, 1, 1};
     blockDim = {block, 1, 1};
-#ifdef MOTILE_THREADED
-    motile_block_barrier.count = block;
-    std::vector<std::thread> threads;
-    for (unsigned t = 0; t < block; ++t) {
-        threads.emplace_back([=] {
-            for (unsigned b = 0; b < grid; ++b) {
+    std::vector<unsigned> order = motile_block_order(grid);
+    if (Threaded) {
+        motile_block_barrier.count = block;
+        std::vector<std::thread> threads;
+        for (unsigned t = 0; t < block; ++t) {
+            threads.emplace_back([=, &order] {
+                motile_in_threaded_launch = true;
+                for (unsigned b : order) {
+                    blockIdx = {b, 0, 0};
+                    threadIdx = {t, 0, 0};
+                    motile_call(f, a, std::index_sequence_for<A...>{});
+                    motile_block_barrier.wait();
+                }
+            });
+        }
+        for (auto& th : threads) th.join();
+    } else {
+        for (unsigned b : order) {
+            for (unsigned t = 0; t < block; ++t) {
                 blockIdx = {b, 0, 0};
                 threadIdx = {t, 0, 0};
                 motile_call(f, a, std::index_sequence_for<A...>{});
-                motile_block_barrier.wait();
             }
-        });
-    }
-    for (auto& th : threads) th.join();
-#else
-    for (unsigned b = 0; b < grid; ++b) {
-        for (unsigned t = 0; t < block; ++t) {
-            blockIdx = {b, 0, 0};
-            threadIdx = {t, 0, 0};
-            motile_call(f, a, std::index_sequence_for<A...>{});
         }
     }
-#endif
 }
-#define MOTILE_ENTRY(name) \
-    extern "C" void motile_run_##name(unsigned g, unsigned b, void** a) { motile_launch(name, g, b, a); } \
+#define MOTILE_ENTRY(name, threaded) \
+    extern "C" void motile_run_##name(unsigned g, unsigned b, void** a) { motile_launch<threaded>(name, g, b, a); } \
     extern "C" const char* motile_sig_##name() { return motile_signature(name); }
 "#;
 
@@ -124,6 +168,48 @@ const _: () = assert!(std::mem::size_of::<usize>() == 8);
 type Run = unsafe extern "C" fn(u32, u32, *mut *mut c_void);
 type Sig = unsafe extern "C" fn() -> *const c_char;
 
+/// The body of kernel `name` in `source`: the braces after its `__global__ ... name(`, matched
+/// (empty if not found).
+fn kernel_body<'a>(source: &'a str, name: &str) -> &'a str {
+    // The declaration: `__global__`, then (qualifiers such as `__launch_bounds__(...)` and)
+    // the name followed by `(`, without a brace or semicolon between them.
+    let key = format!(" {name}(");
+    let start = source.match_indices(&key).map(|(i, _)| i).find(|&i| {
+        source[..i]
+            .rfind("__global__")
+            .is_some_and(|g| !source[g..i].contains(['{', '}', ';']))
+    });
+    let Some(start) = start else {
+        return "";
+    };
+    let rest = &source[start..];
+    let Some(open) = rest.find('{') else {
+        return "";
+    };
+    let mut depth = 0usize;
+    for (i, c) in rest[open..].char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' => {
+                depth -= 1;
+                if depth == 0 {
+                    return &rest[open..=open + i];
+                }
+            }
+            _ => {}
+        }
+    }
+    &rest[open..]
+}
+
+/// Whether kernel `name` cooperates within its block: its body declares `__shared__` memory or
+/// calls `__syncthreads` (a helper may hold the barrier; calling it from a kernel run in turn
+/// aborts with a message instead of hanging).
+fn is_threaded(source: &str, name: &str) -> bool {
+    let body = kernel_body(source, name);
+    body.contains("__shared__") || body.contains("__syncthreads")
+}
+
 /// The compiled kernels: entry points and parameter signatures.
 pub(crate) struct Host {
     /// One launch at a time: the emulated kernels share the library's globals (thread indices'
@@ -131,6 +217,7 @@ pub(crate) struct Host {
     running: std::sync::Mutex<()>,
     compiler: String,
     kernels: HashMap<String, (Run, String)>,
+    shuffle: unsafe extern "C" fn(u64),
     // Keeps the entry points valid; dropped before the directory holding it.
     _lib: libloading::Library,
     _dir: tempfile::TempDir,
@@ -172,18 +259,14 @@ impl Host {
             .map_err(|e| GpuError::Compile(format!("a scratch directory: {e}")))?;
         let src = dir.path().join("kernels.cpp");
         let lib = dir.path().join("libkernels.so");
-        // Kernels that synchronise their blocks need the threaded launches.
-        let mut text = if source.contains("__syncthreads") {
-            String::from("#define MOTILE_THREADED 1\n")
-        } else {
-            String::new()
-        };
-        text.push_str(PRELUDE);
+        let mut text = String::from(PRELUDE);
         text.push_str("#line 1 \"kernels.cu\"\n");
         text.push_str(source);
         text.push('\n');
+        // Kernels that synchronise their blocks run threaded.
         for k in kernels {
-            text.push_str(&format!("MOTILE_ENTRY({k})\n"));
+            let threaded = is_threaded(source, k);
+            text.push_str(&format!("MOTILE_ENTRY({k}, {threaded})\n"));
         }
         std::fs::write(&src, text)
             .map_err(|e| GpuError::Compile(format!("writing {}: {e}", src.display())))?;
@@ -222,18 +305,35 @@ impl Host {
                 .into_owned();
             map.insert((*k).to_string(), (run, signature));
         }
+        // SAFETY: the prelude defines motile_set_shuffle with this C signature.
+        let shuffle = unsafe {
+            *library
+                .get::<unsafe extern "C" fn(u64)>(b"motile_set_shuffle")
+                .map_err(|e| GpuError::Compile(format!("motile_set_shuffle: {e}")))?
+        };
         Ok(Self {
             running: std::sync::Mutex::new(()),
             compiler,
             kernels: map,
+            shuffle,
             _lib: library,
             _dir: dir,
         })
     }
 
+    /// Run blocks in a new random order at every launch (`seed` nonzero), or in turn (0).
+    pub(crate) fn shuffle_blocks(&self, seed: u64) {
+        let _one_at_a_time = self
+            .running
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        // SAFETY: sets a global of the library that only launches read, none running (lock).
+        unsafe { (self.shuffle)(seed) }
+    }
+
     pub(crate) fn describe(&self) -> String {
         format!(
-            "host emulation ({} kernels compiled by {}, one thread at a time)",
+            "host emulation ({} kernels compiled by {})",
             self.kernels.len(),
             self.compiler
         )
@@ -311,5 +411,30 @@ fn host_ptr_mut<T: crate::buffer::Element>(d: &mut Data<T>) -> Result<u64, GpuEr
         Data::Host(v) => Ok(v.as_mut_ptr() as usize as u64),
         #[allow(unreachable_patterns)]
         _ => Err(GpuError::foreign()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kernels_with_block_cooperation_are_found_by_their_bodies() {
+        let src = r#"
+__device__ void helper() { __syncthreads(); }
+extern "C" __global__ void plain(double* x) { x[threadIdx.x] = 1.0; }
+extern "C" __global__ void __launch_bounds__(256) tiled(double* x) {
+    __shared__ double t[256];
+    if (threadIdx.x == 0) { t[0] = 1.0; }
+    helper();
+    x[0] = t[0];
+}
+extern "C" __global__ void synced(double* x) { __syncthreads(); }
+"#;
+        assert!(!is_threaded(src, "plain"));
+        assert!(is_threaded(src, "tiled"));
+        assert!(is_threaded(src, "synced"));
+        assert!(kernel_body(src, "tiled").ends_with("x[0] = t[0];\n}"));
+        assert_eq!(kernel_body(src, "missing"), "");
     }
 }

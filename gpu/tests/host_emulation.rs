@@ -271,3 +271,89 @@ extern "C" __global__ void partial_sums(const double* v, long long n, double* pa
         assert_eq!(*g, want, "block {b}");
     }
 }
+
+motile_gpu::kernels! {
+    /// Integer atomics and a race between blocks.
+    const ATOMICS = r#"
+extern "C" __global__ void histogram(const int* key, int* count, int* rank, int n) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    rank[i] = atomicAdd(&count[key[i]], 1);
+}
+extern "C" __global__ void last_block(int* out) {
+    if (threadIdx.x == 0) out[0] = blockIdx.x;
+}
+"#;
+    /// `rank[i]`: how many points of `key[i]` came before it; `count`: points per key.
+    struct Histogram = "histogram" {
+        key: &'a Buffer<i32>,
+        count: &'a mut Buffer<i32>,
+        rank: &'a mut Buffer<i32>,
+        n: i32,
+    }
+    /// Every block writes its index to `out[0]`: the last block to run wins.
+    struct LastBlock = "last_block" { out: &'a mut Buffer<i32> }
+}
+
+/// Integer atomics return the value before the add: the ranks within each key are exactly
+/// 0..count, and the counts the histogram.
+#[test]
+fn integer_atomics_return_the_old_value() {
+    let Some(dev) = open(&ATOMICS) else { return };
+    let n = 1000usize;
+    let key: Vec<i32> = (0..n).map(|i| ((i * 7919) % 13) as i32).collect();
+    let kb = dev.upload(&key).unwrap();
+    let mut cb = dev.zeros::<i32>(13).unwrap();
+    let mut rb = dev.zeros::<i32>(n).unwrap();
+    // SAFETY: histogram reads key[i] and writes rank[i] for i < n (n values each), and adds to
+    // count[key[i]] with key[i] < 13 (13 values).
+    unsafe {
+        dev.launch(
+            n,
+            Histogram {
+                key: &kb,
+                count: &mut cb,
+                rank: &mut rb,
+                n: n as i32,
+            },
+        )
+    }
+    .unwrap();
+    let (count, rank) = (dev.download(&cb).unwrap(), dev.download(&rb).unwrap());
+    for k in 0..13 {
+        let mut ranks: Vec<i32> = (0..n).filter(|&i| key[i] == k).map(|i| rank[i]).collect();
+        ranks.sort_unstable();
+        assert_eq!(ranks, (0..count[k as usize]).collect::<Vec<_>>(), "key {k}");
+    }
+    assert_eq!(count.iter().sum::<i32>(), n as i32);
+}
+
+/// Blocks run in turn (the last block writes last), or in a new order at every launch once
+/// shuffled: a race between blocks then shows as results that vary between launches.
+#[test]
+fn shuffled_blocks_expose_a_race_between_blocks() {
+    let Some(dev) = open(&ATOMICS) else { return };
+    let blocks = 40usize;
+    let mut ob = dev.zeros::<i32>(1).unwrap();
+    let mut run = |dev: &Device| {
+        // SAFETY: last_block writes out[0] only (one value).
+        unsafe {
+            dev.launch(
+                blocks * motile_gpu::THREADS as usize,
+                LastBlock { out: &mut ob },
+            )
+        }
+        .unwrap();
+        dev.download(&ob).unwrap()[0]
+    };
+    let in_turn: Vec<i32> = (0..5).map(|_| run(&dev)).collect();
+    assert_eq!(in_turn, vec![blocks as i32 - 1; 5]);
+    assert!(dev.shuffle_blocks(7));
+    let shuffled: std::collections::BTreeSet<i32> = (0..10).map(|_| run(&dev)).collect();
+    assert!(
+        shuffled.len() > 1,
+        "ten shuffled launches all ended with block {shuffled:?}"
+    );
+    dev.shuffle_blocks(0);
+    assert_eq!(run(&dev), blocks as i32 - 1);
+}
