@@ -2,7 +2,8 @@
 // the mode multiplication of convolve, gather, gather_gradient) and of the mode functions of
 // ewald/kernels.rs (rpy_fourier_mode_screened, the stresslet's force density), and the real-space pair
 // sums (spectral/real_space.rs). Compiled by NVRTC, or by the host C++ compiler for the
-// emulation (motile-gpu), so: plain C++, no shared memory. Each kernel's parameters are
+// emulation (motile-gpu), so: plain C++; shared memory only in kernels that declare it in their
+// own body (the emulation runs those with a thread per GPU thread). Each kernel's parameters are
 // declared once more in signatures.rs (checked against this file when a device opens it).
 //
 // Layouts: points as x, y, z triples; point values field-major (field c of point i at
@@ -32,21 +33,27 @@ __device__ void window_axis(double y, double l, int m, int p, double h, double a
     }
 }
 
-// Spread nf fields (nf <= 6) of n points onto nf grids (zeroed by the caller): one thread
-// per point, atomic adds (the order of contributions, and so the last bits, vary from run to
-// run on a GPU).
-extern "C" __global__ void spread(const double* pts, const double* vals, double* grid, int n,
-                                  int nf, int m, int p, double l, double h, double alpha,
-                                  double norm) {
-    int i = blockIdx.x * blockDim.x + threadIdx.x;
-    if (i >= n) return;
+// The first grid index of a point's window along one axis (in 0..m), as window_axis.
+__device__ int window_first(double y, double l, int m, int p, double h) {
+    double f = y - l * floor(y / l);
+    if (f >= l) f = 0.0;
+    double i0 = -floor(0.5 * p - f / h);
+    long long fi = ((long long)i0) % m;
+    if (fi < 0) fi += m;
+    return (int)fi;
+}
+
+// Spread fields f0..f0 + nf - 1 of point i onto the grids (global atomic adds).
+__device__ void spread_point(const double* pts, const double* vals, double* grid, int i, int n,
+                             int f0, int nf, int m, int p, double l, double h, double alpha,
+                             double norm) {
     int f[3];
     double d0[3];
     double w[3][MAX_SUPPORT];
     for (int d = 0; d < 3; ++d)
         window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &f[d], &d0[d], w[d]);
     double v[6];
-    for (int c = 0; c < nf; ++c) v[c] = vals[(long long)c * n + i];
+    for (int c = 0; c < nf; ++c) v[c] = vals[(long long)(f0 + c) * n + i];
     long long m3 = (long long)m * m * m;
     for (int qz = 0; qz < p; ++qz) {
         int z = f[2] + qz;
@@ -60,10 +67,141 @@ extern "C" __global__ void spread(const double* pts, const double* vals, double*
                 int x = f[0] + qx;
                 if (x >= m) x -= m;
                 double wt = wzy * w[0][qx];
-                for (int c = 0; c < nf; ++c) atomicAdd(&grid[c * m3 + row + x], wt * v[c]);
+                for (int c = 0; c < nf; ++c)
+                    atomicAdd(&grid[(f0 + c) * m3 + row + x], wt * v[c]);
             }
         }
     }
+}
+
+// Spread nf fields (nf <= 6) of n points onto nf grids (zeroed by the caller): one thread
+// per point in the points' order, global atomic adds (the order of contributions, and so the
+// last bits, vary from run to run on a GPU). The slow twin of the binned spreaders below.
+extern "C" __global__ void spread(const double* pts, const double* vals, double* grid, int n,
+                                  int nf, int m, int p, double l, double h, double alpha,
+                                  double norm) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    spread_point(pts, vals, grid, i, n, 0, nf, m, p, l, h, alpha, norm);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Binned spreading, as cuFINUFFT's: the points sorted into bins of b^3 grid points by the first
+// index of their window (a counting sort: bin_count, bin_scan, bin_scatter), then either each
+// bin's points accumulated in a shared-memory tile that is added to the grid once
+// (spread_tiles), or, where the tile would not fit (wide supports), the global-memory spreader
+// run in bin order (spread_sorted) so that neighbouring threads add to neighbouring cells.
+// Bins: nb per axis, index (bz nb + by) nb + bx.
+
+// Tile edge of spread_tiles: a bin of b = TILE - p + 1 grid points per axis and its points'
+// supports; three fields of TILE^3 doubles, 41.5 KB of shared memory.
+#define TILE 12
+
+// The bin of point i, and its rank among the points of that bin (the counts' old value).
+extern "C" __global__ void bin_count(const double* pts, int* bin, int* rank, int* count, int n,
+                                     int m, int p, double l, double h, int b, int nb) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    int k = 0;
+    for (int d = 2; d >= 0; --d) k = k * nb + window_first(pts[3 * i + d], l, m, p, h) / b;
+    bin[i] = k;
+    rank[i] = atomicAdd(&count[k], 1);
+}
+
+// Exclusive prefix sum of the nbins counts into start (nbins + 1 values, the last the total):
+// one block; each thread sums a contiguous chunk, the chunk totals are scanned in shared
+// memory, then each thread writes its chunk's starts.
+extern "C" __global__ void bin_scan(const int* count, int* start, int nbins) {
+    __shared__ int total[256];
+    int t = threadIdx.x;
+    int chunk = (nbins + blockDim.x - 1) / blockDim.x;
+    int lo = t * chunk, hi = lo + chunk < nbins ? lo + chunk : nbins;
+    int s = 0;
+    for (int k = lo; k < hi; ++k) s += count[k];
+    total[t] = s;
+    __syncthreads();
+    if (t == 0) {
+        int run = 0;
+        for (int u = 0; u < (int)blockDim.x; ++u) {
+            int v = total[u];
+            total[u] = run;
+            run += v;
+        }
+        start[nbins] = run;
+    }
+    __syncthreads();
+    int run = total[t];
+    for (int k = lo; k < hi; ++k) {
+        start[k] = run;
+        run += count[k];
+    }
+}
+
+// perm[start[bin] + rank] = i: the points in bin order.
+extern "C" __global__ void bin_scatter(const int* bin, const int* rank, const int* start,
+                                       int* perm, int n) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    perm[start[bin[i]] + rank[i]] = i;
+}
+
+// One block per bin: its points' fields f0..f0 + nf - 1 (nf <= 3) accumulated in a shared
+// tile (shared-memory atomics), then the tile's nonzero cells added to the grids (global
+// atomics, one per cell instead of one per point and cell).
+extern "C" __global__ void spread_tiles(const double* pts, const double* vals, const int* perm,
+                                        const int* start, double* grid, int n, int f0, int nf,
+                                        int m, int p, double l, double h, double alpha,
+                                        double norm, int b, int nb) {
+    __shared__ double tile[3 * TILE * TILE * TILE];
+    int k = blockIdx.x;
+    const int t3 = TILE * TILE * TILE;
+    for (int c = threadIdx.x; c < 3 * t3; c += blockDim.x) tile[c] = 0.0;
+    int lo = start[k], hi = start[k + 1];
+    int origin[3] = {(k % nb) * b, ((k / nb) % nb) * b, (k / (nb * nb)) * b};
+    __syncthreads();
+    for (int j = lo + threadIdx.x; j < hi; j += blockDim.x) {
+        int i = perm[j];
+        int f[3];
+        double d0[3];
+        double w[3][MAX_SUPPORT];
+        for (int d = 0; d < 3; ++d)
+            window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &f[d], &d0[d], w[d]);
+        double v[3];
+        for (int c = 0; c < nf; ++c) v[c] = vals[(long long)(f0 + c) * n + i];
+        // The window's first cell relative to the bin (in 0..b: the bin is that of f).
+        int o[3];
+        for (int d = 0; d < 3; ++d) o[d] = f[d] - origin[d];
+        for (int qz = 0; qz < p; ++qz) {
+            for (int qy = 0; qy < p; ++qy) {
+                double wzy = w[2][qz] * w[1][qy];
+                int row = ((o[2] + qz) * TILE + o[1] + qy) * TILE + o[0];
+                for (int qx = 0; qx < p; ++qx) {
+                    double wt = wzy * w[0][qx];
+                    for (int c = 0; c < nf; ++c) atomicAdd(&tile[c * t3 + row + qx], wt * v[c]);
+                }
+            }
+        }
+    }
+    __syncthreads();
+    long long m3 = (long long)m * m * m;
+    for (int cell = threadIdx.x; cell < t3; cell += blockDim.x) {
+        int tx = cell % TILE, ty = (cell / TILE) % TILE, tz = cell / (TILE * TILE);
+        long long g = ((long long)((origin[2] + tz) % m) * m + (origin[1] + ty) % m) * m +
+                      (origin[0] + tx) % m;
+        for (int c = 0; c < nf; ++c) {
+            double v = tile[c * t3 + cell];
+            if (v != 0.0) atomicAdd(&grid[(f0 + c) * m3 + g], v);
+        }
+    }
+}
+
+// The global-memory spreader over the points in bin order (thread j spreads point perm[j]).
+extern "C" __global__ void spread_sorted(const double* pts, const double* vals, const int* perm,
+                                         double* grid, int n, int nf, int m, int p, double l,
+                                         double h, double alpha, double norm) {
+    int j = blockIdx.x * blockDim.x + threadIdx.x;
+    if (j >= n) return;
+    spread_point(pts, vals, grid, perm[j], n, 0, nf, m, p, l, h, alpha, norm);
 }
 
 // Mode s of the half spectrum: its wavenumber, |k|^2, and whether the sums drop it (k = 0 and
@@ -158,11 +296,9 @@ extern "C" __global__ void stresslet_modes(const double* input, double* out, int
 // Gather three fields back to the n points: h^3 sum_grid G(x) g(y - x) at out[c n + i], and
 // with gradient != 0 also d/dy_m at out[(3 + 3 c + m) n + i] from the window's derivative
 // g'(y - x_q) = 2 alpha (d0 + q h) g (as gather_gradient_point).
-extern "C" __global__ void gather(const double* pts, const double* grid, double* out, int n,
-                                  int gradient, int m, int p, double l, double h,
-                                  double alpha, double norm) {
-    int i = blockIdx.x * blockDim.x + threadIdx.x;
-    if (i >= n) return;
+__device__ void gather_point(const double* pts, const double* grid, double* out, int i, int n,
+                             int gradient, int m, int p, double l, double h, double alpha,
+                             double norm) {
     int f[3];
     double d0[3];
     double w[3][MAX_SUPPORT];
@@ -202,6 +338,24 @@ extern "C" __global__ void gather(const double* pts, const double* grid, double*
     double h3 = h * h * h;
     int outputs = gradient ? 12 : 3;
     for (int c = 0; c < outputs; ++c) out[(long long)c * n + i] = h3 * acc[c];
+}
+
+extern "C" __global__ void gather(const double* pts, const double* grid, double* out, int n,
+                                  int gradient, int m, int p, double l, double h,
+                                  double alpha, double norm) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    gather_point(pts, grid, out, i, n, gradient, m, p, l, h, alpha, norm);
+}
+
+// The gather over the points in bin order (thread j gathers point perm[j]): neighbouring
+// threads read neighbouring cells.
+extern "C" __global__ void gather_sorted(const double* pts, const double* grid, const int* perm,
+                                         double* out, int n, int gradient, int m, int p,
+                                         double l, double h, double alpha, double norm) {
+    int j = blockIdx.x * blockDim.x + threadIdx.x;
+    if (j >= n) return;
+    gather_point(pts, grid, out, perm[j], n, gradient, m, p, l, h, alpha, norm);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -16,11 +16,16 @@
 //! device from sum to sum (rebuilt when the grid size changes). Kernels are declared in
 //! `signatures.rs` and launched in `launch.rs`.
 //!
-//! On a GPU the spreading's atomic adds make the last bits vary from run to run.
+//! Spreading sorts the points into bins on the device and accumulates each bin in a
+//! shared-memory tile, or runs the global-memory spreader in bin order for wide supports
+//! (`binned.rs`; the per-point atomic spreader in the points' order stays as the slow twin). On
+//! a GPU the atomic adds make the last bits vary from run to run.
 
+mod binned;
 mod launch;
 mod signatures;
 
+pub use binned::{MAX_TILE_SUPPORT, SpreadMethod, TILE};
 pub(crate) use launch::Geometry;
 
 use crate::ewald::gpu::signatures::KERNELS;
@@ -38,6 +43,10 @@ pub struct GpuFourier {
     /// generation: the products of one GMRES solve reuse them instead of uploading again.
     points: Option<(u64, Buffer)>,
     cells: Option<(u64, CellBuffers)>,
+    /// The points of a generation sorted into bins for the binned spreaders.
+    bins: Option<(u64, binned::Bins)>,
+    /// The spreading method, or `None` for [`SpreadMethod::for_support`].
+    method: Option<SpreadMethod>,
 }
 
 /// The cell list's layout on the device: sorted positions, each point's group, cell starts.
@@ -78,7 +87,33 @@ impl GpuFourier {
             grid: None,
             points: None,
             cells: None,
+            bins: None,
+            method: None,
         })
+    }
+
+    /// Spread with `method` from now on, or (`None`) with [`SpreadMethod::for_support`]'s
+    /// choice: for tests and benchmarks that compare the spreaders.
+    pub fn set_spread_method(&mut self, method: Option<SpreadMethod>) {
+        self.method = method;
+        self.bins = None;
+    }
+
+    /// On the host emulation, run blocks in a new random order at every launch (`seed`
+    /// nonzero), to expose races between blocks ([`motile_gpu::Device::shuffle_blocks`]).
+    pub fn shuffle_blocks(&self, seed: u64) -> bool {
+        self.dev.shuffle_blocks(seed)
+    }
+
+    /// The method a sum of support `p` spreads with: the one set, or
+    /// [`SpreadMethod::for_support`]'s; tiles asked for a support wider than
+    /// [`MAX_TILE_SUPPORT`] spread sorted (their tile would not fit in shared memory).
+    pub fn spread_method(&self, p: usize) -> SpreadMethod {
+        match self.method {
+            Some(SpreadMethod::Tiles) if p > MAX_TILE_SUPPORT => SpreadMethod::Sorted,
+            Some(m) => m,
+            None => SpreadMethod::for_support(p),
+        }
     }
 
     /// What the device is.
@@ -119,29 +154,62 @@ impl GpuFourier {
         Ok(g)
     }
 
-    /// Spread `values` (field-major, `nf` fields of the points) and forward transform them
-    /// into the input's spectra.
+    /// Spread `values` (field-major, `nf` fields of the points of `generation`) and forward
+    /// transform them into the input's spectra.
     fn spread(
         &mut self,
+        generation: u64,
         geo: &Geometry,
         pts: &Buffer,
         n: usize,
-        values: &[f64],
-        nf: usize,
+        (values, nf): (&[f64], usize),
     ) -> Result<(), GpuError> {
         let vals = self.dev.upload(values)?;
         self.grid(geo.m, nf)?;
+        let method = self.spread_method(geo.window.p);
+        let bins = match method {
+            SpreadMethod::Atomic => None,
+            _ => Some(self.bins(generation, geo, method, pts, n)?),
+        };
         let dev = &self.dev;
         let g = self.grid.as_mut().expect("made by grid()");
         let input = g.inputs[usize::from(nf == 6)]
             .as_mut()
             .expect("made by grid()");
         dev.zero(&mut input.fields)?;
-        launch::spread(dev, geo, pts, &vals, &mut input.fields, n, nf)?;
+        match &bins {
+            None => launch::spread(dev, geo, pts, &vals, &mut input.fields, n, nf)?,
+            Some(b) => binned::spread(dev, geo, b, pts, &vals, &mut input.fields, (n, nf))?,
+        }
+        self.bins = bins.map(|b| (generation, b));
         dev.forward(&input.plan, (&input.fields, 0), (&mut input.spectra, 0))
     }
 
-    /// Inverse transform the three output spectra and gather them (with gradients if asked).
+    /// The points of `generation` sorted into bins for `method`: the cached sort, or a new one
+    /// (the caller puts it back in [`Self::bins`]).
+    fn bins(
+        &mut self,
+        generation: u64,
+        geo: &Geometry,
+        method: SpreadMethod,
+        pts: &Buffer,
+        n: usize,
+    ) -> Result<binned::Bins, GpuError> {
+        match self.bins.take() {
+            Some((g, b))
+                if g == generation
+                    && b.method == method
+                    && b.key.0 == geo.m
+                    && b.key.1 == geo.window.p =>
+            {
+                Ok(b)
+            }
+            _ => binned::sort(&self.dev, geo, method, pts, n),
+        }
+    }
+
+    /// Inverse transform the three output spectra and gather them (with gradients if asked),
+    /// in bin order where the spread sorted the points.
     fn back(
         &mut self,
         geo: &Geometry,
@@ -149,11 +217,17 @@ impl GpuFourier {
         n: usize,
         gradient: bool,
     ) -> Result<Vec<f64>, GpuError> {
+        let method = self.spread_method(geo.window.p);
         let g = self.grid.as_mut().expect("spread first");
         let dev = &self.dev;
         dev.inverse(&g.inverse3, (&mut g.spectra_out, 0), (&mut g.back, 0))?;
         let mut out = dev.zeros(if gradient { 12 } else { 3 } * n)?;
-        launch::gather(dev, geo, pts, &g.back, &mut out, n, gradient)?;
+        match (&self.bins, method) {
+            (Some((_, b)), m) if m != SpreadMethod::Atomic => {
+                binned::gather(dev, geo, b, pts, &g.back, &mut out, (n, gradient))?;
+            }
+            _ => launch::gather(dev, geo, pts, &g.back, &mut out, n, gradient)?,
+        }
         dev.download(&out)
     }
 
@@ -172,7 +246,7 @@ impl GpuFourier {
         let vals: Vec<f64> = (0..3)
             .flat_map(|d| forces.iter().map(move |f| f[d]))
             .collect();
-        self.spread(geo, &pts, n, &vals, 3)?;
+        self.spread(generation, geo, &pts, n, (&vals, 3))?;
         let g = self.grid.as_mut().expect("spread made it");
         let input = g.inputs[0].as_ref().expect("spread made it");
         launch::modes(
@@ -341,7 +415,7 @@ impl GpuFourier {
         let n = points.len();
         let pts = self.points(generation, points)?;
         let vals: Vec<f64> = s.iter().flat_map(|c| c.iter().copied()).collect();
-        self.spread(geo, &pts, n, &vals, 6)?;
+        self.spread(generation, geo, &pts, n, (&vals, 6))?;
         let g = self.grid.as_mut().expect("spread made it");
         let input = g.inputs[1].as_ref().expect("spread made it");
         launch::modes(

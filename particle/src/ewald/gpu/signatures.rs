@@ -7,13 +7,98 @@ motile_gpu::kernels! {
     /// `kernels.cu` and its kernels.
     pub(crate) const KERNELS = include_str!("kernels.cu");
 
-    /// Spread `nf` fields of `n` points onto `nf` grids of `m^3` (atomic adds).
+    /// Spread `nf` fields of `n` points onto `nf` grids of `m^3` (atomic adds, the points'
+    /// order): the binned spreaders' slow twin.
     pub(crate) struct Spread = "spread" {
         pts: &'a Buffer<f64>,
         vals: &'a Buffer<f64>,
         grid: &'a mut Buffer<f64>,
         n: i32,
         nf: i32,
+        m: i32,
+        p: i32,
+        l: f64,
+        h: f64,
+        alpha: f64,
+        norm: f64,
+    }
+
+    /// Each point's bin (of `b^3` grid points, `nb` per axis) and its rank in the bin; the
+    /// bins' counts (zeroed by the caller).
+    pub(crate) struct BinCount = "bin_count" {
+        pts: &'a Buffer<f64>,
+        bin: &'a mut Buffer<i32>,
+        rank: &'a mut Buffer<i32>,
+        count: &'a mut Buffer<i32>,
+        n: i32,
+        m: i32,
+        p: i32,
+        l: f64,
+        h: f64,
+        b: i32,
+        nb: i32,
+    }
+
+    /// The bins' starts: the exclusive prefix sum of their counts (one block).
+    pub(crate) struct BinScan = "bin_scan" {
+        count: &'a Buffer<i32>,
+        start: &'a mut Buffer<i32>,
+        nbins: i32,
+    }
+
+    /// The points in bin order.
+    pub(crate) struct BinScatter = "bin_scatter" {
+        bin: &'a Buffer<i32>,
+        rank: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        perm: &'a mut Buffer<i32>,
+        n: i32,
+    }
+
+    /// Spread fields `f0..f0 + nf` (`nf <= 3`) bin by bin through shared-memory tiles.
+    pub(crate) struct SpreadTiles = "spread_tiles" {
+        pts: &'a Buffer<f64>,
+        vals: &'a Buffer<f64>,
+        perm: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        grid: &'a mut Buffer<f64>,
+        n: i32,
+        f0: i32,
+        nf: i32,
+        m: i32,
+        p: i32,
+        l: f64,
+        h: f64,
+        alpha: f64,
+        norm: f64,
+        b: i32,
+        nb: i32,
+    }
+
+    /// The global-memory spreader over the points in bin order.
+    pub(crate) struct SpreadSorted = "spread_sorted" {
+        pts: &'a Buffer<f64>,
+        vals: &'a Buffer<f64>,
+        perm: &'a Buffer<i32>,
+        grid: &'a mut Buffer<f64>,
+        n: i32,
+        nf: i32,
+        m: i32,
+        p: i32,
+        l: f64,
+        h: f64,
+        alpha: f64,
+        norm: f64,
+    }
+
+    /// The gather over the points in bin order.
+    pub(crate) struct GatherSorted = "gather_sorted" {
+        pts: &'a Buffer<f64>,
+        grid: &'a Buffer<f64>,
+        perm: &'a Buffer<i32>,
+        out: &'a mut Buffer<f64>,
+        n: i32,
+        gradient: i32,
         m: i32,
         p: i32,
         l: f64,
