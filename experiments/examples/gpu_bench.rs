@@ -3,7 +3,13 @@
 //! ```text
 //! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- \
 //!     [--device cuda|emulation] [--small] [--cases mf,sum,dipole,sbt] [--reps 3] [--out FILE.csv]
+//! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- --model [--small]
 //! ```
+//!
+//! `--model` needs no device: it prints the work model of the particle sums' Fourier part
+//! (`motile_particle::ewald::gpu::work_model`: global-memory bytes, atomics and launches per
+//! phase, per point and per sum) for each spreading method on the benchmark's cases, so the
+//! design is judged by counts where no GPU is at hand.
 //!
 //! Cases (the sizes of issue 18; `--small` shrinks every one to seconds, for checking the
 //! harness, e.g. on the host emulation):
@@ -296,9 +302,120 @@ impl Bench {
     }
 }
 
+/// The work model's table (`--model`): per case and spreading method, each phase's launches,
+/// bytes, global and shared atomics per point, and the sum's totals.
+fn model_table(small: bool) {
+    use motile_particle::ewald::gpu::{SpreadMethod, work_model};
+    use motile_particle::ewald::params::{EwaldParams, STRESSLET_PAIR_COST, SumOutput};
+    let scale = if small { 100 } else { 1 };
+    let rods = |l: f64| {
+        // Rod centres at nu = 0.625, uniform; four nodes per rod at s = +-0.15, +-0.4 along p.
+        let n = (0.625 * l * l * l / scale as f64).round() as usize;
+        let (_, x, p) = random_points(n);
+        let side = (n as f64 / 0.625).cbrt();
+        let x: Vec<[f64; 3]> = x
+            .iter()
+            .map(|c| c.map(|v| v / (n as f64 / 2.5).cbrt() * side))
+            .collect();
+        (side, x, p)
+    };
+    // (name, box, points, (grid, support), (fields, gradient))
+    type Case = (String, f64, Vec<[f64; 3]>, (usize, usize), (usize, bool));
+    let mut cases: Vec<Case> = Vec::new();
+    for n in [100_000usize, 1_000_000, 10_000_000] {
+        let n = n / scale;
+        let (l, y, _) = random_points(n);
+        for tol in [1e-4, 1e-8] {
+            let prm = EwaldParams::choose(tol, n, l);
+            cases.push((
+                format!("RPY {n:.0e} points, tol {tol:.0e}"),
+                l,
+                y.clone(),
+                (prm.modes, prm.support),
+                (3, false),
+            ));
+        }
+    }
+    for big in [100.0, 175.0] {
+        let (l, x, _) = rods(big);
+        let outputs = [SumOutput::StressletVelocity, SumOutput::StressletGradient];
+        let prm = EwaldParams::choose_for(1e-4, x.len(), l, &outputs, STRESSLET_PAIR_COST);
+        cases.push((
+            format!("dipole L/l = {big} ({} rods), tol 1e-4", x.len()),
+            l,
+            x,
+            (prm.modes, prm.support),
+            (6, true),
+        ));
+    }
+    let (l, x, p) = rods(100.0);
+    let nodes: Vec<[f64; 3]> = x
+        .iter()
+        .zip(&p)
+        .flat_map(|(c, q)| {
+            let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt().max(1e-12);
+            [-0.4, -0.15, 0.15, 0.4].map(|s| std::array::from_fn(|d| c[d] + s * q[d] / norm))
+        })
+        .collect();
+    let prm = EwaldParams::choose(1e-2, nodes.len(), l);
+    cases.push((
+        format!("sbt-explicit L/l = 100 ({} nodes), tol 1e-2", nodes.len()),
+        l,
+        nodes,
+        (prm.modes, prm.support),
+        (3, false),
+    ));
+    println!(
+        "Requested bytes: loads and stores as the kernels issue them (atomics apart). Grid \
+         lines: the distinct 128-byte lines of the grids each warp (for the tiles, each bin's \
+         block) touches, summed; the traffic at the cache, where the points' order shows.\n"
+    );
+    println!(
+        "| case | grid, support | method | phase | launches | requested bytes/point | grid lines/point | global atomics/point | shared atomics/point |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for (name, l, pts, (m, p), fields) in &cases {
+        let n = pts.len() as f64;
+        for method in [SpreadMethod::Atomic, SpreadMethod::for_support(*p)] {
+            let rows = work_model(pts, *l, (*m, *p), *fields, method);
+            let (mut launches, mut bytes, mut lines, mut ga, mut sa) = (0, 0.0, 0.0, 0.0, 0.0);
+            for r in &rows {
+                println!(
+                    "| {name} | {m}^3, {p} | {method:?} | {} | {} | {:.0} | {:.1} | {:.1} | {:.1} |",
+                    r.phase,
+                    r.launches,
+                    r.bytes / n,
+                    r.grid_lines / n,
+                    r.global_atomics / n,
+                    r.shared_atomics / n
+                );
+                launches += r.launches;
+                bytes += r.bytes;
+                lines += r.grid_lines;
+                ga += r.global_atomics;
+                sa += r.shared_atomics;
+            }
+            println!(
+                "| {name} | {m}^3, {p} | {method:?} | **per sum** | {launches} | {:.0} ({:.2} GB) | {:.1} ({:.2} GB) | {:.1} ({:.2e}) | {:.1} |",
+                bytes / n,
+                bytes / 1e9,
+                lines / n,
+                lines * 128.0 / 1e9,
+                ga / n,
+                ga,
+                sa / n
+            );
+        }
+    }
+}
+
 fn main() {
-    let emulate = arg("--device").as_deref() == Some("emulation");
     let small = std::env::args().any(|a| a == "--small");
+    if std::env::args().any(|a| a == "--model") {
+        model_table(small);
+        return;
+    }
+    let emulate = arg("--device").as_deref() == Some("emulation");
     let cases = arg("--cases").unwrap_or_else(|| "mf,sum,dipole,sbt".into());
     let reps: usize = arg("--reps").map_or(3, |r| r.parse().expect("--reps"));
     let probe = GpuFourier::open(if emulate {

@@ -41,12 +41,12 @@ use std::f64::consts::PI;
 /// Cost of one real-space pair relative to one grid point of the Fourier stage (its six
 /// real FFTs and the multiplication); calibrated at 1e5 points, tolerance 1e-4, where the
 /// measured total is flat within the machine's noise from 0.09 to 0.2 (grids 100-108).
-pub(crate) const PAIR_COST: f64 = 0.14;
+pub const PAIR_COST: f64 = 0.14;
 
 /// The same for a stresslet pair (velocity and gradient from a table) against its Fourier
 /// side (nine transforms instead of six, six fields spread, the gradient gathered);
 /// calibrated at 78 125 centres, tolerance 1e-4 (flat from 0.15 to 0.45: grids 100-120).
-pub(crate) const STRESSLET_PAIR_COST: f64 = 0.3;
+pub const STRESSLET_PAIR_COST: f64 = 0.3;
 
 /// Share of `tol Phi_n` per source left by the Fourier cutoff.
 pub(crate) const FOURIER_SHARE: f64 = 0.3;

@@ -25,7 +25,7 @@ mod binned;
 mod launch;
 mod signatures;
 
-pub use binned::{MAX_TILE_SUPPORT, SpreadMethod, TILE};
+pub use binned::{MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, work_model};
 pub(crate) use launch::Geometry;
 
 use crate::ewald::gpu::signatures::KERNELS;
