@@ -213,7 +213,8 @@ pub fn onset(
                 t_end
             };
             let complex = complex_fit(&dir, saturated)?;
-            let rotational_diffusion = rotational_diffusion(&dir, saturated.min(0.5 * t_end))?;
+            let rotational_diffusion =
+                crate::report::curves::rotational_diffusion(&dir, saturated.min(0.5 * t_end))?;
             event(&format!(
                 "nu = {nu}, L/l = {l} ({rods} rods, {seconds:.0} s{}): {}",
                 if finished { ", done already" } else { "" },
@@ -274,36 +275,6 @@ fn complex_fit(dir: &Path, t1: f64) -> anyhow::Result<Option<ComplexRateFit>> {
         .filter(|s: &Vec<num_complex::Complex64>| s.iter().any(|z| z.norm() > 0.0))
         .collect();
     Ok(fit_complex_rate(&t, &series, 0.0, t1))
-}
-
-/// The effective rotational diffusion of the rods of the run in `dir`: a least-squares fit of
-/// `ln <p(t).p(0)> = -2 d_r t` over its snapshots up to `t1` (`None` with fewer than three).
-pub fn rotational_diffusion(dir: &Path, t1: f64) -> anyhow::Result<Option<f64>> {
-    use crate::io::snapshot::Snapshot;
-    let paths = crate::io::rundir::RunDir::open(dir)?.snapshot_paths()?;
-    let mut first: Option<Vec<[f64; 3]>> = None;
-    let mut points = Vec::new();
-    for p in paths {
-        let Snapshot::Particle(s) = crate::io::snapshot::read_snapshot(&p)? else {
-            continue;
-        };
-        if s.time > t1 + 1e-9 {
-            break;
-        }
-        let p0 = first.get_or_insert_with(|| s.orientations.clone());
-        let c = motile_analysis::stats::orientation_autocorrelation(p0, &s.orientations);
-        if c > 0.0 {
-            points.push((s.time, c.ln()));
-        }
-    }
-    if points.len() < 3 {
-        return Ok(None);
-    }
-    // Through the origin: ln C(0) = 0.
-    let (num, den) = points
-        .iter()
-        .fold((0.0, 0.0), |(a, b), (t, y)| (a + t * y, b + t * t));
-    Ok(Some(-num / den / 2.0))
 }
 
 /// How long the run of box `l` at `nu` lasts: the end time, or with `opts.periods` the

@@ -182,31 +182,55 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         .iter()
         .flat_map(|c| c.u.iter().copied())
         .fold(0.0, f64::max);
-    let theory: Vec<Series> = curves
+    // Particle runs also get the box theory with the rotational diffusion measured in them.
+    let slopes: Vec<(usize, &NormCurve, f64, String)> = curves
         .iter()
-        .filter_map(|c| {
-            let (rate, what) = match &c.particle {
-                Some(p) => (
-                    p.box_theory.map(|s| s.re)?,
-                    format!("L/l = {} box theory", p.box_length),
-                ),
-                None => (c.theory_rate, "M3".to_string()),
-            };
+        .enumerate()
+        .flat_map(|(i, c)| {
+            let mut v = Vec::new();
+            match &c.particle {
+                Some(p) => {
+                    if let Some(s) = p.box_theory {
+                        v.push((i, c, s.re, format!("L/l = {} box theory", p.box_length)));
+                    }
+                    if let (Some(s), Some(d)) = (p.box_theory_dr, p.rotational_diffusion) {
+                        v.push((
+                            i,
+                            c,
+                            s.re,
+                            format!(
+                                "L/l = {} box theory, measured d_r = {d:.1e}/beta",
+                                p.box_length
+                            ),
+                        ));
+                    }
+                }
+                None => v.push((i, c, c.theory_rate, "M3".to_string())),
+            }
+            v
+        })
+        .collect();
+    let theory: Vec<(Series, usize)> = slopes
+        .into_iter()
+        .filter_map(|(i, c, rate, what)| {
             let (&t0, &u0) = (c.t.first()?, c.u.first()?);
             if rate <= 0.0 || u0 <= 0.0 {
                 return None;
             }
             let t_hit = t0 + (2.0 * u_max / u0).ln() / rate;
             let t1 = t_hit.min(c.t.last().copied().unwrap_or(t0));
-            Some(Series {
-                label: format!("linear theory ({what}): rate {rate:.3}"),
-                points: (0..=20)
-                    .map(|k| {
-                        let t = t0 + (t1 - t0) * k as f64 / 20.0;
-                        (t, u0 * (rate * (t - t0)).exp())
-                    })
-                    .collect(),
-            })
+            Some((
+                Series {
+                    label: format!("linear theory ({what}): rate {rate:.3}"),
+                    points: (0..=20)
+                        .map(|k| {
+                            let t = t0 + (t1 - t0) * k as f64 / 20.0;
+                            (t, u0 * (rate * (t - t0)).exp())
+                        })
+                        .collect(),
+                },
+                i,
+            ))
         })
         .collect();
     semilog_chart(
@@ -234,7 +258,8 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     let mut trajectories = Vec::new();
     let mut order: Vec<(String, Vec<Series>)> = Vec::new();
     let mut panels = Vec::new();
-    // Velocity slices of every run at one time: the latest all of them reached.
+    // Velocity slices of every run at one time: the latest all of them reached (each run's
+    // snapshot nearest it).
     let common = curves
         .iter()
         .filter_map(|c| c.t.last().copied())
@@ -463,10 +488,10 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
 /// box's linear theory marked (`saturated_norm.{png,svg}`).
 fn write_series(curves: &[NormCurve], corr_zero: &[f64], out: &Path) -> anyhow::Result<()> {
     let mut csv = String::from(
-        "model,L/l,rods,level,growth_phase,growth_rate [mf],growth_t0 [mf],growth_t1 [mf],r_squared,growth_factor,theory_rate [mf],saturated_from [mf],mean_u_l2 [mf],std_error,samples,batches,corr_u_first_zero [L]\n",
+        "model,L/l,rods,level,growth_phase,growth_rate [mf],growth_t0 [mf],growth_t1 [mf],r_squared,growth_factor,theory_rate [mf],rotational_diffusion [beta],theory_rate_d_r [mf],saturated_from [mf],mean_u_l2 [mf],std_error,samples,batches,corr_u_first_zero [L]\n",
     );
     let mut md = String::from(
-        "# Series summary\n\nOne row per run, mean-field units. Growth: the least-squares rate of ln ||u||_2 over the growth phase (docs/MODEL.md §6), with its window, R^2 and growth factor; theory: the box's linear theory (Re sigma of the lowest mode, docs/MODEL.md §5b) for particles, M3 for the continuum. Saturated norm: the time average from the later of the growth phase's end and half the run, to its end; standard error from batch means over up to 10 contiguous blocks (samples within a block are correlated; blocks are taken as independent).\n\n| run | L/l | rods | level | growth rate (window, R^2, grown by) | theory | saturated ||u||_2 | samples | first zero of Corr[u] (L) |\n|---|---|---|---|---|---|---|---|---|\n",
+        "# Series summary\n\nOne row per run, mean-field units. Growth: the least-squares rate of ln ||u||_2 over the growth phase (docs/MODEL.md §6), with its window, R^2 and growth factor; theory: the box's linear theory (Re sigma of the lowest mode, docs/MODEL.md §5b) for particles, without diffusion and with the rotational diffusion d_r (1/beta) measured in the run from <p(t).p(0)> over its first half; M3 for the continuum. Saturated norm: the time average from the later of the growth phase's end and half the run, to its end; standard error from batch means over up to 10 contiguous blocks (samples within a block are correlated; blocks are taken as independent).\n\n| run | L/l | rods | level | growth rate (window, R^2, grown by) | theory | saturated ||u||_2 | samples | first zero of Corr[u] (L) |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut points = Vec::new();
     let mut continuum = Vec::new();
@@ -491,13 +516,19 @@ fn write_series(curves: &[NormCurve], corr_zero: &[f64], out: &Path) -> anyhow::
                 c.theory_rate,
             ),
         };
+        let (d_r, theory_dr) = c.particle.as_ref().map_or((f64::NAN, f64::NAN), |p| {
+            (
+                p.rotational_diffusion.unwrap_or(f64::NAN),
+                p.box_theory_dr.map_or(f64::NAN, |s| s.re),
+            )
+        });
         let (grew, rate, g0, g1, r2, gf) = match &g {
             Some((g, p)) => (*p, g.rate, g.t0, g.t1, g.r_squared, g.growth_factor),
             None => (false, f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN),
         };
         writeln!(
             csv,
-            "{model},{l},{rods},{level},{grew},{rate:e},{g0:e},{g1:e},{r2},{gf},{theory:e},{s0:e},{:e},{:e},{},{},{zero:e}",
+            "{model},{l},{rods},{level},{grew},{rate:e},{g0:e},{g1:e},{r2},{gf},{theory:e},{d_r:e},{theory_dr:e},{s0:e},{:e},{:e},{},{},{zero:e}",
             w.mean, w.std_error, w.samples, w.batches
         )?;
         writeln!(
@@ -514,10 +545,17 @@ fn write_series(curves: &[NormCurve], corr_zero: &[f64], out: &Path) -> anyhow::
             } else {
                 format!("no growth phase (R^2 {r2:.2}, x{gf:.1})")
             },
-            if theory.is_nan() {
-                "damped".into()
-            } else {
-                format!("{theory:.4}")
+            match (theory.is_nan(), d_r.is_nan()) {
+                (true, _) => "damped".to_string(),
+                (false, true) => format!("{theory:.4}"),
+                (false, false) => format!(
+                    "{theory:.4}; with d_r = {d_r:.1e}: {}",
+                    if theory_dr.is_nan() {
+                        "damped".to_string()
+                    } else {
+                        format!("{theory_dr:.4}")
+                    }
+                ),
             },
             w.mean,
             w.std_error,
@@ -529,7 +567,7 @@ fn write_series(curves: &[NormCurve], corr_zero: &[f64], out: &Path) -> anyhow::
             }
         )?;
         match &c.particle {
-            Some(p) => points.push((p.box_length, w.mean, p.nu)),
+            Some(p) => points.push((p.box_length, w.mean, p.nu, p.rotational_diffusion)),
             None => continuum.push((c.label.clone(), w.mean)),
         }
     }
@@ -543,8 +581,15 @@ fn write_series(curves: &[NormCurve], corr_zero: &[f64], out: &Path) -> anyhow::
     });
     let nu = points[0].2;
     let onset = onset_box(nu, DEFAULT_DIAMETER, 0.0, (2.0, 1000.0));
+    // The onset with the rotational diffusion measured in the runs (their mean).
+    let measured: Vec<f64> = points.iter().filter_map(|p| p.3).collect();
+    let onset_dr = (!measured.is_empty()).then(|| {
+        let d_r = measured.iter().sum::<f64>() / measured.len() as f64;
+        onset_box(nu, DEFAULT_DIAMETER, d_r, (2.0, 1000.0)).map(|o| (d_r, o))
+    });
+    let onset_dr = onset_dr.flatten();
     let x_lo = onset.map_or(x_lo, |o| o.min(x_lo)) * 0.9;
-    let x_hi = x_hi * 1.1;
+    let x_hi = onset_dr.map_or(x_hi, |(_, o)| o.max(x_hi)) * 1.1;
     let y_hi = points
         .iter()
         .map(|p| p.1)
@@ -564,6 +609,12 @@ fn write_series(curves: &[NormCurve], corr_zero: &[f64], out: &Path) -> anyhow::
     if let Some(o) = onset {
         series.push(Series {
             label: format!("onset of the lowest box mode (linear theory): L/l = {o:.1}"),
+            points: vec![(o, 0.0), (o, y_hi)],
+        });
+    }
+    if let Some((d_r, o)) = onset_dr {
+        series.push(Series {
+            label: format!("onset with the measured d_r = {d_r:.1e}/beta: L/l = {o:.1}"),
             points: vec![(o, 0.0), (o, y_hi)],
         });
     }

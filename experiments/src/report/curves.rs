@@ -52,6 +52,12 @@ pub struct ParticleInfo {
     pub box_theory: Option<num_complex::Complex64>,
     /// The run's own time unit in mean-field units' terms: `t_mf = t_p / unit`.
     pub time_unit: f64,
+    /// The effective rotational diffusion measured in the run (1/beta), from its snapshots
+    /// over the first half ([`rotational_diffusion`]); `None` with fewer than three.
+    pub rotational_diffusion: Option<f64>,
+    /// The box theory's rate with that rotational diffusion, mean-field units; `None` where
+    /// not measured or damped.
+    pub box_theory_dr: Option<num_complex::Complex64>,
 }
 
 use motile_particle::model::units::particle_to_meanfield;
@@ -113,6 +119,19 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                 0.0,
             )
             .map(|g| g.sigma * time_unit);
+            // Near-field encounters and contacts turn rods as a rotational diffusion would:
+            // measured from <p(t).p(0)> over the first half of the run (before a saturated
+            // flow adds its own turning), and the theory with it.
+            let rotational_diffusion = rotational_diffusion(run, 0.5 * t_end_own)?;
+            let box_theory_dr = rotational_diffusion.and_then(|d| {
+                motile_particle::model::linear_theory::growth_rate(
+                    nu,
+                    cfg.diameter,
+                    motile_particle::model::linear_theory::lowest_mode(l),
+                    d,
+                )
+                .map(|g| g.sigma * time_unit)
+            });
             Ok(NormCurve {
                 label: format!("particle L/l = {l}, nu = {nu:.3} ({})", cfg.hydrodynamics),
                 run: run.into(),
@@ -127,6 +146,8 @@ pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
                     level: cfg.hydrodynamics.to_string(),
                     box_theory,
                     time_unit,
+                    rotational_diffusion,
+                    box_theory_dr,
                 }),
             })
         }
@@ -206,8 +227,8 @@ pub(crate) struct RunAnalysis {
 }
 
 /// One run's snapshots, read once: its Corr[u] and order-parameter correlations averaged over
-/// the snapshots from `t_start`, the velocity slice of the snapshot nearest `slice_at` (at or
-/// before it; the last without one), and, for particle runs, trajectory statistics. Times in
+/// the snapshots from `t_start`, the velocity slice of the snapshot nearest `slice_at` (the
+/// last without one), and, for particle runs, trajectory statistics. Times in
 /// the run's own unit.
 pub(crate) fn analyse(
     run: &Path,
@@ -249,12 +270,12 @@ pub(crate) fn analyse(
         Snapshot::Particle(p) => p.time,
         Snapshot::Field(f) => f.time,
     };
+    // The snapshot nearest the asked time (runs of both models end at nearly, not exactly,
+    // the same time in the common unit).
     let chosen = match slice_at {
         Some(t) => snaps
             .iter()
-            .rev()
-            .find(|s| time_of(s) <= t + 1e-9)
-            .or(snaps.first()),
+            .min_by(|a, b| (time_of(a) - t).abs().total_cmp(&(time_of(b) - t).abs())),
         None => snaps.last(),
     };
     let slice = match chosen {
@@ -445,4 +466,34 @@ pub const MIN_R_SQUARED: f64 = 0.9;
 /// its rate. `None` with fewer than 3 samples.
 pub fn growth_fit(c: &NormCurve) -> Option<(GrowthFit, bool)> {
     growth_phase(&c.t, &c.u, MIN_GROWTH_FACTOR, MIN_R_SQUARED)
+}
+
+/// The effective rotational diffusion of the rods of the run in `dir`: a least-squares fit of
+/// `ln <p(t).p(0)> = -2 d_r t` over its snapshots up to `t1` (`None` with fewer than three).
+pub fn rotational_diffusion(dir: &Path, t1: f64) -> anyhow::Result<Option<f64>> {
+    use crate::io::snapshot::Snapshot;
+    let paths = crate::io::rundir::RunDir::open(dir)?.snapshot_paths()?;
+    let mut first: Option<Vec<[f64; 3]>> = None;
+    let mut points = Vec::new();
+    for p in paths {
+        let Snapshot::Particle(s) = crate::io::snapshot::read_snapshot(&p)? else {
+            continue;
+        };
+        if s.time > t1 + 1e-9 {
+            break;
+        }
+        let p0 = first.get_or_insert_with(|| s.orientations.clone());
+        let c = motile_analysis::stats::orientation_autocorrelation(p0, &s.orientations);
+        if c > 0.0 {
+            points.push((s.time, c.ln()));
+        }
+    }
+    if points.len() < 3 {
+        return Ok(None);
+    }
+    // Through the origin: ln C(0) = 0.
+    let (num, den) = points
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (t, y)| (a + t * y, b + t * t));
+    Ok(Some(-num / den / 2.0))
 }

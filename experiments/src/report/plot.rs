@@ -87,8 +87,9 @@ where
         .label(s.label.clone())
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
         // Sparse series (a scan's few runs) show where the samples are, not only the line
-        // through them; a two-point series is a reference line.
-        if (3..=SPARSE_POINTS).contains(&s.points.len()) {
+        // through them (a single sample only as its marker); a two-point series is a
+        // reference line.
+        if s.points.len() == 1 || (3..=SPARSE_POINTS).contains(&s.points.len()) {
             c.draw_series(
                 s.points
                     .iter()
@@ -432,7 +433,7 @@ where
 pub fn semilog_chart(
     stem: &Path,
     chart: &Chart,
-    dashed: &[Series],
+    dashed: &[(Series, usize)],
 ) -> Result<(), crate::io::IoError> {
     // Less than a decade and a half of data reads better on a linear axis (a log axis labels
     // only its decades).
@@ -447,7 +448,7 @@ pub fn semilog_chart(
     let wide = hi / lo >= 30.0;
     if !wide {
         let mut linear = chart.clone();
-        linear.series.extend(dashed.iter().cloned());
+        linear.series.extend(dashed.iter().map(|(s, _)| s.clone()));
         return line_chart(stem, &linear);
     }
     render(
@@ -461,7 +462,7 @@ pub fn semilog_chart(
 fn draw_semilog<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     chart: &Chart,
-    dashed: &[Series],
+    dashed: &[(Series, usize)],
 ) -> Result<(), String>
 where
     DB::ErrorType: 'static,
@@ -508,14 +509,25 @@ where
         .label(s.label.clone())
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
     }
-    for (i, s) in dashed.iter().enumerate() {
+    // Each dashed line in its data series' colour; a second line of the same series dotted.
+    for (k, (s, i)) in dashed.iter().enumerate() {
         let color = COLORS[i % COLORS.len()].mix(0.9);
+        let repeat = dashed[..k].iter().any(|(_, j)| j == i);
+        let (dash, gap) = if repeat { (3, 4) } else { (8, 5) };
         let pts: Vec<(f64, f64)> = s.points.iter().copied().filter(clip).collect();
-        c.draw_series(DashedLineSeries::new(pts, 8, 5, color.stroke_width(2)))
+        c.draw_series(DashedLineSeries::new(pts, dash, gap, color.stroke_width(2)))
             .map_err(|e| e.to_string())?
             .label(s.label.clone())
             .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 8, y), (x + 12, y), (x + 20, y)], color)
+                // Offsets from the anchor: two dashes, or three dots.
+                let seg =
+                    |a: i32, b: i32| PathElement::new(vec![(a, 0), (b, 0)], color.stroke_width(2));
+                let [s1, s2, s3] = if repeat {
+                    [(0, 3), (7, 10), (14, 17)]
+                } else {
+                    [(0, 8), (13, 20), (20, 20)]
+                };
+                EmptyElement::at((x, y)) + seg(s1.0, s1.1) + seg(s2.0, s2.1) + seg(s3.0, s3.1)
             });
     }
     c.configure_series_labels()
