@@ -468,8 +468,13 @@ pub fn growth_fit(c: &NormCurve) -> Option<(GrowthFit, bool)> {
     growth_phase(&c.t, &c.u, MIN_GROWTH_FACTOR, MIN_R_SQUARED)
 }
 
-/// The effective rotational diffusion of the rods of the run in `dir`: a least-squares fit of
-/// `ln <p(t).p(0)> = -2 d_r t` over its snapshots up to `t1` (`None` with fewer than three).
+/// The effective rotational diffusion of the rods of the run in `dir`, from their orientation
+/// autocorrelation `C(t) = <p(t).p(0)>` over the snapshots up to `t1`: where the rods turn
+/// diffusively, `ln C = -2 d_r t` (after a short ballistic start). The least-squares slopes of
+/// `ln C` over the window's two halves must agree within 25%, else the turning is not a
+/// diffusion (it is driven: in concentrated suspensions, or by a growing flow) and there is
+/// no `d_r` (`None`, also with fewer than three snapshots in a half); `d_r` is the second
+/// half's slope over `-2`.
 pub fn rotational_diffusion(dir: &Path, t1: f64) -> anyhow::Result<Option<f64>> {
     use crate::io::snapshot::Snapshot;
     let paths = crate::io::rundir::RunDir::open(dir)?.snapshot_paths()?;
@@ -488,12 +493,59 @@ pub fn rotational_diffusion(dir: &Path, t1: f64) -> anyhow::Result<Option<f64>> 
             points.push((s.time, c.ln()));
         }
     }
-    if points.len() < 3 {
-        return Ok(None);
+    Ok(diffusive_rate(&points, t1))
+}
+
+/// The `d_r` of `(t, ln C)` samples over `[0, t1]` as [`rotational_diffusion`] defines it.
+fn diffusive_rate(points: &[(f64, f64)], t1: f64) -> Option<f64> {
+    let slope = |lo: f64, hi: f64| {
+        let s: Vec<&(f64, f64)> = points
+            .iter()
+            .filter(|(t, _)| *t >= lo - 1e-9 && *t <= hi + 1e-9)
+            .collect();
+        if s.len() < 3 {
+            return None;
+        }
+        let n = s.len() as f64;
+        let (mt, my) = s
+            .iter()
+            .fold((0.0, 0.0), |(a, b), (t, y)| (a + t / n, b + y / n));
+        let (num, den) = s.iter().fold((0.0, 0.0), |(a, b), (t, y)| {
+            (a + (t - mt) * (y - my), b + (t - mt) * (t - mt))
+        });
+        (den > 0.0).then(|| num / den)
+    };
+    let (a, b) = (slope(0.0, 0.5 * t1)?, slope(0.5 * t1, t1)?);
+    if b >= 0.0 || (a - b).abs() > 0.25 * a.abs().max(b.abs()) {
+        return None;
     }
-    // Through the origin: ln C(0) = 0.
-    let (num, den) = points
-        .iter()
-        .fold((0.0, 0.0), |(a, b), (t, y)| (a + t * y, b + t * t));
-    Ok(Some(-num / den / 2.0))
+    Some(-b / 2.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Diffusive decorrelation (after a ballistic start) gives its d_r; an accelerating one,
+    /// as a growing flow turns rods, gives none.
+    #[test]
+    fn rotational_diffusion_only_where_the_turning_is_diffusive() {
+        let d = 6.5e-3;
+        let diffusive: Vec<(f64, f64)> = (0..=30)
+            .map(|k| {
+                let t = 5.0 * k as f64;
+                (t, -2.0 * d * t + 0.02 * (1.0 - (-t / 5.0f64).exp()))
+            })
+            .collect();
+        let got = diffusive_rate(&diffusive, 150.0).unwrap();
+        assert!((got - d).abs() < 1e-3 * d, "{got}");
+        let driven: Vec<(f64, f64)> = (0..=20)
+            .map(|k| {
+                let t = 0.25 * k as f64;
+                (t, -0.01 * t * t)
+            })
+            .collect();
+        assert_eq!(diffusive_rate(&driven, 5.0), None);
+        assert_eq!(diffusive_rate(&diffusive[..3], 10.0), None);
+    }
 }

@@ -56,6 +56,7 @@ fn range(series: &[Series], pick: impl Fn(&(f64, f64)) -> f64) -> (f64, f64) {
 fn draw<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     chart: &Chart,
+    dashed: &[(Series, usize)],
 ) -> Result<(), String>
 where
     DB::ErrorType: 'static,
@@ -98,6 +99,9 @@ where
             .map_err(|e| e.to_string())?;
         }
     }
+    draw_dashed(&mut c, dashed, |p| {
+        p.1 >= y0 && p.1 <= y1 && p.0 >= x0 && p.0 <= x1
+    })?;
     c.configure_series_labels()
         .position(legend_corner(&chart.series, (x0, x1), (y0, y1), |v| v))
         .background_style(WHITE.mix(0.85))
@@ -193,7 +197,12 @@ fn render(
 
 /// Draw `chart` to `<stem>.png` and `<stem>.svg` (each written atomically).
 pub fn line_chart(stem: &Path, chart: &Chart) -> Result<(), crate::io::IoError> {
-    render(stem, (900, 600), |a| draw(a, chart), |a| draw(a, chart))
+    render(
+        stem,
+        (900, 600),
+        |a| draw(a, chart, &[]),
+        |a| draw(a, chart, &[]),
+    )
 }
 
 /// One panel of a row of heat maps: a square `n x n` field, row `y`, column `x`
@@ -447,9 +456,12 @@ pub fn semilog_chart(
     let hi = ys.iter().copied().fold(0.0, f64::max);
     let wide = hi / lo >= 30.0;
     if !wide {
-        let mut linear = chart.clone();
-        linear.series.extend(dashed.iter().map(|(s, _)| s.clone()));
-        return line_chart(stem, &linear);
+        return render(
+            stem,
+            (900, 600),
+            |a| draw(a, chart, dashed),
+            |a| draw(a, chart, dashed),
+        );
     }
     render(
         stem,
@@ -509,27 +521,7 @@ where
         .label(s.label.clone())
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
     }
-    // Each dashed line in its data series' colour; a second line of the same series dotted.
-    for (k, (s, i)) in dashed.iter().enumerate() {
-        let color = COLORS[i % COLORS.len()].mix(0.9);
-        let repeat = dashed[..k].iter().any(|(_, j)| j == i);
-        let (dash, gap) = if repeat { (3, 4) } else { (8, 5) };
-        let pts: Vec<(f64, f64)> = s.points.iter().copied().filter(clip).collect();
-        c.draw_series(DashedLineSeries::new(pts, dash, gap, color.stroke_width(2)))
-            .map_err(|e| e.to_string())?
-            .label(s.label.clone())
-            .legend(move |(x, y)| {
-                // Offsets from the anchor: two dashes, or three dots.
-                let seg =
-                    |a: i32, b: i32| PathElement::new(vec![(a, 0), (b, 0)], color.stroke_width(2));
-                let [s1, s2, s3] = if repeat {
-                    [(0, 3), (7, 10), (14, 17)]
-                } else {
-                    [(0, 8), (13, 20), (20, 20)]
-                };
-                EmptyElement::at((x, y)) + seg(s1.0, s1.1) + seg(s2.0, s2.1) + seg(s3.0, s3.1)
-            });
-    }
+    draw_dashed(&mut c, dashed, clip)?;
     c.configure_series_labels()
         .position(SeriesLabelPosition::LowerRight)
         .background_style(WHITE.mix(0.85))
@@ -676,6 +668,41 @@ pub fn outcome_map(stem: &Path, map: &OutcomeMap) -> Result<(), crate::io::IoErr
         |a| draw_outcomes(a, map),
         |a| draw_outcomes(a, map),
     )
+}
+
+/// Dashed lines on a chart, each in its data series' colour (`(series, index of the data
+/// series)`); a second line of the same series dotted. Points outside `keep` are dropped.
+fn draw_dashed<'a, DB, Y>(
+    c: &mut ChartContext<'a, DB, Cartesian2d<plotters::coord::types::RangedCoordf64, Y>>,
+    dashed: &[(Series, usize)],
+    keep: impl Fn(&(f64, f64)) -> bool,
+) -> Result<(), String>
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    Y: Ranged<ValueType = f64>,
+{
+    for (k, (s, i)) in dashed.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()].mix(0.9);
+        let repeat = dashed[..k].iter().any(|(_, j)| j == i);
+        let (dash, gap) = if repeat { (3, 4) } else { (8, 5) };
+        let pts: Vec<(f64, f64)> = s.points.iter().copied().filter(&keep).collect();
+        c.draw_series(DashedLineSeries::new(pts, dash, gap, color.stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label(s.label.clone())
+            .legend(move |(x, y)| {
+                // Offsets from the anchor: two dashes, or three dots.
+                let seg =
+                    |a: i32, b: i32| PathElement::new(vec![(a, 0), (b, 0)], color.stroke_width(2));
+                let [s1, s2, s3] = if repeat {
+                    [(0, 3), (7, 10), (14, 17)]
+                } else {
+                    [(0, 8), (13, 20), (20, 20)]
+                };
+                EmptyElement::at((x, y)) + seg(s1.0, s1.1) + seg(s2.0, s2.1) + seg(s3.0, s3.1)
+            });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
