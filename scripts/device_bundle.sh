@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds what a session with a lent GPU machine runs there (issue 18), into device-bin/ (ignored
 # by git; name it in the device tool's `carry`): the motile binary and the benchmark examples
-# with the gpu feature, the two GPU parity test executables, stripped, and device_run.sh.
+# with the gpu feature, the two GPU parity test executables, stripped, device_run.sh and the
+# science phase's config.
 # The device machine has CUDA but no Rust: everything is built here.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -28,5 +29,5 @@ for line in sys.stdin:
 cp "$(exe motile-meanfield gpu)" device-bin/test_meanfield_gpu
 cp "$(exe motile-particle gpu_ewald)" device-bin/test_particle_gpu_ewald
 strip device-bin/*
-cp scripts/device_run.sh device-bin/
+cp scripts/device_run.sh experiments/configs/meanfield_paper_64.toml device-bin/
 du -sh device-bin

@@ -18,7 +18,9 @@
 //!   of Q between them after the timed steps;
 //! - `sum`: one RPY mobility product of 1e5, 1e6, 1e7 random points at tolerances 1e-4 and
 //!   1e-8 (points per second; the Fourier part's seconds; the largest difference of the GPU's
-//!   velocities from the CPU's relative to the largest velocity);
+//!   velocities from the CPU's relative to the largest velocity), on the GPU with the binned
+//!   spreader its tolerance selects and, below 1e7 points, also with the per-point atomic one
+//!   (row `gpu atomic`: the before of the before/after ratio);
 //! - `dipole`: steps of the point-stresslet level at L/l = 100 and 175 (nu = 0.625);
 //! - `sbt`: steps of the slender-body level at L/l = 50 and 100.
 //!
@@ -36,7 +38,7 @@ use motile_meanfield::solver::grid::SpectralGrid;
 use motile_meanfield::solver::params::MeanFieldParams;
 use motile_meanfield::solver::rhs::MeanFieldRhs;
 use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
-use motile_particle::ewald::gpu::GpuFourier;
+use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
@@ -221,6 +223,18 @@ impl Bench {
         let fourier_gpu = gpu.last_timing().fourier;
         let gpu_bytes = self.gpu_bytes();
         drop(gpu);
+        // The per-point atomic spreader (before the binned ones), on the same device, for
+        // the before/after ratio; skipped at 1e7 points (its time is known: issue 29's table).
+        let atomic = (n < 10_000_000).then(|| {
+            let mut f0 = self.fourier();
+            f0.set_spread_method(Some(SpreadMethod::Atomic));
+            let mut g0 = SpectralEwald::with_device(tol, f0).expect("tolerance");
+            let mut ua = Vec::new();
+            let t = time(reps, || {
+                ua = g0.rpy(&geo, &y, &f).expect("GPU sum (atomic)")
+            });
+            (t, g0.last_timing().fourier, ua)
+        });
         let mut cpu = SpectralEwald::new(tol).expect("tolerance");
         let mut uc = Vec::new();
         let tc = time(reps, || uc = cpu.rpy(&geo, &y, &f).expect("CPU sum"));
@@ -257,6 +271,24 @@ impl Bench {
         );
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
+        }
+        if let Some((ta, fa, ua)) = atomic {
+            let da = ua
+                .iter()
+                .zip(&ug)
+                .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
+                .fold(0.0, f64::max);
+            self.push(
+                &case,
+                "gpu atomic",
+                ta,
+                n,
+                "points/s",
+                format!(
+                    "Fourier part {fa:.3} s; per-point atomic spreader; differs from the binned by {:.1e}",
+                    (da / largest.max(1e-300)).sqrt()
+                ),
+            );
         }
     }
 
@@ -305,7 +337,7 @@ impl Bench {
 /// The work model's table (`--model`): per case and spreading method, each phase's launches,
 /// bytes, global and shared atomics per point, and the sum's totals.
 fn model_table(small: bool) {
-    use motile_particle::ewald::gpu::{SpreadMethod, work_model};
+    use motile_particle::ewald::gpu::work_model;
     use motile_particle::ewald::params::{EwaldParams, STRESSLET_PAIR_COST, SumOutput};
     let scale = if small { 100 } else { 1 };
     let rods = |l: f64| {
