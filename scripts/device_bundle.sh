@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds what a session with a lent GPU machine runs there (issue 18), into device-bin/ (ignored
 # by git; name it in the device tool's `carry`): the motile binary and the benchmark examples
-# with the gpu feature, the two GPU parity test executables, stripped, device_run.sh and the
+# with the gpu feature, the three GPU parity test executables, stripped, device_run.sh and the
 # science phase's config.
 # The device machine has CUDA but no Rust: everything is built here.
 set -euo pipefail
@@ -28,6 +28,7 @@ for line in sys.stdin:
 }
 cp "$(exe motile-meanfield gpu)" device-bin/test_meanfield_gpu
 cp "$(exe motile-particle gpu_ewald)" device-bin/test_particle_gpu_ewald
+cp "$(exe motile-particle gpu_cells)" device-bin/test_particle_gpu_cells
 strip device-bin/*
 cp scripts/device_run.sh experiments/configs/meanfield_paper_64.toml device-bin/
 du -sh device-bin

@@ -108,34 +108,7 @@ extern "C" __global__ void bin_count(const double* pts, int* bin, int* rank, int
     rank[i] = atomicAdd(&count[k], 1);
 }
 
-// Exclusive prefix sum of the nbins counts into start (nbins + 1 values, the last the total):
-// one block; each thread sums a contiguous chunk, the chunk totals are scanned in shared
-// memory, then each thread writes its chunk's starts.
-extern "C" __global__ void bin_scan(const int* count, int* start, int nbins) {
-    __shared__ int total[256];
-    int t = threadIdx.x;
-    int chunk = (nbins + blockDim.x - 1) / blockDim.x;
-    int lo = t * chunk, hi = lo + chunk < nbins ? lo + chunk : nbins;
-    int s = 0;
-    for (int k = lo; k < hi; ++k) s += count[k];
-    total[t] = s;
-    __syncthreads();
-    if (t == 0) {
-        int run = 0;
-        for (int u = 0; u < (int)blockDim.x; ++u) {
-            int v = total[u];
-            total[u] = run;
-            run += v;
-        }
-        start[nbins] = run;
-    }
-    __syncthreads();
-    int run = total[t];
-    for (int k = lo; k < hi; ++k) {
-        start[k] = run;
-        run += count[k];
-    }
-}
+// The bins' starts: bin_scan (scan.cu, appended to this source).
 
 // perm[start[bin] + rank] = i: the points in bin order.
 extern "C" __global__ void bin_scatter(const int* bin, const int* rank, const int* start,

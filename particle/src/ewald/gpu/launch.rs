@@ -1,6 +1,7 @@
-//! The launches of `kernels.cu`: the only unsafe code of the crate. Each states why every index
-//! the kernel touches lies inside the buffers it is given; the arguments' number, order and
-//! types are the declarations' of `signatures.rs` (checked against `kernels.cu`).
+//! The launches of `kernels.cu` (with `binned.rs` and `step/gpu`, the crate's only unsafe
+//! code). Each states why every index the kernel touches lies inside the buffers it is given;
+//! the arguments' number, order and types are the declarations' of `signatures.rs` (checked
+//! against `kernels.cu`).
 #![allow(unsafe_code)]
 
 use crate::ewald::gpu::signatures::{

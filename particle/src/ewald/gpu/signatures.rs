@@ -4,8 +4,8 @@
 use motile_gpu::Buffer;
 
 motile_gpu::kernels! {
-    /// `kernels.cu` and its kernels.
-    pub(crate) const KERNELS = include_str!("kernels.cu");
+    /// `kernels.cu` (with the prefix sum of `scan.cu`) and its kernels.
+    pub(crate) const KERNELS = concat!(include_str!("kernels.cu"), include_str!("scan.cu"));
 
     /// Spread `nf` fields of `n` points onto `nf` grids of `m^3` (atomic adds, the points'
     /// order): the binned spreaders' slow twin.

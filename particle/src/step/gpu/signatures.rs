@@ -1,0 +1,79 @@
+//! The kernels of `cells.cu` (with `scan.cu`'s prefix sum), each one's parameters declared once
+//! as a struct of named, typed arguments (checked against the source when a device opens it).
+
+use motile_gpu::Buffer;
+
+motile_gpu::kernels! {
+    /// `cells.cu` and the prefix sum, and their kernels.
+    pub(crate) const KERNELS =
+        concat!(include_str!("cells.cu"), include_str!("../../ewald/gpu/scan.cu"));
+
+    /// Each centre's cell and the cells' counts (zeroed by the caller).
+    pub(crate) struct CellCount = "cell_count" {
+        x: &'a Buffer<f64>,
+        cell: &'a mut Buffer<i32>,
+        count: &'a mut Buffer<i32>,
+        n: i32,
+        nc: i32,
+        l: f64,
+    }
+
+    /// The exclusive prefix sum of `nbins` counts (one block).
+    pub(crate) struct CellScan = "bin_scan" {
+        count: &'a Buffer<i32>,
+        start: &'a mut Buffer<i32>,
+        nbins: i32,
+    }
+
+    /// The centres scattered into cell order (`fill` zeroed by the caller).
+    pub(crate) struct CellScatter = "cell_scatter" {
+        cell: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        fill: &'a mut Buffer<i32>,
+        members: &'a mut Buffer<i32>,
+        n: i32,
+    }
+
+    /// Each cell's members in increasing index.
+    pub(crate) struct CellOrder = "cell_order" {
+        start: &'a Buffer<i32>,
+        members: &'a mut Buffer<i32>,
+        ncells: i32,
+    }
+
+    /// Each centre's number of neighbours `j > i` within `sqrt(c2)`.
+    pub(crate) struct PairCount = "pair_count" {
+        x: &'a Buffer<f64>,
+        cell: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        members: &'a Buffer<i32>,
+        counts: &'a mut Buffer<i32>,
+        n: i32,
+        nc: i32,
+        l: f64,
+        c2: f64,
+    }
+
+    /// The pairs, sorted by `(i, j)`.
+    pub(crate) struct PairWrite = "pair_write" {
+        x: &'a Buffer<f64>,
+        cell: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        members: &'a Buffer<i32>,
+        offset: &'a Buffer<i32>,
+        first: &'a mut Buffer<i32>,
+        second: &'a mut Buffer<i32>,
+        n: i32,
+        nc: i32,
+        l: f64,
+        c2: f64,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn declarations_match_the_source() {
+        super::KERNELS.check().unwrap();
+    }
+}
