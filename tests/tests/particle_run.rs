@@ -150,7 +150,7 @@ fn bad_configs_name_the_field_and_the_range() {
         ),
         (
             "hydrodynamics = \"stokesian\"",
-            "hydrodynamics = \"stokesian\" is not one of \"none\", \"dipole\", \"sbt\"",
+            "hydrodynamics = \"stokesian\" is not one of \"none\", \"dipole\", \"sbt-explicit\", \"sbt\"",
         ),
         ("dtt = 0.1", "unknown key `dtt`; did you mean `dt`?"),
         (
