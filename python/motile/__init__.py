@@ -203,7 +203,7 @@ def resume(path: PathLike, progress: Progress = True) -> dict:
 
 
 def run_scene(
-    name: str,
+    name: PathLike,
     out: PathLike,
     only: Optional[Sequence[str]] = None,
     progress: Progress = True,
@@ -213,6 +213,7 @@ def run_scene(
     them as ``motile run`` does. Returns the scene's Markdown report (also in ``out/scene.md``)."""
     if isinstance(only, str):
         only = [only]
+    name = os.fspath(name)
     return _motile.run_scene(
         name, os.fspath(out), None if only is None else list(only), _progress(progress, name)
     )
