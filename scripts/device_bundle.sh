@@ -28,7 +28,7 @@ for line in sys.stdin:
 }
 cp "$(exe motile-meanfield gpu)" device-bin/test_meanfield_gpu
 cp "$(exe motile-particle gpu_ewald)" device-bin/test_particle_gpu_ewald
-cp "$(exe motile-particle gpu_cells)" device-bin/test_particle_gpu_cells
+cp "$(exe motile-particle gpu_step)" device-bin/test_particle_gpu_step
 strip device-bin/*
 cp scripts/device_run.sh experiments/configs/meanfield_paper_64.toml device-bin/
 du -sh device-bin

@@ -22,7 +22,7 @@ case "${1:-}" in
     # The CUDA tests are #[ignore]d (a run without a GPU reports them as not run): included here.
     { "$B/test_meanfield_gpu" --include-ignored --nocapture --test-threads 1
       "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1
-      "$B/test_particle_gpu_cells" --include-ignored --nocapture --test-threads 1; } \
+      "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1; } \
       >"$OUT/parity.txt" 2>&1
     echo "parity exit $?" >>"$OUT/parity.txt"
     tail -40 "$OUT/parity.txt"

@@ -36,7 +36,7 @@ trap 'cp target/release/.motile-default target/release/motile' EXIT
 cargo build --release -p motile-experiments --features gpu
 cargo test --release -p motile-meanfield --features gpu --test gpu
 cargo test --release -p motile-particle --features gpu --test gpu_ewald
-cargo test --release -p motile-particle --features gpu --test gpu_cells
+cargo test --release -p motile-particle --features gpu --test gpu_step
 cargo test --release -p motile-experiments --features gpu --test gpu_runs
 # The optional distributed particle run (feature mpi) needs OpenMPI and libclang to build; they
 # are installed when missing (Debian packages), then its tests run motile under mpirun on 1, 2

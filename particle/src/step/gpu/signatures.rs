@@ -1,12 +1,16 @@
-//! The kernels of `cells.cu` (with `scan.cu`'s prefix sum), each one's parameters declared once
-//! as a struct of named, typed arguments (checked against the source when a device opens it).
+//! The kernels of `cells.cu` and `update.cu` (with `scan.cu`'s prefix sum), each one's
+//! parameters declared once as a struct of named, typed arguments (checked against the source
+//! when a device opens it).
 
 use motile_gpu::Buffer;
 
 motile_gpu::kernels! {
-    /// `cells.cu` and the prefix sum, and their kernels.
-    pub(crate) const KERNELS =
-        concat!(include_str!("cells.cu"), include_str!("../../ewald/gpu/scan.cu"));
+    /// `cells.cu`, `update.cu` and the prefix sum, and their kernels.
+    pub(crate) const KERNELS = concat!(
+        include_str!("cells.cu"),
+        include_str!("update.cu"),
+        include_str!("../../ewald/gpu/scan.cu")
+    );
 
     /// Each centre's cell and the cells' counts (zeroed by the caller).
     pub(crate) struct CellCount = "cell_count" {
@@ -67,6 +71,18 @@ motile_gpu::kernels! {
         nc: i32,
         l: f64,
         c2: f64,
+    }
+
+    /// The rods moved by `dt` (centres wrapped, images counted, quaternions turned).
+    pub(crate) struct RodUpdate = "rod_update" {
+        x: &'a mut Buffer<f64>,
+        image: &'a mut Buffer<i32>,
+        q: &'a mut Buffer<f64>,
+        v: &'a Buffer<f64>,
+        w: &'a Buffer<f64>,
+        n: i32,
+        dt: f64,
+        l: f64,
     }
 }
 

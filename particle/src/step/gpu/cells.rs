@@ -1,0 +1,206 @@
+//! The rods' cell list and neighbour pairs on the device (`cells.cu`): see [`super`].
+#![allow(unsafe_code)]
+
+use super::signatures::{CellCount, CellOrder, CellScan, CellScatter, PairCount, PairWrite};
+use super::{GpuStep, int};
+use crate::model::geometry::Vec3;
+use motile_gpu::{Buffer, GpuError, THREADS};
+
+/// The neighbour pairs of one configuration, on the device.
+#[derive(Debug)]
+pub struct DevicePairs {
+    /// First members `i` of the pairs, sorted (the first `len` values).
+    pub first: Buffer<i32>,
+    /// Second members `j > i`, increasing for each `i`.
+    pub second: Buffer<i32>,
+    /// How many pairs.
+    pub len: usize,
+    /// Cells per axis.
+    pub cells_per_side: usize,
+}
+
+impl GpuStep {
+    /// Every pair `(i, j)`, `i < j`, of the centres `x` (in `[0, L)^3`) closer than `cutoff`
+    /// (minimum image), sorted: built on the device and downloaded.
+    pub fn pairs(
+        &self,
+        x: &[Vec3],
+        box_length: f64,
+        cutoff: f64,
+    ) -> Result<Vec<(u32, u32)>, GpuError> {
+        let flat: Vec<f64> = x.iter().flatten().copied().collect();
+        let pts = self.dev.upload(&flat)?;
+        let p = self.build(&pts, x.len(), box_length, cutoff)?;
+        let (a, b) = (
+            self.dev.download_range(&p.first, 0, p.len)?,
+            self.dev.download_range(&p.second, 0, p.len)?,
+        );
+        Ok(a.iter()
+            .zip(&b)
+            .map(|(&i, &j)| (i as u32, j as u32))
+            .collect())
+    }
+
+    /// The pairs of the `n` centres `pts` (x, y, z triples) closer than `cutoff`, left on the
+    /// device. The box must hold at least 3 cells of side `cutoff` per axis (smaller boxes
+    /// are the CPU's: [`GpuError::Input`]).
+    pub fn build(
+        &self,
+        pts: &Buffer,
+        n: usize,
+        box_length: f64,
+        cutoff: f64,
+    ) -> Result<DevicePairs, GpuError> {
+        let nc = ((box_length / cutoff).floor() as usize).max(1);
+        if nc < 3 {
+            return Err(GpuError::Input(format!(
+                "the device cell list needs at least 3 cells per axis: L = {box_length} holds \
+                 {nc} of side {cutoff}"
+            )));
+        }
+        if pts.len() < 3 * n {
+            return Err(GpuError::Input(format!(
+                "centres: {} values for {n} points",
+                pts.len()
+            )));
+        }
+        assert_eq!(
+            THREADS, 256,
+            "bin_scan's shared array holds 256 partial sums"
+        );
+        let ncells = nc.pow(3);
+        let (ni, nci, ncells_i) = (
+            int(n, "points")?,
+            int(nc, "cells per axis")?,
+            int(ncells, "cells")?,
+        );
+        int(3 * n, "3 x points")?;
+        let dev = &self.dev;
+        let mut cell = dev.zeros::<i32>(n)?;
+        let mut count = dev.zeros::<i32>(ncells)?;
+        let mut start = dev.zeros::<i32>(ncells + 1)?;
+        let mut fill = dev.zeros::<i32>(ncells)?;
+        let mut members = dev.zeros::<i32>(n)?;
+        let mut counts = dev.zeros::<i32>(n)?;
+        let mut offset = dev.zeros::<i32>(n + 1)?;
+        let c2 = cutoff * cutoff;
+        // SAFETY: thread i < n reads pts[3 i..3 i + 3] (3 n checked), writes cell[i] (n) and
+        // adds to count[k], k = (z nc + y) nc + x with each index clamped to 0..nc, so k < nc^3.
+        unsafe {
+            dev.launch(
+                n,
+                CellCount {
+                    x: pts,
+                    cell: &mut cell,
+                    count: &mut count,
+                    n: ni,
+                    nc: nci,
+                    l: box_length,
+                },
+            )?;
+        }
+        // SAFETY: one block of 256 threads (asserted): reads count[0..ncells], writes
+        // start[0..=ncells] (ncells + 1 allocated).
+        unsafe {
+            dev.launch(
+                THREADS as usize,
+                CellScan {
+                    count: &count,
+                    start: &mut start,
+                    nbins: ncells_i,
+                },
+            )?;
+        }
+        // SAFETY: thread i < n reads cell[i] < ncells, start[cell] and adds to fill[cell]
+        // (ncells); the ranks of a cell are 0..count[cell], so start[cell] + rank <
+        // start[cell + 1] <= n indexes members (n).
+        unsafe {
+            dev.launch(
+                n,
+                CellScatter {
+                    cell: &cell,
+                    start: &start,
+                    fill: &mut fill,
+                    members: &mut members,
+                    n: ni,
+                },
+            )?;
+        }
+        // SAFETY: thread c < ncells reads start[c], start[c + 1] (ncells + 1) and sorts
+        // members[start[c]..start[c + 1]], inside 0..n.
+        unsafe {
+            dev.launch(
+                ncells,
+                CellOrder {
+                    start: &start,
+                    members: &mut members,
+                    ncells: ncells_i,
+                },
+            )?;
+        }
+        // SAFETY: thread i < n reads pts (3 n), cell[i], the starts of 27 cells (< ncells,
+        // wrapped into 0..nc per axis) and the members between them (< n), and writes
+        // counts[i] (n).
+        unsafe {
+            dev.launch(
+                n,
+                PairCount {
+                    x: pts,
+                    cell: &cell,
+                    start: &start,
+                    members: &members,
+                    counts: &mut counts,
+                    n: ni,
+                    nc: nci,
+                    l: box_length,
+                    c2,
+                },
+            )?;
+        }
+        // SAFETY: one block of 256 threads: reads counts[0..n], writes offset[0..=n].
+        unsafe {
+            dev.launch(
+                THREADS as usize,
+                CellScan {
+                    count: &counts,
+                    start: &mut offset,
+                    nbins: ni,
+                },
+            )?;
+        }
+        let total = dev.download_range(&offset, n, 1)?[0];
+        let len = usize::try_from(total)
+            .map_err(|_| GpuError::Input(format!("{total} pairs: the count overflowed")))?;
+        // At least one value each (a device allocation of nothing fails); `len` says how many
+        // are pairs.
+        let mut first = dev.zeros::<i32>(len.max(1))?;
+        let mut second = dev.zeros::<i32>(len.max(1))?;
+        // SAFETY: thread i < n reads as pair_count and offset[i] (n + 1), and writes its
+        // counts[i] pairs at offset[i]..offset[i + 1] <= total = len (allocated): the write
+        // pass finds the same neighbours as the count pass (same inputs, same arithmetic).
+        unsafe {
+            dev.launch(
+                n,
+                PairWrite {
+                    x: pts,
+                    cell: &cell,
+                    start: &start,
+                    members: &members,
+                    offset: &offset,
+                    first: &mut first,
+                    second: &mut second,
+                    n: ni,
+                    nc: nci,
+                    l: box_length,
+                    c2,
+                },
+            )?;
+        }
+        Ok(DevicePairs {
+            first,
+            second,
+            len,
+            cells_per_side: nc,
+        })
+    }
+}

@@ -1,0 +1,214 @@
+//! The rooms of the particle step on a device (feature `gpu`, `motile_particle::step::gpu`)
+//! against their twins:
+//! - the rods' cell list and neighbour pairs against the obviously-correct twin, every pair by
+//!   brute force (minimum image), on what the simulations produce: non-overlapping rods at the
+//!   paper's nu = 0.625 and the demo's nu = 5 with the stepper's reach (rod length + diameter +
+//!   contact margin), and centres on the box's faces;
+//! - the rods' update against the CPU's (`RodSet::translate`, `quat_exp`, `quat_mul`, as the
+//!   stepper applies them) with swimming velocities, turning rates up to 10 beta and rods on
+//!   the faces moving out of the box.
+//!
+//! On the host emulation (skipped with the reason where no C++ compiler runs, a failure with
+//! `MOTILE_REQUIRE_CXX=1`), blocks in order and in shuffled orders (the scatter's atomics then
+//! take other orders: the list must not change); on CUDA in the `#[ignore]`d test that
+//! `scripts/device_run.sh parity` runs.
+
+use motile_gpu::Backend;
+use motile_particle::model::geometry::{Vec3, dot, min_image, quat_exp, quat_mul, scale, sub};
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH};
+use motile_particle::step::contact::ContactParams;
+use motile_particle::step::gpu::GpuStep;
+
+/// The stepper's reach with the default contact margin.
+fn reach() -> f64 {
+    ROD_LENGTH + DEFAULT_DIAMETER + ContactParams::default().margin
+}
+
+fn brute_force(x: &[Vec3], l: f64, cutoff: f64) -> Vec<(u32, u32)> {
+    let mut out = Vec::new();
+    for i in 0..x.len() {
+        for j in i + 1..x.len() {
+            let d = min_image(sub(x[j], x[i]), l);
+            if dot(d, d) < cutoff * cutoff {
+                out.push((i as u32, j as u32));
+            }
+        }
+    }
+    out
+}
+
+/// The configurations: (label, centres, box, cutoff).
+fn cases() -> Vec<(String, Vec<Vec3>, f64, f64)> {
+    let mut out = Vec::new();
+    for (nu, l, seed) in [(0.625f64, 20.0f64, 1u64), (5.0, 8.0, 2), (5.0, 4.2, 3)] {
+        let n = (nu * l * l * l).round() as usize;
+        let rods = random_nonoverlapping(n, l, DEFAULT_DIAMETER, seed, 1_000_000)
+            .expect("initial configuration");
+        out.push((
+            format!("nu = {nu}, L/l = {l}, {n} rods"),
+            rods.x,
+            l,
+            reach(),
+        ));
+    }
+    // Centres on the faces and corners of the box and just inside its far faces.
+    let l = 6.0;
+    let e = l * (1.0 - f64::EPSILON);
+    let mut x: Vec<Vec3> = vec![[0.0; 3], [e, 0.0, 0.0], [0.0, e, e], [e; 3], [0.5, 0.0, e]];
+    for k in 0..200 {
+        let t = k as f64 * 0.37;
+        x.push([(t * 1.3) % l, (t * 2.9) % l, (t * 0.7) % l]);
+    }
+    out.push(("centres on the faces, L = 6".into(), x, l, 1.9));
+    out
+}
+
+/// The update on the device against the CPU's: bit for bit where the device's sin and cos are
+/// the C library's (the emulation), else within `tol` (CUDA's differ by an ulp or so).
+fn check_update(dev: &GpuStep, tol: f64) {
+    let l = 8.0;
+    let mut rods = random_nonoverlapping(320, l, DEFAULT_DIAMETER, 9, 1_000_000).unwrap();
+    let n = rods.len();
+    // Rods on the faces (x = 0 moving out backwards, x just under L moving out forwards).
+    rods.x[0] = [0.0, 0.0, 0.0];
+    rods.x[1] = [l * (1.0 - f64::EPSILON); 3];
+    rods.x[2] = [1e-17, 4.0, l - 1e-15];
+    let dt = 0.05;
+    let mut v: Vec<Vec3> = (0..n)
+        .map(|i| {
+            let p = rods.p(i);
+            let k = i as f64;
+            [
+                p[0] + 0.3 * (k * 0.7).sin(),
+                p[1] + 0.3 * (k * 1.3).cos(),
+                p[2] - 0.2 * (k * 0.1).sin(),
+            ]
+        })
+        .collect();
+    v[0] = [-1.0, -1e-18, -2.0];
+    v[1] = [1.0, 0.5, 1e-16];
+    v[2] = [-1.0, 0.0, 1.0];
+    let w: Vec<Vec3> = (0..n)
+        .map(|i| {
+            let k = i as f64;
+            [
+                10.0 * (k * 0.37).sin(),
+                3.0 * (k * 0.11).cos(),
+                0.1 * k.sin(),
+            ]
+        })
+        .collect();
+    let mut on_device = dev.upload_rods(&rods).unwrap();
+    let (dv, dw) = (
+        dev.upload_triples(&v).unwrap(),
+        dev.upload_triples(&w).unwrap(),
+    );
+    let mut cpu = rods.clone();
+    for _ in 0..21 {
+        dev.update(&mut on_device, &dv, &dw, dt).unwrap();
+        for i in 0..n {
+            cpu.translate(i, scale(dt, v[i]));
+            cpu.q[i] = quat_mul(quat_exp(scale(dt, w[i])), cpu.q[i]);
+        }
+    }
+    let mut got = rods.clone();
+    dev.download_rods(&on_device, &mut got).unwrap();
+    if let Some(i) = (0..n).find(|&i| got.image[i] != cpu.image[i]) {
+        panic!(
+            "rod {i}: images crossed {:?} on the device, {:?} on the CPU (centre {:?} and {:?})",
+            got.image[i], cpu.image[i], got.x[i], cpu.x[i]
+        );
+    }
+    let dx = (0..n)
+        .flat_map(|i| (0..3).map(move |d| (i, d)))
+        .map(|(i, d)| (got.x[i][d] - cpu.x[i][d]).abs() / l)
+        .fold(0.0, f64::max);
+    let dq = (0..n)
+        .flat_map(|i| (0..4).map(move |d| (i, d)))
+        .map(|(i, d)| (got.q[i][d] - cpu.q[i][d]).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        dx <= tol && dq <= tol,
+        "after 21 updates the device's centres differ by {dx:.1e} L, quaternions by {dq:.1e} \
+         (bound {tol:.0e})"
+    );
+    assert!(
+        got.x.iter().flatten().all(|&c| (0.0..l).contains(&c)),
+        "a centre left the box"
+    );
+    eprintln!(
+        "update: 21 steps of {n} rods, centres within {dx:.1e} L, quaternions within {dq:.1e}"
+    );
+}
+
+fn check(open: &dyn Fn() -> GpuStep, shuffles: &[u64]) {
+    for (label, x, l, cutoff) in cases() {
+        let want = brute_force(&x, l, cutoff);
+        assert!(!want.is_empty(), "{label}: no pairs to compare");
+        for &seed in shuffles {
+            let dev = open();
+            let shuffled = seed != 0 && dev.shuffle_blocks(seed);
+            let got = dev.pairs(&x, l, cutoff).unwrap();
+            let missing = want
+                .iter()
+                .filter(|p| got.binary_search(p).is_err())
+                .count();
+            let extra = got
+                .iter()
+                .filter(|p| want.binary_search(p).is_err())
+                .count();
+            assert_eq!(
+                got,
+                want,
+                "{label}, blocks {}: {} pairs on the device, {} by brute force; {missing} \
+                 missing, {extra} extra, or out of order",
+                if shuffled { "shuffled" } else { "in order" },
+                got.len(),
+                want.len()
+            );
+            eprintln!(
+                "{label}: {} pairs equal ({})",
+                got.len(),
+                if shuffled {
+                    "shuffled blocks"
+                } else {
+                    "blocks in order"
+                }
+            );
+        }
+    }
+    // A box narrower than 3 cells is refused with the reason, not searched wrongly.
+    let err = open().pairs(&[[0.0; 3], [1.0; 3]], 3.0, 1.35).unwrap_err();
+    assert!(err.to_string().contains("at least 3 cells"), "{err}");
+}
+
+#[test]
+fn device_step_rooms_match_their_twins_on_the_host_emulation() {
+    let open = || GpuStep::open(Backend::HostEmulation);
+    match open() {
+        Ok(d) => eprintln!("host emulation: {}", d.describe()),
+        Err(e) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
+            eprintln!("skipped ({e}); set MOTILE_REQUIRE_CXX=1 to make this a failure");
+            return;
+        }
+        Err(e) => panic!("{e} (and MOTILE_REQUIRE_CXX is set)"),
+    }
+    check(&|| open().unwrap(), &[0, 7, 1234567]);
+    check_update(&open().unwrap(), 0.0);
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/device_run.sh parity runs it)"]
+fn device_step_rooms_match_their_twins_on_cuda() {
+    match GpuStep::open(Backend::Cuda) {
+        Ok(d) => eprintln!("CUDA: {}", d.describe()),
+        Err(e) if std::env::var("MOTILE_REQUIRE_GPU").is_err() => {
+            eprintln!("skipped ({e}); set MOTILE_REQUIRE_GPU=1 to make this a failure");
+            return;
+        }
+        Err(e) => panic!("{e} (and MOTILE_REQUIRE_GPU is set)"),
+    }
+    check(&|| GpuStep::open(Backend::Cuda).unwrap(), &[0]);
+    check_update(&GpuStep::open(Backend::Cuda).unwrap(), 1e-14);
+}
