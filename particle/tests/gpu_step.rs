@@ -6,7 +6,9 @@
 //!   contact margin), and centres on the box's faces;
 //! - the rods' update against the CPU's (`RodSet::translate`, `quat_exp`, `quat_mul`, as the
 //!   stepper applies them) with swimming velocities, turning rates up to 10 beta and rods on
-//!   the faces moving out of the box.
+//!   the faces moving out of the box;
+//! - the contact constraints of the pairs against the CPU's (`constraints`) on dense rods with
+//!   touching, parallel and boundary-crossing pairs.
 //!
 //! On the host emulation (skipped with the reason where no C++ compiler runs, a failure with
 //! `MOTILE_REQUIRE_CXX=1`), blocks in order and in shuffled orders (the scatter's atomics then
@@ -14,9 +16,12 @@
 //! `scripts/device_run.sh parity` runs.
 
 use motile_gpu::Backend;
-use motile_particle::model::geometry::{Vec3, dot, min_image, quat_exp, quat_mul, scale, sub};
+use motile_particle::model::geometry::{
+    Vec3, axpy, cross, dot, min_image, norm, quat_exp, quat_mul, scale, sub,
+};
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH};
+use motile_particle::step::constraints::constraints;
 use motile_particle::step::contact::ContactParams;
 use motile_particle::step::gpu::GpuStep;
 
@@ -142,6 +147,84 @@ fn check_update(dev: &GpuStep, tol: f64) {
     );
 }
 
+/// The constraints of the pairs on the device against the CPU's (`constraints`), bit for bit
+/// where the arithmetic is the same (the emulation), on dense rods (nu = 5) with collinear
+/// touching, parallel and boundary-crossing pairs placed among them.
+fn check_constraints(dev: &GpuStep, tol: f64) {
+    let l = 6.0;
+    let mut rods = random_nonoverlapping(1080, l, DEFAULT_DIAMETER, 4, 1_000_000).unwrap();
+    // Rod 1 on rod 0's axis (touching centerlines: the normal along the centres' line), rod 3
+    // parallel to rod 2 at 0.25 (the parallel branch), rod 5 across the box's face from rod 4.
+    let p0 = rods.p(0);
+    rods.x[1] = wrap(axpy(rods.x[0], 0.1, p0), l);
+    rods.q[1] = rods.q[0];
+    let (p2, x2) = (rods.p(2), rods.x[2]);
+    let c = cross(p2, [0.3, 0.5, 0.81]);
+    let side = scale(1.0 / norm(c), c);
+    rods.x[3] = wrap(axpy(x2, 0.25, side), l);
+    rods.q[3] = rods.q[2];
+    rods.x[4] = [0.05, 3.0, 3.0];
+    rods.x[5] = [l - 0.1, 3.2, 3.0];
+    let p: Vec<Vec3> = rods.orientations();
+    let pairs = brute_force(&rods.x, l, reach());
+    let on_device = dev.upload_rods(&rods).unwrap();
+    let device_pairs = dev
+        .build(
+            &dev.upload_triples(&rods.x).unwrap(),
+            rods.len(),
+            l,
+            reach(),
+        )
+        .unwrap();
+    for margin in [0.15, 0.6] {
+        let want = constraints(&rods, &p, &pairs, margin);
+        let got = dev
+            .download_constraints(&dev.constraints(&on_device, &device_pairs, margin).unwrap())
+            .unwrap();
+        assert_eq!(
+            got.len(),
+            want.len(),
+            "margin {margin}: constraints on the device and the CPU"
+        );
+        let mut worst = 0.0f64;
+        for (g, w) in got.iter().zip(&want) {
+            assert_eq!(
+                (g.i, g.j),
+                (w.i, w.j),
+                "margin {margin}: pairs out of order"
+            );
+            for (a, b) in
+                g.ri.iter()
+                    .chain(&g.rj)
+                    .chain(&g.n)
+                    .zip(w.ri.iter().chain(&w.rj).chain(&w.n))
+            {
+                worst = worst.max((a - b).abs());
+            }
+            worst = worst.max((g.phi - w.phi).abs());
+        }
+        assert!(
+            worst <= tol,
+            "margin {margin}: constraints differ by {worst:.1e} (bound {tol:.0e})"
+        );
+        for k in [(0u32, 1u32), (2, 3), (4, 5)] {
+            assert!(
+                want.iter().any(|c| (c.i, c.j) == k),
+                "margin {margin}: no constraint {k:?}"
+            );
+        }
+        eprintln!(
+            "constraints, margin {margin}: {} of {} pairs, within {worst:.1e}",
+            got.len(),
+            pairs.len()
+        );
+    }
+}
+
+fn wrap(y: Vec3, l: f64) -> Vec3 {
+    y.map(|c| c.rem_euclid(l))
+}
+
 fn check(open: &dyn Fn() -> GpuStep, shuffles: &[u64]) {
     for (label, x, l, cutoff) in cases() {
         let want = brute_force(&x, l, cutoff);
@@ -196,6 +279,7 @@ fn device_step_rooms_match_their_twins_on_the_host_emulation() {
     }
     check(&|| open().unwrap(), &[0, 7, 1234567]);
     check_update(&open().unwrap(), 0.0);
+    check_constraints(&open().unwrap(), 0.0);
 }
 
 #[test]
@@ -211,4 +295,5 @@ fn device_step_rooms_match_their_twins_on_cuda() {
     }
     check(&|| GpuStep::open(Backend::Cuda).unwrap(), &[0]);
     check_update(&GpuStep::open(Backend::Cuda).unwrap(), 1e-14);
+    check_constraints(&GpuStep::open(Backend::Cuda).unwrap(), 1e-13);
 }

@@ -12,17 +12,23 @@
 //!   integer atomics per centre, one pass over the 27 cells around each centre twice;
 //! - the rods' update (`update.rs`, `update.cu`), the twin of the stepper's: explicit Euler for
 //!   the centres, wrapped into the box with the images crossed counted, and the quaternions
-//!   turned by the exponential of `dt w` (one thread per rod, no atomics).
+//!   turned by the exponential of `dt w` (one thread per rod, no atomics);
+//! - the contact constraints of the pairs (`contacts.rs`, `contacts.cu`), the twins of
+//!   [`crate::step::constraints::constraint`]: the closest points of each pair's centerlines,
+//!   a constraint where they are closer than `b + margin`, compacted in the pairs' order by a
+//!   flag per pair and its prefix sum (no atomics).
 //!
-//! The contact solver, the hydrodynamic levels and GMRES still run on the CPU (issue 29's
+//! The contact solver's iterations, the hydrodynamic levels and GMRES still run on the CPU (issue 29's
 //! item 2 is open beyond these rooms), so a run does not use them yet.
 #![allow(unsafe_code)]
 
 mod cells;
+mod contacts;
 mod signatures;
 mod update;
 
 pub use cells::DevicePairs;
+pub use contacts::DeviceConstraints;
 pub use update::DeviceRods;
 
 use motile_gpu::{Backend, Device, GpuError};

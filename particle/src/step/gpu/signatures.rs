@@ -1,14 +1,15 @@
-//! The kernels of `cells.cu` and `update.cu` (with `scan.cu`'s prefix sum), each one's
+//! The kernels of `cells.cu`, `update.cu` and `contacts.cu` (with `scan.cu`'s prefix sum), each one's
 //! parameters declared once as a struct of named, typed arguments (checked against the source
 //! when a device opens it).
 
 use motile_gpu::Buffer;
 
 motile_gpu::kernels! {
-    /// `cells.cu`, `update.cu` and the prefix sum, and their kernels.
+    /// `cells.cu`, `update.cu`, `contacts.cu` and the prefix sum, and their kernels.
     pub(crate) const KERNELS = concat!(
         include_str!("cells.cu"),
         include_str!("update.cu"),
+        include_str!("contacts.cu"),
         include_str!("../../ewald/gpu/scan.cu")
     );
 
@@ -83,6 +84,36 @@ motile_gpu::kernels! {
         n: i32,
         dt: f64,
         l: f64,
+    }
+
+    /// Whether each pair gets a constraint.
+    pub(crate) struct ContactFlag = "contact_flag" {
+        x: &'a Buffer<f64>,
+        q: &'a Buffer<f64>,
+        first: &'a Buffer<i32>,
+        second: &'a Buffer<i32>,
+        flag: &'a mut Buffer<i32>,
+        npairs: i32,
+        l: f64,
+        b: f64,
+        margin: f64,
+    }
+
+    /// The constraints at the flags' prefix sums.
+    pub(crate) struct ContactWrite = "contact_write" {
+        x: &'a Buffer<f64>,
+        q: &'a Buffer<f64>,
+        first: &'a Buffer<i32>,
+        second: &'a Buffer<i32>,
+        flag: &'a Buffer<i32>,
+        at: &'a Buffer<i32>,
+        ci: &'a mut Buffer<i32>,
+        cj: &'a mut Buffer<i32>,
+        rows: &'a mut Buffer<f64>,
+        npairs: i32,
+        l: f64,
+        b: f64,
+        margin: f64,
     }
 }
 

@@ -22,6 +22,8 @@ pub struct DeviceRods {
     pub len: usize,
     /// The box side.
     pub box_length: f64,
+    /// The rods' diameter.
+    pub diameter: f64,
 }
 
 impl GpuStep {
@@ -39,6 +41,7 @@ impl GpuStep {
             q: self.dev.upload(&rods.q.concat())?,
             len: rods.len(),
             box_length: rods.box_length,
+            diameter: rods.diameter,
         })
     }
 
