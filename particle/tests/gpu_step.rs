@@ -8,7 +8,9 @@
 //!   stepper applies them) with swimming velocities, turning rates up to 10 beta and rods on
 //!   the faces moving out of the box;
 //! - the contact constraints of the pairs against the CPU's (`constraints`) on dense rods with
-//!   touching, parallel and boundary-crossing pairs.
+//!   touching, parallel and boundary-crossing pairs;
+//! - the contact solver against the CPU's (`ContactSolver::solve`, local drag) on dense
+//!   swimming, turning rods, cold and warm.
 //!
 //! On the host emulation (skipped with the reason where no C++ compiler runs, a failure with
 //! `MOTILE_REQUIRE_CXX=1`), blocks in order and in shuffled orders (the scatter's atomics then
@@ -16,13 +18,17 @@
 //! `scripts/device_run.sh parity` runs.
 
 use motile_gpu::Backend;
+use motile_particle::hydro::mobility::LocalDrag;
 use motile_particle::model::geometry::{
     Vec3, axpy, cross, dot, min_image, norm, quat_exp, quat_mul, scale, sub,
 };
 use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::units::SWIM_SPEED;
 use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH};
 use motile_particle::step::constraints::constraints;
 use motile_particle::step::contact::ContactParams;
+use motile_particle::step::contact::{ContactProblem, ContactSolver};
+use motile_particle::step::gpu::DeviceContactProblem;
 use motile_particle::step::gpu::GpuStep;
 
 /// The stepper's reach with the default contact margin.
@@ -221,6 +227,104 @@ fn check_constraints(dev: &GpuStep, tol: f64) {
     }
 }
 
+/// The contact solver on the device against the CPU's (`ContactSolver::solve` with the local
+/// drag), bit for bit where the arithmetic is the same: dense swimming rods that also turn, from
+/// zero and from a warm start.
+fn check_solver(dev: &GpuStep, tol: f64) {
+    let (l, dt, margin) = (6.0, 0.1, 0.3);
+    let rods = random_nonoverlapping(1080, l, DEFAULT_DIAMETER, 6, 1_000_000).unwrap();
+    let p = rods.orientations();
+    let pairs = brute_force(&rods.x, l, ROD_LENGTH + DEFAULT_DIAMETER + margin);
+    let cons = constraints(&rods, &p, &pairs, margin);
+    let free_v: Vec<Vec3> = p.iter().map(|&q| scale(SWIM_SPEED, q)).collect();
+    let free_w: Vec<Vec3> = (0..rods.len())
+        .map(|i| {
+            let k = i as f64;
+            [
+                2.0 * (k * 0.31).sin(),
+                2.0 * (k * 0.17).cos(),
+                (k * 0.05).sin(),
+            ]
+        })
+        .collect();
+    let drag = LocalDrag::new(DEFAULT_DIAMETER);
+    let params = ContactParams::default();
+    let on_device = dev.upload_rods(&rods).unwrap();
+    let device_pairs = dev
+        .build(
+            &dev.upload_triples(&rods.x).unwrap(),
+            rods.len(),
+            l,
+            ROD_LENGTH + DEFAULT_DIAMETER + margin,
+        )
+        .unwrap();
+    let device_cons = dev.constraints(&on_device, &device_pairs, margin).unwrap();
+    assert_eq!(device_cons.len, cons.len());
+    let (dv, dw) = (
+        dev.upload_triples(&free_v).unwrap(),
+        dev.upload_triples(&free_w).unwrap(),
+    );
+    let problem = DeviceContactProblem {
+        rods: &on_device,
+        cons: &device_cons,
+        free_v: &dv,
+        free_w: &dw,
+        drag: drag.coefficients(),
+        dt,
+    };
+    let mut cold: Vec<f64> = Vec::new();
+    for warm in [false, true] {
+        let initial: Vec<f64> = if warm {
+            cold.iter().map(|l| 0.7 * l).collect()
+        } else {
+            Vec::new()
+        };
+        let (want, want_report) = ContactSolver::default()
+            .solve(
+                ContactProblem {
+                    cons: &cons,
+                    p: &p,
+                    free_v: &free_v,
+                    free_w: &free_w,
+                    mobility: &drag,
+                    dt,
+                },
+                &params,
+                &initial,
+            )
+            .unwrap();
+        let (got, got_report) = dev.solve_contacts(problem, &params, &initial).unwrap();
+        assert!(
+            want_report.active > 50,
+            "too few active contacts to test: {want_report:?}"
+        );
+        let scale_l = want.iter().fold(0.0f64, |a, &b| a.max(b.abs()));
+        let worst = got
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+            / scale_l;
+        assert!(
+            worst <= tol,
+            "warm {warm}: multipliers differ by {worst:.1e} of the largest (bound {tol:.0e}); \
+             device {got_report:?}, CPU {want_report:?}"
+        );
+        if tol == 0.0 {
+            assert_eq!(got_report, want_report, "warm {warm}: reports");
+        }
+        eprintln!(
+            "contact solver (warm start {warm}): {} constraints, {} active, {} iterations, \
+             residual {:.1e}; multipliers within {worst:.1e}",
+            want_report.constraints,
+            want_report.active,
+            want_report.iterations,
+            want_report.residual
+        );
+        cold = want;
+    }
+}
+
 fn wrap(y: Vec3, l: f64) -> Vec3 {
     y.map(|c| c.rem_euclid(l))
 }
@@ -280,6 +384,7 @@ fn device_step_rooms_match_their_twins_on_the_host_emulation() {
     check(&|| open().unwrap(), &[0, 7, 1234567]);
     check_update(&open().unwrap(), 0.0);
     check_constraints(&open().unwrap(), 0.0);
+    check_solver(&open().unwrap(), 0.0);
 }
 
 #[test]
@@ -296,4 +401,5 @@ fn device_step_rooms_match_their_twins_on_cuda() {
     check(&|| GpuStep::open(Backend::Cuda).unwrap(), &[0]);
     check_update(&GpuStep::open(Backend::Cuda).unwrap(), 1e-14);
     check_constraints(&GpuStep::open(Backend::Cuda).unwrap(), 1e-13);
+    check_solver(&GpuStep::open(Backend::Cuda).unwrap(), 1e-10);
 }

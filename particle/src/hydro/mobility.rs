@@ -278,6 +278,11 @@ impl LocalDrag {
             rot: 12.0 * e / ROD_LENGTH.powi(3),
         }
     }
+
+    /// The translational and rotational coefficients `(eta/l, 12 eta/l^3)`.
+    pub fn coefficients(&self) -> (f64, f64) {
+        (self.trans, self.rot)
+    }
 }
 
 impl Default for LocalDrag {

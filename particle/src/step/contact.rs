@@ -167,6 +167,36 @@ fn fused_stats(lam: &[f64], lam_new: &[f64], g: &[f64], g_new: &[f64]) -> [f64; 
     })
 }
 
+/// After BBPGD iteration `iterations` with residual `res` and the Barzilai-Borwein products
+/// `[s.s, s.y, y.y]`: `None` when done (converged, or no move), else the next step length
+/// (the two BB formulas alternating; the last step where `s.y <= 0`), or the error at the cap.
+/// The CPU solver's and the device solver's.
+pub(crate) fn next_step(
+    alpha: f64,
+    iterations: usize,
+    res: f64,
+    [ss, sy, yy]: [f64; 3],
+    params: &ContactParams,
+) -> Result<Option<f64>, ContactError> {
+    if res <= params.tolerance || ss == 0.0 {
+        return Ok(None);
+    }
+    if iterations >= params.max_iterations {
+        return Err(ContactError::NoConvergence {
+            iterations,
+            residual: res,
+            tolerance: params.tolerance,
+        });
+    }
+    Ok(Some(if sy <= 0.0 {
+        alpha
+    } else if iterations % 2 == 1 {
+        ss / sy
+    } else {
+        sy / yy
+    }))
+}
+
 /// Maximum of `f(k)` (exact in any order).
 fn par_max(n: usize, f: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
     (0..n)
@@ -444,23 +474,10 @@ impl ContactSolver {
                 }
                 std::mem::swap(&mut lam, &mut lam_new);
                 std::mem::swap(&mut g, &mut g_new);
-                if res <= params.tolerance || ss == 0.0 {
-                    break;
+                match next_step(alpha, iterations, res, [ss, sy, yy], params)? {
+                    Some(a) => alpha = a,
+                    None => break,
                 }
-                if iterations >= params.max_iterations {
-                    return Err(ContactError::NoConvergence {
-                        iterations,
-                        residual: res,
-                        tolerance: params.tolerance,
-                    });
-                }
-                alpha = if sy <= 0.0 {
-                    alpha
-                } else if iterations % 2 == 1 {
-                    ss / sy
-                } else {
-                    sy / yy
-                };
             }
         }
         let active = global_sum(lam.iter().filter(|&&l| l > 0.0).count() as f64) as usize;

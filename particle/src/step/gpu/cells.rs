@@ -1,10 +1,10 @@
 //! The rods' cell list and neighbour pairs on the device (`cells.cu`): see [`super`].
 #![allow(unsafe_code)]
 
-use super::signatures::{CellCount, CellOrder, CellScan, CellScatter, PairCount, PairWrite};
+use super::signatures::{CellCount, CellOrder, CellScatter, PairCount, PairWrite};
 use super::{GpuStep, int};
 use crate::model::geometry::Vec3;
-use motile_gpu::{Buffer, GpuError, THREADS};
+use motile_gpu::{Buffer, GpuError};
 
 /// The neighbour pairs of one configuration, on the device.
 #[derive(Debug)]
@@ -64,10 +64,6 @@ impl GpuStep {
                 pts.len()
             )));
         }
-        assert_eq!(
-            THREADS, 256,
-            "bin_scan's shared array holds 256 partial sums"
-        );
         let ncells = nc.pow(3);
         let (ni, nci, ncells_i) = (
             int(n, "points")?,
@@ -99,18 +95,7 @@ impl GpuStep {
                 },
             )?;
         }
-        // SAFETY: one block of 256 threads (asserted): reads count[0..ncells], writes
-        // start[0..=ncells] (ncells + 1 allocated).
-        unsafe {
-            dev.launch(
-                THREADS as usize,
-                CellScan {
-                    count: &count,
-                    start: &mut start,
-                    nbins: ncells_i,
-                },
-            )?;
-        }
+        self.scan(&count, &mut start, ncells)?;
         // SAFETY: thread i < n reads cell[i] < ncells, start[cell] and adds to fill[cell]
         // (ncells); the ranks of a cell are 0..count[cell], so start[cell] + rank <
         // start[cell + 1] <= n indexes members (n).
@@ -157,17 +142,7 @@ impl GpuStep {
                 },
             )?;
         }
-        // SAFETY: one block of 256 threads: reads counts[0..n], writes offset[0..=n].
-        unsafe {
-            dev.launch(
-                THREADS as usize,
-                CellScan {
-                    count: &counts,
-                    start: &mut offset,
-                    nbins: ni,
-                },
-            )?;
-        }
+        self.scan(&counts, &mut offset, n)?;
         let total = dev.download_range(&offset, n, 1)?[0];
         let len = usize::try_from(total)
             .map_err(|_| GpuError::Input(format!("{total} pairs: the count overflowed")))?;

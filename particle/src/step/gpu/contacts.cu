@@ -107,3 +107,157 @@ extern "C" __global__ void contact_write(const double* x, const double* q, const
     cj[o] = second[k];
     pair_constraint(x, q, first[k], second[k], l, b, margin, rows + 10 * (long long)o);
 }
+
+// --- The contact solver's products and reductions (step/contact.rs, BBPGD) -------------------
+// Per-rod lists of constraints: entries 2 a + side (side 0: the rod is constraint a's i, 1: its
+// j), each rod's in increasing a (the CPU's constraint order).
+
+extern "C" __global__ void solver_index_count(const int* ci, const int* cj, int* counts, int m) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    atomicAdd(&counts[ci[k]], 1);
+    atomicAdd(&counts[cj[k]], 1);
+}
+
+extern "C" __global__ void solver_index_scatter(const int* ci, const int* cj, const int* start,
+                                                int* fill, int* entries, int m) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    entries[start[ci[k]] + atomicAdd(&fill[ci[k]], 1)] = 2 * k;
+    entries[start[cj[k]] + atomicAdd(&fill[cj[k]], 1)] = 2 * k + 1;
+}
+
+extern "C" __global__ void solver_index_order(const int* start, int* entries, int n) {
+    int r = blockIdx.x * blockDim.x + threadIdx.x;
+    if (r >= n) return;
+    sort_ints(entries + start[r], start[r + 1] - start[r]);
+}
+
+__device__ void cross3(const double* a, const double* b, double* c) {
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+// Each rod's axis from its quaternion.
+extern "C" __global__ void solver_axes(const double* q, double* p, int n) {
+    int r = blockIdx.x * blockDim.x + threadIdx.x;
+    if (r >= n) return;
+    quat_axis(q + 4 * r, p + 3 * r);
+}
+
+// Each rod's velocity (v, w: 6 values) under the contact forces of multipliers lam through the
+// local drag (trans (I + p p), rot (I - p p)).
+extern "C" __global__ void solver_rods(const double* p, const int* start, const int* entries,
+                                       const double* rows, const double* lam, double* vel,
+                                       int n, double trans, double rot) {
+    int r = blockIdx.x * blockDim.x + threadIdx.x;
+    if (r >= n) return;
+    double f[3] = {0.0, 0.0, 0.0}, t[3] = {0.0, 0.0, 0.0};
+    for (int e = start[r]; e < start[r + 1]; ++e) {
+        int a = entries[e] >> 1;
+        double side = (entries[e] & 1) ? -1.0 : 1.0;
+        const double* row = rows + 10 * (long long)a;
+        double sl = side * lam[a];
+        double fa[3] = {sl * row[6], sl * row[7], sl * row[8]};
+        double tq[3];
+        cross3(side > 0.0 ? row : row + 3, fa, tq);
+        for (int d = 0; d < 3; ++d) {
+            f[d] = f[d] + 1.0 * fa[d];
+            t[d] = t[d] + 1.0 * tq[d];
+        }
+    }
+    const double* pr = p + 3 * r;
+    double pf = pr[0] * f[0] + pr[1] * f[1] + pr[2] * f[2];
+    double pt = pr[0] * t[0] + pr[1] * t[1] + pr[2] * t[2];
+    for (int d = 0; d < 3; ++d) {
+        vel[6 * r + d] = trans * (f[d] + pf * pr[d]);
+        vel[6 * r + 3 + d] = rot * (t[d] - pt * pr[d]);
+    }
+}
+
+// out[k] = dt n.(v_i + w_i x r_i - v_j - w_j x r_j) + shift[k] (shift 0 where has_shift is 0),
+// velocities as 6 values per rod (v, w) in vel.
+extern "C" __global__ void solver_constraints(const double* rows, const int* ci, const int* cj,
+                                              const double* vel, const double* shift,
+                                              double* out, int m, double dt, int has_shift) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    const double* row = rows + 10 * (long long)k;
+    const double* a = vel + 6 * ci[k];
+    const double* b = vel + 6 * cj[k];
+    double ca[3], cb[3], d[3];
+    cross3(a + 3, row, ca);
+    cross3(b + 3, row + 3, cb);
+    for (int e = 0; e < 3; ++e) d[e] = (a[e] + 1.0 * ca[e]) - (b[e] + 1.0 * cb[e]);
+    double s = has_shift ? shift[k] : 0.0;
+    out[k] = dt * (row[6] * d[0] + row[7] * d[1] + row[8] * d[2]) + s;
+}
+
+// q[k] = phi_k + dt n.(free velocity difference at the contact points), free velocities as
+// triples v and w.
+extern "C" __global__ void solver_q(const double* rows, const int* ci, const int* cj,
+                                    const double* v, const double* w, double* q, int m,
+                                    double dt) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    const double* row = rows + 10 * (long long)k;
+    int i = ci[k], j = cj[k];
+    double ca[3], cb[3], d[3];
+    cross3(w + 3 * i, row, ca);
+    cross3(w + 3 * j, row + 3, cb);
+    for (int e = 0; e < 3; ++e) d[e] = (v[3 * i + e] + 1.0 * ca[e]) - (v[3 * j + e] + 1.0 * cb[e]);
+    q[k] = row[9] + dt * (row[6] * d[0] + row[7] * d[1] + row[8] * d[2]);
+}
+
+// lam_new = max(lam - alpha g, 0).
+extern "C" __global__ void solver_project(const double* lam, const double* g, double* lam_new,
+                                          int m, double alpha) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    lam_new[k] = fmax(lam[k] - alpha * g[k], 0.0);
+}
+
+// The projected gradient of the first step: g where lam > 0 or g < 0, else 0.
+extern "C" __global__ void solver_gp(const double* lam, const double* g, double* gp, int m) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    gp[k] = (lam[k] > 0.0 || g[k] < 0.0) ? g[k] : 0.0;
+}
+
+// Per chunk c of `chunk` constraints, in order: max |min(lam_new, g_new)|, |s|^2, s.y, |y|^2
+// with s = lam_new - lam, y = g_new - g (4 values at 4 c): fused_stats' partials.
+extern "C" __global__ void solver_stats(const double* lam, const double* lam_new,
+                                        const double* g, const double* g_new, double* partial,
+                                        int m, int chunk) {
+    int c = blockIdx.x * blockDim.x + threadIdx.x;
+    if ((long long)c * chunk >= m) return;
+    int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
+    double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
+    for (int k = c * chunk; k < hi; ++k) {
+        double s = lam_new[k] - lam[k], y = g_new[k] - g[k];
+        a0 = fmax(a0, fabs(fmin(lam_new[k], g_new[k])));
+        a1 += s * s;
+        a2 += s * y;
+        a3 += y * y;
+    }
+    partial[4 * c] = a0;
+    partial[4 * c + 1] = a1;
+    partial[4 * c + 2] = a2;
+    partial[4 * c + 3] = a3;
+}
+
+// Per chunk: the sums of a a and a b in order from -0.0 (det_sum's partials), at 2 c.
+extern "C" __global__ void solver_dots(const double* a, const double* b, double* partial, int m,
+                                       int chunk) {
+    int c = blockIdx.x * blockDim.x + threadIdx.x;
+    if ((long long)c * chunk >= m) return;
+    int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
+    double aa = -0.0, ab = -0.0;
+    for (int k = c * chunk; k < hi; ++k) {
+        aa += a[k] * a[k];
+        ab += a[k] * b[k];
+    }
+    partial[2 * c] = aa;
+    partial[2 * c + 1] = ab;
+}

@@ -1,10 +1,10 @@
 //! The contact constraints of the neighbour pairs on the device (`contacts.cu`): see [`super`].
 #![allow(unsafe_code)]
 
-use super::signatures::{CellScan, ContactFlag, ContactWrite};
+use super::signatures::{ContactFlag, ContactWrite};
 use super::{DevicePairs, DeviceRods, GpuStep, int};
 use crate::step::contact::Constraint;
-use motile_gpu::{Buffer, GpuError, THREADS};
+use motile_gpu::{Buffer, GpuError};
 
 /// The constraints of one configuration on the device, in the pairs' order.
 #[derive(Debug)]
@@ -63,21 +63,7 @@ impl GpuStep {
                 },
             )?;
         }
-        // SAFETY: one block of 256 threads: reads flag[0..np], writes at[0..=np].
-        assert_eq!(
-            THREADS, 256,
-            "bin_scan's shared array holds 256 partial sums"
-        );
-        unsafe {
-            dev.launch(
-                THREADS as usize,
-                CellScan {
-                    count: &flag,
-                    start: &mut at,
-                    nbins: npi,
-                },
-            )?;
-        }
+        self.scan(&flag, &mut at, np)?;
         let len = dev.download_range(&at, np, 1)?[0] as usize;
         let mut ci = dev.zeros::<i32>(len.max(1))?;
         let mut cj = dev.zeros::<i32>(len.max(1))?;

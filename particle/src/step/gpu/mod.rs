@@ -16,22 +16,28 @@
 //! - the contact constraints of the pairs (`contacts.rs`, `contacts.cu`), the twins of
 //!   [`crate::step::constraints::constraint`]: the closest points of each pair's centerlines,
 //!   a constraint where they are closer than `b + margin`, compacted in the pairs' order by a
-//!   flag per pair and its prefix sum (no atomics).
+//!   flag per pair and its prefix sum (no atomics);
+//! - the contact solver (`solver.rs`, `contacts.cu`): BBPGD with its products (forces and
+//!   local drag per rod over per-rod lists in constraint order, rates per constraint) and its
+//!   reductions (the CPU's fixed chunks) on the device, the host deciding each iteration from
+//!   four downloaded numbers.
 //!
-//! The contact solver's iterations, the hydrodynamic levels and GMRES still run on the CPU (issue 29's
+//! The hydrodynamic levels and GMRES still run on the CPU (issue 29's
 //! item 2 is open beyond these rooms), so a run does not use them yet.
 #![allow(unsafe_code)]
 
 mod cells;
 mod contacts;
 mod signatures;
+mod solver;
 mod update;
 
 pub use cells::DevicePairs;
 pub use contacts::DeviceConstraints;
+pub use solver::{DeviceContactError, DeviceContactProblem};
 pub use update::DeviceRods;
 
-use motile_gpu::{Backend, Device, GpuError};
+use motile_gpu::{Backend, Buffer, Device, GpuError, THREADS};
 
 /// A device with the step's kernels compiled.
 #[derive(Debug)]
@@ -54,6 +60,34 @@ impl GpuStep {
     /// What the device is, in words.
     pub fn describe(&self) -> String {
         self.dev.describe()
+    }
+
+    /// `start[0..=n]`: the exclusive prefix sum of `count[0..n]`, the last value the total
+    /// (`bin_scan`, one block).
+    fn scan(&self, count: &Buffer<i32>, start: &mut Buffer<i32>, n: usize) -> Result<(), GpuError> {
+        assert_eq!(
+            THREADS, 256,
+            "bin_scan's shared array holds 256 partial sums"
+        );
+        if count.len() < n || start.len() < n + 1 {
+            return Err(GpuError::Input(format!(
+                "prefix sum of {n} values: buffers of {} and {}",
+                count.len(),
+                start.len()
+            )));
+        }
+        // SAFETY: one block of THREADS = 256 threads (asserted, the size of its shared array):
+        // reads count[0..n] and writes start[0..=n], both checked above.
+        unsafe {
+            self.dev.launch(
+                THREADS as usize,
+                signatures::CellScan {
+                    count,
+                    start,
+                    nbins: int(n, "values")?,
+                },
+            )
+        }
     }
 
     /// On the host emulation, run blocks in a random order at every launch (to expose races).

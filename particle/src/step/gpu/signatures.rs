@@ -115,6 +115,113 @@ motile_gpu::kernels! {
         b: f64,
         margin: f64,
     }
+
+    /// Each rod's number of constraints (zeroed by the caller).
+    pub(crate) struct SolverIndexCount = "solver_index_count" {
+        ci: &'a Buffer<i32>,
+        cj: &'a Buffer<i32>,
+        counts: &'a mut Buffer<i32>,
+        m: i32,
+    }
+
+    /// Each rod's constraint entries (`2 a + side`) at its start (`fill` zeroed).
+    pub(crate) struct SolverIndexScatter = "solver_index_scatter" {
+        ci: &'a Buffer<i32>,
+        cj: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        fill: &'a mut Buffer<i32>,
+        entries: &'a mut Buffer<i32>,
+        m: i32,
+    }
+
+    /// Each rod's entries in constraint order.
+    pub(crate) struct SolverIndexOrder = "solver_index_order" {
+        start: &'a Buffer<i32>,
+        entries: &'a mut Buffer<i32>,
+        n: i32,
+    }
+
+    /// The rods' axes.
+    pub(crate) struct SolverAxes = "solver_axes" {
+        q: &'a Buffer<f64>,
+        p: &'a mut Buffer<f64>,
+        n: i32,
+    }
+
+    /// Each rod's velocity under the contact forces through the local drag.
+    pub(crate) struct SolverRods = "solver_rods" {
+        p: &'a Buffer<f64>,
+        start: &'a Buffer<i32>,
+        entries: &'a Buffer<i32>,
+        rows: &'a Buffer<f64>,
+        lam: &'a Buffer<f64>,
+        vel: &'a mut Buffer<f64>,
+        n: i32,
+        trans: f64,
+        rot: f64,
+    }
+
+    /// Each constraint's separation rate times `dt`, plus the shift.
+    pub(crate) struct SolverConstraints = "solver_constraints" {
+        rows: &'a Buffer<f64>,
+        ci: &'a Buffer<i32>,
+        cj: &'a Buffer<i32>,
+        vel: &'a Buffer<f64>,
+        shift: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        m: i32,
+        dt: f64,
+        has_shift: i32,
+    }
+
+    /// The problem's `q = phi + dt D^T V_free`.
+    pub(crate) struct SolverQ = "solver_q" {
+        rows: &'a Buffer<f64>,
+        ci: &'a Buffer<i32>,
+        cj: &'a Buffer<i32>,
+        v: &'a Buffer<f64>,
+        w: &'a Buffer<f64>,
+        q: &'a mut Buffer<f64>,
+        m: i32,
+        dt: f64,
+    }
+
+    /// The projected step `max(lam - alpha g, 0)`.
+    pub(crate) struct SolverProject = "solver_project" {
+        lam: &'a Buffer<f64>,
+        g: &'a Buffer<f64>,
+        lam_new: &'a mut Buffer<f64>,
+        m: i32,
+        alpha: f64,
+    }
+
+    /// The first step's projected gradient.
+    pub(crate) struct SolverGp = "solver_gp" {
+        lam: &'a Buffer<f64>,
+        g: &'a Buffer<f64>,
+        gp: &'a mut Buffer<f64>,
+        m: i32,
+    }
+
+    /// The residual and Barzilai-Borwein products per chunk.
+    pub(crate) struct SolverStats = "solver_stats" {
+        lam: &'a Buffer<f64>,
+        lam_new: &'a Buffer<f64>,
+        g: &'a Buffer<f64>,
+        g_new: &'a Buffer<f64>,
+        partial: &'a mut Buffer<f64>,
+        m: i32,
+        chunk: i32,
+    }
+
+    /// `a.a` and `a.b` per chunk.
+    pub(crate) struct SolverDots = "solver_dots" {
+        a: &'a Buffer<f64>,
+        b: &'a Buffer<f64>,
+        partial: &'a mut Buffer<f64>,
+        m: i32,
+        chunk: i32,
+    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,372 @@
+//! The contact solver (BBPGD, [`crate::step::contact::ContactSolver`]) with its products and
+//! reductions on the device (`contacts.cu`): see [`super`].
+//!
+//! Each iteration runs the same arithmetic in the same order as the CPU's: the per-rod lists of
+//! constraints in constraint order (an atomic scatter, then each list sorted), the forces and
+//! local drag per rod, the rates per constraint, and the reductions in the CPU's fixed chunks
+//! ([`CHUNK`] constraints per thread, the chunks' partials folded in order on the host). So
+//! the multipliers are the CPU's bit for bit wherever the device's arithmetic is IEEE (the
+//! emulation; CUDA with `fmad` off, as the device opens it). The host decides each step from
+//! four numbers (the residual and the Barzilai-Borwein products): one small download per
+//! iteration, the round trip this room still has.
+#![allow(unsafe_code)]
+
+use super::signatures::{
+    SolverAxes, SolverConstraints, SolverDots, SolverGp, SolverIndexCount, SolverIndexOrder,
+    SolverIndexScatter, SolverProject, SolverQ, SolverRods, SolverStats,
+};
+use super::{DeviceConstraints, DeviceRods, GpuStep, int};
+use crate::step::contact::{ContactError, ContactParams, ContactReport, next_step};
+use motile_gpu::{Buffer, GpuError};
+
+/// Reduction chunk: `crate::parallel::reduce::CHUNK`, the CPU solver's.
+const CHUNK: usize = 4096;
+
+/// A failure of the device solver: the device's, or the solver's own (as on the CPU).
+#[derive(Debug, thiserror::Error)]
+pub enum DeviceContactError {
+    /// The device failed.
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    /// The solver did not converge or produced a non-finite value.
+    #[error(transparent)]
+    Contact(#[from] ContactError),
+}
+
+/// One contact problem on the device (the twin of [`crate::step::contact::ContactProblem`]):
+/// the rods, their constraints, the velocities without contacts (triples), the local drag
+/// `(trans, rot)` ([`crate::hydro::mobility::LocalDrag::coefficients`]) and the time step.
+#[derive(Clone, Copy, Debug)]
+pub struct DeviceContactProblem<'a> {
+    /// The rods.
+    pub rods: &'a DeviceRods,
+    /// Their constraints.
+    pub cons: &'a DeviceConstraints,
+    /// Velocities without contacts.
+    pub free_v: &'a Buffer,
+    /// Angular velocities without contacts.
+    pub free_w: &'a Buffer,
+    /// The local drag's coefficients.
+    pub drag: (f64, f64),
+    /// The time step.
+    pub dt: f64,
+}
+
+/// The problem's buffers on the device.
+struct Problem<'a> {
+    cons: &'a DeviceConstraints,
+    p: Buffer,
+    start: Buffer<i32>,
+    entries: Buffer<i32>,
+    vel: Buffer,
+    n: usize,
+    drag: (f64, f64),
+    dt: f64,
+}
+
+impl GpuStep {
+    /// Solve `problem` from `initial` (empty: zero), as
+    /// [`crate::step::contact::ContactSolver::solve`] does: the multipliers and the report.
+    pub fn solve_contacts(
+        &self,
+        problem: DeviceContactProblem<'_>,
+        params: &ContactParams,
+        initial: &[f64],
+    ) -> Result<(Vec<f64>, ContactReport), DeviceContactError> {
+        let DeviceContactProblem {
+            rods,
+            cons,
+            free_v,
+            free_w,
+            drag,
+            dt,
+        } = problem;
+        let (m, n) = (cons.len, rods.len);
+        if m == 0 {
+            return Ok((Vec::new(), ContactReport::default()));
+        }
+        assert!(
+            initial.is_empty() || initial.len() == m,
+            "initial guess has the wrong length"
+        );
+        if free_v.len() < 3 * n || free_w.len() < 3 * n || rods.q.len() < 4 * n {
+            return Err(
+                GpuError::Input(format!("free velocities or rods shorter than {n} rods")).into(),
+            );
+        }
+        let (mi, ni) = (int(m, "constraints")?, int(n, "rods")?);
+        int(10 * m, "10 x constraints")?;
+        int(6 * n, "6 x rods")?;
+        let dev = &self.dev;
+        // The per-rod lists.
+        let mut counts = dev.zeros::<i32>(n)?;
+        let mut start = dev.zeros::<i32>(n + 1)?;
+        let mut fill = dev.zeros::<i32>(n)?;
+        let mut entries = dev.zeros::<i32>(2 * m)?;
+        let mut p = dev.zeros::<f64>(3 * n)?;
+        // SAFETY: thread k < m reads ci[k], cj[k] (m), rod indices below n, and adds to
+        // counts there (n).
+        unsafe {
+            dev.launch(
+                m,
+                SolverIndexCount {
+                    ci: &cons.i,
+                    cj: &cons.j,
+                    counts: &mut counts,
+                    m: mi,
+                },
+            )?;
+        }
+        self.scan(&counts, &mut start, n)?;
+        // SAFETY: thread k < m writes entries at start[r] + rank for its two rods r, the ranks
+        // 0..counts[r] (atomics on fill, n): below start[r + 1] <= 2 m.
+        unsafe {
+            dev.launch(
+                m,
+                SolverIndexScatter {
+                    ci: &cons.i,
+                    cj: &cons.j,
+                    start: &start,
+                    fill: &mut fill,
+                    entries: &mut entries,
+                    m: mi,
+                },
+            )?;
+        }
+        // SAFETY: thread r < n sorts entries[start[r]..start[r + 1]] (inside 0..2 m).
+        unsafe {
+            dev.launch(
+                n,
+                SolverIndexOrder {
+                    start: &start,
+                    entries: &mut entries,
+                    n: ni,
+                },
+            )?;
+            // Thread r < n reads q[4 r..4 r + 4] and writes p[3 r..3 r + 3] (checked sizes).
+            dev.launch(
+                n,
+                SolverAxes {
+                    q: &rods.q,
+                    p: &mut p,
+                    n: ni,
+                },
+            )?;
+        }
+        let mut prob = Problem {
+            cons,
+            p,
+            start,
+            entries,
+            vel: dev.zeros::<f64>(6 * n)?,
+            n,
+            drag,
+            dt,
+        };
+        let mut q = dev.zeros::<f64>(m)?;
+        // SAFETY: thread k < m reads row k (10 m), ci[k], cj[k] < n and the free velocities'
+        // triples of both (3 n), and writes q[k] (m).
+        unsafe {
+            dev.launch(
+                m,
+                SolverQ {
+                    rows: &cons.rows,
+                    ci: &cons.i,
+                    cj: &cons.j,
+                    v: free_v,
+                    w: free_w,
+                    q: &mut q,
+                    m: mi,
+                    dt,
+                },
+            )?;
+        }
+        let warm = initial.iter().any(|&l| l > 0.0);
+        let (mut lam, mut g) = if warm {
+            let lam = dev.upload(&initial.iter().map(|l| l.max(0.0)).collect::<Vec<f64>>())?;
+            let mut g = dev.zeros::<f64>(m)?;
+            self.apply(&mut prob, &lam, Some(&q), &mut g)?;
+            (lam, g)
+        } else {
+            let mut g = dev.zeros::<f64>(m)?;
+            dev.copy((&q, 0), (&mut g, 0), m)?;
+            (dev.zeros::<f64>(m)?, g)
+        };
+        let nchunks = m.div_ceil(CHUNK);
+        let mut partial = dev.zeros::<f64>(4 * nchunks)?;
+        let mut res = self.stats(&lam, &lam, &g, &g, &mut partial, m)?[0];
+        let mut iterations = 0;
+        if res > params.tolerance {
+            let mut gp = dev.zeros::<f64>(m)?;
+            let mut ag = dev.zeros::<f64>(m)?;
+            // SAFETY: thread k < m reads lam[k], g[k] and writes gp[k] (m each).
+            unsafe {
+                dev.launch(
+                    m,
+                    SolverGp {
+                        lam: &lam,
+                        g: &g,
+                        gp: &mut gp,
+                        m: mi,
+                    },
+                )?;
+            }
+            self.apply(&mut prob, &gp, None, &mut ag)?;
+            // SAFETY: thread c < ceil(m / CHUNK) reads a, b at c CHUNK..min((c + 1) CHUNK, m)
+            // and writes partial[2 c..2 c + 2] (4 ceil(m / CHUNK) allocated).
+            unsafe {
+                dev.launch(
+                    nchunks,
+                    SolverDots {
+                        a: &gp,
+                        b: &ag,
+                        partial: &mut partial,
+                        m: mi,
+                        chunk: CHUNK as i32,
+                    },
+                )?;
+            }
+            let part = dev.download_range(&partial, 0, 2 * nchunks)?;
+            let gg: f64 = part.iter().step_by(2).sum();
+            let gag: f64 = part.iter().skip(1).step_by(2).sum();
+            let mut alpha = if gag > 0.0 { gg / gag } else { 1.0 };
+            let mut lam_new = dev.zeros::<f64>(m)?;
+            let mut g_new = dev.zeros::<f64>(m)?;
+            loop {
+                iterations += 1;
+                // SAFETY: thread k < m reads lam[k], g[k] and writes lam_new[k] (m each).
+                unsafe {
+                    dev.launch(
+                        m,
+                        SolverProject {
+                            lam: &lam,
+                            g: &g,
+                            lam_new: &mut lam_new,
+                            m: mi,
+                            alpha,
+                        },
+                    )?;
+                }
+                self.apply(&mut prob, &lam_new, Some(&q), &mut g_new)?;
+                let [r, ss, sy, yy] = self.stats(&lam, &lam_new, &g, &g_new, &mut partial, m)?;
+                res = r;
+                if !res.is_finite() {
+                    return Err(ContactError::NonFinite(iterations).into());
+                }
+                std::mem::swap(&mut lam, &mut lam_new);
+                std::mem::swap(&mut g, &mut g_new);
+                match next_step(alpha, iterations, res, [ss, sy, yy], params)? {
+                    Some(a) => alpha = a,
+                    None => break,
+                }
+            }
+        }
+        let (lam, g) = (dev.download(&lam)?, dev.download(&g)?);
+        let active = lam.iter().filter(|&&l| l > 0.0).count();
+        let predicted_overlap = g
+            .iter()
+            .map(|&x| -x)
+            .fold(f64::NEG_INFINITY, f64::max)
+            .max(0.0);
+        Ok((
+            lam,
+            ContactReport {
+                constraints: m,
+                active,
+                iterations,
+                residual: res,
+                predicted_overlap,
+            },
+        ))
+    }
+
+    /// `out = dt D^T M D lam + shift` on the device (the CPU's `apply`).
+    fn apply(
+        &self,
+        prob: &mut Problem<'_>,
+        lam: &Buffer,
+        shift: Option<&Buffer>,
+        out: &mut Buffer,
+    ) -> Result<(), GpuError> {
+        let (m, n) = (prob.cons.len, prob.n);
+        let (mi, ni) = (int(m, "constraints")?, int(n, "rods")?);
+        // SAFETY: thread r < n reads p (3 n), its entries start[r]..start[r + 1] (< 2 m), each
+        // naming a constraint a < m: rows (10 m) and lam[a] (m); writes vel[6 r..6 r + 6] (6 n).
+        unsafe {
+            self.dev.launch(
+                n,
+                SolverRods {
+                    p: &prob.p,
+                    start: &prob.start,
+                    entries: &prob.entries,
+                    rows: &prob.cons.rows,
+                    lam,
+                    vel: &mut prob.vel,
+                    n: ni,
+                    trans: prob.drag.0,
+                    rot: prob.drag.1,
+                },
+            )?;
+        }
+        // The shift (or, unused, lam itself when there is none: has_shift = 0).
+        let (shift, has) = shift.map_or((lam, 0), |s| (s, 1));
+        // SAFETY: thread k < m reads row k, ci[k], cj[k] < n, vel of both (6 n) and shift[k]
+        // when has_shift (m), and writes out[k] (m).
+        unsafe {
+            self.dev.launch(
+                m,
+                SolverConstraints {
+                    rows: &prob.cons.rows,
+                    ci: &prob.cons.i,
+                    cj: &prob.cons.j,
+                    vel: &prob.vel,
+                    shift,
+                    out,
+                    m: mi,
+                    dt: prob.dt,
+                    has_shift: has,
+                },
+            )?;
+        }
+        Ok(())
+    }
+
+    /// `fused_stats`: `[max |min(lam_new, g_new)|, |s|^2, s.y, |y|^2]` from the device's
+    /// partials per chunk, folded in order here.
+    fn stats(
+        &self,
+        lam: &Buffer,
+        lam_new: &Buffer,
+        g: &Buffer,
+        g_new: &Buffer,
+        partial: &mut Buffer,
+        m: usize,
+    ) -> Result<[f64; 4], GpuError> {
+        let nchunks = m.div_ceil(CHUNK);
+        // SAFETY: thread c < ceil(m / CHUNK) reads the four vectors at c CHUNK..min((c + 1)
+        // CHUNK, m) (m each) and writes partial[4 c..4 c + 4] (4 ceil(m / CHUNK)).
+        unsafe {
+            self.dev.launch(
+                nchunks,
+                SolverStats {
+                    lam,
+                    lam_new,
+                    g,
+                    g_new,
+                    partial,
+                    m: int(m, "constraints")?,
+                    chunk: CHUNK as i32,
+                },
+            )?;
+        }
+        let part = self.dev.download_range(partial, 0, 4 * nchunks)?;
+        Ok(part.chunks(4).fold([0.0; 4], |acc, a| {
+            [
+                acc[0].max(a[0]),
+                acc[1] + a[1],
+                acc[2] + a[2],
+                acc[3] + a[3],
+            ]
+        }))
+    }
+}
