@@ -10,7 +10,8 @@
 //! - the contact constraints of the pairs against the CPU's (`constraints`) on dense rods with
 //!   touching, parallel and boundary-crossing pairs;
 //! - the contact solver against the CPU's (`ContactSolver::solve`, local drag) on dense
-//!   swimming, turning rods, cold and warm.
+//!   swimming, turning rods, cold and warm;
+//! - steps of the local-drag level against the CPU's stepper.
 //!
 //! On the host emulation (skipped with the reason where no C++ compiler runs, a failure with
 //! `MOTILE_REQUIRE_CXX=1`), blocks in order and in shuffled orders (the scatter's atomics then
@@ -30,6 +31,7 @@ use motile_particle::step::contact::ContactParams;
 use motile_particle::step::contact::{ContactProblem, ContactSolver};
 use motile_particle::step::gpu::DeviceContactProblem;
 use motile_particle::step::gpu::GpuStep;
+use motile_particle::step::stepper::Stepper;
 
 /// The stepper's reach with the default contact margin.
 fn reach() -> f64 {
@@ -325,6 +327,61 @@ fn check_solver(dev: &GpuStep, tol: f64) {
     }
 }
 
+/// Steps of the local-drag level on the device against the CPU's stepper: the same rods after
+/// `STEPS` steps within what the contact solver's tolerance allows. The two order their
+/// constraints differently (the CPU by cells, the device by pairs), so their multipliers agree
+/// to the complementarity tolerance (1e-7 l per step), not bit for bit.
+fn check_steps(dev: &GpuStep) {
+    const STEPS: usize = 10;
+    let (nu, l, dt) = (2.0f64, 6.0f64, 0.02);
+    let n = (nu * l * l * l).round() as usize;
+    let rods = random_nonoverlapping(n, l, DEFAULT_DIAMETER, 8, 1_000_000).unwrap();
+    let params = ContactParams::default();
+    let mut cpu = rods.clone();
+    let mut stepper = Stepper::new(Box::new(LocalDrag::new(DEFAULT_DIAMETER)), params.clone());
+    let mut on_device = dev.upload_rods(&rods).unwrap();
+    let (mut active, mut constraints) = (0, 0);
+    for k in 0..STEPS {
+        let want = stepper.step(&mut cpu, dt).unwrap();
+        let got = dev.step_local_drag(&mut on_device, dt, &params).unwrap();
+        assert_eq!(
+            got.contact.constraints, want.contact.constraints,
+            "step {k}: constraints on the device and the CPU"
+        );
+        assert!(
+            got.max_overlap <= params.overlap_tolerance,
+            "step {k}: overlap {}",
+            got.max_overlap
+        );
+        active += want.contact.active;
+        constraints += want.contact.constraints;
+    }
+    assert!(
+        active > 20,
+        "too few active contacts to test the solver: {active}"
+    );
+    let mut got = rods.clone();
+    dev.download_rods(&on_device, &mut got).unwrap();
+    let dx = (0..n)
+        .map(|i| norm(min_image(sub(got.x[i], cpu.x[i]), l)))
+        .fold(0.0, f64::max);
+    let dq = (0..n)
+        .flat_map(|i| (0..4).map(move |d| (i, d)))
+        .map(|(i, d)| (got.q[i][d] - cpu.q[i][d]).abs())
+        .fold(0.0, f64::max);
+    let bound = STEPS as f64 * params.tolerance;
+    assert!(
+        dx <= bound && dq <= bound,
+        "after {STEPS} steps the centres differ by {dx:.1e} l, the quaternions by {dq:.1e} \
+         (bound: {STEPS} x the solver tolerance = {bound:.0e})"
+    );
+    assert_eq!(got.image, cpu.image, "images crossed");
+    eprintln!(
+        "{STEPS} steps of {n} rods (nu = {nu}): {constraints} constraints, {active} active in all; \
+         centres within {dx:.1e} l, quaternions within {dq:.1e}"
+    );
+}
+
 fn wrap(y: Vec3, l: f64) -> Vec3 {
     y.map(|c| c.rem_euclid(l))
 }
@@ -385,6 +442,7 @@ fn device_step_rooms_match_their_twins_on_the_host_emulation() {
     check_update(&open().unwrap(), 0.0);
     check_constraints(&open().unwrap(), 0.0);
     check_solver(&open().unwrap(), 0.0);
+    check_steps(&open().unwrap());
 }
 
 #[test]
@@ -402,4 +460,5 @@ fn device_step_rooms_match_their_twins_on_cuda() {
     check_update(&GpuStep::open(Backend::Cuda).unwrap(), 1e-14);
     check_constraints(&GpuStep::open(Backend::Cuda).unwrap(), 1e-13);
     check_solver(&GpuStep::open(Backend::Cuda).unwrap(), 1e-10);
+    check_steps(&GpuStep::open(Backend::Cuda).unwrap());
 }

@@ -20,7 +20,10 @@
 //! - the contact solver (`solver.rs`, `contacts.cu`): BBPGD with its products (forces and
 //!   local drag per rod over per-rod lists in constraint order, rates per constraint) and its
 //!   reductions (the CPU's fixed chunks) on the device, the host deciding each iteration from
-//!   four downloaded numbers.
+//!   four downloaded numbers;
+//! - a step of the local-drag (`none`) level joining them (`step.rs`, `step.cu`): pairs,
+//!   constraints, swimming velocities, the contact problem, the contact velocities, the move
+//!   and the true overlaps after it (no warm start and no overlap projection yet).
 //!
 //! The hydrodynamic levels and GMRES still run on the CPU (issue 29's
 //! item 2 is open beyond these rooms), so a run does not use them yet.
@@ -30,11 +33,13 @@ mod cells;
 mod contacts;
 mod signatures;
 mod solver;
+mod step;
 mod update;
 
 pub use cells::DevicePairs;
 pub use contacts::DeviceConstraints;
 pub use solver::{DeviceContactError, DeviceContactProblem};
+pub use step::DeviceStepReport;
 pub use update::DeviceRods;
 
 use motile_gpu::{Backend, Buffer, Device, GpuError, THREADS};

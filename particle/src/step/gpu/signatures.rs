@@ -10,6 +10,7 @@ motile_gpu::kernels! {
         include_str!("cells.cu"),
         include_str!("update.cu"),
         include_str!("contacts.cu"),
+        include_str!("step.cu"),
         include_str!("../../ewald/gpu/scan.cu")
     );
 
@@ -221,6 +222,35 @@ motile_gpu::kernels! {
         partial: &'a mut Buffer<f64>,
         m: i32,
         chunk: i32,
+    }
+
+    /// The swimming velocities `u p` and no rotation.
+    pub(crate) struct SwimVelocities = "swim_velocities" {
+        q: &'a Buffer<f64>,
+        v: &'a mut Buffer<f64>,
+        w: &'a mut Buffer<f64>,
+        n: i32,
+        u: f64,
+    }
+
+    /// The contact velocities added to the rods' velocities.
+    pub(crate) struct AddVelocities = "add_velocities" {
+        vel: &'a Buffer<f64>,
+        v: &'a mut Buffer<f64>,
+        w: &'a mut Buffer<f64>,
+        n: i32,
+    }
+
+    /// Each constrained pair's true overlap.
+    pub(crate) struct PairOverlap = "pair_overlap" {
+        x: &'a Buffer<f64>,
+        q: &'a Buffer<f64>,
+        ci: &'a Buffer<i32>,
+        cj: &'a Buffer<i32>,
+        out: &'a mut Buffer<f64>,
+        m: i32,
+        l: f64,
+        b: f64,
     }
 }
 

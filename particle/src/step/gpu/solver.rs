@@ -53,15 +53,24 @@ pub struct DeviceContactProblem<'a> {
 }
 
 /// The problem's buffers on the device.
-struct Problem<'a> {
+pub(super) struct Problem<'a> {
     cons: &'a DeviceConstraints,
     p: Buffer,
     start: Buffer<i32>,
     entries: Buffer<i32>,
-    vel: Buffer,
+    pub(super) vel: Buffer,
     n: usize,
     drag: (f64, f64),
     dt: f64,
+}
+
+/// A solved problem: its buffers, the multipliers and the last gradient on the device.
+pub(super) struct Solved<'a> {
+    pub(super) prob: Problem<'a>,
+    pub(super) lam: Buffer,
+    g: Buffer,
+    iterations: usize,
+    residual: f64,
 }
 
 impl GpuStep {
@@ -73,6 +82,43 @@ impl GpuStep {
         params: &ContactParams,
         initial: &[f64],
     ) -> Result<(Vec<f64>, ContactReport), DeviceContactError> {
+        match self.solve_on_device(problem, params, initial)? {
+            None => Ok((Vec::new(), ContactReport::default())),
+            Some(s) => self.report(&s),
+        }
+    }
+
+    /// The multipliers (downloaded) and the report of a solved problem.
+    pub(super) fn report(
+        &self,
+        s: &Solved<'_>,
+    ) -> Result<(Vec<f64>, ContactReport), DeviceContactError> {
+        let (lam, g) = (self.dev.download(&s.lam)?, self.dev.download(&s.g)?);
+        let active = lam.iter().filter(|&&l| l > 0.0).count();
+        let predicted_overlap = g
+            .iter()
+            .map(|&x| -x)
+            .fold(f64::NEG_INFINITY, f64::max)
+            .max(0.0);
+        Ok((
+            lam,
+            ContactReport {
+                constraints: s.prob.cons.len,
+                active,
+                iterations: s.iterations,
+                residual: s.residual,
+                predicted_overlap,
+            },
+        ))
+    }
+
+    /// [`Self::solve_contacts`] leaving its results on the device (`None`: no constraints).
+    pub(super) fn solve_on_device<'a>(
+        &self,
+        problem: DeviceContactProblem<'a>,
+        params: &ContactParams,
+        initial: &[f64],
+    ) -> Result<Option<Solved<'a>>, DeviceContactError> {
         let DeviceContactProblem {
             rods,
             cons,
@@ -83,7 +129,7 @@ impl GpuStep {
         } = problem;
         let (m, n) = (cons.len, rods.len);
         if m == 0 {
-            return Ok((Vec::new(), ContactReport::default()));
+            return Ok(None);
         }
         assert!(
             initial.is_empty() || initial.len() == m,
@@ -261,27 +307,17 @@ impl GpuStep {
                 }
             }
         }
-        let (lam, g) = (dev.download(&lam)?, dev.download(&g)?);
-        let active = lam.iter().filter(|&&l| l > 0.0).count();
-        let predicted_overlap = g
-            .iter()
-            .map(|&x| -x)
-            .fold(f64::NEG_INFINITY, f64::max)
-            .max(0.0);
-        Ok((
+        Ok(Some(Solved {
+            prob,
             lam,
-            ContactReport {
-                constraints: m,
-                active,
-                iterations,
-                residual: res,
-                predicted_overlap,
-            },
-        ))
+            g,
+            iterations,
+            residual: res,
+        }))
     }
 
     /// `out = dt D^T M D lam + shift` on the device (the CPU's `apply`).
-    fn apply(
+    pub(super) fn apply(
         &self,
         prob: &mut Problem<'_>,
         lam: &Buffer,
