@@ -9,7 +9,10 @@
 //! - the golden mean-field run's mid-run checkpoint, written by the CPU, resumes on the
 //!   emulated GPU and ends where the CPU run ends;
 //! - a particle run at the dipole level with `--device gpu` writes the CPU run's time series
-//!   (every column but the wall-clock rate within 1e-9 relative).
+//!   (every column but the wall-clock rate within 1e-9 relative);
+//! - a particle run without hydrodynamics with `--device gpu`, whose whole step runs on the
+//!   device, writes the CPU run's time series within the contact solver's tolerance, and its
+//!   mid-run checkpoint (downloaded from the device) resumes on the CPU to the same end.
 //!
 //! Skipped, with the reason, where no C++ compiler runs (a failure with `MOTILE_REQUIRE_CXX=1`).
 
@@ -163,4 +166,79 @@ fn a_dipole_run_on_the_emulated_gpu_matches_the_cpu() {
     let (cpu, gpu) = cpu_and_gpu("particle", &cfg, tmp.path());
     let worst = compare(&cpu, &gpu, &["steps_per_second"], 1e-9, 1e-12);
     eprintln!("dipole run, emulated GPU against CPU: largest difference {worst:.1e}");
+}
+
+#[test]
+fn a_run_without_hydrodynamics_steps_on_the_emulated_gpu_and_resumes_on_the_cpu() {
+    if !emulation_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("none.toml");
+    let text = "box_length = 6\nvolume_fraction = 2\nhydrodynamics = \"none\"\ndt = 0.02\n\
+                t_end = 0.4\ndiagnostic_interval = 0.04\nsnapshot_interval = 0.2\n\
+                checkpoint_interval = 0.2\nvtk = false\n";
+    std::fs::write(&cfg, text).unwrap();
+    let (cpu, gpu) = cpu_and_gpu("particle", &cfg, tmp.path());
+    let log = std::fs::read_to_string(gpu.join("run.log")).unwrap();
+    assert!(
+        log.contains("the whole step runs on the GPU"),
+        "the run says where it ran:\n{log}"
+    );
+    // The device orders its constraints by pair, the CPU by cell, and starts each solve from
+    // zero (the CPU from the last step's multipliers): iterations and residuals differ, and
+    // the multipliers agree to the solver's complementarity tolerance, 1e-7 l of separation
+    // per step: velocities to about 1e-7 / dt = 5e-6 beta l (rotation rates, over arms of
+    // about l/2, twice that), i.e. 1e-5 of rates of order 1; positions to 1e-7 l per step.
+    let skip = [
+        "steps_per_second",
+        "solver_iterations",
+        "solver_residual",
+        "active_contacts",
+        "max_overlap",
+    ];
+    let worst = compare(&cpu, &gpu, &skip, 2e-5, 1e-9);
+    let ((h, rc), (_, rg)) = (rows(&cpu), rows(&gpu));
+    let k = h.iter().position(|c| c.starts_with("constraints")).unwrap();
+    assert!(
+        rc.iter().all(|r| r[k] > 10.0),
+        "too few contacts to test: {rc:?}"
+    );
+    let active = h
+        .iter()
+        .position(|c| c.starts_with("active_contacts"))
+        .unwrap();
+    for (a, b) in rc.iter().zip(&rg) {
+        assert!(
+            (a[active] - b[active]).abs() <= 0.02 * a[active] + 2.0,
+            "active {a:?} {b:?}"
+        );
+    }
+    eprintln!(
+        "run without hydrodynamics, emulated GPU against CPU: largest difference {worst:.1e}"
+    );
+    // The GPU run's checkpoint at t = 0.2 resumed on the CPU.
+    let resumed = tmp.path().join("resumed");
+    copy_dir(&gpu, &resumed);
+    for f in std::fs::read_dir(resumed.join("checkpoints")).unwrap() {
+        let p = f.unwrap().path();
+        if p.file_name()
+            .unwrap()
+            .to_str()
+            .unwrap()
+            .starts_with("ckpt_000000020")
+        {
+            std::fs::remove_file(p).unwrap();
+        }
+    }
+    let config = resumed.join("config.toml");
+    let text = std::fs::read_to_string(&config).unwrap();
+    std::fs::write(
+        &config,
+        text.replace("device = \"gpu\"", "device = \"cpu\""),
+    )
+    .unwrap();
+    motile(&["resume", resumed.to_str().unwrap()], false);
+    let worst = compare(&cpu, &resumed, &skip, 2e-5, 1e-9);
+    eprintln!("its checkpoint resumed on the CPU: largest difference {worst:.1e}");
 }

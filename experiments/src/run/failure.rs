@@ -37,6 +37,7 @@ impl From<&StepError> for FailureKind {
                 Self::Hydrodynamics
             }
             StepError::NonFinite(_) => Self::NonFinite,
+            StepError::Device(_) => Self::Device,
             StepError::DiameterMismatch { .. }
             | StepError::InvalidTimeStep(_)
             | StepError::NotShared { .. }

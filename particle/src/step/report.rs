@@ -70,6 +70,9 @@ pub enum StepError {
         /// Ranks asked for.
         ranks: usize,
     },
+    /// The device (feature `gpu`) failed.
+    #[error("the GPU step failed: {0}")]
+    Device(String),
     /// The time step is not a positive finite number.
     #[error("time step dt = {0} must be positive and finite (units of l / U)")]
     InvalidTimeStep(f64),

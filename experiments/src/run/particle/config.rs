@@ -310,12 +310,6 @@ impl ParticleRunConfig {
             "N l^3 / L^3",
         )?;
         range("dt", self.dt, 0.0, 0.05, true, "1/beta")?;
-        if self.device == crate::run::Device::Gpu && self.hydrodynamics == Hydrodynamics::None {
-            return Err(
-                "device = \"gpu\": the GPU does the hydrodynamic sums, and hydrodynamics = \"none\" has none; use hydrodynamics = \"dipole\" or \"sbt\", or device = \"cpu\""
-                    .into(),
-            );
-        }
         if self.lowest_modes && !self.hydrodynamics.has_flow() {
             return Err(
                 "lowest_modes = true: the modes are those of the flow, and hydrodynamics = \"none\" has none"

@@ -6,6 +6,7 @@
 //! the solvers' warm starts, so resuming continues the trajectory bit for bit.
 
 pub(crate) mod config;
+mod device;
 mod ranked;
 mod state;
 
@@ -96,6 +97,9 @@ pub struct ParticleModel {
     ranks: Option<Ranked>,
     /// The state before a failed step (the last good state to save).
     before: Option<ParticleCheckpoint>,
+    /// The step resident on the GPU (`device = "gpu"`, `hydrodynamics = "none"`): the rods
+    /// live there and `rods` is their copy as of the last download.
+    device: Option<device::DeviceStepper>,
     window: (Instant, u64),
     notes: Vec<String>,
     /// `modes.csv` (with `lowest_modes`): loaded at the first step of an invocation, rows
@@ -142,6 +146,13 @@ impl ParticleModel {
                 )
             })
             .collect();
+        let resident = cfg.device == run::Device::Gpu
+            && cfg.hydrodynamics == motile_particle::model::level::Hydrodynamics::None;
+        let device = if resident {
+            Some(device::open(&rods, &cfg.contact)?)
+        } else {
+            None
+        };
         Ok(Self {
             cfg: cfg.clone(),
             rods,
@@ -153,8 +164,13 @@ impl ParticleModel {
             warned_accuracy: false,
             ranks,
             before: None,
+            device,
             window: (Instant::now(), 0),
-            notes: if cfg.device == run::Device::Gpu {
+            notes: if resident {
+                vec![
+                    "the whole step runs on the GPU (device = \"gpu\", hydrodynamics = \"none\"); the rods are downloaded for outputs and checkpoints".into(),
+                ]
+            } else if cfg.device == run::Device::Gpu {
                 vec![
                     "the Fourier part of the hydrodynamic sums runs on the GPU (device = \"gpu\"); real space, contacts and the rest of the step on the CPU".into(),
                 ]
@@ -166,7 +182,11 @@ impl ParticleModel {
     }
 
     fn summary(mut self, s: &run::LoopSummary) -> RunSummary {
-        self.sync();
+        if let Err(e) = self.sync() {
+            // The loop has ended and written its outputs; the rods returned are the last ones
+            // downloaded (say so rather than fail).
+            eprintln!("warning: the final rods could not be downloaded from the GPU: {e:#}");
+        }
         RunSummary {
             steps: s.steps,
             final_step: self.step,
@@ -195,6 +215,13 @@ impl ParticleModel {
     }
 
     fn checkpoint_to(&self, path: &Path) -> anyhow::Result<()> {
+        if let Some(d) = &self.device {
+            let mut rods = self.rods.clone();
+            d.download(&mut rods)?;
+            let t = self.step as f64 * self.cfg.dt;
+            ParticleCheckpoint::of(&rods, &self.stepper, self.step, t).write(path)?;
+            return Ok(());
+        }
         self.checkpoint_now().write(path)?;
         Ok(())
     }
@@ -202,7 +229,16 @@ impl ParticleModel {
     /// On several ranks: bring the whole state to rank 0's `rods` and its mobility (the
     /// slender-body solution, for the outputs' force density; collective); returns the last
     /// step's kinematics there. One process: the stepper's.
-    fn sync(&mut self) -> Kinematics {
+    fn sync(&mut self) -> anyhow::Result<Kinematics> {
+        if let Some(d) = &self.device {
+            d.download(&mut self.rods)?;
+            let (velocities, angular_velocities, contact_forces) = d.kinematics()?;
+            return Ok(Kinematics {
+                velocities,
+                angular_velocities,
+                contact_forces,
+            });
+        }
         if let Some(r) = &self.ranks {
             let (rods, rows, _, rod_state) = r.gather();
             self.rods = rods;
@@ -210,17 +246,17 @@ impl ParticleModel {
                 let m = self.stepper.mobility_mut();
                 m.set_warm_state(m.warm_state_of(&rod_state));
             }
-            return Kinematics {
+            return Ok(Kinematics {
                 velocities: rows.iter().map(|x| [x[0], x[1], x[2]]).collect(),
                 angular_velocities: rows.iter().map(|x| [x[3], x[4], x[5]]).collect(),
                 contact_forces: rows.iter().map(|x| [x[6], x[7], x[8]]).collect(),
-            };
+            });
         }
-        Kinematics {
+        Ok(Kinematics {
             velocities: self.stepper.velocities().v.clone(),
             angular_velocities: self.stepper.velocities().w.clone(),
             contact_forces: self.stepper.contact_forces().to_vec(),
-        }
+        })
     }
 }
 
@@ -323,7 +359,7 @@ impl run::RunModel for ParticleModel {
 
     fn begin(&mut self, _io: &mut run::RunIo) -> anyhow::Result<bool> {
         self.pvd.clear();
-        self.sync();
+        self.sync()?;
         write_snapshot(&self.cfg, _io.run, &self.rods, 0, None, None, &mut self.pvd)?;
         Ok(true)
     }
@@ -340,6 +376,9 @@ impl run::RunModel for ParticleModel {
         // density (the time series' velocity norms, snapshots' point forces), which is that of
         // the state before the step.
         let (diag, snap, _) = self.every;
+        if self.device.is_some() {
+            return self.device_step(io, step);
+        }
         let before = match &self.ranks {
             None => Some(ParticleCheckpoint::of(
                 &self.rods,
@@ -372,7 +411,7 @@ impl run::RunModel for ParticleModel {
                     && self.stepper.mobility().rod_state_width() > 0
                     && (step.is_multiple_of(diag) || step.is_multiple_of(snap)) =>
             {
-                synced = Some(self.sync());
+                synced = Some(self.sync()?);
                 r
             }
             Ok(r) => r,
@@ -446,7 +485,7 @@ impl run::RunModel for ParticleModel {
         if step.is_multiple_of(snap) {
             let kin = match synced {
                 Some(k) => k,
-                None => self.sync(),
+                None => self.sync()?,
             };
             let forces = before.as_ref().and_then(|b| {
                 self.stepper.mobility().force_density().map(|fd| {
@@ -527,6 +566,84 @@ fn lowest_modes(stepper: &Stepper, at: &RodSet, t: f64) -> Vec<f64> {
 }
 
 impl ParticleModel {
+    /// A step resident on the GPU (`device = "gpu"`, `hydrodynamics = "none"`): the rods stay
+    /// on the device; they are downloaded for snapshots and checkpoints, and the state before
+    /// a failed step from the device's copy of it. The time-series row is the CPU step's (no
+    /// flow: its norms are zero).
+    fn device_step(&mut self, io: &mut run::RunIo, step: u64) -> Result<(), run::StepFailure> {
+        let dt = self.cfg.dt;
+        let (diag, snap, _) = self.every;
+        let d = self
+            .device
+            .as_mut()
+            .expect("a device step without a device");
+        let report = match d.step(dt) {
+            Ok(r) => r,
+            Err(e) => {
+                let mut rods = self.rods.clone();
+                d.download_before(&mut rods)?;
+                self.before = Some(ParticleCheckpoint::of(
+                    &rods,
+                    &self.stepper,
+                    self.step,
+                    self.step as f64 * dt,
+                ));
+                return Err(run::StepFailure::Step {
+                    kind: (&e).into(),
+                    step,
+                    t: (step - 1) as f64 * dt,
+                    what: format!("step {step} (t = {:.4}) failed: {e}", step as f64 * dt),
+                });
+            }
+        };
+        self.step = step;
+        self.window.1 += 1;
+        let t = step as f64 * dt;
+        if step.is_multiple_of(diag) {
+            let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
+            self.window = (Instant::now(), 0);
+            let c = &report.contact;
+            io.push_row(vec![
+                t,
+                rate,
+                c.constraints as f64,
+                c.active as f64,
+                c.iterations as f64,
+                c.residual,
+                report.max_overlap,
+                report.mean_speed,
+                report.polar_order,
+                0.0,
+                0.0,
+                0.0,
+                report.max_speed,
+                report.max_rotation_rate,
+                report.correction_active as f64,
+                report.projections as f64,
+                0.0,
+                0.0,
+                0.0,
+            ])?;
+            io.bar.set_message(format!(
+                "t = {t:.3}, {rate:.1} steps/s (GPU), {} contacts, max overlap {:.1e}",
+                c.active, report.max_overlap
+            ));
+        }
+        if step.is_multiple_of(snap) {
+            let kin = self.sync()?;
+            write_snapshot(
+                &self.cfg,
+                io.run,
+                &self.rods,
+                step,
+                Some(kin),
+                None,
+                &mut self.pvd,
+            )?;
+        }
+        Ok(())
+    }
+
     /// Append a row to `modes.csv` (loading the file at the first row of an invocation and
     /// dropping rows after the state the invocation started from).
     fn push_modes(&mut self, io: &run::RunIo, row: Vec<f64>) -> anyhow::Result<()> {

@@ -147,10 +147,10 @@ extern "C" __global__ void solver_axes(const double* q, double* p, int n) {
 }
 
 // Each rod's velocity (v, w: 6 values) under the contact forces of multipliers lam through the
-// local drag (trans (I + p p), rot (I - p p)).
+// local drag (trans (I + p p), rot (I - p p)), and the force and torque themselves (ft).
 extern "C" __global__ void solver_rods(const double* p, const int* start, const int* entries,
                                        const double* rows, const double* lam, double* vel,
-                                       int n, double trans, double rot) {
+                                       double* ft, int n, double trans, double rot) {
     int r = blockIdx.x * blockDim.x + threadIdx.x;
     if (r >= n) return;
     double f[3] = {0.0, 0.0, 0.0}, t[3] = {0.0, 0.0, 0.0};
@@ -173,6 +173,8 @@ extern "C" __global__ void solver_rods(const double* p, const int* start, const 
     for (int d = 0; d < 3; ++d) {
         vel[6 * r + d] = trans * (f[d] + pf * pr[d]);
         vel[6 * r + 3 + d] = rot * (t[d] - pt * pr[d]);
+        ft[6 * r + d] = f[d];
+        ft[6 * r + 3 + d] = t[d];
     }
 }
 

@@ -23,7 +23,9 @@
 //!   four downloaded numbers;
 //! - a step of the local-drag (`none`) level joining them (`step.rs`, `step.cu`): pairs,
 //!   constraints, swimming velocities, the contact problem, the contact velocities, the move
-//!   and the true overlaps after it (no warm start and no overlap projection yet).
+//!   and the true overlaps after it (no warm start and no overlap projection yet);
+//! - [`DeviceStepper`] (`stepper.rs`): that step with the rods resident on the device, the
+//!   CPU step's report and failures, downloads only for outputs, checkpoints and failures.
 //!
 //! The hydrodynamic levels and GMRES still run on the CPU (issue 29's
 //! item 2 is open beyond these rooms), so a run does not use them yet.
@@ -34,12 +36,14 @@ mod contacts;
 mod signatures;
 mod solver;
 mod step;
+mod stepper;
 mod update;
 
 pub use cells::DevicePairs;
 pub use contacts::DeviceConstraints;
 pub use solver::{DeviceContactError, DeviceContactProblem};
 pub use step::DeviceStepReport;
+pub use stepper::{DeviceStepper, RodKinematics};
 pub use update::DeviceRods;
 
 use motile_gpu::{Backend, Buffer, Device, GpuError, THREADS};

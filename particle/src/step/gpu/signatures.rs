@@ -157,6 +157,7 @@ motile_gpu::kernels! {
         rows: &'a Buffer<f64>,
         lam: &'a Buffer<f64>,
         vel: &'a mut Buffer<f64>,
+        ft: &'a mut Buffer<f64>,
         n: i32,
         trans: f64,
         rot: f64,
@@ -251,6 +252,18 @@ motile_gpu::kernels! {
         m: i32,
         l: f64,
         b: f64,
+    }
+
+    /// The step report's partial sums and maxima per chunk of rods.
+    pub(crate) struct StepStats = "step_stats" {
+        v: &'a Buffer<f64>,
+        w: &'a Buffer<f64>,
+        q: &'a Buffer<f64>,
+        ft: &'a Buffer<f64>,
+        partial: &'a mut Buffer<f64>,
+        n: i32,
+        chunk: i32,
+        has_ft: i32,
     }
 }
 

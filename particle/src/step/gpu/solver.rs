@@ -59,6 +59,8 @@ pub(super) struct Problem<'a> {
     start: Buffer<i32>,
     entries: Buffer<i32>,
     pub(super) vel: Buffer,
+    /// Each rod's contact force and torque (6 values) of the last product.
+    pub(super) ft: Buffer,
     n: usize,
     drag: (f64, f64),
     dt: f64,
@@ -205,6 +207,7 @@ impl GpuStep {
             start,
             entries,
             vel: dev.zeros::<f64>(6 * n)?,
+            ft: dev.zeros::<f64>(6 * n)?,
             n,
             drag,
             dt,
@@ -327,7 +330,8 @@ impl GpuStep {
         let (m, n) = (prob.cons.len, prob.n);
         let (mi, ni) = (int(m, "constraints")?, int(n, "rods")?);
         // SAFETY: thread r < n reads p (3 n), its entries start[r]..start[r + 1] (< 2 m), each
-        // naming a constraint a < m: rows (10 m) and lam[a] (m); writes vel[6 r..6 r + 6] (6 n).
+        // naming a constraint a < m: rows (10 m) and lam[a] (m); writes vel and ft at
+        // 6 r..6 r + 6 (6 n each).
         unsafe {
             self.dev.launch(
                 n,
@@ -338,6 +342,7 @@ impl GpuStep {
                     rows: &prob.cons.rows,
                     lam,
                     vel: &mut prob.vel,
+                    ft: &mut prob.ft,
                     n: ni,
                     trans: prob.drag.0,
                     rot: prob.drag.1,

@@ -35,3 +35,50 @@ extern "C" __global__ void pair_overlap(const double* x, const double* q, const 
     pair_constraint(x, q, ci[k], cj[k], l, b, 1e300, row);
     out[k] = -row[9];
 }
+
+// Per chunk c of `chunk` rods, in order: sum |v| (from -0.0, as the CPU's det_sum), the sums of
+// the axes' components, max |v|, max |w| (from 0), the first rod with a non-finite velocity or
+// -1, and the sums of the contact forces' components (0 without ft) (10 values at 10 c): the
+// step report's partials.
+extern "C" __global__ void step_stats(const double* v, const double* w, const double* q,
+                                      const double* ft, double* partial, int n, int chunk,
+                                      int has_ft) {
+    int c = blockIdx.x * blockDim.x + threadIdx.x;
+    if ((long long)c * chunk >= n) return;
+    int hi = (c + 1) * chunk < n ? (c + 1) * chunk : n;
+    double speed = -0.0, p0 = -0.0, p1 = -0.0, p2 = -0.0, vmax = 0.0, wmax = 0.0, bad = -1.0;
+    double f0 = -0.0, f1 = -0.0, f2 = -0.0;
+    for (int r = c * chunk; r < hi; ++r) {
+        const double* a = v + 3 * r;
+        const double* b = w + 3 * r;
+        double vn = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        double wn = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+        if (bad < 0.0 && !(isfinite(a[0]) && isfinite(a[1]) && isfinite(a[2]) && isfinite(b[0]) &&
+                           isfinite(b[1]) && isfinite(b[2])))
+            bad = (double)r;
+        double p[3];
+        quat_axis(q + 4 * r, p);
+        speed += vn;
+        p0 += p[0];
+        p1 += p[1];
+        p2 += p[2];
+        vmax = fmax(vmax, vn);
+        wmax = fmax(wmax, wn);
+        if (has_ft) {
+            f0 += ft[6 * r];
+            f1 += ft[6 * r + 1];
+            f2 += ft[6 * r + 2];
+        }
+    }
+    double* o = partial + 10 * c;
+    o[0] = speed;
+    o[1] = p0;
+    o[2] = p1;
+    o[3] = p2;
+    o[4] = vmax;
+    o[5] = wmax;
+    o[6] = bad;
+    o[7] = has_ft ? f0 : 0.0;
+    o[8] = has_ft ? f1 : 0.0;
+    o[9] = has_ft ? f2 : 0.0;
+}

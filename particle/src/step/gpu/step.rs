@@ -8,7 +8,7 @@ use super::{DeviceContactProblem, DeviceRods, GpuStep, int};
 use crate::hydro::mobility::LocalDrag;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED};
 use crate::step::contact::{ContactParams, ContactReport};
-use motile_gpu::GpuError;
+use motile_gpu::{Buffer, GpuError};
 
 /// What one device step did.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -19,6 +19,18 @@ pub struct DeviceStepReport {
     pub pairs: usize,
     /// Largest true overlap of the constrained pairs after the move (rod lengths; 0 if none).
     pub max_overlap: f64,
+    /// Its pair.
+    pub worst: (u32, u32),
+}
+
+/// A step's report with its velocities and contact forces left on the device.
+pub(super) struct StepOutput {
+    pub(super) report: DeviceStepReport,
+    /// Velocities and angular velocities (triples).
+    pub(super) v: Buffer,
+    pub(super) w: Buffer,
+    /// Each rod's contact force and torque (6 values), if there were constraints.
+    pub(super) ft: Option<Buffer>,
 }
 
 impl GpuStep {
@@ -34,6 +46,16 @@ impl GpuStep {
         dt: f64,
         params: &ContactParams,
     ) -> Result<DeviceStepReport, DeviceContactError> {
+        Ok(self.step_output(rods, dt, params)?.report)
+    }
+
+    /// [`Self::step_local_drag`] with the velocities and contact forces left on the device.
+    pub(super) fn step_output(
+        &self,
+        rods: &mut DeviceRods,
+        dt: f64,
+        params: &ContactParams,
+    ) -> Result<StepOutput, DeviceContactError> {
         let n = rods.len;
         let ni = int(n, "rods")?;
         let reach = ROD_LENGTH + rods.diameter + params.margin;
@@ -71,25 +93,33 @@ impl GpuStep {
             pairs: pairs.len,
             ..DeviceStepReport::default()
         };
-        if let Some(mut solved) = self.solve_on_device(problem, params, &[])? {
-            report.contact = self.report(&solved)?.1;
-            // The contact velocities of the multipliers (into the problem's vel), added.
-            let lam = std::mem::replace(&mut solved.lam, dev.zeros::<f64>(1)?);
-            let mut unused = dev.zeros::<f64>(cons.len)?;
-            self.apply(&mut solved.prob, &lam, None, &mut unused)?;
+        let mut ft = None;
+        let contact = match self.solve_on_device(problem, params, &[])? {
+            Some(mut solved) => {
+                report.contact = self.report(&solved)?.1;
+                // The contact velocities of the multipliers (into the problem's vel).
+                let lam = std::mem::replace(&mut solved.lam, dev.zeros::<f64>(1)?);
+                let mut unused = dev.zeros::<f64>(cons.len)?;
+                self.apply(&mut solved.prob, &lam, None, &mut unused)?;
+                Some((solved.prob.vel, solved.prob.ft))
+            }
+            None => None,
+        };
+        if let Some((vel, f)) = contact {
             // SAFETY: thread r < n reads vel[6 r..6 r + 6] (6 n) and updates v, w at
             // 3 r..3 r + 3 (3 n).
             unsafe {
                 dev.launch(
                     n,
                     AddVelocities {
-                        vel: &solved.prob.vel,
+                        vel: &vel,
                         v: &mut v,
                         w: &mut w,
                         n: ni,
                     },
                 )?;
             }
+            ft = Some(f);
         }
         self.update(rods, &v, &w, dt)?;
         if cons.len > 0 {
@@ -111,8 +141,21 @@ impl GpuStep {
                     },
                 )?;
             }
-            report.max_overlap = dev.download(&out)?.into_iter().fold(0.0, f64::max);
+            let overlaps = dev.download(&out)?;
+            // The largest, the first of equals (as the CPU's, which also breaks ties by pair).
+            let (k, o) = overlaps
+                .iter()
+                .enumerate()
+                .fold((0, 0.0), |a, (k, &o)| if o > a.1 { (k, o) } else { a });
+            report.max_overlap = o;
+            if o > 0.0 {
+                let (i, j) = (
+                    dev.download_range(&cons.i, k, 1)?[0],
+                    dev.download_range(&cons.j, k, 1)?[0],
+                );
+                report.worst = (i as u32, j as u32);
+            }
         }
-        Ok(report)
+        Ok(StepOutput { report, v, w, ft })
     }
 }

@@ -1,0 +1,53 @@
+//! The particle step resident on a GPU for runs with `device = "gpu"` and
+//! `hydrodynamics = "none"` ([`motile_particle::step::gpu::DeviceStepper`], feature `gpu`);
+//! without the feature, such a run is refused with how to build it.
+
+use motile_particle::model::rods::RodSet;
+use motile_particle::step::contact::ContactParams;
+
+#[cfg(feature = "gpu")]
+pub(crate) use motile_particle::step::gpu::DeviceStepper;
+
+/// Per rod: velocities, angular velocities and contact forces.
+#[cfg(not(feature = "gpu"))]
+type RodKinematics = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[f64; 3]>);
+
+/// Without the `gpu` feature no device stepper exists (the type has no values).
+#[cfg(not(feature = "gpu"))]
+#[derive(Debug)]
+pub(crate) enum DeviceStepper {}
+
+#[cfg(not(feature = "gpu"))]
+impl DeviceStepper {
+    pub(crate) fn step(
+        &mut self,
+        _dt: f64,
+    ) -> Result<motile_particle::step::report::StepReport, motile_particle::step::report::StepError>
+    {
+        match *self {}
+    }
+    pub(crate) fn download(&self, _rods: &mut RodSet) -> anyhow::Result<()> {
+        match *self {}
+    }
+    pub(crate) fn download_before(&self, _rods: &mut RodSet) -> anyhow::Result<()> {
+        match *self {}
+    }
+    pub(crate) fn kinematics(&self) -> anyhow::Result<RodKinematics> {
+        match *self {}
+    }
+}
+
+/// The device stepper for `rods` (`MOTILE_GPU_BACKEND` says which device, CUDA by default):
+/// an error, never a CPU fallback, where there is none.
+#[cfg(feature = "gpu")]
+pub(crate) fn open(rods: &RodSet, contact: &ContactParams) -> anyhow::Result<DeviceStepper> {
+    DeviceStepper::new(crate::run::gpu_backend()?, rods, contact.clone())
+        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))
+}
+
+#[cfg(not(feature = "gpu"))]
+pub(crate) fn open(_rods: &RodSet, _contact: &ContactParams) -> anyhow::Result<DeviceStepper> {
+    anyhow::bail!(
+        "device = \"gpu\": this motile was built without GPU support; build it with `cargo install --path experiments --features gpu` (CUDA is loaded when a run starts: the build needs nothing but cargo)"
+    )
+}

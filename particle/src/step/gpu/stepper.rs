@@ -1,0 +1,168 @@
+//! The particle step resident on the device for the local-drag (`none`) level: the rods stay
+//! on the device from step to step; the host downloads them, with the last step's velocities
+//! and contact forces, only for outputs, checkpoints and on failure (the state before the
+//! failed step is kept on the device). See [`super`].
+#![allow(unsafe_code)]
+
+use super::signatures::StepStats;
+use super::solver::DeviceContactError;
+use super::step::StepOutput;
+use super::{DeviceRods, GpuStep, int};
+use crate::model::geometry::Vec3;
+use crate::model::rods::RodSet;
+use crate::step::contact::ContactParams;
+use crate::step::report::{StepError, StepReport};
+use motile_gpu::{Backend, Buffer, GpuError};
+
+/// Per rod: velocities, angular velocities and contact forces.
+pub type RodKinematics = (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>);
+
+/// Rods per reduction chunk (`crate::parallel::reduce::CHUNK`, the CPU step's).
+const CHUNK: usize = 4096;
+
+/// The `none`-level stepper on a device.
+#[derive(Debug)]
+pub struct DeviceStepper {
+    gpu: GpuStep,
+    rods: DeviceRods,
+    before: DeviceRods,
+    contact: ContactParams,
+    /// The last step's velocities, angular velocities and contact forces and torques.
+    last: Option<(Buffer, Buffer, Option<Buffer>)>,
+}
+
+fn device_error(e: GpuError) -> StepError {
+    StepError::Device(e.to_string())
+}
+
+impl DeviceStepper {
+    /// The rods `rods` uploaded to the device `backend` names, stepped with contact settings
+    /// `contact`.
+    pub fn new(backend: Backend, rods: &RodSet, contact: ContactParams) -> Result<Self, GpuError> {
+        let gpu = GpuStep::open(backend)?;
+        let (a, b) = (gpu.upload_rods(rods)?, gpu.upload_rods(rods)?);
+        Ok(Self {
+            gpu,
+            rods: a,
+            before: b,
+            contact,
+            last: None,
+        })
+    }
+
+    /// What the device is, in words.
+    pub fn describe(&self) -> String {
+        self.gpu.describe()
+    }
+
+    /// One step of `dt`: [`GpuStep::step_local_drag`] with the CPU step's report (its sums
+    /// and maxima in the CPU's fixed chunks) and failures (the state before the step kept).
+    pub fn step(&mut self, dt: f64) -> Result<StepReport, StepError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(StepError::InvalidTimeStep(dt));
+        }
+        let dev = &self.gpu.dev;
+        let n = self.rods.len;
+        for (src, dst) in [
+            (&self.rods.x, &mut self.before.x),
+            (&self.rods.q, &mut self.before.q),
+        ] {
+            dev.copy((src, 0), (dst, 0), src.len())
+                .map_err(device_error)?;
+        }
+        dev.copy((&self.rods.image, 0), (&mut self.before.image, 0), 3 * n)
+            .map_err(device_error)?;
+        let StepOutput { report, v, w, ft } = self
+            .gpu
+            .step_output(&mut self.rods, dt, &self.contact)
+            .map_err(|e| match e {
+                DeviceContactError::Contact(c) => StepError::Contact(c),
+                DeviceContactError::Gpu(g) => device_error(g),
+            })?;
+        let nchunks = n.div_ceil(CHUNK);
+        let mut partial = dev
+            .zeros::<f64>(10 * nchunks.max(1))
+            .map_err(device_error)?;
+        // SAFETY: thread c < ceil(n / CHUNK) reads v, w (3 n), q (4 n) and, with has_ft, ft
+        // (6 n) at its chunk's rods, and writes partial[10 c..10 c + 10] (10 ceil(n / CHUNK)).
+        unsafe {
+            dev.launch(
+                nchunks,
+                StepStats {
+                    v: &v,
+                    w: &w,
+                    q: &self.rods.q,
+                    ft: ft.as_ref().unwrap_or(&v),
+                    partial: &mut partial,
+                    n: int(n, "rods").map_err(device_error)?,
+                    chunk: CHUNK as i32,
+                    has_ft: i32::from(ft.is_some()),
+                },
+            )
+            .map_err(device_error)?;
+        }
+        let part = dev.download(&partial).map_err(device_error)?;
+        let part: Vec<&[f64]> = part.chunks(10).take(nchunks).collect();
+        if let Some(bad) = part.iter().map(|c| c[6]).find(|&b| b >= 0.0) {
+            return Err(StepError::NonFinite(bad as usize));
+        }
+        if report.max_overlap > self.contact.overlap_tolerance {
+            return Err(StepError::Overlap {
+                i: report.worst.0,
+                j: report.worst.1,
+                overlap: report.max_overlap,
+                tolerance: self.contact.overlap_tolerance,
+            });
+        }
+        let sum = |k: usize| part.iter().map(|c| c[k]).sum::<f64>();
+        let max = |k: usize| part.iter().map(|c| c[k]).fold(0.0, f64::max);
+        let total = n.max(1) as f64;
+        let mp = [sum(1) / total, sum(2) / total, sum(3) / total];
+        let step = StepReport {
+            contact: report.contact,
+            max_overlap: report.max_overlap,
+            mean_speed: sum(0) / total,
+            max_speed: max(4),
+            max_rotation_rate: max(5),
+            polar_order: (mp[0] * mp[0] + mp[1] * mp[1] + mp[2] * mp[2]).sqrt(),
+            net_contact_force: [sum(7), sum(8), sum(9)],
+            ..StepReport::default()
+        };
+        self.last = Some((v, w, ft));
+        Ok(step)
+    }
+
+    /// The rods now into `rods` (the same rods).
+    pub fn download(&self, rods: &mut RodSet) -> Result<(), GpuError> {
+        self.gpu.download_rods(&self.rods, rods)
+    }
+
+    /// The rods before the last step into `rods` (after a failed step: the last good state).
+    pub fn download_before(&self, rods: &mut RodSet) -> Result<(), GpuError> {
+        self.gpu.download_rods(&self.before, rods)
+    }
+
+    /// The last step's velocities, angular velocities and contact forces (zeros before the
+    /// first step).
+    pub fn kinematics(&self) -> Result<RodKinematics, GpuError> {
+        let n = self.rods.len;
+        let Some((v, w, ft)) = &self.last else {
+            return Ok((vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![[0.0; 3]; n]));
+        };
+        let triples = |b: &[f64], stride: usize| -> Vec<Vec3> {
+            (0..n)
+                .map(|r| [b[stride * r], b[stride * r + 1], b[stride * r + 2]])
+                .collect()
+        };
+        let dev = &self.gpu.dev;
+        let f = match ft {
+            Some(ft) => triples(&dev.download(ft)?, 6),
+            None => vec![[0.0; 3]; n],
+        };
+        Ok((
+            triples(&dev.download(v)?, 3),
+            triples(&dev.download(w)?, 3),
+            f,
+        ))
+    }
+}
