@@ -295,12 +295,17 @@ pub struct ComplexRateFit {
 /// real `c0`, `c1` (a real field's modes carry `sigma` and `conj(sigma)` together, or two real
 /// rates), whose roots are `e^{sigma h}`. The lag `h` is a whole number of samples, chosen so
 /// that `|sigma| h` is not too small for the recurrence to resolve (`h` about a fifth of the
-/// window). `None` with too few samples or a degenerate system.
+/// window), and (`max_frequency` > 0) at most a quarter period of `max_frequency`, the
+/// highest angular frequency the series may carry: frequencies up to it then stay below the
+/// recurrence's Nyquist limit `pi / h` and cannot alias (a longer lag would fold them back:
+/// a root on the negative real axis reads as `Im sigma = pi / h`). `None` with too few samples
+/// or a degenerate system.
 pub fn fit_complex_rate(
     t: &[f64],
     series: &[Vec<num_complex::Complex64>],
     t0: f64,
     t1: f64,
+    max_frequency: f64,
 ) -> Option<ComplexRateFit> {
     use num_complex::Complex64;
     let idx: Vec<usize> = (0..t.len()).filter(|&k| t[k] >= t0 && t[k] <= t1).collect();
@@ -309,7 +314,14 @@ pub fn fit_complex_rate(
     }
     let (first, n) = (idx[0], idx.len());
     let dt = (t[idx[n - 1]] - t[first]) / (n - 1) as f64;
-    let lag = (n / 5).max(1);
+    let mut lag = (n / 5).max(1);
+    if max_frequency > 0.0 && dt > 0.0 {
+        let quarter = (0.5 * std::f64::consts::PI / (max_frequency * dt)).floor() as usize;
+        lag = lag.min(quarter.max(1));
+    }
+    if n < 2 * lag + 3 {
+        return None;
+    }
     // Normal equations of the real 2x2 least-squares problem.
     let (mut a11, mut a12, mut a22, mut b1, mut b2, mut yy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for s in series {
@@ -522,7 +534,7 @@ mod tests {
                     .collect()
             })
             .collect();
-        let f = fit_complex_rate(&t, &series, 0.0, 99.5).unwrap();
+        let f = fit_complex_rate(&t, &series, 0.0, 99.5, 0.0).unwrap();
         assert!(
             (f.sigma - sigma).norm() < 2e-3 * sigma.norm() && f.r_squared > 0.999,
             "{f:?}"
@@ -533,12 +545,27 @@ mod tests {
                 .map(|&t| Complex64::new((0.05 * t).exp() + 2.0 * (-0.02 * t).exp(), 0.0))
                 .collect(),
         ];
-        let f = fit_complex_rate(&t, &series, 0.0, 60.0).unwrap();
+        let f = fit_complex_rate(&t, &series, 0.0, 60.0, 0.0).unwrap();
         assert!(
             (f.sigma.re - 0.05).abs() < 1e-6
                 && f.sigma.im == 0.0
                 && (f.other.re + 0.02).abs() < 1e-6,
             "{f:?}"
         );
+        // A frequency above the default lag's Nyquist limit (window 100, lag 20: pi/20 =
+        // 0.157) aliases without the cap; with the highest frequency stated it is recovered.
+        let fast = Complex64::new(-0.01, 0.3);
+        let series: Vec<Vec<Complex64>> = vec![
+            t.iter()
+                .map(|&t| {
+                    let z = (fast * t).exp();
+                    Complex64::new(2.0 * z.re, 0.0)
+                })
+                .collect(),
+        ];
+        let aliased = fit_complex_rate(&t, &series, 0.0, 99.5, 0.0).unwrap();
+        assert!((aliased.sigma.im - 0.3).abs() > 0.05, "{aliased:?}");
+        let f = fit_complex_rate(&t, &series, 0.0, 99.5, 0.4).unwrap();
+        assert!((f.sigma - fast).norm() < 1e-6, "{f:?}");
     }
 }

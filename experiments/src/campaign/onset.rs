@@ -20,7 +20,7 @@ use motile_analysis::stats::{ComplexRateFit, GrowthFit, fit_complex_rate, growth
 use motile_particle::model::level::Hydrodynamics;
 use motile_particle::model::linear_theory::{growth_rate, lowest_mode};
 use motile_particle::model::units::{
-    DEFAULT_DIAMETER, continuum_growth_rate, meanfield_time_unit, zeta,
+    DEFAULT_DIAMETER, SWIM_SPEED, continuum_growth_rate, meanfield_time_unit, zeta,
 };
 use std::fmt::Write as _;
 use std::path::Path;
@@ -212,7 +212,7 @@ pub fn onset(
             } else {
                 t_end
             };
-            let complex = complex_fit(&dir, saturated)?;
+            let complex = complex_fit(&dir, saturated, l)?;
             let rotational_diffusion =
                 crate::report::curves::rotational_diffusion(&dir, saturated.min(0.5 * t_end))?;
             event(&format!(
@@ -257,7 +257,7 @@ pub fn onset(
 }
 
 /// The complex rate of the lowest box modes of the run in `dir` (its `modes.csv`) up to `t1`.
-fn complex_fit(dir: &Path, t1: f64) -> anyhow::Result<Option<ComplexRateFit>> {
+fn complex_fit(dir: &Path, t1: f64, box_length: f64) -> anyhow::Result<Option<ComplexRateFit>> {
     let path = dir.join("modes.csv");
     if !path.exists() {
         return Ok(None);
@@ -274,7 +274,10 @@ fn complex_fit(dir: &Path, t1: f64) -> anyhow::Result<Option<ComplexRateFit>> {
         })
         .filter(|s: &Vec<num_complex::Complex64>| s.iter().any(|z| z.norm() > 0.0))
         .collect();
-    Ok(fit_complex_rate(&t, &series, 0.0, t1))
+    // The lowest mode's frequencies lie below the free-streaming k U = 2 pi U / L (the edge of
+    // the continuous spectrum): the recurrence's lag must resolve them.
+    let free_streaming = 2.0 * std::f64::consts::PI * SWIM_SPEED / box_length;
+    Ok(fit_complex_rate(&t, &series, 0.0, t1, free_streaming))
 }
 
 /// How long the run of box `l` at `nu` lasts: the end time, or with `opts.periods` the
@@ -305,7 +308,7 @@ fn write_box_scan(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> any
         "nu,L/l,rods,sigma_re,sigma_im,modes_r_squared,t0,t1,box_rate,box_r_squared,box_growth_factor,d_r,theory_re,theory_im,theory_dr_re,theory_dr_im,seconds\n",
     );
     let mut md = format!(
-        "# Growth of the lowest box mode ({} model)\n\nEach run starts from the same seeded perturbation of the isotropic state (box-scale modes |m| = 1, amplitude {}). Measured: the complex rate of the lowest box modes' flow amplitudes (modes.csv; a two-rate linear recurrence shared by the three modes and their components, fitted from the start until the box-scale norm passes a quarter of its largest value), and the rods' rotational diffusion from <p(t).p(0)> = exp(-2 d_r t) over the snapshots before that. Theory: the dispersion relation of docs/MODEL.md §5b for the lowest mode k = 2 pi/L, without diffusion and with the measured d_r. Rates in 1/beta.\n\n| nu | L/l | rods | measured sigma | R^2 | window | box-norm growth | d_r | theory (d_r = 0) | theory (measured d_r) | Re: measured / theory | wall (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "# Growth of the lowest box mode ({} model)\n\nEach run starts from the same seeded perturbation of the isotropic state (box-scale modes |m| = 1, amplitude {}). Measured: the complex rate of the lowest box modes' flow amplitudes (modes.csv; a two-rate linear recurrence shared by the three modes and their components, fitted from the start until the box-scale norm passes a quarter of its largest value, its lag at most a quarter period of the free-streaming frequency 2 pi U/L so that no frequency of the mode aliases), and the rods' rotational diffusion from <p(t).p(0)> = exp(-2 d_r t) over the snapshots before that. Theory: the dispersion relation of docs/MODEL.md §5b for the lowest mode k = 2 pi/L, without diffusion and with the measured d_r. Rates in 1/beta.\n\n| nu | L/l | rods | measured sigma | R^2 | window | box-norm growth | d_r | theory (d_r = 0) | theory (measured d_r) | Re: measured / theory | wall (s) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         opts.hydrodynamics, opts.amplitude
     );
     for p in points {
