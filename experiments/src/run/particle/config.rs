@@ -363,6 +363,19 @@ impl ParticleRunConfig {
                 2.5 * self.dt
             ));
         }
+        // The step resident on the GPU searches neighbours in at least 3 cells of one contact
+        // reach per axis.
+        let reach = motile_particle::model::units::ROD_LENGTH + self.diameter + self.contact.margin;
+        if self.device == crate::run::Device::Gpu
+            && self.hydrodynamics == Hydrodynamics::None
+            && self.box_length < 3.0 * reach
+        {
+            return Err(format!(
+                "box_length = {} with device = \"gpu\" and hydrodynamics = \"none\": the GPU step needs a box of at least 3 contact reaches (3 x (l + b + contact.margin) = {} l); use a larger box or device = \"cpu\"",
+                self.box_length,
+                3.0 * reach
+            ));
+        }
         Ok(())
     }
 
