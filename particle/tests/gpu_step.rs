@@ -11,7 +11,8 @@
 //!   touching, parallel and boundary-crossing pairs;
 //! - the contact solver against the CPU's (`ContactSolver::solve`, local drag) on dense
 //!   swimming, turning rods, cold and warm;
-//! - steps of the local-drag level against the CPU's stepper.
+//! - steps of the local-drag level against the CPU's stepper, and the resident stepper
+//!   repeating bit for bit whatever order the blocks run in.
 //!
 //! On the host emulation (skipped with the reason where no C++ compiler runs, a failure with
 //! `MOTILE_REQUIRE_CXX=1`), blocks in order and in shuffled orders (the scatter's atomics then
@@ -29,8 +30,8 @@ use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH};
 use motile_particle::step::constraints::constraints;
 use motile_particle::step::contact::ContactParams;
 use motile_particle::step::contact::{ContactProblem, ContactSolver};
-use motile_particle::step::gpu::DeviceContactProblem;
 use motile_particle::step::gpu::GpuStep;
+use motile_particle::step::gpu::{DeviceContactProblem, DeviceStepper};
 use motile_particle::step::stepper::Stepper;
 
 /// The stepper's reach with the default contact margin.
@@ -382,6 +383,42 @@ fn check_steps(dev: &GpuStep) {
     );
 }
 
+/// The resident stepper repeats bit for bit: 30 steps with blocks in order and in two shuffled
+/// orders (so the integer atomics of the cell and constraint lists take other orders) give the
+/// same rods to the last bit.
+fn check_repeats() {
+    let (l, dt) = (6.0, 0.02);
+    let rods = random_nonoverlapping(432, l, DEFAULT_DIAMETER, 10, 1_000_000).unwrap();
+    let params = ContactParams::default();
+    let mut finals = Vec::new();
+    for seed in [0u64, 3, 99] {
+        let mut s = DeviceStepper::new(Backend::HostEmulation, &rods, params.clone()).unwrap();
+        s.shuffle_blocks(seed);
+        let mut active = 0;
+        for _ in 0..30 {
+            active += s.step(dt).unwrap().contact.active;
+        }
+        let mut got = rods.clone();
+        s.download(&mut got).unwrap();
+        finals.push((got, active));
+    }
+    assert!(
+        finals[0].1 > 20,
+        "too few active contacts to test: {}",
+        finals[0].1
+    );
+    for (k, (f, _)) in finals.iter().enumerate().skip(1) {
+        assert!(
+            f.x == finals[0].0.x && f.q == finals[0].0.q && f.image == finals[0].0.image,
+            "run {k} (blocks shuffled) differs from the run with blocks in order"
+        );
+    }
+    eprintln!(
+        "30 resident steps repeat bit for bit with blocks in order and shuffled twice ({} active contacts)",
+        finals[0].1
+    );
+}
+
 fn wrap(y: Vec3, l: f64) -> Vec3 {
     y.map(|c| c.rem_euclid(l))
 }
@@ -443,6 +480,7 @@ fn device_step_rooms_match_their_twins_on_the_host_emulation() {
     check_constraints(&open().unwrap(), 0.0);
     check_solver(&open().unwrap(), 0.0);
     check_steps(&open().unwrap());
+    check_repeats();
 }
 
 #[test]

@@ -55,6 +55,12 @@ impl DeviceStepper {
         self.gpu.describe()
     }
 
+    /// On the host emulation, run blocks in a random order at every launch (`seed` nonzero):
+    /// the atomics then take other orders, which the step's sorts must undo.
+    pub fn shuffle_blocks(&self, seed: u64) -> bool {
+        self.gpu.shuffle_blocks(seed)
+    }
+
     /// One step of `dt`: [`GpuStep::step_local_drag`] with the CPU step's report (its sums
     /// and maxima in the CPU's fixed chunks) and failures (the state before the step kept).
     pub fn step(&mut self, dt: f64) -> Result<StepReport, StepError> {
