@@ -1,8 +1,8 @@
 //! The rods' cell list and neighbour pairs on the device (`cells.cu`): see [`super`].
 #![allow(unsafe_code)]
 
+use super::device::{GpuStep, int};
 use super::signatures::{CellCount, CellOrder, CellScatter, PairCount, PairWrite};
-use super::{GpuStep, int};
 use crate::model::geometry::Vec3;
 use motile_gpu::{Buffer, GpuError};
 

@@ -1,8 +1,10 @@
 //! The contact constraints of the neighbour pairs on the device (`contacts.cu`): see [`super`].
 #![allow(unsafe_code)]
 
+use super::cells::DevicePairs;
+use super::device::{GpuStep, int};
 use super::signatures::{ContactFlag, ContactWrite};
-use super::{DevicePairs, DeviceRods, GpuStep, int};
+use super::update::DeviceRods;
 use crate::step::contact::Constraint;
 use motile_gpu::{Buffer, GpuError};
 

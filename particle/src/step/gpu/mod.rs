@@ -27,12 +27,13 @@
 //! - [`DeviceStepper`] (`stepper.rs`): that step with the rods resident on the device, the
 //!   CPU step's report and failures, downloads only for outputs, checkpoints and failures.
 //!
-//! The hydrodynamic levels and GMRES still run on the CPU (issue 29's
-//! item 2 is open beyond these rooms), so a run does not use them yet.
-#![allow(unsafe_code)]
+//! Runs with `device = "gpu"` and `hydrodynamics = "none"` step with [`DeviceStepper`]; the
+//! hydrodynamic levels and GMRES still run on the CPU (their sums' Fourier part on the device).
+//! The device itself and the prefix sum the rooms share are in `device.rs`.
 
 mod cells;
 mod contacts;
+mod device;
 mod signatures;
 mod solver;
 mod step;
@@ -41,66 +42,8 @@ mod update;
 
 pub use cells::DevicePairs;
 pub use contacts::DeviceConstraints;
+pub use device::GpuStep;
 pub use solver::{DeviceContactError, DeviceContactProblem};
 pub use step::DeviceStepReport;
 pub use stepper::{DeviceStepper, RodKinematics};
 pub use update::DeviceRods;
-
-use motile_gpu::{Backend, Buffer, Device, GpuError, THREADS};
-
-/// A device with the step's kernels compiled.
-#[derive(Debug)]
-pub struct GpuStep {
-    dev: Device,
-}
-
-fn int(v: usize, what: &str) -> Result<i32, GpuError> {
-    i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
-}
-
-impl GpuStep {
-    /// The device `backend` names, with the kernels compiled.
-    pub fn open(backend: Backend) -> Result<Self, GpuError> {
-        Ok(Self {
-            dev: Device::open(backend, &signatures::KERNELS)?,
-        })
-    }
-
-    /// What the device is, in words.
-    pub fn describe(&self) -> String {
-        self.dev.describe()
-    }
-
-    /// `start[0..=n]`: the exclusive prefix sum of `count[0..n]`, the last value the total
-    /// (`bin_scan`, one block).
-    fn scan(&self, count: &Buffer<i32>, start: &mut Buffer<i32>, n: usize) -> Result<(), GpuError> {
-        assert_eq!(
-            THREADS, 256,
-            "bin_scan's shared array holds 256 partial sums"
-        );
-        if count.len() < n || start.len() < n + 1 {
-            return Err(GpuError::Input(format!(
-                "prefix sum of {n} values: buffers of {} and {}",
-                count.len(),
-                start.len()
-            )));
-        }
-        // SAFETY: one block of THREADS = 256 threads (asserted, the size of its shared array):
-        // reads count[0..n] and writes start[0..=n], both checked above.
-        unsafe {
-            self.dev.launch(
-                THREADS as usize,
-                signatures::CellScan {
-                    count,
-                    start,
-                    nbins: int(n, "values")?,
-                },
-            )
-        }
-    }
-
-    /// On the host emulation, run blocks in a random order at every launch (to expose races).
-    pub fn shuffle_blocks(&self, seed: u64) -> bool {
-        self.dev.shuffle_blocks(seed)
-    }
-}

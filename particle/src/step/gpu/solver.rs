@@ -11,11 +11,13 @@
 //! iteration, the round trip this room still has.
 #![allow(unsafe_code)]
 
+use super::contacts::DeviceConstraints;
+use super::device::{GpuStep, int};
 use super::signatures::{
     SolverAxes, SolverConstraints, SolverDots, SolverGp, SolverIndexCount, SolverIndexOrder,
     SolverIndexScatter, SolverProject, SolverQ, SolverRods, SolverStats,
 };
-use super::{DeviceConstraints, DeviceRods, GpuStep, int};
+use super::update::DeviceRods;
 use crate::step::contact::{ContactError, ContactParams, ContactReport, next_step};
 use motile_gpu::{Buffer, GpuError};
 

@@ -2,9 +2,11 @@
 //! see [`super`].
 #![allow(unsafe_code)]
 
+use super::device::{GpuStep, int};
 use super::signatures::{AddVelocities, PairOverlap, SwimVelocities};
 use super::solver::DeviceContactError;
-use super::{DeviceContactProblem, DeviceRods, GpuStep, int};
+use super::solver::DeviceContactProblem;
+use super::update::DeviceRods;
 use crate::hydro::mobility::LocalDrag;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED};
 use crate::step::contact::{ContactParams, ContactReport};

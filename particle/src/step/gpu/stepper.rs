@@ -4,10 +4,11 @@
 //! failed step is kept on the device). See [`super`].
 #![allow(unsafe_code)]
 
+use super::device::{GpuStep, int};
 use super::signatures::StepStats;
 use super::solver::DeviceContactError;
 use super::step::StepOutput;
-use super::{DeviceRods, GpuStep, int};
+use super::update::DeviceRods;
 use crate::model::geometry::Vec3;
 use crate::model::rods::RodSet;
 use crate::step::contact::ContactParams;

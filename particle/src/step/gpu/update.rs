@@ -1,8 +1,8 @@
 //! The rods' update on the device (`update.cu`): see [`super`].
 #![allow(unsafe_code)]
 
+use super::device::{GpuStep, int};
 use super::signatures::RodUpdate;
-use super::{GpuStep, int};
 use crate::model::geometry::Vec3;
 use crate::model::rods::RodSet;
 use motile_gpu::{Buffer, GpuError};
