@@ -223,7 +223,9 @@ def test_interrupted_run_resumes_to_the_same_result(runs, tmp_path):
     uninterrupted run ended, bit for bit."""
     base, _ = runs
     out = tmp_path / "interrupted"
-    cfg = dict(PARTICLE, t_end=4.0)
+    # Long enough that the interrupt lands while the run steps (the callback sees progress
+    # every 20 ms; a run of a few hundred milliseconds can end first on an idle machine).
+    cfg = dict(PARTICLE, t_end=20.0)
     timer = None
 
     def progress(p, n, t):
