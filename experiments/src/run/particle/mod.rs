@@ -24,6 +24,7 @@ use motile_analysis::correlation::{CorrelationOptions, velocity_modes, velocity_
 use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
 use motile_particle::step::contact::WarmStart;
+use motile_particle::step::report::StepReport;
 use motile_particle::step::stepper::Stepper;
 use std::path::Path;
 use std::time::Instant;
@@ -450,27 +451,7 @@ impl run::RunModel for ParticleModel {
                 Some(b) => velocity_norms(&self.stepper, &b.rods)?,
                 None => (0.0, 0.0),
             };
-            io.push_row(vec![
-                t,
-                rate,
-                c.constraints as f64,
-                c.active as f64,
-                c.iterations as f64,
-                c.residual,
-                report.max_overlap,
-                report.mean_speed,
-                report.polar_order,
-                report.hydro.gmres_iterations as f64,
-                report.hydro.gmres_residual,
-                norms.0,
-                report.max_speed,
-                report.max_rotation_rate,
-                report.correction_active as f64,
-                report.projections as f64,
-                report.hydro.sum_error_ratio,
-                report.hydro.sum_level as f64,
-                norms.1,
-            ])?;
+            io.push_row(series_row(t, rate, &report, norms))?;
             io.bar.set_message(format!(
                 "t = {t:.3}, {rate:.1} steps/s, {} contacts, max overlap {:.1e}",
                 c.active, report.max_overlap
@@ -529,6 +510,33 @@ impl run::RunModel for ParticleModel {
             .write(path)?;
         Ok(())
     }
+}
+
+/// A row of `timeseries.csv` ([`COLUMNS`]) from a step's report, the wall-clock rate and the
+/// flow's norms (all and box-scale modes).
+fn series_row(t: f64, rate: f64, report: &StepReport, norms: (f64, f64)) -> Vec<f64> {
+    let c = &report.contact;
+    vec![
+        t,
+        rate,
+        c.constraints as f64,
+        c.active as f64,
+        c.iterations as f64,
+        c.residual,
+        report.max_overlap,
+        report.mean_speed,
+        report.polar_order,
+        report.hydro.gmres_iterations as f64,
+        report.hydro.gmres_residual,
+        norms.0,
+        report.max_speed,
+        report.max_rotation_rate,
+        report.correction_active as f64,
+        report.projections as f64,
+        report.hydro.sum_error_ratio,
+        report.hydro.sum_level as f64,
+        norms.1,
+    ]
 }
 
 /// The wavevectors of `modes.csv`: the three lowest box modes.
@@ -603,27 +611,7 @@ impl ParticleModel {
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
             let c = &report.contact;
-            io.push_row(vec![
-                t,
-                rate,
-                c.constraints as f64,
-                c.active as f64,
-                c.iterations as f64,
-                c.residual,
-                report.max_overlap,
-                report.mean_speed,
-                report.polar_order,
-                0.0,
-                0.0,
-                0.0,
-                report.max_speed,
-                report.max_rotation_rate,
-                report.correction_active as f64,
-                report.projections as f64,
-                0.0,
-                0.0,
-                0.0,
-            ])?;
+            io.push_row(series_row(t, rate, &report, (0.0, 0.0)))?;
             io.bar.set_message(format!(
                 "t = {t:.3}, {rate:.1} steps/s (GPU), {} contacts, max overlap {:.1e}",
                 c.active, report.max_overlap
