@@ -21,8 +21,8 @@ use super::update::DeviceRods;
 use crate::step::contact::{ContactError, ContactParams, ContactReport, next_step};
 use motile_gpu::{Buffer, GpuError};
 
-/// Reduction chunk: `crate::parallel::reduce::CHUNK`, the CPU solver's.
-const CHUNK: usize = 4096;
+/// The CPU's reduction chunk, so the device's partial sums are the CPU's.
+use crate::parallel::reduce::CHUNK;
 
 /// A failure of the device solver: the device's, or the solver's own (as on the CPU).
 #[derive(Debug, thiserror::Error)]

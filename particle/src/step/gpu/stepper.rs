@@ -18,8 +18,8 @@ use motile_gpu::{Backend, Buffer, GpuError};
 /// Per rod: velocities, angular velocities and contact forces.
 pub type RodKinematics = (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>);
 
-/// Rods per reduction chunk (`crate::parallel::reduce::CHUNK`, the CPU step's).
-const CHUNK: usize = 4096;
+/// The CPU's reduction chunk, so the device's partial sums are the CPU's.
+use crate::parallel::reduce::CHUNK;
 
 /// The `none`-level stepper on a device.
 #[derive(Debug)]
