@@ -56,6 +56,12 @@ mod with_mpi {
             None => Command::new(bin),
         };
         cmd.arg("--threads").arg("1").args(args);
+        // Open MPI keeps a session directory under TMPDIR named by host and user only; two
+        // runs starting at once (the tests run in parallel) race to create it and one aborts
+        // in MPI_Init ("File exists"). Each run gets its own.
+        let session = tempfile::tempdir().expect("a temporary folder for Open MPI's session");
+        cmd.env("TMPDIR", session.path())
+            .env("OMPI_MCA_orte_tmpdir_base", session.path());
         cmd.stdout(std::process::Stdio::piped());
         cmd.stderr(std::process::Stdio::piped());
         let mut child = cmd.spawn().expect("start motile (is mpirun installed?)");
