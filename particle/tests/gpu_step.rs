@@ -12,7 +12,9 @@
 //! - the contact solver against the CPU's (`ContactSolver::solve`, local drag) on dense
 //!   swimming, turning rods, cold and warm;
 //! - steps of the local-drag level against the CPU's stepper, and the resident stepper
-//!   repeating bit for bit whatever order the blocks run in.
+//!   repeating bit for bit whatever order the blocks run in;
+//! - steps of the `dipole` and `sbt-explicit` levels (their flow from the host, contacts and
+//!   the move on the device) against the CPU's stepper with the same mobility.
 //!
 //! On the host emulation (skipped with the reason where no C++ compiler runs, a failure with
 //! `MOTILE_REQUIRE_CXX=1`), blocks in order and in shuffled orders (the scatter's atomics then
@@ -20,11 +22,16 @@
 //! `scripts/device_run.sh parity` runs.
 
 use motile_gpu::Backend;
-use motile_particle::hydro::mobility::LocalDrag;
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::explicit::ExplicitSlender;
+use motile_particle::hydro::mobility::{LocalDrag, Mobility, RodVelocities};
+use motile_particle::hydro::slender::SlenderParams;
 use motile_particle::model::geometry::{
     Vec3, axpy, cross, dot, min_image, norm, quat_exp, quat_mul, scale, sub,
 };
 use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::SWIM_SPEED;
 use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH};
 use motile_particle::step::constraints::constraints;
@@ -383,6 +390,89 @@ fn check_steps(dev: &GpuStep) {
     );
 }
 
+/// Steps of the levels whose flow is computed on the host and whose contacts act through the
+/// local drag (`dipole`, `sbt-explicit`): the resident stepper fed each step the free
+/// velocities of its own downloaded rods against the CPU's stepper with the same mobility, on
+/// suspensions dense enough for contacts every step. The free velocities are the same function
+/// of the rods on both sides, so the rods agree within what the contact solver's tolerance
+/// allows (as for the `none` level), times the flow's sensitivity to the positions over the
+/// steps (a factor 10). The point stresslets' near field turns neighbours fast enough that
+/// the move leaves overlaps the projection must remove: both sides project in the same steps.
+fn check_flow_steps(open: &dyn Fn() -> DeviceStepper, rods: &RodSet, level: &str) {
+    const STEPS: usize = 10;
+    let dt = 0.02;
+    let l = rods.box_length;
+    let params = ContactParams::default();
+    let mobility = || -> Box<dyn Mobility> {
+        let sum = Box::new(SpectralEwald::new(1e-8).unwrap());
+        match level {
+            "dipole" => Box::new(Dipole::new(sum, DEFAULT_DIAMETER)),
+            _ => Box::new(ExplicitSlender::new(
+                SlenderParams::for_diameter(DEFAULT_DIAMETER),
+                sum,
+            )),
+        }
+    };
+    let mut cpu = rods.clone();
+    let mut stepper = Stepper::new(mobility(), params.clone());
+    let mut host = mobility();
+    let mut device = open();
+    let mut on_host = rods.clone();
+    let mut free = RodVelocities::zeros(rods.len());
+    let (mut active, mut projections, mut flow) = (0, 0, 0.0f64);
+    for k in 0..STEPS {
+        let want = stepper.step(&mut cpu, dt).unwrap();
+        device.download(&mut on_host).unwrap();
+        host.free_velocities(&on_host, &on_host.orientations(), &mut free)
+            .unwrap();
+        let p = on_host.orientations();
+        flow = flow.max(
+            free.v
+                .iter()
+                .zip(&p)
+                .map(|(v, p)| norm(axpy(*v, -SWIM_SPEED, *p)))
+                .fold(0.0, f64::max),
+        );
+        let got = device.step_from(dt, Some((&free.v, &free.w))).unwrap();
+        assert_eq!(
+            got.contact.constraints, want.contact.constraints,
+            "{level}, step {k}: constraints on the device and the CPU"
+        );
+        assert_eq!(
+            got.projections, want.projections,
+            "{level}, step {k}: overlap projections on the device and the CPU"
+        );
+        active += want.contact.active;
+        projections += want.projections;
+    }
+    assert!(active > 20, "{level}: too few active contacts: {active}");
+    assert!(
+        flow > 1e-3,
+        "{level}: the flow is too weak to test ({flow:.1e})"
+    );
+    device.download(&mut on_host).unwrap();
+    let dx = (0..rods.len())
+        .map(|i| norm(min_image(sub(on_host.x[i], cpu.x[i]), l)))
+        .fold(0.0, f64::max);
+    let dq = (0..rods.len())
+        .flat_map(|i| (0..4).map(move |d| (i, d)))
+        .map(|(i, d)| (on_host.q[i][d] - cpu.q[i][d]).abs())
+        .fold(0.0, f64::max);
+    let bound = 10.0 * STEPS as f64 * params.tolerance;
+    assert!(
+        dx <= bound && dq <= bound,
+        "{level}: after {STEPS} steps the centres differ by {dx:.1e} l, the quaternions by \
+         {dq:.1e} (bound {bound:.0e})"
+    );
+    assert_eq!(on_host.image, cpu.image, "{level}: images crossed");
+    eprintln!(
+        "{level}: {STEPS} steps of {} rods, flow up to {flow:.2e} beta l, {active} active \
+         contacts, {projections} overlap projections; centres within {dx:.1e} l, quaternions \
+         within {dq:.1e}",
+        rods.len()
+    );
+}
+
 /// The resident stepper repeats bit for bit: 30 steps with blocks in order and in two shuffled
 /// orders (so the integer atomics of the cell and constraint lists take other orders) give the
 /// same rods to the last bit.
@@ -481,6 +571,11 @@ fn device_step_rooms_match_their_twins_on_the_host_emulation() {
     check_solver(&open().unwrap(), 0.0);
     check_steps(&open().unwrap());
     check_repeats();
+    let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).unwrap();
+    let stepper = || DeviceStepper::new(Backend::HostEmulation, &rods, ContactParams::default());
+    for level in ["dipole", "sbt-explicit"] {
+        check_flow_steps(&|| stepper().unwrap(), &rods, level);
+    }
 }
 
 #[test]
@@ -499,4 +594,9 @@ fn device_step_rooms_match_their_twins_on_cuda() {
     check_constraints(&GpuStep::open(Backend::Cuda).unwrap(), 1e-13);
     check_solver(&GpuStep::open(Backend::Cuda).unwrap(), 1e-10);
     check_steps(&GpuStep::open(Backend::Cuda).unwrap());
+    let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).unwrap();
+    let stepper = || DeviceStepper::new(Backend::Cuda, &rods, ContactParams::default());
+    for level in ["dipole", "sbt-explicit"] {
+        check_flow_steps(&|| stepper().unwrap(), &rods, level);
+    }
 }

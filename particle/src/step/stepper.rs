@@ -76,7 +76,7 @@ fn gather(order: &[u32], v: &[Vec3]) -> Vec<Vec3> {
 }
 
 /// Rounds of position projection per step at most.
-const PROJECTIONS: usize = 5;
+pub(crate) const PROJECTIONS: usize = 5;
 
 impl Stepper {
     /// A stepper with the given mobility and contact settings.

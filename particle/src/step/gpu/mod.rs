@@ -22,13 +22,21 @@
 //!   reductions (the CPU's fixed chunks) on the device, the host deciding each iteration from
 //!   four downloaded numbers;
 //! - a step of the local-drag (`none`) level joining them (`step.rs`, `step.cu`): pairs,
-//!   constraints, swimming velocities, the contact problem, the contact velocities, the move
-//!   and the true overlaps after it (no warm start and no overlap projection yet);
+//!   constraints, swimming velocities, the contact problem, the contact velocities, the move,
+//!   the true overlaps after it and their projection (the stepper's: the same pairs'
+//!   constraints rebuilt, a contact problem with no free motion through the translational
+//!   drag, the rods translated; no warm start yet);
 //! - [`DeviceStepper`] (`stepper.rs`): that step with the rods resident on the device, the
-//!   CPU step's report and failures, downloads only for outputs, checkpoints and failures.
+//!   CPU step's report and failures, downloads only for outputs, checkpoints and failures;
+//!   [`DeviceStepper::step_from`] takes the free velocities from the host instead of
+//!   swimming alone: the step of the levels whose contacts act through the local drag
+//!   (`dipole`, `sbt-explicit`), their flow summed on the host (its Fourier part on the
+//!   device), which then downloads the rods (7 values each) and uploads the free velocities
+//!   (6) every step.
 //!
-//! Runs with `device = "gpu"` and `hydrodynamics = "none"` step with [`DeviceStepper`]; the
-//! hydrodynamic levels and GMRES still run on the CPU (their sums' Fourier part on the device).
+//! Runs with `device = "gpu"` step with [`DeviceStepper`] at the `none`, `dipole` and
+//! `sbt-explicit` levels; `sbt` (GMRES, contact forces through the full mobility) still runs
+//! on the CPU, its sums' Fourier part on the device.
 //! The device itself and the prefix sum the rooms share are in `device.rs`.
 
 mod cells;

@@ -242,6 +242,19 @@ motile_gpu::kernels! {
         n: i32,
     }
 
+    /// The overlap projection's move: translation, velocities and contact forces.
+    pub(crate) struct ProjectionMove = "projection_move" {
+        x: &'a mut Buffer<f64>,
+        image: &'a mut Buffer<i32>,
+        vel: &'a Buffer<f64>,
+        pft: &'a Buffer<f64>,
+        v: &'a mut Buffer<f64>,
+        ft: &'a mut Buffer<f64>,
+        n: i32,
+        dt: f64,
+        l: f64,
+    }
+
     /// Each constrained pair's true overlap.
     pub(crate) struct PairOverlap = "pair_overlap" {
         x: &'a Buffer<f64>,

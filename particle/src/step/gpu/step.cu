@@ -25,6 +25,21 @@ extern "C" __global__ void add_velocities(const double* vel, double* v, double* 
     }
 }
 
+// The overlap projection's move (the stepper's projection round): rod r translated by dt dv
+// (dv the first three of its 6 values in vel; move_wrapped), its velocity v += dv and its
+// contact force (the first three of its 6 values in ft) += the projection's (pft).
+extern "C" __global__ void projection_move(double* x, int* image, const double* vel,
+                                           const double* pft, double* v, double* ft, int n,
+                                           double dt, double l) {
+    int r = blockIdx.x * blockDim.x + threadIdx.x;
+    if (r >= n) return;
+    move_wrapped(x + 3 * r, image + 3 * r, vel + 6 * r, dt, l);
+    for (int d = 0; d < 3; ++d) {
+        v[3 * r + d] = v[3 * r + d] + 1.0 * vel[6 * r + d];
+        ft[6 * r + d] = ft[6 * r + d] + 1.0 * pft[6 * r + d];
+    }
+}
+
 // b - |y_i - y_j| of each constrained pair at the rods' present state (true_overlap's terms).
 extern "C" __global__ void pair_overlap(const double* x, const double* q, const int* ci,
                                         const int* cj, double* out, int m, double l,

@@ -2,14 +2,18 @@
 //! see [`super`].
 #![allow(unsafe_code)]
 
+use super::cells::DevicePairs;
+use super::contacts::DeviceConstraints;
 use super::device::{GpuStep, int};
-use super::signatures::{AddVelocities, PairOverlap, SwimVelocities};
+use super::signatures::{AddVelocities, PairOverlap, ProjectionMove, SwimVelocities};
 use super::solver::DeviceContactError;
 use super::solver::DeviceContactProblem;
 use super::update::DeviceRods;
 use crate::hydro::mobility::LocalDrag;
+use crate::model::geometry::Vec3;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED};
 use crate::step::contact::{ContactParams, ContactReport};
+use crate::step::stepper::PROJECTIONS;
 use motile_gpu::{Buffer, GpuError};
 
 /// What one device step did.
@@ -23,6 +27,8 @@ pub struct DeviceStepReport {
     pub max_overlap: f64,
     /// Its pair.
     pub worst: (u32, u32),
+    /// Rounds of the overlap projection.
+    pub projections: usize,
 }
 
 /// A step's report with its velocities and contact forces left on the device.
@@ -39,24 +45,27 @@ impl GpuStep {
     /// One step of swimming rods with contacts and no hydrodynamics (the `none` level) on the
     /// device: neighbour pairs, constraints, the swimming velocities, the contact problem
     /// (from zero: no warm start), the velocities with the contact forces through the local
-    /// drag, the move, and the true overlaps after it. What the CPU's step does beyond this
-    /// (warm starts, the projection of overlaps above half the tolerance, the step's
-    /// statistics) is not on the device yet; the overlap is reported, not corrected.
+    /// drag, the move, the true overlaps after it and their projection where they exceed
+    /// half the tolerance (as the CPU's stepper). The warm start of the contact problem and
+    /// the step's statistics ([`super::DeviceStepper`]) are not in this function.
     pub fn step_local_drag(
         &self,
         rods: &mut DeviceRods,
         dt: f64,
         params: &ContactParams,
     ) -> Result<DeviceStepReport, DeviceContactError> {
-        Ok(self.step_output(rods, dt, params)?.report)
+        Ok(self.step_output(rods, dt, params, None)?.report)
     }
 
-    /// [`Self::step_local_drag`] with the velocities and contact forces left on the device.
+    /// [`Self::step_local_drag`] with the velocities and contact forces left on the device,
+    /// from the free velocities `free` (velocities and angular velocities per rod, computed
+    /// elsewhere: a hydrodynamic level's flow) where given, else from swimming alone.
     pub(super) fn step_output(
         &self,
         rods: &mut DeviceRods,
         dt: f64,
         params: &ContactParams,
+        free: Option<(&[Vec3], &[Vec3])>,
     ) -> Result<StepOutput, DeviceContactError> {
         let n = rods.len;
         let ni = int(n, "rods")?;
@@ -64,25 +73,46 @@ impl GpuStep {
         let pairs = self.build(&rods.x, n, rods.box_length, reach)?;
         let cons = self.constraints(rods, &pairs, params.margin)?;
         let dev = &self.dev;
-        let mut v = dev.zeros::<f64>(3 * n)?;
-        let mut w = dev.zeros::<f64>(3 * n)?;
-        if rods.q.len() < 4 * n {
-            return Err(GpuError::Input(format!("quaternions shorter than {n} rods")).into());
-        }
-        // SAFETY: thread r < n reads q[4 r..4 r + 4] (checked) and writes v, w at 3 r..3 r + 3
-        // (3 n allocated).
-        unsafe {
-            dev.launch(
-                n,
-                SwimVelocities {
-                    q: &rods.q,
-                    v: &mut v,
-                    w: &mut w,
-                    n: ni,
-                    u: SWIM_SPEED,
-                },
-            )?;
-        }
+        let (mut v, mut w) = match free {
+            Some((fv, fw)) => {
+                if fv.len() != n || fw.len() != n {
+                    return Err(GpuError::Input(format!(
+                        "free velocities for {} and {} rods, not {n}",
+                        fv.len(),
+                        fw.len()
+                    ))
+                    .into());
+                }
+                (
+                    dev.upload(fv.as_flattened())?,
+                    dev.upload(fw.as_flattened())?,
+                )
+            }
+            None => {
+                let mut v = dev.zeros::<f64>(3 * n)?;
+                let mut w = dev.zeros::<f64>(3 * n)?;
+                if rods.q.len() < 4 * n {
+                    return Err(
+                        GpuError::Input(format!("quaternions shorter than {n} rods")).into(),
+                    );
+                }
+                // SAFETY: thread r < n reads q[4 r..4 r + 4] (checked) and writes v, w at
+                // 3 r..3 r + 3 (3 n allocated).
+                unsafe {
+                    dev.launch(
+                        n,
+                        SwimVelocities {
+                            q: &rods.q,
+                            v: &mut v,
+                            w: &mut w,
+                            n: ni,
+                            u: SWIM_SPEED,
+                        },
+                    )?;
+                }
+                (v, w)
+            }
+        };
         let problem = DeviceContactProblem {
             rods,
             cons: &cons,
@@ -124,40 +154,108 @@ impl GpuStep {
             ft = Some(f);
         }
         self.update(rods, &v, &w, dt)?;
-        if cons.len > 0 {
-            let mut out = dev.zeros::<f64>(cons.len)?;
-            // SAFETY: thread k < m reads ci[k], cj[k] (m), rods below n, their centres (3 n)
-            // and quaternions (4 n), and writes out[k] (m).
-            unsafe {
-                dev.launch(
-                    cons.len,
-                    PairOverlap {
-                        x: &rods.x,
-                        q: &rods.q,
-                        ci: &cons.i,
-                        cj: &cons.j,
-                        out: &mut out,
-                        m: int(cons.len, "constraints")?,
-                        l: rods.box_length,
-                        b: rods.diameter,
-                    },
-                )?;
+        (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
+        // The projection of overlaps above half the tolerance (the stepper's): the constraints
+        // of the same pairs rebuilt at the new positions, a contact problem with no free
+        // motion through the local translational drag (rotation 0), the rods translated by its
+        // displacements; at most PROJECTIONS rounds.
+        while report.max_overlap > 0.5 * params.overlap_tolerance
+            && report.projections < PROJECTIONS
+        {
+            report.projections += 1;
+            let zero = dev.zeros::<f64>(3 * n)?;
+            let mut same = DevicePairs {
+                first: dev.zeros::<i32>(cons.len)?,
+                second: dev.zeros::<i32>(cons.len)?,
+                len: cons.len,
+                cells_per_side: pairs.cells_per_side,
+            };
+            dev.copy((&cons.i, 0), (&mut same.first, 0), cons.len)?;
+            dev.copy((&cons.j, 0), (&mut same.second, 0), cons.len)?;
+            let again = self.constraints(rods, &same, params.margin)?;
+            let problem = DeviceContactProblem {
+                rods,
+                cons: &again,
+                free_v: &zero,
+                free_w: &zero,
+                drag: (LocalDrag::new(rods.diameter).coefficients().0, 0.0),
+                dt,
+            };
+            let moved = match self.solve_on_device(problem, params, &[])? {
+                Some(mut solved) => {
+                    let lam = std::mem::replace(&mut solved.lam, dev.zeros::<f64>(1)?);
+                    let mut unused = dev.zeros::<f64>(again.len)?;
+                    self.apply(&mut solved.prob, &lam, None, &mut unused)?;
+                    Some((solved.prob.vel, solved.prob.ft))
+                }
+                None => None,
+            };
+            if let (Some((vel, pft)), Some(ft)) = (moved, ft.as_mut()) {
+                // SAFETY: thread r < n moves x, image (3 n) and adds to v (3 n) and ft (6 n)
+                // at its rod from vel and pft (6 n each).
+                unsafe {
+                    dev.launch(
+                        n,
+                        ProjectionMove {
+                            x: &mut rods.x,
+                            image: &mut rods.image,
+                            vel: &vel,
+                            pft: &pft,
+                            v: &mut v,
+                            ft,
+                            n: ni,
+                            dt,
+                            l: rods.box_length,
+                        },
+                    )?;
+                }
             }
-            let overlaps = dev.download(&out)?;
-            // The largest, the first of equals (as the CPU's, which also breaks ties by pair).
-            let (k, o) = overlaps
-                .iter()
-                .enumerate()
-                .fold((0, 0.0), |a, (k, &o)| if o > a.1 { (k, o) } else { a });
-            report.max_overlap = o;
-            if o > 0.0 {
-                let (i, j) = (
-                    dev.download_range(&cons.i, k, 1)?[0],
-                    dev.download_range(&cons.j, k, 1)?[0],
-                );
-                report.worst = (i as u32, j as u32);
-            }
+            (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
         }
         Ok(StepOutput { report, v, w, ft })
+    }
+
+    /// The largest true overlap of the constrained pairs at the rods' present state (0 if
+    /// none) and its pair, the first of equals (as the CPU's, which also breaks ties by pair).
+    fn max_overlap(
+        &self,
+        rods: &DeviceRods,
+        cons: &DeviceConstraints,
+    ) -> Result<(f64, (u32, u32)), GpuError> {
+        if cons.len == 0 {
+            return Ok((0.0, (0, 0)));
+        }
+        let dev = &self.dev;
+        let mut out = dev.zeros::<f64>(cons.len)?;
+        // SAFETY: thread k < m reads ci[k], cj[k] (m), rods below n, their centres (3 n)
+        // and quaternions (4 n), and writes out[k] (m).
+        unsafe {
+            dev.launch(
+                cons.len,
+                PairOverlap {
+                    x: &rods.x,
+                    q: &rods.q,
+                    ci: &cons.i,
+                    cj: &cons.j,
+                    out: &mut out,
+                    m: int(cons.len, "constraints")?,
+                    l: rods.box_length,
+                    b: rods.diameter,
+                },
+            )?;
+        }
+        let overlaps = dev.download(&out)?;
+        let (k, o) = overlaps
+            .iter()
+            .enumerate()
+            .fold((0, 0.0), |a, (k, &o)| if o > a.1 { (k, o) } else { a });
+        if o > 0.0 {
+            let (i, j) = (
+                dev.download_range(&cons.i, k, 1)?[0],
+                dev.download_range(&cons.j, k, 1)?[0],
+            );
+            return Ok((o, (i as u32, j as u32)));
+        }
+        Ok((o, (0, 0)))
     }
 }

@@ -65,6 +65,19 @@ impl DeviceStepper {
     /// One step of `dt`: [`GpuStep::step_local_drag`] with the CPU step's report (its sums
     /// and maxima in the CPU's fixed chunks) and failures (the state before the step kept).
     pub fn step(&mut self, dt: f64) -> Result<StepReport, StepError> {
+        self.step_from(dt, None)
+    }
+
+    /// One step of `dt` from the free velocities `free` (per rod: velocity and angular
+    /// velocity before contacts, e.g. a hydrodynamic level's [`crate::hydro::mobility::Mobility::free_velocities`]
+    /// of the rods as [`Self::download`] gives them), its contacts through the local drag: the
+    /// step of the levels whose contacts act through the local mobility (`dipole`,
+    /// `sbt-explicit`), their flow computed on the host. `None`: swimming alone ([`Self::step`]).
+    pub fn step_from(
+        &mut self,
+        dt: f64,
+        free: Option<(&[Vec3], &[Vec3])>,
+    ) -> Result<StepReport, StepError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(StepError::InvalidTimeStep(dt));
         }
@@ -81,7 +94,7 @@ impl DeviceStepper {
             .map_err(device_error)?;
         let StepOutput { report, v, w, ft } = self
             .gpu
-            .step_output(&mut self.rods, dt, &self.contact)
+            .step_output(&mut self.rods, dt, &self.contact, free)
             .map_err(|e| match e {
                 DeviceContactError::Contact(c) => StepError::Contact(c),
                 DeviceContactError::Gpu(g) => device_error(g),
@@ -128,6 +141,7 @@ impl DeviceStepper {
         let step = StepReport {
             contact: report.contact,
             max_overlap: report.max_overlap,
+            projections: report.projections,
             mean_speed: sum(0) / total,
             max_speed: max(4),
             max_rotation_rate: max(5),

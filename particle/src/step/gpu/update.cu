@@ -3,16 +3,13 @@
 // Layouts: centres as x, y, z triples, images crossed likewise (ints), quaternions as w, x, y, z,
 // velocities and angular velocities as triples.
 
-// Centre i moved by dt v, wrapped into [0, l) with the images crossed counted; quaternion i
-// turned by exp(dt w): [cos(|a|/2), sin(|a|/2) a/|a|] q with a = dt w.
-extern "C" __global__ void rod_update(double* x, int* image, double* q, const double* v,
-                                      const double* w, int n, double dt, double l) {
-    int i = blockIdx.x * blockDim.x + threadIdx.x;
-    if (i >= n) return;
+// Centre x (a triple) moved by dt v, wrapped into [0, l) with the images crossed counted
+// (translate_wrapped).
+__device__ void move_wrapped(double* x, int* image, const double* v, double dt, double l) {
     for (int d = 0; d < 3; ++d) {
-        double dx = dt * v[3 * i + d];
-        double c = x[3 * i + d] + dx;
-        int im = image[3 * i + d];
+        double dx = dt * v[d];
+        double c = x[d] + dx;
+        int im = image[d];
         while (c >= l) {
             c -= l;
             ++im;
@@ -25,9 +22,18 @@ extern "C" __global__ void rod_update(double* x, int* image, double* q, const do
             c = 0.0;
             ++im;
         }
-        x[3 * i + d] = c;
-        image[3 * i + d] = im;
+        x[d] = c;
+        image[d] = im;
     }
+}
+
+// Centre i moved by dt v (move_wrapped); quaternion i turned by exp(dt w):
+// [cos(|a|/2), sin(|a|/2) a/|a|] q with a = dt w.
+extern "C" __global__ void rod_update(double* x, int* image, double* q, const double* v,
+                                      const double* w, int n, double dt, double l) {
+    int i = blockIdx.x * blockDim.x + threadIdx.x;
+    if (i >= n) return;
+    move_wrapped(x + 3 * i, image + 3 * i, v + 3 * i, dt, l);
     double a[3] = {dt * w[3 * i], dt * w[3 * i + 1], dt * w[3 * i + 2]};
     double t = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
     double e[4] = {1.0, 0.0, 0.0, 0.0};
