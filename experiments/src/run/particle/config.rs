@@ -366,17 +366,22 @@ impl ParticleRunConfig {
         // The step resident on the GPU searches neighbours in at least 3 cells of one contact
         // reach per axis.
         let reach = motile_particle::model::units::ROD_LENGTH + self.diameter + self.contact.margin;
-        if self.device == crate::run::Device::Gpu
-            && self.hydrodynamics == Hydrodynamics::None
-            && self.box_length < 3.0 * reach
-        {
+        if self.resident() && self.box_length < 3.0 * reach {
             return Err(format!(
-                "box_length = {} with device = \"gpu\" and hydrodynamics = \"none\": the GPU step needs a box of at least 3 contact reaches (3 x (l + b + contact.margin) = {} l); use a larger box or device = \"cpu\"",
+                "box_length = {} with device = \"gpu\" and hydrodynamics = \"{}\": the GPU step needs a box of at least 3 contact reaches (3 x (l + b + contact.margin) = {} l); use a larger box or device = \"cpu\"",
                 self.box_length,
+                self.hydrodynamics.name(),
                 3.0 * reach
             ));
         }
         Ok(())
+    }
+
+    /// Whether the step runs resident on the GPU: `device = "gpu"` at the levels whose
+    /// contacts act through the local drag (`none`, `dipole`, `sbt-explicit`; the flow of the
+    /// last two summed on the host with its Fourier part on the GPU). `sbt` steps on the CPU.
+    pub(crate) fn resident(&self) -> bool {
+        self.device == crate::run::Device::Gpu && self.hydrodynamics != Hydrodynamics::Sbt
     }
 
     /// Steps between events of an interval.

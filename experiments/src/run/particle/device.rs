@@ -1,5 +1,5 @@
-//! The particle step resident on a GPU for runs with `device = "gpu"` and
-//! `hydrodynamics = "none"` ([`motile_particle::step::gpu::DeviceStepper`], feature `gpu`);
+//! The particle step resident on a GPU for runs with `device = "gpu"` at the `none`, `dipole`
+//! and `sbt-explicit` levels ([`motile_particle::step::gpu::DeviceStepper`], feature `gpu`);
 //! without the feature, such a run is refused with how to build it.
 
 use motile_particle::model::rods::RodSet;
@@ -12,6 +12,10 @@ pub(crate) use motile_particle::step::gpu::DeviceStepper;
 #[cfg(not(feature = "gpu"))]
 type RodKinematics = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[f64; 3]>);
 
+/// Velocities and angular velocities per rod.
+#[cfg(not(feature = "gpu"))]
+type FreeVelocities<'a> = (&'a [[f64; 3]], &'a [[f64; 3]]);
+
 /// Without the `gpu` feature no device stepper exists (the type has no values).
 #[cfg(not(feature = "gpu"))]
 #[derive(Debug)]
@@ -22,6 +26,14 @@ impl DeviceStepper {
     pub(crate) fn step(
         &mut self,
         _dt: f64,
+    ) -> Result<motile_particle::step::report::StepReport, motile_particle::step::report::StepError>
+    {
+        match *self {}
+    }
+    pub(crate) fn step_from(
+        &mut self,
+        _dt: f64,
+        _free: Option<FreeVelocities<'_>>,
     ) -> Result<motile_particle::step::report::StepReport, motile_particle::step::report::StepError>
     {
         match *self {}

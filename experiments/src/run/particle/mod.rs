@@ -21,10 +21,11 @@ use crate::run;
 use crate::run::particle::ranked::Ranked;
 use anyhow::{Context, bail};
 use motile_analysis::correlation::{CorrelationOptions, velocity_modes, velocity_spectrum};
+use motile_particle::hydro::mobility::RodVelocities;
 use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
 use motile_particle::step::contact::WarmStart;
-use motile_particle::step::report::StepReport;
+use motile_particle::step::report::{StepError, StepReport};
 use motile_particle::step::stepper::Stepper;
 use std::path::Path;
 use std::time::Instant;
@@ -98,8 +99,9 @@ pub struct ParticleModel {
     ranks: Option<Ranked>,
     /// The state before a failed step (the last good state to save).
     before: Option<ParticleCheckpoint>,
-    /// The step resident on the GPU (`device = "gpu"`, `hydrodynamics = "none"`): the rods
-    /// live there and `rods` is their copy as of the last download.
+    /// The step resident on the GPU (`device = "gpu"`, [`ParticleRunConfig::resident`]): the
+    /// rods live there and `rods` is their copy as of the last download (after every step at
+    /// the levels with flow, whose sum needs them).
     device: Option<device::DeviceStepper>,
     window: (Instant, u64),
     notes: Vec<String>,
@@ -147,8 +149,7 @@ impl ParticleModel {
                 )
             })
             .collect();
-        let resident = cfg.device == run::Device::Gpu
-            && cfg.hydrodynamics == motile_particle::model::level::Hydrodynamics::None;
+        let resident = cfg.resident();
         let device = if resident {
             Some(device::open(&rods, &cfg.contact)?)
         } else {
@@ -167,10 +168,15 @@ impl ParticleModel {
             before: None,
             device,
             window: (Instant::now(), 0),
-            notes: if resident {
+            notes: if resident && !cfg.hydrodynamics.has_flow() {
                 vec![
                     "the whole step runs on the GPU (device = \"gpu\", hydrodynamics = \"none\"); the rods are downloaded for outputs and checkpoints".into(),
                 ]
+            } else if resident {
+                vec![format!(
+                    "the step runs on the GPU (device = \"gpu\", hydrodynamics = \"{}\"): neighbours, contacts, the move and the overlap projection; the flow is summed on the host with its Fourier part on the GPU, the rods downloaded for it every step",
+                    cfg.hydrodynamics.name()
+                )]
             } else if cfg.device == run::Device::Gpu {
                 vec![
                     "the Fourier part of the hydrodynamic sums runs on the GPU (device = \"gpu\"); real space, contacts and the rest of the step on the CPU".into(),
@@ -429,20 +435,8 @@ impl run::RunModel for ParticleModel {
         };
         self.step = step;
         self.window.1 += 1;
-        let cfg = &self.cfg;
-        let t = step as f64 * cfg.dt;
-        if !self.warned_accuracy && report.hydro.sums > 0 && !report.hydro.sum_tolerance_met {
-            // Never silent: the finest level of the fast sum could not meet the tolerance.
-            self.warned_accuracy = true;
-            let msg = format!(
-                "warning: at step {step} (t = {t:.4}) the fast sum's estimated error is {:.1} times hydro.sum_tolerance = {:e} even at its finest setting; results carry that error (see docs/accuracy.md; `motile check-accuracy {}` measures it). Said once per run",
-                report.hydro.sum_error_ratio,
-                cfg.hydro.sum_tolerance,
-                io.run.path().display()
-            );
-            io.log(&msg)?;
-            io.bar.println(&msg);
-        }
+        let t = step as f64 * self.cfg.dt;
+        self.warn_accuracy(io, step, &report)?;
         if step.is_multiple_of(diag) {
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
@@ -574,22 +568,75 @@ fn lowest_modes(stepper: &Stepper, at: &RodSet, t: f64) -> Vec<f64> {
 }
 
 impl ParticleModel {
-    /// A step resident on the GPU (`device = "gpu"`, `hydrodynamics = "none"`): the rods stay
-    /// on the device; they are downloaded for snapshots and checkpoints, and the state before
-    /// a failed step from the device's copy of it. The time-series row is the CPU step's (no
-    /// flow: its norms are zero).
+    /// Never silent: where the finest level of the fast sum could not meet the tolerance,
+    /// say so once per run (log and terminal).
+    fn warn_accuracy(
+        &mut self,
+        io: &mut run::RunIo,
+        step: u64,
+        report: &StepReport,
+    ) -> anyhow::Result<()> {
+        if self.warned_accuracy || report.hydro.sums == 0 || report.hydro.sum_tolerance_met {
+            return Ok(());
+        }
+        self.warned_accuracy = true;
+        let cfg = &self.cfg;
+        let msg = format!(
+            "warning: at step {step} (t = {:.4}) the fast sum's estimated error is {:.1} times hydro.sum_tolerance = {:e} even at its finest setting; results carry that error (see docs/accuracy.md; `motile check-accuracy {}` measures it). Said once per run",
+            step as f64 * cfg.dt,
+            report.hydro.sum_error_ratio,
+            cfg.hydro.sum_tolerance,
+            io.run.path().display()
+        );
+        io.log(&msg)?;
+        io.bar.println(&msg);
+        Ok(())
+    }
+
+    /// A step resident on the GPU ([`ParticleRunConfig::resident`]): the rods stay on the
+    /// device; they are downloaded for snapshots and checkpoints, and the state before a
+    /// failed step from the device's copy of it. At the levels with flow the host sums the
+    /// flow of the rods before the step (their copy in `rods`, downloaded after every step)
+    /// and the device steps from those free velocities; the time series' flow norms, the
+    /// lowest modes and the snapshots' point forces are then the CPU step's, of the state
+    /// before the step. Without flow the norms are zero.
     fn device_step(&mut self, io: &mut run::RunIo, step: u64) -> Result<(), run::StepFailure> {
         let dt = self.cfg.dt;
         let (diag, snap, _) = self.every;
+        let flow = self.cfg.hydrodynamics.has_flow();
         let d = self
             .device
             .as_mut()
             .expect("a device step without a device");
-        let report = match d.step(dt) {
+        let stepped = if flow {
+            let p = self.rods.orientations();
+            let mut free = RodVelocities::zeros(self.rods.len());
+            match self
+                .stepper
+                .mobility_mut()
+                .free_velocities(&self.rods, &p, &mut free)
+            {
+                Ok(()) => d
+                    .step_from(dt, Some((&free.v, &free.w)))
+                    .map(|mut r| {
+                        r.hydro = self.stepper.mobility().report();
+                        r
+                    })
+                    .map_err(|e| (e, true)),
+                Err(e) => Err((StepError::from(e), false)),
+            }
+        } else {
+            d.step(dt).map_err(|e| (e, true))
+        };
+        let report = match stepped {
             Ok(r) => r,
-            Err(e) => {
+            Err((e, on_device)) => {
+                // The device keeps the state before a failed step; a step that failed before
+                // reaching it (the flow's sum) leaves the rods here as the last good state.
                 let mut rods = self.rods.clone();
-                d.download_before(&mut rods)?;
+                if on_device {
+                    d.download_before(&mut rods)?;
+                }
                 self.before = Some(ParticleCheckpoint::of(
                     &rods,
                     &self.stepper,
@@ -607,15 +654,42 @@ impl ParticleModel {
         self.step = step;
         self.window.1 += 1;
         let t = step as f64 * dt;
+        self.warn_accuracy(io, step, &report)?;
+        // What the outputs need of the state before the step, then the state after it.
+        let norms = if flow && step.is_multiple_of(diag) {
+            velocity_norms(&self.stepper, &self.rods)?
+        } else {
+            (0.0, 0.0)
+        };
+        let modes = (flow && self.cfg.lowest_modes && step.is_multiple_of(diag))
+            .then(|| lowest_modes(&self.stepper, &self.rods, t));
+        let forces = (flow && step.is_multiple_of(snap))
+            .then(|| {
+                self.stepper.mobility().force_density().map(|fd| {
+                    let (points, forces) = fd.point_forces(&self.rods, &self.rods.orientations());
+                    PointForces { points, forces }
+                })
+            })
+            .flatten();
+        if flow {
+            let d = self
+                .device
+                .as_ref()
+                .expect("a device step without a device");
+            d.download(&mut self.rods)?;
+        }
         if step.is_multiple_of(diag) {
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
             let c = &report.contact;
-            io.push_row(series_row(t, rate, &report, (0.0, 0.0)))?;
+            io.push_row(series_row(t, rate, &report, norms))?;
             io.bar.set_message(format!(
                 "t = {t:.3}, {rate:.1} steps/s (GPU), {} contacts, max overlap {:.1e}",
                 c.active, report.max_overlap
             ));
+        }
+        if let Some(row) = modes {
+            self.push_modes(io, row)?;
         }
         if step.is_multiple_of(snap) {
             let kin = self.sync()?;
@@ -625,7 +699,7 @@ impl ParticleModel {
                 &self.rods,
                 step,
                 Some(kin),
-                None,
+                forces,
                 &mut self.pvd,
             )?;
         }
