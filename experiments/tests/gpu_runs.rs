@@ -156,10 +156,9 @@ fn a_meanfield_run_on_the_emulated_gpu_matches_the_cpu_and_resumes_from_a_cpu_ch
 /// lengths: contacts every step), against the CPU's run, then its mid-run checkpoint
 /// (downloaded from the device) resumed on the CPU, against the CPU's run again.
 ///
-/// The device orders its constraints by pair, the CPU by cell, and starts each solve from
-/// zero (the CPU from the last step's multipliers): iterations and residuals differ, and the
-/// multipliers agree to the solver's complementarity tolerance, 1e-7 l of separation per
-/// step: velocities to about 1e-7 / dt = 5e-6 beta l (rotation rates, over arms of about l/2,
+/// The device orders its constraints by pair, the CPU by cell: iterations and residuals may
+/// differ, and the multipliers are guaranteed to agree only to the solver's complementarity
+/// tolerance, 1e-7 l of separation per step: velocities to about 1e-7 / dt = 5e-6 beta l (rotation rates, over arms of about l/2,
 /// twice that), i.e. 1e-5 of rates of order 1; positions to 1e-7 l per step. The flow of the
 /// levels with hydrodynamics is the same function of the rods on both sides (summed on the
 /// host, its Fourier part on the emulated device to round-off), so the same bound holds.

@@ -11,8 +11,9 @@
 //!   touching, parallel and boundary-crossing pairs;
 //! - the contact solver against the CPU's (`ContactSolver::solve`, local drag) on dense
 //!   swimming, turning rods, cold and warm;
-//! - steps of the local-drag level against the CPU's stepper, and the resident stepper
-//!   repeating bit for bit whatever order the blocks run in;
+//! - steps of the local-drag level against the CPU's stepper, the resident stepper repeating
+//!   bit for bit whatever order the blocks run in, and its warm start (fewer iterations;
+//!   a restart from rods and multipliers continuing bit for bit);
 //! - steps of the `dipole` and `sbt-explicit` levels (their flow from the host, contacts and
 //!   the move on the device) against the CPU's stepper with the same mobility.
 //!
@@ -35,7 +36,7 @@ use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::SWIM_SPEED;
 use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH};
 use motile_particle::step::constraints::constraints;
-use motile_particle::step::contact::ContactParams;
+use motile_particle::step::contact::{ContactParams, WarmStart};
 use motile_particle::step::contact::{ContactProblem, ContactSolver};
 use motile_particle::step::gpu::GpuStep;
 use motile_particle::step::gpu::{DeviceContactProblem, DeviceStepper};
@@ -473,6 +474,71 @@ fn check_flow_steps(open: &dyn Fn() -> DeviceStepper, rods: &RodSet, level: &str
     );
 }
 
+/// The resident stepper's warm start (each contact problem from the last step's multipliers
+/// by pair, as the CPU's stepper): 20 steps against the CPU's stepper within 20 x the solver
+/// tolerance, in fewer solver iterations than the same steps started from zero, and a run
+/// stopped after 10 steps and restarted from its rods and warm start (what a checkpoint
+/// keeps) ending bit for bit where the uninterrupted run ends.
+fn check_warm(open: &dyn Fn(&RodSet, &WarmStart) -> DeviceStepper, cold: &GpuStep) {
+    const STEPS: usize = 20;
+    let (l, dt) = (6.0, 0.02);
+    let rods = random_nonoverlapping(432, l, DEFAULT_DIAMETER, 14, 1_000_000).unwrap();
+    let params = ContactParams::default();
+    let mut cpu = rods.clone();
+    let mut stepper = Stepper::new(Box::new(LocalDrag::new(DEFAULT_DIAMETER)), params.clone());
+    let mut whole = open(&rods, &Vec::new());
+    let mut cold_rods = cold.upload_rods(&rods).unwrap();
+    let (mut it_cpu, mut it_warm, mut it_cold) = (0, 0, 0);
+    let mut resumed = None;
+    for k in 0..STEPS {
+        it_cpu += stepper.step(&mut cpu, dt).unwrap().contact.iterations;
+        it_warm += whole.step(dt).unwrap().contact.iterations;
+        it_cold += cold
+            .step_local_drag(&mut cold_rods, dt, &params)
+            .unwrap()
+            .contact
+            .iterations;
+        if k + 1 == STEPS / 2 {
+            let mut at = rods.clone();
+            whole.download(&mut at).unwrap();
+            let warm = whole.warm_start().unwrap();
+            assert!(!warm.is_empty(), "no multipliers to start from");
+            resumed = Some(open(&at, &warm));
+        }
+    }
+    let mut again = resumed.expect("restarted at the middle");
+    for _ in STEPS / 2..STEPS {
+        again.step(dt).unwrap();
+    }
+    let (mut a, mut b) = (rods.clone(), rods.clone());
+    whole.download(&mut a).unwrap();
+    again.download(&mut b).unwrap();
+    assert!(
+        a.x == b.x && a.q == b.q && a.image == b.image,
+        "restarted from rods and warm start after {} steps, the run differs from the \
+         uninterrupted one",
+        STEPS / 2
+    );
+    let dx = (0..a.len())
+        .map(|i| norm(min_image(sub(a.x[i], cpu.x[i]), l)))
+        .fold(0.0, f64::max);
+    let bound = STEPS as f64 * params.tolerance;
+    assert!(
+        dx <= bound,
+        "warm-started: centres {dx:.1e} l from the CPU's (bound {bound:.0e})"
+    );
+    assert!(
+        it_warm < it_cold,
+        "warm-started solves took {it_warm} iterations, from zero {it_cold}"
+    );
+    eprintln!(
+        "warm start: {STEPS} steps in {it_warm} solver iterations (from zero {it_cold}, CPU \
+         {it_cpu}); centres within {dx:.1e} l of the CPU's; restarted at step {} from rods \
+         and multipliers: bit for bit",
+        STEPS / 2
+    );
+}
+
 /// The resident stepper repeats bit for bit: 30 steps with blocks in order and in two shuffled
 /// orders (so the integer atomics of the cell and constraint lists take other orders) give the
 /// same rods to the last bit.
@@ -482,7 +548,8 @@ fn check_repeats() {
     let params = ContactParams::default();
     let mut finals = Vec::new();
     for seed in [0u64, 3, 99] {
-        let mut s = DeviceStepper::new(Backend::HostEmulation, &rods, params.clone()).unwrap();
+        let mut s =
+            DeviceStepper::new(Backend::HostEmulation, &rods, params.clone(), &Vec::new()).unwrap();
         s.shuffle_blocks(seed);
         let mut active = 0;
         for _ in 0..30 {
@@ -571,8 +638,19 @@ fn device_step_rooms_match_their_twins_on_the_host_emulation() {
     check_solver(&open().unwrap(), 0.0);
     check_steps(&open().unwrap());
     check_repeats();
+    check_warm(
+        &|r, w| DeviceStepper::new(Backend::HostEmulation, r, ContactParams::default(), w).unwrap(),
+        &open().unwrap(),
+    );
     let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).unwrap();
-    let stepper = || DeviceStepper::new(Backend::HostEmulation, &rods, ContactParams::default());
+    let stepper = || {
+        DeviceStepper::new(
+            Backend::HostEmulation,
+            &rods,
+            ContactParams::default(),
+            &Vec::new(),
+        )
+    };
     for level in ["dipole", "sbt-explicit"] {
         check_flow_steps(&|| stepper().unwrap(), &rods, level);
     }
@@ -594,8 +672,13 @@ fn device_step_rooms_match_their_twins_on_cuda() {
     check_constraints(&GpuStep::open(Backend::Cuda).unwrap(), 1e-13);
     check_solver(&GpuStep::open(Backend::Cuda).unwrap(), 1e-10);
     check_steps(&GpuStep::open(Backend::Cuda).unwrap());
+    check_warm(
+        &|r, w| DeviceStepper::new(Backend::Cuda, r, ContactParams::default(), w).unwrap(),
+        &GpuStep::open(Backend::Cuda).unwrap(),
+    );
     let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).unwrap();
-    let stepper = || DeviceStepper::new(Backend::Cuda, &rods, ContactParams::default());
+    let stepper =
+        || DeviceStepper::new(Backend::Cuda, &rods, ContactParams::default(), &Vec::new());
     for level in ["dipole", "sbt-explicit"] {
         check_flow_steps(&|| stepper().unwrap(), &rods, level);
     }

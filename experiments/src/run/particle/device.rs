@@ -3,7 +3,7 @@
 //! without the feature, such a run is refused with how to build it.
 
 use motile_particle::model::rods::RodSet;
-use motile_particle::step::contact::ContactParams;
+use motile_particle::step::contact::{ContactParams, WarmStart};
 
 #[cfg(feature = "gpu")]
 pub(crate) use motile_particle::step::gpu::DeviceStepper;
@@ -47,18 +47,29 @@ impl DeviceStepper {
     pub(crate) fn kinematics(&self) -> anyhow::Result<RodKinematics> {
         match *self {}
     }
+    pub(crate) fn warm_start(&self) -> anyhow::Result<WarmStart> {
+        match *self {}
+    }
 }
 
 /// The device stepper for `rods` (`MOTILE_GPU_BACKEND` says which device, CUDA by default):
 /// an error, never a CPU fallback, where there is none.
 #[cfg(feature = "gpu")]
-pub(crate) fn open(rods: &RodSet, contact: &ContactParams) -> anyhow::Result<DeviceStepper> {
-    DeviceStepper::new(crate::run::gpu_backend()?, rods, contact.clone())
+pub(crate) fn open(
+    rods: &RodSet,
+    contact: &ContactParams,
+    warm: &WarmStart,
+) -> anyhow::Result<DeviceStepper> {
+    DeviceStepper::new(crate::run::gpu_backend()?, rods, contact.clone(), warm)
         .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))
 }
 
 #[cfg(not(feature = "gpu"))]
-pub(crate) fn open(_rods: &RodSet, _contact: &ContactParams) -> anyhow::Result<DeviceStepper> {
+pub(crate) fn open(
+    _rods: &RodSet,
+    _contact: &ContactParams,
+    _warm: &WarmStart,
+) -> anyhow::Result<DeviceStepper> {
     anyhow::bail!(
         "device = \"gpu\": this motile was built without GPU support; build it with `cargo install --path experiments --features gpu` (CUDA is loaded when a run starts: the build needs nothing but cargo)"
     )

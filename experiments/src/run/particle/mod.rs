@@ -151,7 +151,11 @@ impl ParticleModel {
             .collect();
         let resident = cfg.resident();
         let device = if resident {
-            Some(device::open(&rods, &cfg.contact)?)
+            Some(device::open(
+                &rods,
+                &cfg.contact,
+                &stepper.warm_start().to_vec(),
+            )?)
         } else {
             None
         };
@@ -226,7 +230,9 @@ impl ParticleModel {
             let mut rods = self.rods.clone();
             d.download(&mut rods)?;
             let t = self.step as f64 * self.cfg.dt;
-            ParticleCheckpoint::of(&rods, &self.stepper, self.step, t).write(path)?;
+            let mut c = ParticleCheckpoint::of(&rods, &self.stepper, self.step, t);
+            c.contact_warm_start = d.warm_start()?;
+            c.write(path)?;
             return Ok(());
         }
         self.checkpoint_now().write(path)?;
@@ -637,12 +643,11 @@ impl ParticleModel {
                 if on_device {
                     d.download_before(&mut rods)?;
                 }
-                self.before = Some(ParticleCheckpoint::of(
-                    &rods,
-                    &self.stepper,
-                    self.step,
-                    self.step as f64 * dt,
-                ));
+                let mut before =
+                    ParticleCheckpoint::of(&rods, &self.stepper, self.step, self.step as f64 * dt);
+                // The multipliers of the step before the failed one (a failed step keeps them).
+                before.contact_warm_start = d.warm_start()?;
+                self.before = Some(before);
                 return Err(run::StepFailure::Step {
                     kind: (&e).into(),
                     step,

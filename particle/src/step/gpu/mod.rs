@@ -25,9 +25,11 @@
 //!   constraints, swimming velocities, the contact problem, the contact velocities, the move,
 //!   the true overlaps after it and their projection (the stepper's: the same pairs'
 //!   constraints rebuilt, a contact problem with no free motion through the translational
-//!   drag, the rods translated; no warm start yet);
-//! - [`DeviceStepper`] (`stepper.rs`): that step with the rods resident on the device, the
-//!   CPU step's report and failures, downloads only for outputs, checkpoints and failures;
+//!   drag, the rods translated);
+//! - [`DeviceStepper`] (`stepper.rs`): that step with the rods resident on the device, each
+//!   contact problem started from the last step's multipliers of the same pairs (a binary
+//!   search of each constraint's pair among the last step's, both sorted by pair), the CPU
+//!   step's report and failures, downloads only for outputs, checkpoints and failures;
 //!   [`DeviceStepper::step_from`] takes the free velocities from the host instead of
 //!   swimming alone: the step of the levels whose contacts act through the local drag
 //!   (`dipole`, `sbt-explicit`), their flow summed on the host (its Fourier part on the

@@ -242,6 +242,18 @@ motile_gpu::kernels! {
         n: i32,
     }
 
+    /// Each constraint's starting multiplier from the last step's.
+    pub(crate) struct WarmGather = "warm_gather" {
+        ci: &'a Buffer<i32>,
+        cj: &'a Buffer<i32>,
+        oi: &'a Buffer<i32>,
+        oj: &'a Buffer<i32>,
+        olam: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        m: i32,
+        mo: i32,
+    }
+
     /// The overlap projection's move: translation, velocities and contact forces.
     pub(crate) struct ProjectionMove = "projection_move" {
         x: &'a mut Buffer<f64>,

@@ -54,6 +54,16 @@ pub struct DeviceContactProblem<'a> {
     pub dt: f64,
 }
 
+/// Where a solve starts: multipliers from the host (empty: zero) or on the device (at least
+/// one per constraint, none negative).
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Start<'a> {
+    /// From the host, in constraint order.
+    Host(&'a [f64]),
+    /// On the device, in constraint order.
+    Device(&'a Buffer),
+}
+
 /// The problem's buffers on the device.
 pub(super) struct Problem<'a> {
     cons: &'a DeviceConstraints,
@@ -86,7 +96,7 @@ impl GpuStep {
         params: &ContactParams,
         initial: &[f64],
     ) -> Result<(Vec<f64>, ContactReport), DeviceContactError> {
-        match self.solve_on_device(problem, params, initial)? {
+        match self.solve_on_device(problem, params, Start::Host(initial))? {
             None => Ok((Vec::new(), ContactReport::default())),
             Some(s) => self.report(&s),
         }
@@ -121,7 +131,7 @@ impl GpuStep {
         &self,
         problem: DeviceContactProblem<'a>,
         params: &ContactParams,
-        initial: &[f64],
+        initial: Start<'_>,
     ) -> Result<Option<Solved<'a>>, DeviceContactError> {
         let DeviceContactProblem {
             rods,
@@ -135,9 +145,13 @@ impl GpuStep {
         if m == 0 {
             return Ok(None);
         }
+        let len = match initial {
+            Start::Host(h) => h.len(),
+            Start::Device(b) => b.len(),
+        };
         assert!(
-            initial.is_empty() || initial.len() == m,
-            "initial guess has the wrong length"
+            len == 0 || len >= m,
+            "initial guess has the wrong length: {len} for {m} constraints"
         );
         if free_v.len() < 3 * n || free_w.len() < 3 * n || rods.q.len() < 4 * n {
             return Err(
@@ -232,9 +246,20 @@ impl GpuStep {
                 },
             )?;
         }
-        let warm = initial.iter().any(|&l| l > 0.0);
-        let (mut lam, mut g) = if warm {
-            let lam = dev.upload(&initial.iter().map(|l| l.max(0.0)).collect::<Vec<f64>>())?;
+        // From the host: warm where any multiplier is positive (the CPU's rule). From the
+        // device: always (from all zeros the warm start's gradient is q itself).
+        let warm = match initial {
+            Start::Host(h) if h.iter().any(|&l| l > 0.0) => {
+                Some(dev.upload(&h.iter().map(|l| l.max(0.0)).collect::<Vec<f64>>())?)
+            }
+            Start::Host(_) => None,
+            Start::Device(b) => {
+                let mut lam = dev.zeros::<f64>(m)?;
+                dev.copy((b, 0), (&mut lam, 0), m)?;
+                Some(lam)
+            }
+        };
+        let (mut lam, mut g) = if let Some(lam) = warm {
             let mut g = dev.zeros::<f64>(m)?;
             self.apply(&mut prob, &lam, Some(&q), &mut g)?;
             (lam, g)

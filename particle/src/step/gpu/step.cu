@@ -25,6 +25,26 @@ extern "C" __global__ void add_velocities(const double* vel, double* v, double* 
     }
 }
 
+// Each constraint's starting multiplier: the last step's of the same pair (0 where that step
+// had none), found by a binary search of its (ci, cj) among the last step's (oi, oj), both
+// sorted by (i, j): the stepper's warm start.
+extern "C" __global__ void warm_gather(const int* ci, const int* cj, const int* oi,
+                                       const int* oj, const double* olam, double* out, int m,
+                                       int mo) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    int a = ci[k], b = cj[k];
+    int lo = 0, hi = mo;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (oi[mid] < a || (oi[mid] == a && oj[mid] < b))
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    out[k] = (lo < mo && oi[lo] == a && oj[lo] == b) ? olam[lo] : 0.0;
+}
+
 // The overlap projection's move (the stepper's projection round): rod r translated by dt dv
 // (dv the first three of its 6 values in vel; move_wrapped), its velocity v += dv and its
 // contact force (the first three of its 6 values in ft) += the projection's (pft).

@@ -5,9 +5,9 @@
 use super::cells::DevicePairs;
 use super::contacts::DeviceConstraints;
 use super::device::{GpuStep, int};
-use super::signatures::{AddVelocities, PairOverlap, ProjectionMove, SwimVelocities};
+use super::signatures::{AddVelocities, PairOverlap, ProjectionMove, SwimVelocities, WarmGather};
 use super::solver::DeviceContactError;
-use super::solver::DeviceContactProblem;
+use super::solver::{DeviceContactProblem, Start};
 use super::update::DeviceRods;
 use crate::hydro::mobility::LocalDrag;
 use crate::model::geometry::Vec3;
@@ -31,6 +31,16 @@ pub struct DeviceStepReport {
     pub projections: usize,
 }
 
+/// A step's multipliers by pair, its warm start for the next: the constraints' pairs
+/// `(i, j)`, sorted, and their multipliers (the first `len` values of each).
+#[derive(Debug)]
+pub(super) struct Warm {
+    pub(super) i: Buffer<i32>,
+    pub(super) j: Buffer<i32>,
+    pub(super) lam: Buffer,
+    pub(super) len: usize,
+}
+
 /// A step's report with its velocities and contact forces left on the device.
 pub(super) struct StepOutput {
     pub(super) report: DeviceStepReport,
@@ -39,6 +49,8 @@ pub(super) struct StepOutput {
     pub(super) w: Buffer,
     /// Each rod's contact force and torque (6 values), if there were constraints.
     pub(super) ft: Option<Buffer>,
+    /// The multipliers by pair (`None`: no constraints).
+    pub(super) warm: Option<Warm>,
 }
 
 impl GpuStep {
@@ -46,26 +58,29 @@ impl GpuStep {
     /// device: neighbour pairs, constraints, the swimming velocities, the contact problem
     /// (from zero: no warm start), the velocities with the contact forces through the local
     /// drag, the move, the true overlaps after it and their projection where they exceed
-    /// half the tolerance (as the CPU's stepper). The warm start of the contact problem and
-    /// the step's statistics ([`super::DeviceStepper`]) are not in this function.
+    /// half the tolerance (as the CPU's stepper). [`super::DeviceStepper`] adds the warm
+    /// start and the step's statistics.
     pub fn step_local_drag(
         &self,
         rods: &mut DeviceRods,
         dt: f64,
         params: &ContactParams,
     ) -> Result<DeviceStepReport, DeviceContactError> {
-        Ok(self.step_output(rods, dt, params, None)?.report)
+        Ok(self.step_output(rods, dt, params, None, None)?.report)
     }
 
     /// [`Self::step_local_drag`] with the velocities and contact forces left on the device,
     /// from the free velocities `free` (velocities and angular velocities per rod, computed
-    /// elsewhere: a hydrodynamic level's flow) where given, else from swimming alone.
+    /// elsewhere: a hydrodynamic level's flow) where given, else from swimming alone; the
+    /// contact problem starts from the multipliers of `warm`'s pairs where given (the
+    /// stepper's warm start), else from zero.
     pub(super) fn step_output(
         &self,
         rods: &mut DeviceRods,
         dt: f64,
         params: &ContactParams,
         free: Option<(&[Vec3], &[Vec3])>,
+        warm: Option<&Warm>,
     ) -> Result<StepOutput, DeviceContactError> {
         let n = rods.len;
         let ni = int(n, "rods")?;
@@ -126,13 +141,28 @@ impl GpuStep {
             ..DeviceStepReport::default()
         };
         let mut ft = None;
-        let contact = match self.solve_on_device(problem, params, &[])? {
+        let initial = match warm {
+            Some(w) if cons.len > 0 => Some(self.warm_gather(&cons, w)?),
+            _ => None,
+        };
+        let start = initial.as_ref().map_or(Start::Host(&[]), Start::Device);
+        let mut next = None;
+        let contact = match self.solve_on_device(problem, params, start)? {
             Some(mut solved) => {
                 report.contact = self.report(&solved)?.1;
                 // The contact velocities of the multipliers (into the problem's vel).
                 let lam = std::mem::replace(&mut solved.lam, dev.zeros::<f64>(1)?);
                 let mut unused = dev.zeros::<f64>(cons.len)?;
                 self.apply(&mut solved.prob, &lam, None, &mut unused)?;
+                let mut w = Warm {
+                    i: dev.zeros::<i32>(cons.len)?,
+                    j: dev.zeros::<i32>(cons.len)?,
+                    lam,
+                    len: cons.len,
+                };
+                dev.copy((&cons.i, 0), (&mut w.i, 0), cons.len)?;
+                dev.copy((&cons.j, 0), (&mut w.j, 0), cons.len)?;
+                next = Some(w);
                 Some((solved.prob.vel, solved.prob.ft))
             }
             None => None,
@@ -181,7 +211,7 @@ impl GpuStep {
                 drag: (LocalDrag::new(rods.diameter).coefficients().0, 0.0),
                 dt,
             };
-            let moved = match self.solve_on_device(problem, params, &[])? {
+            let moved = match self.solve_on_device(problem, params, Start::Host(&[]))? {
                 Some(mut solved) => {
                     let lam = std::mem::replace(&mut solved.lam, dev.zeros::<f64>(1)?);
                     let mut unused = dev.zeros::<f64>(again.len)?;
@@ -212,7 +242,43 @@ impl GpuStep {
             }
             (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
         }
-        Ok(StepOutput { report, v, w, ft })
+        Ok(StepOutput {
+            report,
+            v,
+            w,
+            ft,
+            warm: next,
+        })
+    }
+
+    /// The starting multiplier of each of `cons` from `warm`'s of the same pair (0 where
+    /// none).
+    fn warm_gather(&self, cons: &DeviceConstraints, warm: &Warm) -> Result<Buffer, GpuError> {
+        let mut out = self.dev.zeros::<f64>(cons.len)?;
+        if warm.i.len() < warm.len || warm.j.len() < warm.len || warm.lam.len() < warm.len {
+            return Err(GpuError::Input(format!(
+                "warm start: buffers shorter than {}",
+                warm.len
+            )));
+        }
+        // SAFETY: thread k < m reads ci[k], cj[k] (m) and searches oi, oj, olam in
+        // 0..mo (checked above), and writes out[k] (m).
+        unsafe {
+            self.dev.launch(
+                cons.len,
+                WarmGather {
+                    ci: &cons.i,
+                    cj: &cons.j,
+                    oi: &warm.i,
+                    oj: &warm.j,
+                    olam: &warm.lam,
+                    out: &mut out,
+                    m: int(cons.len, "constraints")?,
+                    mo: int(warm.len, "warm-start pairs")?,
+                },
+            )?;
+        }
+        Ok(out)
     }
 
     /// The largest true overlap of the constrained pairs at the rods' present state (0 if

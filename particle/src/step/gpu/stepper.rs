@@ -7,11 +7,11 @@
 use super::device::{GpuStep, int};
 use super::signatures::StepStats;
 use super::solver::DeviceContactError;
-use super::step::StepOutput;
+use super::step::{StepOutput, Warm};
 use super::update::DeviceRods;
 use crate::model::geometry::Vec3;
 use crate::model::rods::RodSet;
-use crate::step::contact::ContactParams;
+use crate::step::contact::{ContactParams, WarmStart};
 use crate::step::report::{StepError, StepReport};
 use motile_gpu::{Backend, Buffer, GpuError};
 
@@ -30,6 +30,8 @@ pub struct DeviceStepper {
     contact: ContactParams,
     /// The last step's velocities, angular velocities and contact forces and torques.
     last: Option<(Buffer, Buffer, Option<Buffer>)>,
+    /// The last step's multipliers by pair: the next contact problem's start.
+    warm: Option<Warm>,
 }
 
 fn device_error(e: GpuError) -> StepError {
@@ -38,17 +40,78 @@ fn device_error(e: GpuError) -> StepError {
 
 impl DeviceStepper {
     /// The rods `rods` uploaded to the device `backend` names, stepped with contact settings
-    /// `contact`.
-    pub fn new(backend: Backend, rods: &RodSet, contact: ContactParams) -> Result<Self, GpuError> {
+    /// `contact`, the first contact problem starting from `warm` (the multipliers by pair
+    /// of the step before, as [`crate::step::stepper::Stepper::warm_start`] and checkpoints
+    /// hold them; empty: from zero).
+    pub fn new(
+        backend: Backend,
+        rods: &RodSet,
+        contact: ContactParams,
+        warm: &WarmStart,
+    ) -> Result<Self, GpuError> {
         let gpu = GpuStep::open(backend)?;
         let (a, b) = (gpu.upload_rods(rods)?, gpu.upload_rods(rods)?);
+        let n = rods.len();
+        if let Some(bad) = warm
+            .iter()
+            .find(|((i, j), l)| i >= j || *j as usize >= n || !(*l >= 0.0 && l.is_finite()))
+        {
+            return Err(GpuError::Input(format!(
+                "warm start: pair {:?} with multiplier {} (pairs i < j below {n}, multipliers >= 0)",
+                bad.0, bad.1
+            )));
+        }
+        if warm.windows(2).any(|w| w[0].0 >= w[1].0) {
+            return Err(GpuError::Input(
+                "warm start: pairs not sorted and distinct".into(),
+            ));
+        }
+        let warm = if warm.is_empty() {
+            None
+        } else {
+            let dev = &gpu.dev;
+            let ints = |f: fn(&(u32, u32)) -> u32| -> Result<Buffer<i32>, GpuError> {
+                let v = warm
+                    .iter()
+                    .map(|(p, _)| int(f(p) as usize, "warm-start rod"))
+                    .collect::<Result<Vec<i32>, _>>()?;
+                dev.upload(&v)
+            };
+            Some(Warm {
+                i: ints(|p| p.0)?,
+                j: ints(|p| p.1)?,
+                lam: dev.upload(&warm.iter().map(|w| w.1).collect::<Vec<f64>>())?,
+                len: warm.len(),
+            })
+        };
         Ok(Self {
             gpu,
             rods: a,
             before: b,
             contact,
             last: None,
+            warm,
         })
+    }
+
+    /// The last step's positive multipliers by pair, sorted: the warm start a checkpoint
+    /// keeps (the CPU stepper's form).
+    pub fn warm_start(&self) -> Result<WarmStart, GpuError> {
+        let Some(w) = &self.warm else {
+            return Ok(Vec::new());
+        };
+        let dev = &self.gpu.dev;
+        let (i, j, lam) = (
+            dev.download_range(&w.i, 0, w.len)?,
+            dev.download_range(&w.j, 0, w.len)?,
+            dev.download_range(&w.lam, 0, w.len)?,
+        );
+        Ok(i.iter()
+            .zip(&j)
+            .zip(&lam)
+            .filter(|(_, l)| **l > 0.0)
+            .map(|((&a, &b), &l)| ((a as u32, b as u32), l))
+            .collect())
     }
 
     /// What the device is, in words.
@@ -92,9 +155,15 @@ impl DeviceStepper {
         }
         dev.copy((&self.rods.image, 0), (&mut self.before.image, 0), 3 * n)
             .map_err(device_error)?;
-        let StepOutput { report, v, w, ft } = self
+        let StepOutput {
+            report,
+            v,
+            w,
+            ft,
+            warm,
+        } = self
             .gpu
-            .step_output(&mut self.rods, dt, &self.contact, free)
+            .step_output(&mut self.rods, dt, &self.contact, free, self.warm.as_ref())
             .map_err(|e| match e {
                 DeviceContactError::Contact(c) => StepError::Contact(c),
                 DeviceContactError::Gpu(g) => device_error(g),
@@ -150,6 +219,7 @@ impl DeviceStepper {
             ..StepReport::default()
         };
         self.last = Some((v, w, ft));
+        self.warm = warm;
         Ok(step)
     }
 
