@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- \
-//!     [--device cuda|emulation] [--small] [--cases mf,sum,dipole,sbt] [--reps 3] [--out FILE.csv]
+//!     [--device cuda|emulation] [--small] [--cases mf,sum,dipole,explicit,sbt] [--reps 3] [--out FILE.csv]
 //! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- --model [--small]
 //! ```
 //!
@@ -21,7 +21,11 @@
 //!   velocities from the CPU's relative to the largest velocity), on the GPU with the binned
 //!   spreader its tolerance selects and, below 1e7 points, also with the per-point atomic one
 //!   (row `gpu atomic`: the before of the before/after ratio);
-//! - `dipole`: steps of the point-stresslet level at L/l = 100 and 175 (nu = 0.625);
+//! - `dipole`: steps of the point-stresslet level at L/l = 100 and 175 (nu = 0.625): the CPU
+//!   stepper with the CPU's sums and with the GPU's, and the step resident on the GPU (its
+//!   flow summed from the host, `device = "gpu"` runs' step);
+//! - `explicit`: the same for the explicit slender-body level at L/l = 50 (`explicit100`, not
+//!   in the default cases: at L/l = 100, 5e6 quadrature nodes, one timed step per side);
 //! - `sbt`: steps of the slender-body level at L/l = 50 and 100.
 //!
 //! The CPU runs on the rayon pool (`RAYON_NUM_THREADS`, default all cores). Each row is the
@@ -42,12 +46,15 @@ use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::explicit::ExplicitSlender;
 use motile_particle::hydro::mobility::Mobility;
+use motile_particle::hydro::mobility::RodVelocities;
 use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::DEFAULT_DIAMETER;
 use motile_particle::step::contact::ContactParams;
+use motile_particle::step::gpu::DeviceStepper;
 use motile_particle::step::stepper::Stepper;
 use std::time::Instant;
 
@@ -299,10 +306,19 @@ impl Bench {
         let make = |sum: SpectralEwald| -> Box<dyn Mobility> {
             match level {
                 "dipole" => Box::new(Dipole::new(Box::new(sum), DEFAULT_DIAMETER)),
+                "sbt-explicit" => Box::new(ExplicitSlender::new(
+                    SlenderParams::default(),
+                    Box::new(sum),
+                )),
                 _ => Box::new(SlenderBody::new(SlenderParams::default(), Box::new(sum))),
             }
         };
-        let reps = if n > 1_000_000 { 1 } else { self.reps };
+        // One timed run per side above a million rods, or a million quadrature nodes.
+        let reps = if n > 1_000_000 || (level != "dipole" && n > 125_000) {
+            1
+        } else {
+            self.reps
+        };
         let dt = 0.01;
         let run = |mobility: Box<dyn Mobility>| {
             let mut r = rods.clone();
@@ -331,6 +347,39 @@ impl Bench {
                     .push_str(&format!("; {per_rod:.0} GPU bytes in use per rod"));
             }
         }
+        if level == "sbt" {
+            return;
+        }
+        // The step resident on the device (`device = "gpu"` runs at this level): the flow
+        // summed from the host (its Fourier part on the device) of the rods downloaded each
+        // step, contacts, the move and the projection on the device.
+        let mut mobility = make(SpectralEwald::with_device(1e-4, self.fourier()).unwrap());
+        let mut device =
+            DeviceStepper::new(self.backend(), &rods, ContactParams::default(), &Vec::new())
+                .expect("the device stepper");
+        let mut at = rods.clone();
+        let mut free = RodVelocities::zeros(n);
+        let mut sums = 0.0;
+        let mut step = || {
+            device.download(&mut at).expect("download");
+            let p = at.orientations();
+            mobility
+                .free_velocities(&at, &p, &mut free)
+                .expect("free velocities");
+            sums = mobility.report().seconds_sums;
+            device
+                .step_from(dt, Some((&free.v, &free.w)))
+                .expect("device step");
+        };
+        let tr = time(reps, &mut step);
+        self.push(
+            &case,
+            "gpu",
+            tr,
+            1.0,
+            "steps/s",
+            format!("resident step (flow from the host): sums {sums:.3} s"),
+        );
     }
 }
 
@@ -448,7 +497,7 @@ fn main() {
         return;
     }
     let emulate = arg("--device").as_deref() == Some("emulation");
-    let cases = arg("--cases").unwrap_or_else(|| "mf,sum,dipole,sbt".into());
+    let cases = arg("--cases").unwrap_or_else(|| "mf,sum,dipole,explicit,sbt".into());
     let reps: usize = arg("--reps").map_or(3, |r| r.parse().expect("--reps"));
     let probe = GpuFourier::open(if emulate {
         Backend::HostEmulation
@@ -496,6 +545,12 @@ fn main() {
         for l in if small { vec![5.0] } else { vec![100.0, 175.0] } {
             b.steps("dipole", l);
         }
+    }
+    if has("explicit") {
+        b.steps("sbt-explicit", if small { 5.0 } else { 50.0 });
+    }
+    if has("explicit100") && !small {
+        b.steps("sbt-explicit", 100.0);
     }
     if has("sbt") {
         for l in if small { vec![4.0] } else { vec![50.0, 100.0] } {
