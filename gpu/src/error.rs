@@ -28,6 +28,12 @@ impl GpuError {
     }
 }
 
+/// `v` as a kernel's `int` (sizes, indices, counts), or an error naming `what` where it does
+/// not fit.
+pub fn kernel_int(v: usize, what: &str) -> Result<i32, GpuError> {
+    i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
+}
+
 /// What [`crate::probe`] found.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DeviceInfo {

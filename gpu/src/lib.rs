@@ -41,7 +41,7 @@ mod launch;
 
 pub use buffer::{Buffer, Element};
 pub use device::{Backend, Device, probe};
-pub use error::{DeviceInfo, GpuError};
+pub use error::{DeviceInfo, GpuError, kernel_int};
 pub use fft::{Direction, Fft3};
 #[doc(hidden)]
 pub use kernel::Arg;

@@ -78,9 +78,7 @@ pub(crate) struct Bins {
     start: Buffer<i32>,
 }
 
-fn int(v: usize, what: &str) -> Result<i32, GpuError> {
-    i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
-}
+use motile_gpu::kernel_int as int;
 
 fn check<T: motile_gpu::Element>(
     what: &str,

@@ -29,10 +29,7 @@ fn check<T: Element>(what: &str, buf: &Buffer<T>, at_least: usize) -> Result<(),
     Ok(())
 }
 
-/// `v` as a kernel's `int`.
-fn int(v: usize, what: &str) -> Result<i32, GpuError> {
-    i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
-}
+use motile_gpu::kernel_int as int;
 
 /// Grid indices must fit the kernels' `int`s (and `long long` products).
 fn ints(geo: &Geometry, n: usize) -> Result<(i32, i32, i32), GpuError> {

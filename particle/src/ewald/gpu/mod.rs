@@ -285,9 +285,7 @@ impl GpuFourier {
             return Ok(b);
         }
         let dev = &self.dev;
-        let to_int = |v: usize, what: &str| {
-            i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
-        };
+        let to_int = motile_gpu::kernel_int;
         let group = cells
             .group
             .iter()

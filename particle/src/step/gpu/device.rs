@@ -11,9 +11,7 @@ pub struct GpuStep {
     pub(super) dev: Device,
 }
 
-pub(super) fn int(v: usize, what: &str) -> Result<i32, GpuError> {
-    i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
-}
+pub(super) use motile_gpu::kernel_int as int;
 
 impl GpuStep {
     /// The device `backend` names, with the kernels compiled.
