@@ -7,7 +7,8 @@
 //! largest difference of the velocity norm `||u||_2(t)` (particle runs: the time series'
 //! `velocity_norm`, from the force density; mean-field runs: `u_l2`) from the reference run's
 //! over the window, divided by the reference's largest norm. A run without a flow
-//! (`hydrodynamics = "none"`) has error 1. Particle studies also report the RMS difference of
+//! (`hydrodynamics = "none"`) has error 1 by construction: the table lists it, the chart
+//! leaves it off. Particle studies also report the RMS difference of
 //! the rods' end positions from the reference's, relative to the RMS distance travelled
 //! (swimming dominates it, so it is the weaker test of the flow).
 
@@ -61,6 +62,9 @@ pub struct StudyPoint {
     pub reference: bool,
     /// The run's failure, if it stopped (its error is then infinite).
     pub failure: Option<String>,
+    /// Whether the run has a flow: a run without one (`hydrodynamics = "none"`) has error 1
+    /// by construction, listed in the table and left off the chart.
+    pub has_flow: bool,
 }
 
 /// What a study found.
@@ -269,6 +273,10 @@ pub fn study(
                 (e, ep, None)
             }
         };
+        let has_flow = match outcome {
+            Ok(o) => o.u.iter().any(|&u| u.is_finite() && u != 0.0),
+            Err(_) => true,
+        };
         points.push(StudyPoint {
             value: v.clone(),
             seconds: *seconds,
@@ -276,6 +284,7 @@ pub fn study(
             position_error,
             reference: *is_ref,
             failure,
+            has_flow,
         });
     }
     let cheapest = points
@@ -327,14 +336,18 @@ pub fn study(
             p.seconds,
             p.error,
             p.position_error,
-            p.failure.clone().unwrap_or_default()
+            match (&p.failure, p.has_flow) {
+                (Some(f), _) => f.clone(),
+                (None, false) => "no flow: error 1 by construction (not charted)".into(),
+                (None, true) => String::new(),
+            }
         )
         .expect("string");
     }
     write_atomic(&out.join(format!("study_{name}.md")), md.as_bytes())?;
     let plotted: Vec<&StudyPoint> = points
         .iter()
-        .filter(|p| !p.reference && p.error.is_finite() && p.error > 0.0)
+        .filter(|p| !p.reference && p.has_flow && p.error.is_finite() && p.error > 0.0)
         .collect();
     let mut series = vec![Series {
         label: format!("{name} (labels: values)"),
