@@ -353,17 +353,20 @@ pub fn study(
         label: format!("{name} (labels: values)"),
         points: plotted.iter().map(|p| (p.seconds, p.error)).collect(),
     }];
+    // The stated accuracy as a line from the cheapest charted setting to the reference's
+    // wall time, where the reference (error 0 by definition, off a log axis) is labelled.
+    let ref_seconds = points.last().map_or(f64::NAN, |p| p.seconds);
     let (t_lo, t_hi) = plotted
         .iter()
         .map(|p| p.seconds)
+        .chain(ref_seconds.is_finite().then_some(ref_seconds))
         .fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s), b.max(s)));
-    if t_hi > 0.0 {
+    if t_hi > 0.0 && !plotted.is_empty() {
         series.push(Series {
             label: format!("stated accuracy {accuracy:.0e}"),
             points: vec![(t_lo, accuracy), (t_hi, accuracy)],
         });
     }
-    let ref_seconds = points.last().map_or(f64::NAN, |p| p.seconds);
     let title = match &cheapest {
         Some(p) => format!(
             "{name}: cheapest within {accuracy:.0e} is {} (reference {reference}: {ref_seconds:.1} s)",
@@ -373,10 +376,13 @@ pub fn study(
             "{name}: only the reference {reference} ({ref_seconds:.1} s) is within {accuracy:.0e}"
         ),
     };
-    let labels: Vec<(f64, f64, String)> = plotted
+    let mut labels: Vec<(f64, f64, String)> = plotted
         .iter()
         .map(|p| (p.seconds, p.error, p.value.clone()))
         .collect();
+    if ref_seconds.is_finite() && !plotted.is_empty() {
+        labels.push((ref_seconds, accuracy, format!("{reference} (reference)")));
+    }
     log_chart(
         &out.join(format!("study_{name}")),
         &title,
