@@ -8,8 +8,11 @@
 //!
 //! `--model` needs no device: it prints the work model of the particle sums' Fourier part
 //! (`motile_particle::ewald::gpu::work_model`: global-memory bytes, atomics and launches per
-//! phase, per point and per sum) for each spreading method on the benchmark's cases, so the
-//! design is judged by counts where no GPU is at hand.
+//! phase, per point and per sum) for each spreading method on the benchmark's cases, and the
+//! launches, transforms and host round trips of whole steps (the mean-field step and the
+//! particle step resident on the device), counted by the device as they are issued on the
+//! host emulation (`motile_gpu::Counters`: the same counts as on CUDA), so the design is
+//! judged by counts where no GPU is at hand.
 //!
 //! Cases (the sizes of issue 18; `--small` shrinks every one to seconds, for checking the
 //! harness, e.g. on the host emulation):
@@ -383,6 +386,159 @@ impl Bench {
     }
 }
 
+/// The mean-field step's work model (`motile_meanfield::gpu::work_model`, `--model`): per
+/// phase the launches, transforms, round trips and global-memory bytes per grid point for
+/// 4 and 5 fixed-point iterations (the paper's case takes 4-5), with transforms of 2 and 3
+/// passes, and the step's bytes at 256^3 over the HBM bandwidth of an H100 (3.35 TB/s) and
+/// an H200 (4.8 TB/s): a floor on the step's time, not a measurement.
+fn meanfield_model_table() {
+    use motile_meanfield::gpu::work_model;
+    println!(
+        "\nMean-field step, per grid point (kernels' fields read and written; a transform as 2 \
+         or 3 passes that read and write its field):\n"
+    );
+    println!(
+        "| K | phase | launches | transforms | downloads | kernel bytes/point | with transforms, 2 passes | 3 passes |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for k in [4, 5] {
+        let model = work_model(k);
+        for p in &model {
+            println!(
+                "| {k} | {} | {} | {} | {} | {:.0} | {:.0} | {:.0} |",
+                p.phase,
+                p.launches,
+                p.transforms,
+                p.downloads,
+                p.kernel_bytes,
+                p.bytes(2.0),
+                p.bytes(3.0)
+            );
+        }
+        let total = |passes: f64| model.iter().map(|p| p.bytes(passes)).sum::<f64>();
+        let kernels: f64 = model.iter().map(|p| p.kernel_bytes).sum();
+        let points = 256f64.powi(3);
+        println!(
+            "| {k} | **step** | {} | {} | {} | {kernels:.0} | {:.0} | {:.0} |",
+            model.iter().map(|p| p.launches).sum::<usize>(),
+            model.iter().map(|p| p.transforms).sum::<usize>(),
+            model.iter().map(|p| p.downloads).sum::<usize>(),
+            total(2.0),
+            total(3.0)
+        );
+        for passes in [2.0, 3.0] {
+            let gb = total(passes) * points / 1e9;
+            println!(
+                "|  | 256^3, {passes} passes: {gb:.0} GB per step; at 3.35 TB/s {:.1} ms, at 4.8 TB/s {:.1} ms | | | | | | |",
+                gb / 3.35,
+                gb / 4.8
+            );
+        }
+    }
+}
+
+/// Launches, transforms and host round trips of whole steps, counted by the device as they
+/// are issued (the same counts as on CUDA), on the host emulation (`--model`): the mean-field
+/// step (16^3, the paper's zeta and D) and the particle step resident on the device at each
+/// level it runs (432 rods, nu = 2: contacts every step), per step.
+fn counted_table() {
+    let closure = BinghamClosure::new(DEFAULT_DEGREE).expect("closure tables");
+    let n = 16;
+    let grid = SpectralGrid::new(n);
+    let params = MeanFieldParams {
+        zeta: 0.1421,
+        diffusion: 1e-4,
+        ..MeanFieldParams::default()
+    };
+    let cpu = MeanFieldStepper::new(&grid, &meanfield_state(n), SBDF2);
+    let rhs = MeanFieldRhs {
+        grid: &grid,
+        closure: &closure,
+        params: &params,
+        with_entropy: false,
+    };
+    let mut gpu = match GpuMeanField::open(Backend::HostEmulation, &rhs, &cpu) {
+        Ok(g) => g,
+        Err(e) => {
+            println!("(counts on the host emulation skipped: {e})");
+            return;
+        }
+    };
+    println!(
+        "\nCounted on the host emulation, per step (the device counts what it is asked for: \
+         the same on CUDA):\n"
+    );
+    println!(
+        "| step | fixed-point / solver iterations | launches | transforms (forward + inverse) | downloads (bytes) | uploads (bytes) |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for k in 0..3 {
+        let before = gpu.counters();
+        let r = gpu.step(0.01, false).expect("mean-field step");
+        let c = gpu.counters().since(&before);
+        println!(
+            "| mean-field {n}^3, step {} | {} | {} | {} + {} | {} ({}) | {} ({}) |",
+            k + 1,
+            r.rhs.iterations,
+            c.launches,
+            c.forward,
+            c.inverse,
+            c.downloads,
+            c.download_bytes,
+            c.uploads,
+            c.upload_bytes
+        );
+    }
+    let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).expect("rods");
+    for level in ["none", "dipole", "sbt-explicit"] {
+        let mut mobility: Option<Box<dyn Mobility>> = match level {
+            "dipole" => Some(Box::new(Dipole::new(
+                Box::new(SpectralEwald::new(1e-4).unwrap()),
+                DEFAULT_DIAMETER,
+            ))),
+            "sbt-explicit" => Some(Box::new(ExplicitSlender::new(
+                SlenderParams::default(),
+                Box::new(SpectralEwald::new(1e-4).unwrap()),
+            ))),
+            _ => None,
+        };
+        let mut d = DeviceStepper::new(
+            Backend::HostEmulation,
+            &rods,
+            ContactParams::default(),
+            &Vec::new(),
+        )
+        .expect("device stepper");
+        let mut at = rods.clone();
+        let mut free = RodVelocities::zeros(rods.len());
+        for k in 0..3 {
+            let before = d.counters();
+            let r = match &mut mobility {
+                Some(m) => {
+                    d.download(&mut at).expect("download");
+                    let p = at.orientations();
+                    m.free_velocities(&at, &p, &mut free).expect("flow");
+                    d.step_from(0.02, Some((&free.v, &free.w)))
+                }
+                None => d.step(0.02),
+            }
+            .expect("device step");
+            let c = d.counters().since(&before);
+            println!(
+                "| particle `{level}`, 432 rods, step {} | {} ({} projections) | {} | - | {} ({}) | {} ({}) |",
+                k + 1,
+                r.contact.iterations,
+                r.projections,
+                c.launches,
+                c.downloads,
+                c.download_bytes,
+                c.uploads,
+                c.upload_bytes
+            );
+        }
+    }
+}
+
 /// The work model's table (`--model`): per case and spreading method, each phase's launches,
 /// bytes, global and shared atomics per point, and the sum's totals.
 fn model_table(small: bool) {
@@ -494,6 +650,8 @@ fn main() {
     let small = std::env::args().any(|a| a == "--small");
     if std::env::args().any(|a| a == "--model") {
         model_table(small);
+        meanfield_model_table();
+        counted_table();
         return;
     }
     let emulate = arg("--device").as_deref() == Some("emulation");

@@ -1,11 +1,13 @@
 //! An open device (CUDA or the host emulation), its compiled kernels, and buffers on it.
 
 use crate::buffer::{Buffer, Data, Element};
+use crate::counters::Counters;
 #[cfg(feature = "cuda")]
 use crate::cuda;
 use crate::error::GpuError;
 use crate::host;
 use crate::kernel::KernelSet;
+use std::sync::Mutex;
 
 /// Which device to open: the one way both models open theirs ([`Device::open`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -35,6 +37,8 @@ impl Backend {
 #[derive(Debug)]
 pub struct Device {
     pub(crate) inner: Inner,
+    /// What it has been asked to do ([`Device::counters`]).
+    counters: Mutex<Counters>,
 }
 
 #[derive(Debug)]
@@ -62,7 +66,27 @@ impl Device {
                 ));
             }
         };
-        Ok(Self { inner })
+        Ok(Self {
+            inner,
+            counters: Mutex::new(Counters::default()),
+        })
+    }
+
+    /// What this device has been asked to do since it was opened: launches, transforms and
+    /// transfers ([`Counters::since`] for a part of the work).
+    pub fn counters(&self) -> Counters {
+        self.counters
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Add to the counts.
+    pub(crate) fn count(&self, f: impl FnOnce(&mut Counters)) {
+        f(&mut self
+            .counters
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner));
     }
 
     /// On the host emulation, run the blocks of every later launch in a new random order (`seed`
@@ -102,6 +126,7 @@ impl Device {
     /// A buffer holding a copy of `data`.
     pub fn upload<T: Element>(&self, data: &[T]) -> Result<Buffer<T>, GpuError> {
         let len = data.len();
+        self.count_upload::<T>(len);
         let data = match &self.inner {
             Inner::Host(_) => Data::Host(data.to_vec()),
             #[cfg(feature = "cuda")]
@@ -119,6 +144,7 @@ impl Device {
                 buf.len
             )));
         }
+        self.count_upload::<T>(data.len());
         match (&self.inner, &mut buf.data) {
             (Inner::Host(_), Data::Host(v)) => v.copy_from_slice(data),
             #[cfg(feature = "cuda")]
@@ -127,6 +153,20 @@ impl Device {
             _ => return Err(GpuError::foreign()),
         }
         Ok(())
+    }
+
+    fn count_upload<T>(&self, len: usize) {
+        self.count(|c| {
+            c.uploads += 1;
+            c.upload_bytes += (len * std::mem::size_of::<T>()) as u64;
+        });
+    }
+
+    fn count_download<T>(&self, len: usize) {
+        self.count(|c| {
+            c.downloads += 1;
+            c.download_bytes += (len * std::mem::size_of::<T>()) as u64;
+        });
     }
 
     /// A buffer of `len` zeros.
@@ -156,6 +196,7 @@ impl Device {
         if buf.len == 0 {
             return Ok(Vec::new());
         }
+        self.count_download::<T>(buf.len);
         match (&self.inner, &buf.data) {
             (Inner::Host(_), Data::Host(v)) => Ok(v.clone()),
             #[cfg(feature = "cuda")]
@@ -181,6 +222,7 @@ impl Device {
         if len == 0 {
             return Ok(Vec::new());
         }
+        self.count_download::<T>(len);
         match (&self.inner, &buf.data) {
             (Inner::Host(_), Data::Host(v)) => Ok(v[at..at + len].to_vec()),
             #[cfg(feature = "cuda")]

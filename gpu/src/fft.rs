@@ -110,6 +110,7 @@ impl Device {
                 "a forward transform with an inverse-only plan".into(),
             ));
         }
+        self.count(|c| c.forward += plan.batch as u64);
         let (n, s) = (plan.real_len(), plan.spectrum_len());
         match (&plan.inner, &real.data, &mut spectra.data) {
             (FftInner::Host(fft), Data::Host(x), Data::Host(y)) => {
@@ -157,6 +158,7 @@ impl Device {
                 "an inverse transform with a forward-only plan".into(),
             ));
         }
+        self.count(|c| c.inverse += plan.batch as u64);
         let (n, s) = (plan.real_len(), plan.spectrum_len());
         match (&plan.inner, &mut spectra.data, &mut real.data) {
             (FftInner::Host(fft), Data::Host(y), Data::Host(x)) => {

@@ -24,6 +24,10 @@ impl Device {
         let blocks = u32::try_from(blocks)
             .map_err(|_| GpuError::Input(format!("{threads} threads for {name}")))?;
         let mut args = kernel.args();
+        self.count(|c| {
+            c.launches += 1;
+            *c.by_kernel.entry(name).or_default() += 1;
+        });
         match &self.inner {
             // SAFETY: passed on from this function's contract; the types are the kernel's.
             Inner::Host(h) => unsafe { h.launch(name, blocks, &mut args) },

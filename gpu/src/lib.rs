@@ -30,6 +30,7 @@
 //! buffers it is given.
 
 mod buffer;
+mod counters;
 #[cfg(feature = "cuda")]
 mod cuda;
 mod device;
@@ -40,6 +41,7 @@ mod kernel;
 mod launch;
 
 pub use buffer::{Buffer, Element};
+pub use counters::Counters;
 pub use device::{Backend, Device, probe};
 pub use error::{DeviceInfo, GpuError, kernel_int};
 pub use fft::{Direction, Fft3};

@@ -6,7 +6,8 @@
 //! the CPU step's own response to perturbing Q by a few ulps (the closure's evaluation
 //! amplifies round-off: 1e-15 in Q gives 6e-12 in Q and 2e-10 in u after one step on this
 //! state); every number of the step reports within 1e-10, or within ten times the CPU step's
-//! own response to that perturbation where that is larger.
+//! own response to that perturbation where that is larger. Each step's transforms, counted by
+//! the device as they are asked for, are the stated 42 + 12 K for K fixed-point iterations.
 //!
 //! Twice: on the host emulation of the kernels (the same source compiled by the C++ compiler
 //! and run on the CPU, transforms in cuFFT's layout; 16^3; skipped with the reason where no C++
@@ -108,7 +109,40 @@ fn parity(n: usize, backend: Backend) {
         };
         let rc = cpu.step(&rhs, dt).unwrap();
         let ru = cpu_ulps.step(&rhs, dt).unwrap();
+        let before = gpu.counters();
         let rg = gpu.step(dt, true).unwrap();
+        // The transforms of a step, counted as the device is asked for them: 6 + 12 K + 12 + 24
+        // (Q to the grid; per fixed-point iteration 6 strain components to the grid and 6
+        // stresses back; u and grad u; grad Q and the 6 products back) for K iterations, the
+        // count docs/gpu.md and BENCHMARKS.md state; one download per iteration (the change)
+        // besides the step's fixed ones.
+        let did = gpu.counters().since(&before);
+        let iters = rg.rhs.iterations as u64;
+        assert_eq!(
+            (did.forward, did.inverse),
+            (6 * iters + 6, 6 * iters + 36),
+            "step {k}: transforms (forward, inverse) for {iters} fixed-point iterations"
+        );
+        // The work model's launches, transforms and round trips are the step's.
+        let model = motile_meanfield::gpu::work_model(rg.rhs.iterations);
+        let sum = |f: fn(&motile_meanfield::gpu::PhaseWork) -> usize| {
+            model.iter().map(f).sum::<usize>() as u64
+        };
+        assert_eq!(
+            (
+                sum(|p| p.launches),
+                sum(|p| p.transforms),
+                sum(|p| p.downloads)
+            ),
+            (did.launches, did.forward + did.inverse, did.downloads),
+            "step {k}: the work model's (launches, transforms, downloads) against the device's \
+             counts"
+        );
+        eprintln!(
+            "step {k}: {} forward and {} inverse transforms, {} launches, {} downloads ({} \
+             bytes), {iters} fixed-point iterations",
+            did.forward, did.inverse, did.launches, did.downloads, did.download_bytes
+        );
         let (t, q_hat, _, u_hat) = gpu.state().unwrap();
         let (dq, du) = (rel(&cpu.q_hat, &q_hat), rel(&cpu.u_hat, &u_hat));
         let (sq, su) = (

@@ -539,6 +539,44 @@ fn check_warm(open: &dyn Fn(&RodSet, &WarmStart) -> DeviceStepper, cold: &GpuSte
     );
 }
 
+/// The resident step's host round trips, counted by the device: one download per contact-solver
+/// iteration (its four numbers) besides a fixed number per step, and the same launches per
+/// iteration, on warm-started steps that solve (at least one iteration) without projecting.
+/// A change that adds a round trip per iteration, or per constraint, fails here.
+fn check_round_trips(open: &dyn Fn(&RodSet) -> DeviceStepper) {
+    let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 16, 1_000_000).unwrap();
+    let mut d = open(&rods);
+    let mut seen = Vec::new();
+    for step in 0..12 {
+        let before = d.counters();
+        let r = d.step(0.02).unwrap();
+        let c = d.counters().since(&before);
+        // The first step starts from zero: no warm-start gather and no product of the start
+        // (3 launches fewer).
+        if step > 0 && r.contact.iterations > 0 && r.projections == 0 {
+            let k = r.contact.iterations as i64;
+            seen.push((k, c.downloads as i64 - k, c.launches as i64 - 4 * k));
+        }
+    }
+    let ks: std::collections::BTreeSet<i64> = seen.iter().map(|s| s.0).collect();
+    assert!(
+        ks.len() >= 2,
+        "steps with different iteration counts needed: {seen:?}"
+    );
+    assert!(
+        seen.iter().all(|s| s.1 == seen[0].1 && s.2 == seen[0].2),
+        "(iterations, downloads - iterations, launches - 4 x iterations) per step: {seen:?}"
+    );
+    eprintln!(
+        "round trips: {} downloads and {} launches per step besides 1 and 4 per solver \
+         iteration ({} steps, {:?} iterations)",
+        seen[0].1,
+        seen[0].2,
+        seen.len(),
+        ks
+    );
+}
+
 /// The resident stepper repeats bit for bit: 30 steps with blocks in order and in two shuffled
 /// orders (so the integer atomics of the cell and constraint lists take other orders) give the
 /// same rods to the last bit.
@@ -642,6 +680,15 @@ fn device_step_rooms_match_their_twins_on_the_host_emulation() {
         &|r, w| DeviceStepper::new(Backend::HostEmulation, r, ContactParams::default(), w).unwrap(),
         &open().unwrap(),
     );
+    check_round_trips(&|r| {
+        DeviceStepper::new(
+            Backend::HostEmulation,
+            r,
+            ContactParams::default(),
+            &Vec::new(),
+        )
+        .unwrap()
+    });
     let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).unwrap();
     let stepper = || {
         DeviceStepper::new(

@@ -22,8 +22,10 @@
 mod error;
 mod launch;
 mod signatures;
+mod work;
 
 pub use error::GpuError;
+pub use work::{PhaseWork, work_model};
 
 use crate::closure::BinghamClosure;
 use crate::gpu::signatures::KERNELS;
@@ -97,6 +99,11 @@ impl GpuMeanField {
     /// What the device is.
     pub fn describe(&self) -> String {
         self.dev.describe()
+    }
+
+    /// What the device has been asked to do so far: launches, transforms, transfers.
+    pub fn counters(&self) -> motile_gpu::Counters {
+        self.dev.counters()
     }
 
     /// The state, downloaded: `(t, Q coefficients, history, u coefficients)`, as

@@ -119,6 +119,11 @@ impl DeviceStepper {
         self.gpu.describe()
     }
 
+    /// What the device has been asked to do so far: launches, transfers.
+    pub fn counters(&self) -> motile_gpu::Counters {
+        self.gpu.dev.counters()
+    }
+
     /// On the host emulation, run blocks in a random order at every launch (`seed` nonzero):
     /// the atomics then take other orders, which the step's sorts must undo.
     pub fn shuffle_blocks(&self, seed: u64) -> bool {

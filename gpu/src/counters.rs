@@ -1,0 +1,49 @@
+//! What a device has been asked to do, counted as it is issued: kernel launches (by kernel),
+//! 3D transforms, and the transfers between host and device. The counts are the same on CUDA
+//! and on the host emulation, so a design's launches, transforms and host round trips can be
+//! measured by running it where no GPU is at hand.
+
+use std::collections::BTreeMap;
+
+/// Counts of what a [`crate::Device`] did since it was opened.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// Kernel launches, in all.
+    pub launches: u64,
+    /// Kernel launches by kernel name.
+    pub by_kernel: BTreeMap<&'static str, u64>,
+    /// 3D transforms of one field, forward (a batch of `b` fields counts `b`).
+    pub forward: u64,
+    /// 3D transforms of one field, inverse.
+    pub inverse: u64,
+    /// Uploads (host to device).
+    pub uploads: u64,
+    /// Bytes uploaded.
+    pub upload_bytes: u64,
+    /// Downloads (device to host; each waits for the device's queued work: a round trip).
+    pub downloads: u64,
+    /// Bytes downloaded.
+    pub download_bytes: u64,
+}
+
+impl Counters {
+    /// What was done after `before` (an earlier reading of the same device's counters).
+    pub fn since(&self, before: &Counters) -> Counters {
+        let by_kernel = self
+            .by_kernel
+            .iter()
+            .map(|(k, &v)| (*k, v - before.by_kernel.get(k).copied().unwrap_or(0)))
+            .filter(|(_, v)| *v > 0)
+            .collect();
+        Counters {
+            launches: self.launches - before.launches,
+            by_kernel,
+            forward: self.forward - before.forward,
+            inverse: self.inverse - before.inverse,
+            uploads: self.uploads - before.uploads,
+            upload_bytes: self.upload_bytes - before.upload_bytes,
+            downloads: self.downloads - before.downloads,
+            download_bytes: self.download_bytes - before.download_bytes,
+        }
+    }
+}
