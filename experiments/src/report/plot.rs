@@ -350,6 +350,28 @@ fn log_tick(v: &f64) -> String {
     }
 }
 
+/// The ticks of a log axis over `lo..hi`: every 1-2-5 value (1, 2 or 5 times a power of ten)
+/// inside it where it spans at most three decades, else the powers of ten (with the 1-2-5
+/// values of the decade around the data where fewer than two powers fall inside).
+fn ticks_125(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo > 0.0 && hi > lo && lo.is_finite() && hi.is_finite()) {
+        return Vec::new();
+    }
+    let (e0, e1) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    let all = |mults: &[f64]| -> Vec<f64> {
+        (e0..=e1)
+            .flat_map(|e| mults.iter().map(move |m| m * 10f64.powi(e)))
+            .filter(|v| *v >= lo * (1.0 - 1e-12) && *v <= hi * (1.0 + 1e-12))
+            .collect()
+    };
+    let decades = all(&[1.0]);
+    if hi / lo > 1e3 && decades.len() >= 2 {
+        decades
+    } else {
+        all(&[1.0, 2.0, 5.0])
+    }
+}
+
 fn draw_log<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     title: &str,
@@ -386,7 +408,10 @@ where
         .margin(15)
         .x_label_area_size(45)
         .y_label_area_size(80)
-        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+        .build_cartesian_2d(
+            (x0..x1).log_scale().with_key_points(ticks_125(x0, x1)),
+            (y0..y1).log_scale().with_key_points(ticks_125(y0, y1)),
+        )
         .map_err(|e| e.to_string())?;
     c.configure_mesh()
         .x_desc(x_label)
@@ -707,7 +732,21 @@ where
 
 #[cfg(test)]
 mod tests {
-    use super::log_tick;
+    use super::{log_tick, ticks_125};
+
+    #[test]
+    fn log_axes_tick_at_one_two_five_values() {
+        assert_eq!(
+            ticks_125(14.4, 1110.0),
+            [20.0, 50.0, 100.0, 200.0, 500.0, 1000.0]
+        );
+        assert_eq!(ticks_125(0.8, 8.2), [1.0, 2.0, 5.0]);
+        assert_eq!(
+            ticks_125(1e-9, 2.0),
+            [1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.1, 1.0]
+        );
+        assert!(ticks_125(0.0, 1.0).is_empty());
+    }
 
     #[test]
     fn log_ticks_label_only_one_two_five() {
