@@ -218,6 +218,72 @@ hydrodynamics = "sbt"
     }
 }
 
+/// A level without flow (`hydrodynamics = "none"`) has error 1 by construction: the study's
+/// table lists it with that note, its chart leaves it off and names the levels with a flow.
+#[test]
+fn a_hydrodynamics_study_keeps_the_level_without_flow_off_its_chart() {
+    use motile_experiments::campaign::study::{StudyOptions, study};
+    let scene = parse_scene(
+        r#"
+[scene]
+name = "tiny"
+version = 1
+description = "a tiny dilute box for the study test"
+level = "slender-body theory"
+cost = "seconds"
+
+[[run]]
+name = "p"
+model = "particle"
+[run.config]
+box_length = 4.0
+volume_fraction = 0.625
+dt = 0.02
+t_end = 0.2
+hydrodynamics = "sbt"
+"#,
+        "tiny",
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let opts = StudyOptions {
+        knob: "hydrodynamics".into(),
+        values: Some(vec!["none".to_string(), "dipole".to_string()]),
+        t_end: None,
+        accuracy: 1e-2,
+        run: None,
+    };
+    let report = study(&scene, &opts, dir.path(), &mut |_| {}).unwrap();
+    let p = &report.points;
+    assert_eq!(
+        p.iter().map(|q| q.value.as_str()).collect::<Vec<_>>(),
+        ["none", "dipole", "sbt"]
+    );
+    assert!(!p[0].has_flow && p[0].error == 1.0, "none: {:?}", p[0]);
+    assert!(
+        p[1].has_flow && p[1].error > 0.0 && p[1].error < 1.0,
+        "{:?}",
+        p[1]
+    );
+    assert!(
+        report.markdown.contains("| none | ")
+            && report
+                .markdown
+                .contains("no flow: error 1 by construction (not charted)"),
+        "{}",
+        report.markdown
+    );
+    let svg = std::fs::read_to_string(dir.path().join("study_hydrodynamics.svg")).unwrap();
+    assert!(
+        svg.contains("\ndipole\n") && svg.contains("\nsbt (reference)\n"),
+        "the chart labels the dipole level and the reference"
+    );
+    assert!(
+        !svg.contains("\nnone\n"),
+        "the chart shows the level without flow"
+    );
+}
+
 /// The cost estimate times real steps: a large particle run at a proxy size (same volume
 /// fraction), a small mean-field run at its own size, and counts the run's steps.
 #[test]
