@@ -147,11 +147,11 @@ fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
     );
 }
 
-#[test]
-fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
-    use motile_experiments::campaign::study::{StudyOptions, study};
-    let scene = parse_scene(
-        r#"
+/// A tiny dilute box (40 slender-body rods) stepped by `dt` to `t_end`, for the study tests.
+fn tiny_scene(dt: f64, t_end: f64) -> motile_experiments::campaign::scene::Scene {
+    parse_scene(
+        &format!(
+            r#"
 [scene]
 name = "tiny"
 version = 1
@@ -165,13 +165,20 @@ model = "particle"
 [run.config]
 box_length = 4.0
 volume_fraction = 0.625
-dt = 0.01
-t_end = 0.4
+dt = {dt}
+t_end = {t_end}
 hydrodynamics = "sbt"
-"#,
+"#
+        ),
         "tiny",
     )
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
+    use motile_experiments::campaign::study::{StudyOptions, study};
+    let scene = tiny_scene(0.01, 0.4);
     let dir = tempfile::tempdir().unwrap();
     let values = Some(vec!["0.04".to_string(), "0.02".to_string()]);
     let opts = StudyOptions {
@@ -223,28 +230,7 @@ hydrodynamics = "sbt"
 #[test]
 fn a_hydrodynamics_study_keeps_the_level_without_flow_off_its_chart() {
     use motile_experiments::campaign::study::{StudyOptions, study};
-    let scene = parse_scene(
-        r#"
-[scene]
-name = "tiny"
-version = 1
-description = "a tiny dilute box for the study test"
-level = "slender-body theory"
-cost = "seconds"
-
-[[run]]
-name = "p"
-model = "particle"
-[run.config]
-box_length = 4.0
-volume_fraction = 0.625
-dt = 0.02
-t_end = 0.2
-hydrodynamics = "sbt"
-"#,
-        "tiny",
-    )
-    .unwrap();
+    let scene = tiny_scene(0.02, 0.2);
     let dir = tempfile::tempdir().unwrap();
     let opts = StudyOptions {
         knob: "hydrodynamics".into(),
