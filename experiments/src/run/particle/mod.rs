@@ -7,51 +7,28 @@
 
 pub(crate) mod config;
 mod device;
+mod outputs;
 mod ranked;
 mod state;
 
 pub use config::*;
+pub use outputs::{COLUMNS, mode_columns};
+use outputs::{lowest_modes, series_row, velocity_norms, write_snapshot};
 pub use ranked::follow;
 pub use state::*;
 
-use crate::io::rundir::{RunDir, TimeSeries};
-use crate::io::snapshot::{Kinematics, ParticleSnapshot, PointForces};
-use crate::io::vtk::{write_pvd, write_rods_vtp};
+use crate::io::rundir::TimeSeries;
+use crate::io::snapshot::{Kinematics, PointForces};
 use crate::run;
 use crate::run::particle::ranked::Ranked;
 use anyhow::{Context, bail};
-use motile_analysis::correlation::{CorrelationOptions, velocity_modes, velocity_spectrum};
 use motile_particle::hydro::mobility::RodVelocities;
 use motile_particle::model::rods::RodSet;
-use motile_particle::model::units::{ROD_LENGTH, SWIM_SPEED, VISCOSITY};
 use motile_particle::step::contact::WarmStart;
 use motile_particle::step::report::{StepError, StepReport};
 use motile_particle::step::stepper::Stepper;
 use std::path::Path;
 use std::time::Instant;
-
-/// Columns of a particle run's `timeseries.csv`.
-pub const COLUMNS: [&str; 19] = [
-    "t [1/beta]",
-    "steps_per_second [1/s]",
-    "constraints [1]",
-    "active_contacts [1]",
-    "solver_iterations [1]",
-    "solver_residual [l]",
-    "max_overlap [l]",
-    "mean_speed [beta l]",
-    "polar_order [1]",
-    "gmres_iterations [1]",
-    "gmres_residual [1]",
-    "velocity_norm [beta L]",
-    "max_speed [beta l]",
-    "max_rotation_rate [beta]",
-    "contact_corrections [1]",
-    "projections [1]",
-    "sum_error_estimate [tol]",
-    "sum_level [1]",
-    "velocity_norm_box [beta L]",
-];
 
 /// What a run did.
 #[derive(Clone, Debug)]
@@ -512,67 +489,6 @@ impl run::RunModel for ParticleModel {
     }
 }
 
-/// A row of `timeseries.csv` ([`COLUMNS`]) from a step's report, the wall-clock rate and the
-/// flow's norms (all and box-scale modes).
-fn series_row(t: f64, rate: f64, report: &StepReport, norms: (f64, f64)) -> Vec<f64> {
-    let c = &report.contact;
-    vec![
-        t,
-        rate,
-        c.constraints as f64,
-        c.active as f64,
-        c.iterations as f64,
-        c.residual,
-        report.max_overlap,
-        report.mean_speed,
-        report.polar_order,
-        report.hydro.gmres_iterations as f64,
-        report.hydro.gmres_residual,
-        norms.0,
-        report.max_speed,
-        report.max_rotation_rate,
-        report.correction_active as f64,
-        report.projections as f64,
-        report.hydro.sum_error_ratio,
-        report.hydro.sum_level as f64,
-        norms.1,
-    ]
-}
-
-/// The wavevectors of `modes.csv`: the three lowest box modes.
-const LOWEST_MODES: [[i64; 3]; 3] = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
-
-/// Columns of `modes.csv`: time, then per lowest mode the real and imaginary parts of the
-/// flow's three components (A1, units of `beta l`).
-pub fn mode_columns() -> Vec<String> {
-    let mut c = vec!["t [1/beta]".to_string()];
-    for m in ["100", "010", "001"] {
-        for d in ["x", "y", "z"] {
-            for part in ["re", "im"] {
-                c.push(format!("u_{m}_{d}_{part} [beta l]"));
-            }
-        }
-    }
-    c
-}
-
-/// A row of `modes.csv` at time `t` from the force density of the state `at`.
-fn lowest_modes(stepper: &Stepper, at: &RodSet, t: f64) -> Vec<f64> {
-    let mut row = vec![t];
-    match stepper.mobility().force_density() {
-        Some(fd) => {
-            let (points, forces) = fd.point_forces(at, &at.orientations());
-            for u in velocity_modes(&points, &forces, at.box_length, VISCOSITY, &LOWEST_MODES) {
-                for c in u {
-                    row.extend([c.re, c.im]);
-                }
-            }
-        }
-        None => row.extend([0.0; 18]),
-    }
-    row
-}
-
 impl ParticleModel {
     /// Never silent: where the finest level of the fast sum could not meet the tolerance,
     /// say so once per run (log and terminal).
@@ -731,80 +647,4 @@ impl ParticleModel {
         modes.write(&path)?;
         Ok(())
     }
-}
-
-/// `||u||_2 / (beta L)` of the step's force density (docs/MODEL.md §5, §6: the velocity spectrum on
-/// `floor(L/2)` modes per dimension, doublet neglected); 0 for models without flow.
-/// The flow's volume-averaged L2 norm from the velocity spectrum of the force density, over
-/// the analysis modes and over the box-scale modes alone (every `|m_i| <= 1`: wavelengths of
-/// one box and more, where the instability begins), both in units of `beta L`.
-fn velocity_norms(stepper: &Stepper, at: &RodSet) -> anyhow::Result<(f64, f64)> {
-    let Some(fd) = stepper.mobility().force_density() else {
-        return Ok((0.0, 0.0));
-    };
-    let (points, forces) = fd.point_forces(at, &at.orientations());
-    let l = at.box_length;
-    let modes = CorrelationOptions::default().modes_for(l);
-    let spectrum = velocity_spectrum(&points, &forces, l, VISCOSITY, modes, 1e-6)?;
-    let power = spectrum.power();
-    let box_scale: f64 = power
-        .iter()
-        .enumerate()
-        .filter(|(idx, _)| {
-            [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
-                .iter()
-                .all(|&i| motile_analysis::nufft::mode_of(i, modes).abs() <= 1)
-        })
-        .map(|(_, p)| p)
-        .sum();
-    let unit = SWIM_SPEED / ROD_LENGTH * l;
-    Ok((spectrum.l2_norm() / unit, box_scale.sqrt() / unit))
-}
-
-fn write_snapshot(
-    cfg: &ParticleRunConfig,
-    run: &RunDir,
-    rods: &RodSet,
-    step: u64,
-    kin: Option<Kinematics>,
-    forces: Option<PointForces>,
-    pvd: &mut Vec<(f64, String)>,
-) -> anyhow::Result<()> {
-    let k = (step / cfg.every(cfg.snapshot_interval)) as usize;
-    let t = step as f64 * cfg.dt;
-    let p = rods.orientations();
-    let speed: Vec<f64> = match &kin {
-        Some(k) => k
-            .velocities
-            .iter()
-            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-            .collect(),
-        None => vec![0.0; rods.len()],
-    };
-    let snap = ParticleSnapshot {
-        time: t,
-        step,
-        box_length: rods.box_length,
-        positions: rods.x.clone(),
-        orientations: p.clone(),
-        image_counts: rods.image.clone(),
-        forces,
-        kinematics: kin,
-    };
-    snap.write(&run.snapshot_path(k))?;
-    if cfg.vtk {
-        let name = format!("vtk/rods_{k:06}.vtp");
-        write_rods_vtp(
-            &run.path().join(&name),
-            &rods.x,
-            &p,
-            ROD_LENGTH,
-            rods.diameter / 2.0,
-            &speed,
-        )?;
-        pvd.retain(|(_, f)| *f != name);
-        pvd.push((t, name));
-        write_pvd(&run.path().join("rods.pvd"), pvd)?;
-    }
-    Ok(())
 }
