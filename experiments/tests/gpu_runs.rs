@@ -15,7 +15,9 @@
 //!   `--device gpu`, whose step runs on the device (the flow summed on the host with its
 //!   Fourier part on the device), write the CPU run's time series within the contact solver's
 //!   tolerance, flow norms included, and their mid-run checkpoints (downloaded from the
-//!   device) resume on the CPU to the same end.
+//!   device) resume on the CPU to the same end;
+//! - a resident step that fails stops the run with the reason and the state before it, which
+//!   resumes on the CPU to the CPU run's end.
 //!
 //! Skipped, with the reason, where no C++ compiler runs (a failure with `MOTILE_REQUIRE_CXX=1`).
 
@@ -26,13 +28,19 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use support::copy_dir;
 
-fn motile(args: &[&str], emulated: bool) -> std::process::Output {
+/// `motile args` (on the emulation where `emulated`), whatever its exit status.
+fn motile_output(args: &[&str], emulated: bool) -> std::process::Output {
     let mut c = Command::new(env!("CARGO_BIN_EXE_motile"));
     c.args(args).arg("--threads").arg("2");
     if emulated {
         c.env("MOTILE_GPU_BACKEND", "emulation");
     }
-    let out = c.output().expect("running motile");
+    c.output().expect("running motile")
+}
+
+/// `motile args`, which must succeed.
+fn motile(args: &[&str], emulated: bool) -> std::process::Output {
+    let out = motile_output(args, emulated);
     assert!(
         out.status.success(),
         "motile {args:?} failed:\n{}",
@@ -152,6 +160,18 @@ fn a_meanfield_run_on_the_emulated_gpu_matches_the_cpu_and_resumes_from_a_cpu_ch
     eprintln!("resumed on the emulated GPU from a CPU checkpoint: largest difference {worst:.1e}");
 }
 
+/// The time-series columns a resident run need not share with the CPU's: the wall-clock rate,
+/// and what depends on the order of the contact solver's constraints (iterations, residual,
+/// active count, overlap left, corrections).
+const SOLVER_COLUMNS: [&str; 6] = [
+    "steps_per_second",
+    "solver_iterations",
+    "solver_residual",
+    "active_contacts",
+    "max_overlap",
+    "contact_corrections",
+];
+
 /// A run at `level` with `--device gpu`, resident on the device (nu = 2 in a box of 6 rod
 /// lengths: contacts every step), against the CPU's run, then its mid-run checkpoint
 /// (downloaded from the device) resumed on the CPU, against the CPU's run again.
@@ -177,14 +197,7 @@ fn resident_run(level: &str, says: &str) {
         log.contains(says),
         "{level}: the run says where it ran:\n{log}"
     );
-    let skip = [
-        "steps_per_second",
-        "solver_iterations",
-        "solver_residual",
-        "active_contacts",
-        "max_overlap",
-        "contact_corrections",
-    ];
+    let skip = SOLVER_COLUMNS;
     let worst = compare(&cpu, &gpu, &skip, 2e-5, 1e-9);
     let ((h, rc), (_, rg)) = (rows(&cpu), rows(&gpu));
     let col = |name: &str| h.iter().position(|c| c.starts_with(name)).unwrap();
@@ -278,4 +291,77 @@ fn a_slender_body_run_with_its_sums_on_the_emulated_gpu_matches_the_cpu() {
     );
     let worst = compare(&cpu, &gpu, &["steps_per_second"], 1e-9, 1e-12);
     eprintln!("sbt run, sums on the emulated GPU against CPU: largest difference {worst:.1e}");
+}
+
+/// A resident step that fails (the contact solver capped at 16 iterations, which one step of
+/// the dense suspension needs more than: step 5 here, the first four warm-started ones
+/// converge within it) stops the run with the reason and the path of the state before it,
+/// downloaded from the device with its warm start; with the cause fixed, the run resumes from
+/// that state on the CPU and ends where the CPU's own run of the fixed config ends.
+#[test]
+fn a_failed_resident_step_saves_the_state_before_it_and_resumes_on_the_cpu() {
+    if !emulation_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("dipole.toml");
+    let text = "box_length = 6\nvolume_fraction = 2\nhydrodynamics = \"dipole\"\ndt = 0.02\n\
+                t_end = 0.2\ndiagnostic_interval = 0.04\nsnapshot_interval = 0.2\n\
+                checkpoint_interval = 0.2\nvtk = false\n";
+    let capped = "[contact]\nmax_iterations = 16\n";
+    std::fs::write(&cfg, format!("{text}{capped}")).unwrap();
+    let gpu = tmp.path().join("gpu");
+    let args = [
+        "particle",
+        "run",
+        cfg.to_str().unwrap(),
+        "--out",
+        gpu.to_str().unwrap(),
+        "--device",
+        "gpu",
+    ];
+    let o = motile_output(&args, true);
+    let err = String::from_utf8_lossy(&o.stderr);
+    let last_good = gpu.join("checkpoints").join("last_good.h5");
+    assert!(
+        !o.status.success() && err.contains("did not converge") && last_good.is_file(),
+        "the failed run says why and saves the state before the step:\n{err}"
+    );
+    assert!(
+        err.contains("last_good.h5"),
+        "the message names the saved state:\n{err}"
+    );
+    let failed_at = err
+        .split("step ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .unwrap_or("?")
+        .to_string();
+    // The cause fixed, resumed on the CPU.
+    let config = gpu.join("config.toml");
+    let saved = std::fs::read_to_string(&config).unwrap();
+    let fixed = saved
+        .replace("max_iterations = 16\n", "max_iterations = 2000\n")
+        .replace("device = \"gpu\"", "device = \"cpu\"");
+    assert_ne!(fixed, saved, "the saved config has the cap and the device");
+    std::fs::write(&config, fixed).unwrap();
+    motile(&["resume", gpu.to_str().unwrap()], false);
+    std::fs::write(&cfg, text).unwrap();
+    let cpu = tmp.path().join("cpu");
+    motile(
+        &[
+            "particle",
+            "run",
+            cfg.to_str().unwrap(),
+            "--out",
+            cpu.to_str().unwrap(),
+        ],
+        false,
+    );
+    let skip = SOLVER_COLUMNS;
+    let worst = compare(&cpu, &gpu, &skip, 2e-5, 1e-9);
+    eprintln!(
+        "failed on the emulated GPU at step {failed_at}, resumed on the CPU from the saved \
+         state: largest difference from the CPU's run {worst:.1e}"
+    );
 }
