@@ -27,8 +27,11 @@ python3 -m pytest -q python/tests
 # The feature builds below replace target/release/motile (the MPI build would then need
 # libmpi to start): the default build, which the README's first command uses, is put back
 # however this script ends.
+# (Removed before the copy back: cargo hard-links target/release/motile to the feature build's
+# own file in deps/, and writing through that link would leave the feature build there
+# holding the default binary, which a later run of this script would then test as fresh.)
 cp target/release/motile target/release/.motile-default
-trap 'cp target/release/.motile-default target/release/motile' EXIT
+trap 'rm -f target/release/motile; cp target/release/.motile-default target/release/motile' EXIT
 # The optional GPU back-end builds everywhere (CUDA is loaded at run time); its parity tests run
 # where a GPU is present and say why they were skipped elsewhere (MOTILE_REQUIRE_GPU=1 makes a
 # missing GPU a failure). All GPU kernels also run here through the host emulation: against
