@@ -51,7 +51,6 @@ use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
 use motile_particle::hydro::mobility::Mobility;
-use motile_particle::hydro::mobility::RodVelocities;
 use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::rods::RodSet;
@@ -361,18 +360,13 @@ impl Bench {
             DeviceStepper::new(self.backend(), &rods, ContactParams::default(), &Vec::new())
                 .expect("the device stepper");
         let mut at = rods.clone();
-        let mut free = RodVelocities::zeros(n);
         let mut sums = 0.0;
         let mut step = || {
             device.download(&mut at).expect("download");
-            let p = at.orientations();
-            mobility
-                .free_velocities(&at, &p, &mut free)
-                .expect("free velocities");
-            sums = mobility.report().seconds_sums;
-            device
-                .step_from(dt, Some((&free.v, &free.w)))
+            let r = device
+                .step_with_flow(dt, mobility.as_mut(), &at)
                 .expect("device step");
+            sums = r.hydro.seconds_sums;
         };
         let tr = time(reps, &mut step);
         self.push(
@@ -510,15 +504,12 @@ fn counted_table() {
         )
         .expect("device stepper");
         let mut at = rods.clone();
-        let mut free = RodVelocities::zeros(rods.len());
         for k in 0..3 {
             let before = d.counters();
             let r = match &mut mobility {
                 Some(m) => {
                     d.download(&mut at).expect("download");
-                    let p = at.orientations();
-                    m.free_velocities(&at, &p, &mut free).expect("flow");
-                    d.step_from(0.02, Some((&free.v, &free.w)))
+                    d.step_with_flow(0.02, m.as_mut(), &at)
                 }
                 None => d.step(0.02),
             }

@@ -12,10 +12,6 @@ pub(crate) use motile_particle::step::gpu::DeviceStepper;
 #[cfg(not(feature = "gpu"))]
 type RodKinematics = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[f64; 3]>);
 
-/// Velocities and angular velocities per rod.
-#[cfg(not(feature = "gpu"))]
-type FreeVelocities<'a> = (&'a [[f64; 3]], &'a [[f64; 3]]);
-
 /// Without the `gpu` feature no device stepper exists (the type has no values).
 #[cfg(not(feature = "gpu"))]
 #[derive(Debug)]
@@ -30,10 +26,11 @@ impl DeviceStepper {
     {
         match *self {}
     }
-    pub(crate) fn step_from(
+    pub(crate) fn step_with_flow(
         &mut self,
         _dt: f64,
-        _free: Option<FreeVelocities<'_>>,
+        _mobility: &mut dyn motile_particle::hydro::mobility::Mobility,
+        _at: &RodSet,
     ) -> Result<motile_particle::step::report::StepReport, motile_particle::step::report::StepError>
     {
         match *self {}

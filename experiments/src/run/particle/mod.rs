@@ -22,7 +22,6 @@ use crate::io::snapshot::{Kinematics, PointForces};
 use crate::run;
 use crate::run::particle::ranked::Ranked;
 use anyhow::{Context, bail};
-use motile_particle::hydro::mobility::RodVelocities;
 use motile_particle::model::rods::RodSet;
 use motile_particle::step::contact::WarmStart;
 use motile_particle::step::report::{StepError, StepReport};
@@ -531,32 +530,17 @@ impl ParticleModel {
             .as_mut()
             .expect("a device step without a device");
         let stepped = if flow {
-            let p = self.rods.orientations();
-            let mut free = RodVelocities::zeros(self.rods.len());
-            match self
-                .stepper
-                .mobility_mut()
-                .free_velocities(&self.rods, &p, &mut free)
-            {
-                Ok(()) => d
-                    .step_from(dt, Some((&free.v, &free.w)))
-                    .map(|mut r| {
-                        r.hydro = self.stepper.mobility().report();
-                        r
-                    })
-                    .map_err(|e| (e, true)),
-                Err(e) => Err((StepError::from(e), false)),
-            }
+            d.step_with_flow(dt, self.stepper.mobility_mut(), &self.rods)
         } else {
-            d.step(dt).map_err(|e| (e, true))
+            d.step(dt)
         };
         let report = match stepped {
             Ok(r) => r,
-            Err((e, on_device)) => {
+            Err(e) => {
                 // The device keeps the state before a failed step; a step that failed before
                 // reaching it (the flow's sum) leaves the rods here as the last good state.
                 let mut rods = self.rods.clone();
-                if on_device {
+                if !matches!(e, StepError::Hydrodynamics(_)) {
                     d.download_before(&mut rods)?;
                 }
                 let mut before =

@@ -87,6 +87,15 @@ pub(super) struct Solved<'a> {
     residual: f64,
 }
 
+impl Solved<'_> {
+    /// The multipliers, and each rod's contact velocities and forces under them (6 values
+    /// per rod each). The solve's last product was of the final multipliers (the start's,
+    /// where no iteration ran; zero from a cold start), so `vel` and `ft` are theirs already.
+    pub(super) fn into_forces(self) -> (Buffer, Buffer, Buffer) {
+        (self.lam, self.prob.vel, self.prob.ft)
+    }
+}
+
 impl GpuStep {
     /// Solve `problem` from `initial` (empty: zero), as
     /// [`crate::step::contact::ContactSolver::solve`] does: the multipliers and the report.

@@ -7,7 +7,7 @@ use super::contacts::DeviceConstraints;
 use super::device::{GpuStep, int};
 use super::signatures::{AddVelocities, PairOverlap, ProjectionMove, SwimVelocities, WarmGather};
 use super::solver::DeviceContactError;
-use super::solver::{DeviceContactProblem, Start};
+use super::solver::{DeviceContactProblem, Solved, Start};
 use super::update::DeviceRods;
 use crate::hydro::mobility::LocalDrag;
 use crate::model::geometry::Vec3;
@@ -146,24 +146,13 @@ impl GpuStep {
             _ => None,
         };
         let start = initial.as_ref().map_or(Start::Host(&[]), Start::Device);
-        let mut next = None;
+        let mut multipliers = None;
         let contact = match self.solve_on_device(problem, params, start)? {
-            Some(mut solved) => {
+            Some(solved) => {
                 report.contact = self.report(&solved)?.1;
-                // The contact velocities of the multipliers (into the problem's vel).
-                let lam = std::mem::replace(&mut solved.lam, dev.zeros::<f64>(1)?);
-                let mut unused = dev.zeros::<f64>(cons.len)?;
-                self.apply(&mut solved.prob, &lam, None, &mut unused)?;
-                let mut w = Warm {
-                    i: dev.zeros::<i32>(cons.len)?,
-                    j: dev.zeros::<i32>(cons.len)?,
-                    lam,
-                    len: cons.len,
-                };
-                dev.copy((&cons.i, 0), (&mut w.i, 0), cons.len)?;
-                dev.copy((&cons.j, 0), (&mut w.j, 0), cons.len)?;
-                next = Some(w);
-                Some((solved.prob.vel, solved.prob.ft))
+                let (lam, vel, f) = solved.into_forces();
+                multipliers = Some(lam);
+                Some((vel, f))
             }
             None => None,
         };
@@ -211,16 +200,10 @@ impl GpuStep {
                 drag: (LocalDrag::new(rods.diameter).coefficients().0, 0.0),
                 dt,
             };
-            let moved = match self.solve_on_device(problem, params, Start::Host(&[]))? {
-                Some(mut solved) => {
-                    let lam = std::mem::replace(&mut solved.lam, dev.zeros::<f64>(1)?);
-                    let mut unused = dev.zeros::<f64>(again.len)?;
-                    self.apply(&mut solved.prob, &lam, None, &mut unused)?;
-                    Some((solved.prob.vel, solved.prob.ft))
-                }
-                None => None,
-            };
-            if let (Some((vel, pft)), Some(ft)) = (moved, ft.as_mut()) {
+            let moved = self
+                .solve_on_device(problem, params, Start::Host(&[]))?
+                .map(Solved::into_forces);
+            if let (Some((_, vel, pft)), Some(ft)) = (moved, ft.as_mut()) {
                 // SAFETY: thread r < n moves x, image (3 n) and adds to v (3 n) and ft (6 n)
                 // at its rod from vel and pft (6 n each).
                 unsafe {
@@ -242,12 +225,20 @@ impl GpuStep {
             }
             (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
         }
+        // The constraints' pairs (sorted) with their multipliers: the next step's start.
+        let len = cons.len;
+        let warm = multipliers.map(|lam| Warm {
+            i: cons.i,
+            j: cons.j,
+            lam,
+            len,
+        });
         Ok(StepOutput {
             report,
             v,
             w,
             ft,
-            warm: next,
+            warm,
         })
     }
 

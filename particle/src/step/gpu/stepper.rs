@@ -9,6 +9,7 @@ use super::signatures::StepStats;
 use super::solver::DeviceContactError;
 use super::step::{StepOutput, Warm};
 use super::update::DeviceRods;
+use crate::hydro::mobility::{Mobility, RodVelocities};
 use crate::model::geometry::Vec3;
 use crate::model::rods::RodSet;
 use crate::step::contact::{ContactParams, WarmStart};
@@ -226,6 +227,24 @@ impl DeviceStepper {
         self.last = Some((v, w, ft));
         self.warm = warm;
         Ok(step)
+    }
+
+    /// One step of `dt` at a level whose flow is summed on the host and whose contacts act
+    /// through the local drag (`dipole`, `sbt-explicit`): the free velocities of `at` (the
+    /// rods now, as [`Self::download`] gives them) from `mobility`, then
+    /// [`Self::step_from`] them; the report carries the mobility's. A failure of the flow's
+    /// sum ([`StepError::Hydrodynamics`]) leaves the device untouched.
+    pub fn step_with_flow(
+        &mut self,
+        dt: f64,
+        mobility: &mut dyn Mobility,
+        at: &RodSet,
+    ) -> Result<StepReport, StepError> {
+        let mut free = RodVelocities::zeros(at.len());
+        mobility.free_velocities(at, &at.orientations(), &mut free)?;
+        let mut report = self.step_from(dt, Some((&free.v, &free.w)))?;
+        report.hydro = mobility.report();
+        Ok(report)
     }
 
     /// The rods now into `rods` (the same rods).
