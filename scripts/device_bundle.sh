@@ -8,10 +8,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 rm -rf device-bin
 mkdir -p device-bin
-# The gpu build replaces target/release/motile: the default build is put back at the end.
+# The gpu build replaces target/release/motile: the default build is put back at the end (after
+# removing the link: cargo hard-links that file to its own in deps/, which a copy onto it would
+# overwrite).
 if [ -f target/release/motile ]; then
   cp target/release/motile target/release/.motile-default
-  trap 'cp target/release/.motile-default target/release/motile' EXIT
+  trap 'rm -f target/release/motile; cp target/release/.motile-default target/release/motile' EXIT
 fi
 cargo build --release -p motile-experiments --features gpu --bin motile --example gpu_bench \
   --example scaling
@@ -30,5 +32,5 @@ cp "$(exe motile-meanfield gpu)" device-bin/test_meanfield_gpu
 cp "$(exe motile-particle gpu_ewald)" device-bin/test_particle_gpu_ewald
 cp "$(exe motile-particle gpu_step)" device-bin/test_particle_gpu_step
 strip device-bin/*
-cp scripts/device_run.sh experiments/configs/meanfield_paper_64.toml device-bin/
+cp scripts/device_run.sh scripts/device_compare.py experiments/configs/meanfield_paper_64.toml device-bin/
 du -sh device-bin

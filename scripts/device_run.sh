@@ -2,20 +2,33 @@
 # On the lent GPU machine, from the repository root with device-bin/ carried (see
 # device_bundle.sh): `bash device-bin/device_run.sh PHASE`, results into $OUT. Each phase fits
 # one 10-minute command:
-#   parity   the GPU parity tests (mean-field step, fast sums, cell lists) with MOTILE_REQUIRE_GPU=1
+#   parity   the GPU parity tests (mean-field step, fast sums, the resident particle step's
+#            kernels and steps) with MOTILE_REQUIRE_GPU=1
 #   bench    gpu_bench: GPU against the 16-thread CPU, side by side (BENCH_ARGS passed on,
-#            e.g. "--cases mf" to split it)
+#            e.g. "--cases mf" to split it); rows appended to gpu_bench.md and gpu_bench.log
+#   runs     whole particle runs through the binary (none, dipole, sbt-explicit; 1 024 rods at
+#            nu = 2, 100 steps): resident on the GPU against the CPU, and a second GPU run
+#            against the first (run-to-run difference, bit for bit or not)
+#   science  the paper-dilute scene's L/l = 100 member (625 000 rods, sbt-explicit) resident on
+#            the GPU for up to 100 steps: a real run's steps/s, its log and time series
+#   profile  where the GPU's time goes (gpu_bench --profile, GPU sides only): each kernel,
+#            transform and transfer of the mean-field step, the sums and the particle steps,
+#            then Nsight Compute's speed-of-light and occupancy of the spreaders and gathers at
+#            1e6 points; into profile.txt and ncu.txt (limits PROFILE_LIMIT, NCU_LIMIT)
+#   meanfield  the paper's mean-field case at 128^3 to t = 128 on the GPU
 #   scaling  the thread-scaling table at 1, 2, 4, 8, 16 threads (SCALING_ARGS passed on)
-#   science  a short science run on the GPU: the paper's mean-field case at 128^3 to t = 128
-#   all      parity, bench (every case), science in one command of at most 8 minutes: each
-#            phase under its own time limit (timeout), so a slow phase cannot hide the others'
-#            results; at most 8 files in $OUT (device.txt, parity.txt, gpu_bench.{md,csv,log},
-#            science.txt, science_timeseries.csv, all.txt)
+#   all      parity, bench (every target case, in two parts), runs and science in one command
+#            of at most 8 minutes: each phase under its own time limit (timeout), so a slow
+#            phase cannot hide the others' results; 8 files in $OUT (device.txt, parity.txt,
+#            gpu_bench.md, gpu_bench.log, runs.txt, science.txt, science_timeseries.csv, all.txt)
 set -uo pipefail
 B="$(dirname "$0")"
 OUT="${OUT:-/tmp/motile-out}"
 mkdir -p "$OUT"
-nvidia-smi -L >"$OUT/device.txt" 2>&1 || true
+if [ ! -f "$OUT/device.txt" ]; then
+  { nvidia-smi -L; nvidia-smi --query-gpu=name,memory.total,clocks.max.sm --format=csv
+    nproc; echo "ldd motile:"; ldd "$B/motile"; "$B/motile" --version; } >"$OUT/device.txt" 2>&1
+fi
 case "${1:-}" in
   parity)
     export MOTILE_REQUIRE_GPU=1
@@ -29,9 +42,9 @@ case "${1:-}" in
     ;;
   bench)
     # shellcheck disable=SC2086
-    "$B/gpu_bench" ${BENCH_ARGS:-} --out "$OUT/gpu_bench.csv" >"$OUT/gpu_bench.md" 2>"$OUT/gpu_bench.log"
+    "$B/gpu_bench" ${BENCH_ARGS:-} >>"$OUT/gpu_bench.md" 2>>"$OUT/gpu_bench.log"
     echo "bench exit $?"
-    cat "$OUT/gpu_bench.md"
+    tail -20 "$OUT/gpu_bench.md"
     ;;
   scaling)
     # shellcheck disable=SC2086
@@ -39,32 +52,94 @@ case "${1:-}" in
     echo "scaling exit $?"
     cat "$OUT/scaling.md"
     ;;
+  runs)
+    R=/tmp/motile-runs
+    rm -rf "$R"
+    mkdir -p "$R"
+    for level in none dipole sbt-explicit; do
+      printf '%s\n' "box_length = 8" "volume_fraction = 2" "hydrodynamics = \"$level\"" \
+        "dt = 0.02" "t_end = ${RUNS_T_END:-2.0}" "diagnostic_interval = 0.1" "snapshot_interval = 2.0" \
+        "checkpoint_interval = 1.0" "vtk = false" >"$R/$level.toml"
+      { echo "== $level"
+        "$B/motile" particle run "$R/$level.toml" --out "$R/$level-cpu" 2>&1 | tail -1
+        for k in 1 2; do
+          "$B/motile" particle run "$R/$level.toml" --out "$R/$level-gpu$k" --device gpu 2>&1 \
+            | tail -1
+        done
+        grep -i -m1 "device\|gpu" "$R/$level-gpu1/run.log"
+        echo -n "GPU against CPU: "; python3 "$B/device_compare.py" "$R/$level-cpu" "$R/$level-gpu1"
+        echo -n "second GPU run against the first: "
+        python3 "$B/device_compare.py" "$R/$level-gpu1" "$R/$level-gpu2"; } >>"$OUT/runs.txt" 2>&1
+    done
+    cat "$OUT/runs.txt"
+    ;;
   science)
+    # The paper-dilute scene's L100 member (its settings), resident on the GPU, 100 steps; the
+    # run directory stays in /tmp, only its log and time series come back.
+    printf '%s\n' "box_length = 100.0" "volume_fraction = 0.625" "dt = 0.05" "t_end = 5.0" \
+      "seed = 1" "hydrodynamics = \"sbt-explicit\"" "device = \"gpu\"" \
+      "diagnostic_interval = 0.5" "snapshot_interval = 5.0" "checkpoint_interval = 5.0" \
+      "lowest_modes = true" "vtk = false" "[contact]" "margin = 0.15" "[hydro]" \
+      "sum_tolerance = 1e-2" "quadrature_points = 4" >/tmp/motile-science.toml
+    rm -rf /tmp/motile-science
+    start=$(date +%s)
+    # SIGTERM at SCIENCE_LIMIT seconds: the run stops at a step boundary with a checkpoint.
+    timeout "${SCIENCE_LIMIT:-45}" "$B/motile" particle run /tmp/motile-science.toml \
+      --out /tmp/motile-science >"$OUT/science.txt" 2>&1
+    rc=$?
+    echo "science exit $rc after $(($(date +%s) - start)) s" >>"$OUT/science.txt"
+    tail -30 /tmp/motile-science/run.log >>"$OUT/science.txt" 2>/dev/null
+    cp /tmp/motile-science/timeseries.csv "$OUT/science_timeseries.csv" 2>/dev/null || true
+    tail -5 "$OUT/science.txt"
+    ;;
+  profile)
+    P="--profile --reps 1 --cpu-max 0"
+    { for c in mf sum dipole,explicit100,sbt; do
+        echo "== gpu_bench $P --cases $c"
+        # shellcheck disable=SC2086
+        "$B/gpu_bench" $P --cases "$c" 2>&1
+      done; } >>"$OUT/profile.txt" 2>&1
+    grep -A12 "^profile:" "$OUT/profile.txt" | head -60
+    ;;
+  ncu)
+    ncu -k 'regex:spread_tiles|spread_sorted|gather_sorted' -c 6 --section SpeedOfLight \
+      --section Occupancy --section LaunchStats --section MemoryWorkloadAnalysis \
+      "$B/gpu_bench" --cases sum --sum-sizes 1000000 --cpu-max 0 --reps 1 >"$OUT/ncu.txt" 2>&1
+    echo "ncu exit $?"
+    grep -E "^  [a-z_]+|Duration|Memory Throughput|DRAM Throughput|Compute \(SM\)|Achieved Occupancy|Registers Per|Shared Memory Config|Block Limit" "$OUT/ncu.txt" | head -60
+    ;;
+  meanfield)
     # The paper's case (meanfield_paper_64.toml) on 128^3 to t = 128; the run directory stays
     # in /tmp, only its log and time series come back.
     sed -e 's/^grid = .*/grid = 128/' -e 's/^t_end = .*/t_end = 128.0/' \
       -e 's/^snapshot_interval = .*/snapshot_interval = 128.0/' \
       -e 's/^checkpoint_interval = .*/checkpoint_interval = 128.0/' \
-      "$B/meanfield_paper_64.toml" >/tmp/motile-science.toml
-    rm -rf /tmp/motile-science
+      "$B/meanfield_paper_64.toml" >/tmp/motile-mf.toml
+    rm -rf /tmp/motile-mf
     start=$(date +%s)
-    "$B/motile" meanfield run /tmp/motile-science.toml --device gpu --out /tmp/motile-science \
-      >"$OUT/science.txt" 2>&1
+    "$B/motile" meanfield run /tmp/motile-mf.toml --device gpu --out /tmp/motile-mf \
+      >"$OUT/meanfield.txt" 2>&1
     rc=$?
-    echo "science exit $rc after $(($(date +%s) - start)) s" >>"$OUT/science.txt"
-    cp /tmp/motile-science/timeseries.csv "$OUT/science_timeseries.csv" 2>/dev/null || true
-    tail -5 "$OUT/science.txt"
+    echo "meanfield exit $rc after $(($(date +%s) - start)) s" >>"$OUT/meanfield.txt"
+    cp /tmp/motile-mf/timeseries.csv "$OUT/meanfield_timeseries.csv" 2>/dev/null || true
+    tail -5 "$OUT/meanfield.txt"
     ;;
   all)
-    # Limits in seconds (sum 460 s, under 8 minutes with the start-up).
-    { echo "== parity (limit 120 s)"; timeout 120 bash "$0" parity; echo "rc $?"
-      echo "== bench (limit 240 s)"; timeout 240 bash "$0" bench; echo "rc $?"
-      echo "== science (limit 100 s)"; timeout 100 bash "$0" science; echo "rc $?"; } \
+    # Limits in seconds (sum 470 s, under 8 minutes); the CPU sides of the largest cases left
+    # out (their 16-thread figures are in BENCHMARKS.md).
+    { echo "== parity (limit 90 s)"; timeout 90 bash "$0" parity; echo "rc $?"
+      echo "== bench: mean-field, sums (limit 120 s)"
+      BENCH_ARGS="--cases mf,sum --cpu-max 1000000" timeout 120 bash "$0" bench; echo "rc $?"
+      echo "== bench: particle steps (limit 150 s)"
+      BENCH_ARGS="--cases dipole,explicit100,sbt,explicit --cpu-max 1000000" \
+        timeout 150 bash "$0" bench; echo "rc $?"
+      echo "== runs (limit 50 s)"; timeout 50 bash "$0" runs; echo "rc $?"
+      echo "== science (limit 60 s)"; timeout 60 bash "$0" science; echo "rc $?"; } \
       >"$OUT/all.txt" 2>&1
     cat "$OUT/all.txt"
     ;;
   *)
-    echo "usage: device_run.sh parity|bench|scaling|science|all" >&2
+    echo "usage: device_run.sh parity|bench|runs|science|profile|ncu|meanfield|scaling|all" >&2
     exit 2
     ;;
 esac

@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- \
-//!     [--device cuda|emulation] [--small] [--cases mf,sum,dipole,explicit,sbt] [--reps 3] [--out FILE.csv]
+//!     [--device cuda|emulation] [--small] [--cases mf,sum,dipole,explicit,sbt] [--reps 3]
+//!     [--cpu-max N] [--sum-sizes 100000,1000000] [--profile] [--out FILE.csv]
 //! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- --model [--small]
 //! ```
 //!
@@ -28,8 +29,18 @@
 //!   stepper with the CPU's sums and with the GPU's, and the step resident on the GPU (its
 //!   flow summed from the host, `device = "gpu"` runs' step);
 //! - `explicit`: the same for the explicit slender-body level at L/l = 50 (`explicit100`, not
-//!   in the default cases: at L/l = 100, 5e6 quadrature nodes, one timed step per side);
-//! - `sbt`: steps of the slender-body level at L/l = 50 and 100.
+//!   in the default cases: at L/l = 100, 2.5e6 quadrature nodes, one timed step per side), at
+//!   the settings the `paper-dilute` scene runs it with (sum tolerance 1e-2, 4 nodes per rod);
+//! - `sbt`: steps of the slender-body level at L/l = 50 (`sbt100`: also at 100).
+//!
+//! `--profile` waits for the device after each of its operations and prints (to stderr) each
+//! GPU side's time by kernel, transform and transfer (`motile_gpu::profile`), over its untimed
+//! and timed runs; the waits slow the GPU rows a little, so profile in a run of its own.
+//!
+//! `--cpu-max N` leaves out the CPU side of the cases with more than N points, grid points or
+//! rods (the
+//! device check's time limit: the CPU's 16-thread figures at 1e7 points and L/l = 175 are in
+//! BENCHMARKS.md from the H200 run).
 //!
 //! The CPU runs on the rayon pool (`RAYON_NUM_THREADS`, default all cores). Each row is the
 //! median of `--reps` timed runs after one untimed run (one timed run for the largest sizes).
@@ -104,6 +115,8 @@ fn time(reps: usize, mut f: impl FnMut()) -> f64 {
 struct Bench {
     emulate: bool,
     reps: usize,
+    cpu_max: usize,
+    profile: bool,
     probe: GpuFourier,
     rows: Vec<Row>,
 }
@@ -119,6 +132,37 @@ impl Bench {
 
     fn fourier(&self) -> GpuFourier {
         GpuFourier::open(self.backend()).expect("the device")
+    }
+
+    /// Start a profiled GPU side (`--profile`): clear the totals.
+    fn profile_begin(&self) {
+        if self.profile {
+            motile_gpu::profile::take();
+        }
+    }
+
+    /// End a profiled GPU side of `runs` runs of `seconds` each: its totals, to stderr.
+    fn profile_end(&self, label: &str, runs: usize, seconds: f64) {
+        if !self.profile {
+            return;
+        }
+        let p = motile_gpu::profile::take();
+        let total: f64 = p.iter().map(|e| e.seconds).sum();
+        eprintln!(
+            "\nprofile: {label}: device operations {:.4} s per run of {seconds:.4} s ({runs} runs)",
+            total / runs as f64
+        );
+        eprintln!("| operation | calls per run | s per run | share |\n|---|---:|---:|---:|");
+        for e in p.iter().take(25) {
+            eprintln!(
+                "| {} | {:.1} | {:.5} | {:.1}% |",
+                e.name,
+                e.calls as f64 / runs as f64,
+                e.seconds / runs as f64,
+                100.0 * e.seconds / total.max(1e-300)
+            );
+        }
+        eprintln!();
     }
 
     fn gpu_bytes(&self) -> Option<usize> {
@@ -141,7 +185,7 @@ impl Bench {
             rate: work / seconds,
             unit,
             note,
-            gpu_bytes: if side == "gpu" {
+            gpu_bytes: if side.starts_with("gpu") {
                 self.gpu_bytes()
             } else {
                 None
@@ -178,41 +222,41 @@ impl Bench {
         };
         let mut gpu = GpuMeanField::open(self.backend(), &rhs, &cpu).expect("the GPU stepper");
         let dt = 0.01;
+        self.profile_begin();
         let tg = time(reps, || {
             gpu.step(dt, false).expect("GPU step");
         });
+        self.profile_end(&format!("mean-field step {n}^3"), reps + 1, tg);
         let gpu_bytes = self.gpu_bytes();
-        let tc = time(reps, || {
-            cpu.step(&rhs, dt).expect("CPU step");
-        });
-        let (_, q_gpu, _, _) = gpu.state().expect("download");
-        let scale = cpu
-            .q_hat
-            .iter()
-            .flatten()
-            .map(|z| z.norm())
-            .fold(1e-300, f64::max);
-        let dq = cpu
-            .q_hat
-            .iter()
-            .flatten()
-            .zip(q_gpu.iter().flatten())
-            .map(|(a, b)| (a - b).norm())
-            .fold(0.0, f64::max)
-            / scale;
         let case = format!("mean-field step {n}^3");
-        self.push(&case, "cpu", tc, 1.0, "steps/s", String::new());
-        self.push(
-            &case,
-            "gpu",
-            tg,
-            1.0,
-            "steps/s",
+        let note = if n.pow(3) <= self.cpu_max {
+            let tc = time(reps, || {
+                cpu.step(&rhs, dt).expect("CPU step");
+            });
+            let (_, q_gpu, _, _) = gpu.state().expect("download");
+            let scale = cpu
+                .q_hat
+                .iter()
+                .flatten()
+                .map(|z| z.norm())
+                .fold(1e-300, f64::max);
+            let dq = cpu
+                .q_hat
+                .iter()
+                .flatten()
+                .zip(q_gpu.iter().flatten())
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max)
+                / scale;
+            self.push(&case, "cpu", tc, 1.0, "steps/s", String::new());
             format!(
                 "Q differs from the CPU's by {dq:.1e} after {} steps",
                 reps + 1
-            ),
-        );
+            )
+        } else {
+            "CPU side left out (--cpu-max)".into()
+        };
+        self.push(&case, "gpu", tg, 1.0, "steps/s", note);
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
         }
@@ -228,8 +272,16 @@ impl Bench {
         let reps = if n >= 10_000_000 { 1 } else { self.reps };
         let mut gpu = SpectralEwald::with_device(tol, self.fourier()).expect("tolerance");
         let mut ug = Vec::new();
+        self.profile_begin();
         let tg = time(reps, || ug = gpu.rpy(&geo, &y, &f).expect("GPU sum"));
-        let fourier_gpu = gpu.last_timing().fourier;
+        let label = format!("RPY product, {n} points, tol {tol:.0e}, gpu");
+        self.profile_end(&label, reps + 1, tg);
+        let tm = gpu.last_timing();
+        let fourier_gpu = tm.fourier;
+        let split = format!(
+            "setup {:.3} s, real space {:.3} s, corrections {:.3} s",
+            tm.setup, tm.real, tm.corrections
+        );
         let gpu_bytes = self.gpu_bytes();
         drop(gpu);
         // The per-point atomic spreader (before the binned ones), on the same device, for
@@ -239,59 +291,51 @@ impl Bench {
             f0.set_spread_method(Some(SpreadMethod::Atomic));
             let mut g0 = SpectralEwald::with_device(tol, f0).expect("tolerance");
             let mut ua = Vec::new();
+            self.profile_begin();
             let t = time(reps, || {
                 ua = g0.rpy(&geo, &y, &f).expect("GPU sum (atomic)")
             });
+            let label = format!("RPY product, {n} points, tol {tol:.0e}, gpu atomic");
+            self.profile_end(&label, reps + 1, t);
             (t, g0.last_timing().fourier, ua)
         });
-        let mut cpu = SpectralEwald::new(tol).expect("tolerance");
-        let mut uc = Vec::new();
-        let tc = time(reps, || uc = cpu.rpy(&geo, &y, &f).expect("CPU sum"));
-        let fourier_cpu = cpu.last_timing().fourier;
-        let largest = uc
-            .iter()
-            .map(|u| u.iter().map(|c| c * c).sum::<f64>())
-            .fold(0.0, f64::max);
-        let diff = uc
-            .iter()
-            .zip(&ug)
-            .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
-            .fold(0.0, f64::max);
         let case = format!("RPY product, {n} points, tol {tol:.0e}");
-        let n = n as f64;
-        self.push(
-            &case,
-            "cpu",
-            tc,
-            n,
-            "points/s",
-            format!("Fourier part {fourier_cpu:.3} s"),
-        );
-        self.push(
-            &case,
-            "gpu",
-            tg,
-            n,
-            "points/s",
-            format!(
-                "Fourier part {fourier_gpu:.3} s; differs from the CPU's by {:.1e}",
+        let sq = |u: &Vec<[f64; 3]>, v: &Vec<[f64; 3]>| {
+            u.iter()
+                .zip(v)
+                .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
+                .fold(0.0, f64::max)
+        };
+        let zero = vec![[0.0; 3]; ug.len()];
+        let mut largest = sq(&ug, &zero);
+        let mut gpu_note = format!("Fourier part {fourier_gpu:.3} s, {split}");
+        if n <= self.cpu_max {
+            let mut cpu = SpectralEwald::new(tol).expect("tolerance");
+            let mut uc = Vec::new();
+            let tc = time(reps, || uc = cpu.rpy(&geo, &y, &f).expect("CPU sum"));
+            let fourier_cpu = cpu.last_timing().fourier;
+            largest = sq(&uc, &zero);
+            let diff = sq(&uc, &ug);
+            let note = format!("Fourier part {fourier_cpu:.3} s");
+            self.push(&case, "cpu", tc, n as f64, "points/s", note);
+            gpu_note.push_str(&format!(
+                "; differs from the CPU's by {:.1e}",
                 (diff / largest.max(1e-300)).sqrt()
-            ),
-        );
+            ));
+        } else {
+            gpu_note.push_str("; CPU side left out (--cpu-max)");
+        }
+        self.push(&case, "gpu", tg, n as f64, "points/s", gpu_note);
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
         }
         if let Some((ta, fa, ua)) = atomic {
-            let da = ua
-                .iter()
-                .zip(&ug)
-                .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
-                .fold(0.0, f64::max);
+            let da = sq(&ua, &ug);
             self.push(
                 &case,
                 "gpu atomic",
                 ta,
-                n,
+                n as f64,
                 "points/s",
                 format!(
                     "Fourier part {fa:.3} s; per-point atomic spreader; differs from the binned by {:.1e}",
@@ -305,6 +349,9 @@ impl Bench {
         let n = (0.625 * l * l * l).round() as usize;
         let rods: RodSet = random_nonoverlapping(n, l, DEFAULT_DIAMETER, 1, 1_000_000)
             .expect("initial configuration");
+        // The explicit level at the `paper-dilute` scene's settings (sum tolerance 1e-2, 4
+        // nodes per rod); the others at the configuration's default tolerance, 1e-4.
+        let tol = if level == "sbt-explicit" { 1e-2 } else { 1e-4 };
         let make = |sum: SpectralEwald| -> Box<dyn Mobility> {
             match level {
                 "dipole" => Box::new(Dipole::new(Box::new(sum), DEFAULT_DIAMETER)),
@@ -333,21 +380,25 @@ impl Bench {
             });
             (t, sums)
         };
-        let (tg, sg) = run(make(
-            SpectralEwald::with_device(1e-4, self.fourier()).unwrap(),
-        ));
+        let per_rod = |g: Option<usize>| {
+            g.map_or(String::new(), |g| {
+                format!("; {:.0} GPU bytes in use per rod", g as f64 / n as f64)
+            })
+        };
+        let case = format!("{level} step, L/l = {l}, {n} rods, sum tol {tol:.0e}");
+        let sum = SpectralEwald::with_device(tol, self.fourier()).unwrap();
+        self.profile_begin();
+        let (tg, sg) = run(make(sum));
+        self.profile_end(&format!("{case}, CPU step, GPU sums"), reps + 2, tg);
         let gpu_bytes = self.gpu_bytes();
-        let (tc, sc) = run(make(SpectralEwald::new(1e-4).unwrap()));
-        let case = format!("{level} step, L/l = {l}, {n} rods");
-        self.push(&case, "cpu", tc, 1.0, "steps/s", format!("sums {sc:.3} s"));
-        self.push(&case, "gpu", tg, 1.0, "steps/s", format!("sums {sg:.3} s"));
+        if n <= self.cpu_max {
+            let (tc, sc) = run(make(SpectralEwald::new(tol).unwrap()));
+            self.push(&case, "cpu", tc, 1.0, "steps/s", format!("sums {sc:.3} s"));
+        }
+        let note = format!("CPU step, GPU sums: sums {sg:.3} s{}", per_rod(gpu_bytes));
+        self.push(&case, "gpu", tg, 1.0, "steps/s", note);
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
-            if let Some(g) = gpu_bytes {
-                let per_rod = g as f64 / n as f64;
-                last.note
-                    .push_str(&format!("; {per_rod:.0} GPU bytes in use per rod"));
-            }
         }
         if level == "sbt" {
             return;
@@ -355,7 +406,7 @@ impl Bench {
         // The step resident on the device (`device = "gpu"` runs at this level): the flow
         // summed from the host (its Fourier part on the device) of the rods downloaded each
         // step, contacts, the move and the projection on the device.
-        let mut mobility = make(SpectralEwald::with_device(1e-4, self.fourier()).unwrap());
+        let mut mobility = make(SpectralEwald::with_device(tol, self.fourier()).unwrap());
         let mut device =
             DeviceStepper::new(self.backend(), &rods, ContactParams::default(), &Vec::new())
                 .expect("the device stepper");
@@ -368,15 +419,19 @@ impl Bench {
                 .expect("device step");
             sums = r.hydro.seconds_sums;
         };
+        self.profile_begin();
         let tr = time(reps, &mut step);
-        self.push(
-            &case,
-            "gpu",
-            tr,
-            1.0,
-            "steps/s",
-            format!("resident step (flow from the host): sums {sums:.3} s"),
+        self.profile_end(&format!("{case}, resident"), reps + 1, tr);
+        let bytes = self.gpu_bytes();
+        let note = format!(
+            "resident step (flow from the host): sums {sums:.3} s, the rest {:.3} s{}",
+            tr - sums,
+            per_rod(bytes)
         );
+        self.push(&case, "gpu resident", tr, 1.0, "steps/s", note);
+        if let Some(last) = self.rows.last_mut() {
+            last.gpu_bytes = bytes;
+        }
     }
 }
 
@@ -648,6 +703,9 @@ fn main() {
     let emulate = arg("--device").as_deref() == Some("emulation");
     let cases = arg("--cases").unwrap_or_else(|| "mf,sum,dipole,explicit,sbt".into());
     let reps: usize = arg("--reps").map_or(3, |r| r.parse().expect("--reps"));
+    let cpu_max: usize = arg("--cpu-max").map_or(usize::MAX, |r| r.parse().expect("--cpu-max"));
+    let profile = std::env::args().any(|a| a == "--profile");
+    motile_gpu::profile::enable(profile);
     let probe = GpuFourier::open(if emulate {
         Backend::HostEmulation
     } else {
@@ -668,6 +726,8 @@ fn main() {
     let mut b = Bench {
         emulate,
         reps,
+        cpu_max,
+        profile,
         probe,
         rows: Vec::new(),
     };
@@ -679,7 +739,11 @@ fn main() {
         }
     }
     if has("sum") {
-        let sizes = if small {
+        let sizes = if let Some(list) = arg("--sum-sizes") {
+            list.split(',')
+                .map(|x| x.trim().parse().expect("--sum-sizes"))
+                .collect()
+        } else if small {
             vec![2_000]
         } else {
             vec![100_000, 1_000_000, 10_000_000]
@@ -702,9 +766,10 @@ fn main() {
         b.steps("sbt-explicit", 100.0);
     }
     if has("sbt") {
-        for l in if small { vec![4.0] } else { vec![50.0, 100.0] } {
-            b.steps("sbt", l);
-        }
+        b.steps("sbt", if small { 4.0 } else { 50.0 });
+    }
+    if has("sbt100") && !small {
+        b.steps("sbt", 100.0);
     }
     println!("| case | side | seconds | rate | GPU bytes in use | RSS | note |");
     println!("|---|---|---:|---:|---:|---:|---|");

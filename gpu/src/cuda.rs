@@ -126,6 +126,11 @@ impl Cuda {
         format!("CUDA device 0: {}", self.name)
     }
 
+    /// Wait for the stream's queued work.
+    pub(crate) fn wait(&self) -> Result<(), GpuError> {
+        self.stream.synchronize().map_err(driver)
+    }
+
     /// `(bytes in use, total bytes)`.
     pub(crate) fn memory(&self) -> Result<(usize, usize), GpuError> {
         self.stream.context().bind_to_thread().map_err(driver)?;

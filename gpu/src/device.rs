@@ -81,6 +81,24 @@ impl Device {
             .clone()
     }
 
+    /// Wait for the device's queued work (nothing to wait for on the host emulation).
+    pub(crate) fn wait(&self) -> Result<(), GpuError> {
+        match &self.inner {
+            Inner::Host(_) => Ok(()),
+            #[cfg(feature = "cuda")]
+            Inner::Cuda(c) => c.wait(),
+        }
+    }
+
+    /// Run `op` timed under `name` where profiling is on ([`crate::profile`]).
+    pub(crate) fn timed<R>(
+        &self,
+        name: impl FnOnce() -> String,
+        op: impl FnOnce() -> Result<R, GpuError>,
+    ) -> Result<R, GpuError> {
+        crate::profile::timed(name, || self.wait(), op)
+    }
+
     /// Add to the counts.
     pub(crate) fn count(&self, f: impl FnOnce(&mut Counters)) {
         f(&mut self
@@ -127,11 +145,16 @@ impl Device {
     pub fn upload<T: Element>(&self, data: &[T]) -> Result<Buffer<T>, GpuError> {
         let len = data.len();
         self.count_upload::<T>(len);
-        let data = match &self.inner {
-            Inner::Host(_) => Data::Host(data.to_vec()),
-            #[cfg(feature = "cuda")]
-            Inner::Cuda(c) => Data::Cuda(c.upload(data)?),
-        };
+        let data = self.timed(
+            || "upload".into(),
+            || {
+                Ok(match &self.inner {
+                    Inner::Host(_) => Data::Host(data.to_vec()),
+                    #[cfg(feature = "cuda")]
+                    Inner::Cuda(c) => Data::Cuda(c.upload(data)?),
+                })
+            },
+        )?;
         Ok(Buffer { len, data })
     }
 
@@ -145,14 +168,19 @@ impl Device {
             )));
         }
         self.count_upload::<T>(data.len());
-        match (&self.inner, &mut buf.data) {
-            (Inner::Host(_), Data::Host(v)) => v.copy_from_slice(data),
-            #[cfg(feature = "cuda")]
-            (Inner::Cuda(c), Data::Cuda(s)) => c.upload_into(data, s)?,
-            #[allow(unreachable_patterns)]
-            _ => return Err(GpuError::foreign()),
-        }
-        Ok(())
+        self.timed(
+            || "upload".into(),
+            || {
+                match (&self.inner, &mut buf.data) {
+                    (Inner::Host(_), Data::Host(v)) => v.copy_from_slice(data),
+                    #[cfg(feature = "cuda")]
+                    (Inner::Cuda(c), Data::Cuda(s)) => c.upload_into(data, s)?,
+                    #[allow(unreachable_patterns)]
+                    _ => return Err(GpuError::foreign()),
+                }
+                Ok(())
+            },
+        )
     }
 
     fn count_upload<T>(&self, len: usize) {
@@ -181,14 +209,19 @@ impl Device {
 
     /// Set every value of `buf` to zero.
     pub fn zero<T: Element>(&self, buf: &mut Buffer<T>) -> Result<(), GpuError> {
-        match (&self.inner, &mut buf.data) {
-            (Inner::Host(_), Data::Host(v)) => v.fill(T::default()),
-            #[cfg(feature = "cuda")]
-            (Inner::Cuda(c), Data::Cuda(s)) => c.zero(s)?,
-            #[allow(unreachable_patterns)]
-            _ => return Err(GpuError::foreign()),
-        }
-        Ok(())
+        self.timed(
+            || "zero".into(),
+            || {
+                match (&self.inner, &mut buf.data) {
+                    (Inner::Host(_), Data::Host(v)) => v.fill(T::default()),
+                    #[cfg(feature = "cuda")]
+                    (Inner::Cuda(c), Data::Cuda(s)) => c.zero(s)?,
+                    #[allow(unreachable_patterns)]
+                    _ => return Err(GpuError::foreign()),
+                }
+                Ok(())
+            },
+        )
     }
 
     /// The values of `buf` (waits for the device's queued work).
@@ -197,13 +230,16 @@ impl Device {
             return Ok(Vec::new());
         }
         self.count_download::<T>(buf.len);
-        match (&self.inner, &buf.data) {
-            (Inner::Host(_), Data::Host(v)) => Ok(v.clone()),
-            #[cfg(feature = "cuda")]
-            (Inner::Cuda(c), Data::Cuda(s)) => c.download(s),
-            #[allow(unreachable_patterns)]
-            _ => Err(GpuError::foreign()),
-        }
+        self.timed(
+            || "download".into(),
+            || match (&self.inner, &buf.data) {
+                (Inner::Host(_), Data::Host(v)) => Ok(v.clone()),
+                #[cfg(feature = "cuda")]
+                (Inner::Cuda(c), Data::Cuda(s)) => c.download(s),
+                #[allow(unreachable_patterns)]
+                _ => Err(GpuError::foreign()),
+            },
+        )
     }
 
     /// `len` values of `buf` from `at` (waits for the device's queued work).
@@ -223,13 +259,16 @@ impl Device {
             return Ok(Vec::new());
         }
         self.count_download::<T>(len);
-        match (&self.inner, &buf.data) {
-            (Inner::Host(_), Data::Host(v)) => Ok(v[at..at + len].to_vec()),
-            #[cfg(feature = "cuda")]
-            (Inner::Cuda(c), Data::Cuda(s)) => c.download_range(s, at, len),
-            #[allow(unreachable_patterns)]
-            _ => Err(GpuError::foreign()),
-        }
+        self.timed(
+            || "download".into(),
+            || match (&self.inner, &buf.data) {
+                (Inner::Host(_), Data::Host(v)) => Ok(v[at..at + len].to_vec()),
+                #[cfg(feature = "cuda")]
+                (Inner::Cuda(c), Data::Cuda(s)) => c.download_range(s, at, len),
+                #[allow(unreachable_patterns)]
+                _ => Err(GpuError::foreign()),
+            },
+        )
     }
 
     /// Copy `len` values of `src` from `src_at` into `dst` from `dst_at`.
@@ -245,18 +284,21 @@ impl Device {
                 src.len, dst.len
             )));
         }
-        match (&self.inner, &src.data, &mut dst.data) {
-            (Inner::Host(_), Data::Host(a), Data::Host(b)) => {
-                b[dst_at..dst_at + len].copy_from_slice(&a[src_at..src_at + len]);
-                Ok(())
-            }
-            #[cfg(feature = "cuda")]
-            (Inner::Cuda(c), Data::Cuda(a), Data::Cuda(b)) => {
-                cuda::copy(c, (a, src_at), (b, dst_at), len)
-            }
-            #[allow(unreachable_patterns)]
-            _ => Err(GpuError::foreign()),
-        }
+        self.timed(
+            || "copy".into(),
+            || match (&self.inner, &src.data, &mut dst.data) {
+                (Inner::Host(_), Data::Host(a), Data::Host(b)) => {
+                    b[dst_at..dst_at + len].copy_from_slice(&a[src_at..src_at + len]);
+                    Ok(())
+                }
+                #[cfg(feature = "cuda")]
+                (Inner::Cuda(c), Data::Cuda(a), Data::Cuda(b)) => {
+                    cuda::copy(c, (a, src_at), (b, dst_at), len)
+                }
+                #[allow(unreachable_patterns)]
+                _ => Err(GpuError::foreign()),
+            },
+        )
     }
 }
 

@@ -112,35 +112,38 @@ impl Device {
         }
         self.count(|c| c.forward += plan.batch as u64);
         let (n, s) = (plan.real_len(), plan.spectrum_len());
-        match (&plan.inner, &real.data, &mut spectra.data) {
-            (FftInner::Host(fft), Data::Host(x), Data::Host(y)) => {
-                let m3 = plan.m.pow(3);
-                let mut out = vec![num_complex::Complex64::default(); s];
-                for b in 0..plan.batch {
-                    fft.forward(&x[real_at + b * m3..real_at + (b + 1) * m3], &mut out);
-                    let y = &mut y[spectra_at + 2 * b * s..spectra_at + 2 * (b + 1) * s];
-                    for (j, z) in out.iter().enumerate() {
-                        y[2 * j] = z.re;
-                        y[2 * j + 1] = z.im;
+        let name = || format!("forward FFT {}^3 x {}", plan.m, plan.batch);
+        self.timed(name, || {
+            match (&plan.inner, &real.data, &mut spectra.data) {
+                (FftInner::Host(fft), Data::Host(x), Data::Host(y)) => {
+                    let m3 = plan.m.pow(3);
+                    let mut out = vec![num_complex::Complex64::default(); s];
+                    for b in 0..plan.batch {
+                        fft.forward(&x[real_at + b * m3..real_at + (b + 1) * m3], &mut out);
+                        let y = &mut y[spectra_at + 2 * b * s..spectra_at + 2 * (b + 1) * s];
+                        for (j, z) in out.iter().enumerate() {
+                            y[2 * j] = z.re;
+                            y[2 * j + 1] = z.im;
+                        }
                     }
+                    Ok(())
                 }
-                Ok(())
+                #[cfg(feature = "cuda")]
+                (
+                    FftInner::Cuda {
+                        forward: Some(forward),
+                        ..
+                    },
+                    Data::Cuda(x),
+                    Data::Cuda(y),
+                ) => cuda::forward(forward, (x, real_at, n), (y, spectra_at, plan.batch * s)),
+                #[allow(unreachable_patterns)]
+                _ => {
+                    let _ = n;
+                    Err(GpuError::foreign())
+                }
             }
-            #[cfg(feature = "cuda")]
-            (
-                FftInner::Cuda {
-                    forward: Some(forward),
-                    ..
-                },
-                Data::Cuda(x),
-                Data::Cuda(y),
-            ) => cuda::forward(forward, (x, real_at, n), (y, spectra_at, plan.batch * s)),
-            #[allow(unreachable_patterns)]
-            _ => {
-                let _ = n;
-                Err(GpuError::foreign())
-            }
-        }
+        })
     }
 
     /// Inverse transforms (`sum_k c(k) exp(+i k x)`, unnormalised) of the batch of half spectra
@@ -160,34 +163,37 @@ impl Device {
         }
         self.count(|c| c.inverse += plan.batch as u64);
         let (n, s) = (plan.real_len(), plan.spectrum_len());
-        match (&plan.inner, &mut spectra.data, &mut real.data) {
-            (FftInner::Host(fft), Data::Host(y), Data::Host(x)) => {
-                let m3 = plan.m.pow(3);
-                let mut spec = vec![num_complex::Complex64::default(); s];
-                for b in 0..plan.batch {
-                    let y = &y[spectra_at + 2 * b * s..spectra_at + 2 * (b + 1) * s];
-                    for (j, z) in spec.iter_mut().enumerate() {
-                        *z = num_complex::Complex64::new(y[2 * j], y[2 * j + 1]);
+        let name = || format!("inverse FFT {}^3 x {}", plan.m, plan.batch);
+        self.timed(name, || {
+            match (&plan.inner, &mut spectra.data, &mut real.data) {
+                (FftInner::Host(fft), Data::Host(y), Data::Host(x)) => {
+                    let m3 = plan.m.pow(3);
+                    let mut spec = vec![num_complex::Complex64::default(); s];
+                    for b in 0..plan.batch {
+                        let y = &y[spectra_at + 2 * b * s..spectra_at + 2 * (b + 1) * s];
+                        for (j, z) in spec.iter_mut().enumerate() {
+                            *z = num_complex::Complex64::new(y[2 * j], y[2 * j + 1]);
+                        }
+                        fft.inverse(&mut spec, &mut x[real_at + b * m3..real_at + (b + 1) * m3]);
                     }
-                    fft.inverse(&mut spec, &mut x[real_at + b * m3..real_at + (b + 1) * m3]);
+                    Ok(())
                 }
-                Ok(())
+                #[cfg(feature = "cuda")]
+                (
+                    FftInner::Cuda {
+                        inverse: Some(inverse),
+                        ..
+                    },
+                    Data::Cuda(y),
+                    Data::Cuda(x),
+                ) => cuda::inverse(inverse, (y, spectra_at, plan.batch * s), (x, real_at, n)),
+                #[allow(unreachable_patterns)]
+                _ => {
+                    let _ = n;
+                    Err(GpuError::foreign())
+                }
             }
-            #[cfg(feature = "cuda")]
-            (
-                FftInner::Cuda {
-                    inverse: Some(inverse),
-                    ..
-                },
-                Data::Cuda(y),
-                Data::Cuda(x),
-            ) => cuda::inverse(inverse, (y, spectra_at, plan.batch * s), (x, real_at, n)),
-            #[allow(unreachable_patterns)]
-            _ => {
-                let _ = n;
-                Err(GpuError::foreign())
-            }
-        }
+        })
     }
 }
 

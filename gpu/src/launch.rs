@@ -28,12 +28,15 @@ impl Device {
             c.launches += 1;
             *c.by_kernel.entry(name).or_default() += 1;
         });
-        match &self.inner {
-            // SAFETY: passed on from this function's contract; the types are the kernel's.
-            Inner::Host(h) => unsafe { h.launch(name, blocks, &mut args) },
-            #[cfg(feature = "cuda")]
-            // SAFETY: passed on from this function's contract; the types are the kernel's.
-            Inner::Cuda(c) => unsafe { c.launch(name, blocks, &mut args) },
-        }
+        self.timed(
+            || name.into(),
+            || match &self.inner {
+                // SAFETY: passed on from this function's contract; the types are the kernel's.
+                Inner::Host(h) => unsafe { h.launch(name, blocks, &mut args) },
+                #[cfg(feature = "cuda")]
+                // SAFETY: passed on from this function's contract; the types are the kernel's.
+                Inner::Cuda(c) => unsafe { c.launch(name, blocks, &mut args) },
+            },
+        )
     }
 }

@@ -39,6 +39,7 @@ mod fft;
 mod host;
 mod kernel;
 mod launch;
+pub mod profile;
 
 pub use buffer::{Buffer, Element};
 pub use counters::Counters;

@@ -464,6 +464,38 @@ __device__ void eigen_sorted(const double a[3][3], double w[3], double r[3][3]) 
     sort_desc(w, r);
 }
 
+// The T tables' double Chebyshev sums at (sx, sy) into f[0..T): T a compile-time count, so
+// that the per-table sums stay in registers (with a run-time count they went to local memory,
+// read and written at every coefficient). The order of the sums is the CPU's (closure.rs).
+template <int T>
+__device__ void chebyshev_tables(const double* coef, int n1, double sx, double sy, double* f) {
+    double acc[T];
+    for (int t3 = 0; t3 < T; t3++) acc[t3] = 0.0;
+    double txa = 1.0, txb = sx;
+    for (int i = 0; i < n1; i++) {
+        double tx = i == 0 ? 1.0 : txb;
+        if (i > 0) {
+            double t = 2.0 * sx * txb - txa;
+            txa = txb;
+            txb = t;
+        }
+        double rowv[T];
+        for (int t3 = 0; t3 < T; t3++) rowv[t3] = 0.0;
+        double tya = 1.0, tyb = sy;
+        for (int j = 0; j < n1; j++) {
+            double ty = j == 0 ? 1.0 : tyb;
+            if (j > 0) {
+                double t = 2.0 * sy * tyb - tya;
+                tya = tyb;
+                tyb = t;
+            }
+            for (int t3 = 0; t3 < T; t3++) rowv[t3] += ty * coef[(t3 * n1 + i) * n1 + j];
+        }
+        for (int t3 = 0; t3 < T; t3++) acc[t3] += tx * rowv[t3];
+    }
+    for (int t3 = 0; t3 < T; t3++) f[t3] = acc[t3];
+}
+
 // One point of the closure field: s21 the lab-frame tensor, lo/hi the extreme eigenvalues of
 // Q / tr Q, ent the entropy density c ln c + c h(Q/c) (when asked). coef: four tables of
 // (deg + 1)^2 Chebyshev coefficients, [f][i (x)][j (y)]: S_1111, S_2222, S_1122 and the
@@ -486,28 +518,11 @@ __device__ void closure_point(const double* q, long long N, long long p, const d
     double y = x < 1.0 ? fmin(fmax(w[1] / (1.0 - x), 0.0), 1.0) : 0.5;
     double sx = 2.0 * x - 1.0, sy = 2.0 * y - 1.0;
     int n1 = deg + 1;
-    int tables = with_entropy ? 4 : 3;
     double f[4] = {0.0, 0.0, 0.0, 0.0};
-    double txa = 1.0, txb = sx;
-    for (int i = 0; i < n1; i++) {
-        double tx = i == 0 ? 1.0 : txb;
-        if (i > 0) {
-            double t = 2.0 * sx * txb - txa;
-            txa = txb;
-            txb = t;
-        }
-        double rowv[4] = {0.0, 0.0, 0.0, 0.0};
-        double tya = 1.0, tyb = sy;
-        for (int j = 0; j < n1; j++) {
-            double ty = j == 0 ? 1.0 : tyb;
-            if (j > 0) {
-                double t = 2.0 * sy * tyb - tya;
-                tya = tyb;
-                tyb = t;
-            }
-            for (int t3 = 0; t3 < tables; t3++) rowv[t3] += ty * coef[(t3 * n1 + i) * n1 + j];
-        }
-        for (int t3 = 0; t3 < tables; t3++) f[t3] += tx * rowv[t3];
+    if (with_entropy) {
+        chebyshev_tables<4>(coef, n1, sx, sy, f);
+    } else {
+        chebyshev_tables<3>(coef, n1, sx, sy, f);
     }
     if (with_entropy) {
         // h = table - (1/2) sum ln mu_i (closure.rs log_singularity).
