@@ -33,4 +33,9 @@ cp "$(exe motile-particle gpu_ewald)" device-bin/test_particle_gpu_ewald
 cp "$(exe motile-particle gpu_step)" device-bin/test_particle_gpu_step
 strip device-bin/*
 cp scripts/device_run.sh scripts/device_compare.py experiments/configs/meanfield_paper_64.toml device-bin/
+# The kernel sets' sources, for the compiler's resource report on the device (device_run.sh ptxas).
+cp meanfield/src/gpu/kernels.cu device-bin/kernels_meanfield.cu
+cat particle/src/ewald/gpu/kernels.cu particle/src/ewald/gpu/scan.cu >device-bin/kernels_particle_sums.cu
+cat particle/src/step/gpu/{cells,update,contacts,step}.cu particle/src/ewald/gpu/scan.cu \
+  >device-bin/kernels_particle_step.cu
 du -sh device-bin

@@ -15,6 +15,10 @@
 #            transform and transfer of the mean-field step, the sums and the particle steps,
 #            then Nsight Compute's speed-of-light and occupancy of the spreaders and gathers at
 #            1e6 points; into profile.txt and ncu.txt (limits PROFILE_LIMIT, NCU_LIMIT)
+#   ptxas    the compiler's resource report (registers, stack, spills) of every kernel set
+#   check    a second, shorter device check after changes (5 minutes): the CUDA parity tests
+#            only, ptxas, the sums (every spreader at 1e6 points), the mean-field step, the
+#            dipole and explicit steps and the whole runs, each phase under its own limit
 #   meanfield  the paper's mean-field case at 128^3 to t = 128 on the GPU
 #   scaling  the thread-scaling table at 1, 2, 4, 8, 16 threads (SCALING_ARGS passed on)
 #   all      parity, bench (every target case, in two parts), runs and science in one command
@@ -108,6 +112,34 @@ case "${1:-}" in
     echo "ncu exit $?"
     grep -E "^  [a-z_]+|Duration|Memory Throughput|DRAM Throughput|Compute \(SM\)|Achieved Occupancy|Registers Per|Shared Memory Config|Block Limit" "$OUT/ncu.txt" | head -60
     ;;
+  ptxas)
+    NVCC="$(command -v nvcc || ls /usr/local/cuda*/bin/nvcc 2>/dev/null | head -1)"
+    {
+      for set in meanfield particle_sums particle_step; do
+        echo "== $set"
+        "$NVCC" -arch=sm_90 -cubin -Xptxas -v -o /tmp/$set.cubin "$B/kernels_$set.cu" 2>&1 \
+          | grep -E "Compiling entry|registers|stack frame|spill" | sed 's/ptxas info *: //'
+      done
+    } >"$OUT/ptxas.txt" 2>&1
+    grep -B1 -A2 "bytes spill stores" "$OUT/ptxas.txt" | grep -v " 0 bytes spill stores" | head -40
+    ;;
+  check)
+    export MOTILE_REQUIRE_GPU=1
+    { echo "== parity (CUDA tests only)"
+      timeout 60 "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1 gpu_sums
+      timeout 60 "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1 cuda
+      timeout 40 "$B/test_meanfield_gpu" --include-ignored --nocapture --test-threads 1 --exact gpu_step_matches_the_cpu_step
+    } >"$OUT/parity.txt" 2>&1
+    grep -E "test result|FAILED|panicked|Cells|device vs CPU" "$OUT/parity.txt"
+    timeout 30 bash "$0" ptxas
+    BENCH_ARGS="--cases sum --sum-sizes 1000000,10000000 --cpu-max 0" timeout 60 bash "$0" bench
+    BENCH_ARGS="--cases mf --cpu-max 2100000" timeout 40 bash "$0" bench
+    BENCH_ARGS="--cases dipole,explicit100 --cpu-max 0" timeout 75 bash "$0" bench
+    timeout 35 bash "$0" runs
+    timeout 45 ncu -k closure_field -c 1 --section SpeedOfLight --section Occupancy \
+      --section LaunchStats "$B/gpu_bench" --cases mf --cpu-max 0 --reps 1 >"$OUT/ncu.txt" 2>&1
+    grep -E "Duration|Throughput|Registers Per|Achieved Occupancy|Local" "$OUT/ncu.txt" | head -20
+    ;;
   meanfield)
     # The paper's case (meanfield_paper_64.toml) on 128^3 to t = 128; the run directory stays
     # in /tmp, only its log and time series come back.
@@ -139,7 +171,7 @@ case "${1:-}" in
     cat "$OUT/all.txt"
     ;;
   *)
-    echo "usage: device_run.sh parity|bench|runs|science|profile|ncu|meanfield|scaling|all" >&2
+    echo "usage: device_run.sh parity|bench|runs|science|profile|ncu|ptxas|check|meanfield|scaling|all" >&2
     exit 2
     ;;
 esac

@@ -22,9 +22,10 @@
 //!   of Q between them after the timed steps;
 //! - `sum`: one RPY mobility product of 1e5, 1e6, 1e7 random points at tolerances 1e-4 and
 //!   1e-8 (points per second; the Fourier part's seconds; the largest difference of the GPU's
-//!   velocities from the CPU's relative to the largest velocity), on the GPU with the binned
-//!   spreader its tolerance selects and, below 1e7 points, also with the per-point atomic one
-//!   (row `gpu atomic`: the before of the before/after ratio);
+//!   velocities from the CPU's relative to the largest velocity), on the GPU with the default
+//!   (output-driven) spreader and, below 1e7 points, also with the per-point atomic one, the
+//!   shared-memory tiles (at 1e-4) and the global-memory spreader in bin order (rows `gpu
+//!   atomic`, `gpu tiles`, `gpu sorted`: the befores of the before/after ratios);
 //! - `dipole`: steps of the point-stresslet level at L/l = 100 and 175 (nu = 0.625): the CPU
 //!   stepper with the CPU's sums and with the GPU's, and the step resident on the GPU (its
 //!   flow summed from the host, `device = "gpu"` runs' step);
@@ -284,21 +285,33 @@ impl Bench {
         );
         let gpu_bytes = self.gpu_bytes();
         drop(gpu);
-        // The per-point atomic spreader (before the binned ones), on the same device, for
-        // the before/after ratio; skipped at 1e7 points (its time is known: issue 29's table).
-        let atomic = (n < 10_000_000).then(|| {
-            let mut f0 = self.fourier();
-            f0.set_spread_method(Some(SpreadMethod::Atomic));
-            let mut g0 = SpectralEwald::with_device(tol, f0).expect("tolerance");
-            let mut ua = Vec::new();
-            self.profile_begin();
-            let t = time(reps, || {
-                ua = g0.rpy(&geo, &y, &f).expect("GPU sum (atomic)")
-            });
-            let label = format!("RPY product, {n} points, tol {tol:.0e}, gpu atomic");
-            self.profile_end(&label, reps + 1, t);
-            (t, g0.last_timing().fourier, ua)
-        });
+        // The other spreaders on the same device, for the before/after ratios (the per-point
+        // atomic one; the tiles, the default at 1e-4 before the output-driven spreader; the
+        // global-memory one in bin order, the default at 1e-8 before it); skipped at 1e7
+        // points (their times there are in BENCHMARKS.md).
+        let mut methods = vec![SpreadMethod::Atomic, SpreadMethod::Sorted];
+        if tol >= 1e-4 {
+            methods.insert(1, SpreadMethod::Tiles);
+        }
+        if n >= 10_000_000 {
+            methods.clear();
+        }
+        let others: Vec<_> = methods
+            .into_iter()
+            .map(|method| {
+                let mut f0 = self.fourier();
+                f0.set_spread_method(Some(method));
+                let mut g0 = SpectralEwald::with_device(tol, f0).expect("tolerance");
+                let mut ua = Vec::new();
+                self.profile_begin();
+                let t = time(reps, || {
+                    ua = g0.rpy(&geo, &y, &f).expect("GPU sum (another spreader)")
+                });
+                let label = format!("RPY product, {n} points, tol {tol:.0e}, gpu {method:?}");
+                self.profile_end(&label, reps + 1, t);
+                (method, t, g0.last_timing().fourier, ua)
+            })
+            .collect();
         let case = format!("RPY product, {n} points, tol {tol:.0e}");
         let sq = |u: &Vec<[f64; 3]>, v: &Vec<[f64; 3]>| {
             u.iter()
@@ -329,16 +342,21 @@ impl Bench {
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
         }
-        if let Some((ta, fa, ua)) = atomic {
+        for (method, ta, fa, ua) in others {
             let da = sq(&ua, &ug);
+            let side = match method {
+                SpreadMethod::Atomic => "gpu atomic",
+                SpreadMethod::Tiles => "gpu tiles",
+                _ => "gpu sorted",
+            };
             self.push(
                 &case,
-                "gpu atomic",
+                side,
                 ta,
                 n as f64,
                 "points/s",
                 format!(
-                    "Fourier part {fa:.3} s; per-point atomic spreader; differs from the binned by {:.1e}",
+                    "Fourier part {fa:.3} s; {method:?} spreader; differs from the default's by {:.1e}",
                     (da / largest.max(1e-300)).sqrt()
                 ),
             );
@@ -659,7 +677,15 @@ fn model_table(small: bool) {
     println!("|---|---|---|---|---|---|---|---|---|");
     for (name, l, pts, (m, p), fields) in &cases {
         let n = pts.len() as f64;
-        for method in [SpreadMethod::Atomic, SpreadMethod::for_support(*p)] {
+        let mut methods = vec![
+            SpreadMethod::Atomic,
+            SpreadMethod::Sorted,
+            SpreadMethod::Cells,
+        ];
+        if *p <= motile_particle::ewald::gpu::MAX_TILE_SUPPORT {
+            methods.insert(1, SpreadMethod::Tiles);
+        }
+        for method in methods {
             let rows = work_model(pts, *l, (*m, *p), *fields, method);
             let (mut launches, mut bytes, mut lines, mut ga, mut sa) = (0, 0.0, 0.0, 0.0, 0.0);
             for r in &rows {

@@ -306,14 +306,22 @@ fn binned_spreaders_match_the_atomic_one() {
         return;
     };
     drop(first);
-    let open = |method: SpreadMethod| {
+    let open_seeded = |method: SpreadMethod, seed: u64| {
         let mut g = GpuFourier::open(Backend::HostEmulation).unwrap();
         g.set_spread_method(Some(method));
-        assert!(g.shuffle_blocks(11));
+        assert!(g.shuffle_blocks(seed));
         g
     };
+    let open = |method: SpreadMethod| open_seeded(method, 11);
     let mut rows = Vec::new();
-    for (l, n, tol) in [(5.0, 40, 1e-2), (8.0, 120, 1e-4), (5.0, 40, 1e-8)] {
+    // Grids of 10, 20, 30 (the cells' last bin short, their reach clamped to every bin) and 32
+    // (bins dividing the grid, a reach of one bin of four) points per axis.
+    for (l, n, tol, modes) in [
+        (5.0, 40, 1e-2, None),
+        (8.0, 120, 1e-4, None),
+        (5.0, 40, 1e-8, None),
+        (8.0, 120, 1e-4, Some(32)),
+    ] {
         let (x, p) = rods(n, l, false, 21);
         let (y, f) = rod_points(&x, &p, true, 4);
         let geo = RpyGeometry {
@@ -323,15 +331,33 @@ fn binned_spreaders_match_the_atomic_one() {
         };
         let mut cpu = SpectralEwald::new(tol).unwrap();
         cpu.rpy(&geo, &y, &f).unwrap();
-        let fixed = cpu.last_params();
-        let run = |method| {
-            let mut s = SpectralEwald::with_device(tol, open(method)).unwrap();
+        let mut fixed = cpu.last_params();
+        if let (Some(f), Some(m)) = (fixed.as_mut(), modes) {
+            f.modes = m;
+        }
+        let run_seeded = |method, seed| {
+            let mut s = SpectralEwald::with_device(tol, open_seeded(method, seed)).unwrap();
             s.fixed = fixed;
             vectors(&s.rpy(&geo, &y, &f).unwrap())
         };
+        let run = |method| run_seeded(method, 11);
         let atomic = run(SpreadMethod::Atomic);
         let modes = fixed.unwrap().modes;
-        for method in [SpreadMethod::Tiles, SpreadMethod::Sorted] {
+        // The output-driven spreader sums in the same order whatever order the blocks (and so
+        // the sort's atomics) ran in.
+        let (c1, c2) = (
+            run_seeded(SpreadMethod::Cells, 11),
+            run_seeded(SpreadMethod::Cells, 12),
+        );
+        assert!(
+            c1 == c2,
+            "Cells at tol {tol:e}: not the same bits under another block order"
+        );
+        for method in [
+            SpreadMethod::Tiles,
+            SpreadMethod::Sorted,
+            SpreadMethod::Cells,
+        ] {
             let err = errors(&run(method), &atomic, 0.0).0;
             rows.push(format!(
                 "RPY tol {tol:.0e}, {} nodes, grid {modes}^3: {method:?} vs Atomic {err:.1e}",
@@ -356,7 +382,11 @@ fn binned_spreaders_match_the_atomic_one() {
         s.stresslets(l, &x, &p, &sigma).unwrap()
     };
     let atomic = run(SpreadMethod::Atomic);
-    for method in [SpreadMethod::Tiles, SpreadMethod::Sorted] {
+    for method in [
+        SpreadMethod::Tiles,
+        SpreadMethod::Sorted,
+        SpreadMethod::Cells,
+    ] {
         let s = run(method);
         let eu = errors(&vectors(&s.u), &vectors(&atomic.u), floor(2)).0;
         let eg = errors(&matrices(&s.grad), &matrices(&atomic.grad), floor(3)).0;

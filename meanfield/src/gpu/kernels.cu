@@ -464,6 +464,17 @@ __device__ void eigen_sorted(const double a[3][3], double w[3], double r[3][3]) 
     sort_desc(w, r);
 }
 
+// T_k(s) for k = 0, 1, 2, ... in turn: (a, b) start at (1, s) and hold (T_{k-1}, T_k) after.
+__device__ double chebyshev_next(int k, double s, double* a, double* b) {
+    if (k == 0) return 1.0;
+    if (k > 1) {
+        double t = 2.0 * s * *b - *a;
+        *a = *b;
+        *b = t;
+    }
+    return *b;
+}
+
 // The T tables' double Chebyshev sums at (sx, sy) into f[0..T): T a compile-time count, so
 // that the per-table sums stay in registers (with a run-time count they went to local memory,
 // read and written at every coefficient). The order of the sums is the CPU's (closure.rs).
@@ -473,22 +484,12 @@ __device__ void chebyshev_tables(const double* coef, int n1, double sx, double s
     for (int t3 = 0; t3 < T; t3++) acc[t3] = 0.0;
     double txa = 1.0, txb = sx;
     for (int i = 0; i < n1; i++) {
-        double tx = i == 0 ? 1.0 : txb;
-        if (i > 0) {
-            double t = 2.0 * sx * txb - txa;
-            txa = txb;
-            txb = t;
-        }
+        double tx = chebyshev_next(i, sx, &txa, &txb);
         double rowv[T];
         for (int t3 = 0; t3 < T; t3++) rowv[t3] = 0.0;
         double tya = 1.0, tyb = sy;
         for (int j = 0; j < n1; j++) {
-            double ty = j == 0 ? 1.0 : tyb;
-            if (j > 0) {
-                double t = 2.0 * sy * tyb - tya;
-                tya = tyb;
-                tyb = t;
-            }
+            double ty = chebyshev_next(j, sy, &tya, &tyb);
             for (int t3 = 0; t3 < T; t3++) rowv[t3] += ty * coef[(t3 * n1 + i) * n1 + j];
         }
         for (int t3 = 0; t3 < T; t3++) acc[t3] += tx * rowv[t3];

@@ -7,6 +7,15 @@
 //! - [`SpreadMethod::Sorted`] (wider supports, whose tiles would not fit in shared memory): the
 //!   per-point global-memory spreader run in bin order, so that a warp's threads add to
 //!   neighbouring cells;
+//! - [`SpreadMethod::Cells`] (the default at every support): output-driven, no atomics. One
+//!   block per bin of [`CELL_BIN`]^3 grid points sums, for each of its cells, every point whose
+//!   window covers it, from the bins below it that its points' windows can reach (bins are by
+//!   the window's first index), staged chunk by chunk in shared memory, each bin's points in
+//!   ascending order (`bin_order` after the scatter). Each grid value is written once, in the
+//!   same order in every run: the spread repeats bit for bit on a GPU. The H100 measured the
+//!   tiles at 4-5 points per bin at the particle sums' densities (0.03-0.1 points per grid
+//!   point), where zeroing and flushing a tile costs more than its points, and the global
+//!   atomics of the others at 1.3-2.7e10 per second (BENCHMARKS.md);
 //!
 //! and the gather runs over the points in bin order for either. The points of one generation
 //! (one GMRES solve) are sorted once. [`SpreadMethod::Atomic`], the per-point spreader in the
@@ -17,7 +26,7 @@
 
 use crate::ewald::gpu::launch::Geometry;
 use crate::ewald::gpu::signatures::{
-    BinCount, BinScan, BinScatter, GatherSorted, SpreadSorted, SpreadTiles,
+    BinCount, BinOrder, BinScan, BinScatter, GatherSorted, SpreadCells, SpreadSorted, SpreadTiles,
 };
 use motile_gpu::{Buffer, Device, GpuError, THREADS};
 
@@ -31,6 +40,10 @@ pub const MAX_TILE_SUPPORT: usize = 9;
 /// Bin edge of the sorted global-memory spreader (for locality only).
 const SORTED_BIN: usize = 8;
 
+/// Bin edge of the output-driven spreader: `CELL_BIN` in `kernels.cu` (a block of
+/// [`THREADS`] threads, two of the bin's 512 cells each).
+pub const CELL_BIN: usize = 8;
+
 /// How the Fourier part spreads its values onto the grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SpreadMethod {
@@ -40,26 +53,32 @@ pub enum SpreadMethod {
     Tiles,
     /// Points sorted into bins, the global-memory spreader in bin order.
     Sorted,
+    /// Points sorted into bins, each bin's cells summed from the points that reach them.
+    Cells,
 }
 
 impl SpreadMethod {
-    /// The method for support `p`: tiles where they fit ([`MAX_TILE_SUPPORT`], tolerances down
-    /// to 1e-4), else the sorted global-memory spreader (as cuFINUFFT does for 3D double
-    /// precision at high accuracy).
-    pub fn for_support(p: usize) -> Self {
-        if p <= MAX_TILE_SUPPORT {
-            Self::Tiles
-        } else {
-            Self::Sorted
-        }
+    /// The method for support `p`: the output-driven [`SpreadMethod::Cells`] at every support
+    /// (its shared memory holds a chunk of points, not a tile of the grid, so it has no
+    /// support limit; the tiles and the sorted global-memory spreader stay selectable).
+    pub fn for_support(_p: usize) -> Self {
+        Self::Cells
     }
 
     /// Bin edge (grid cells) for support `p`.
     fn bin_edge(self, p: usize) -> usize {
         match self {
             Self::Tiles => TILE + 1 - p,
+            Self::Cells => CELL_BIN,
             _ => SORTED_BIN,
         }
+    }
+
+    /// The bins below a bin, per axis, whose points' windows can reach it (support `p`, `nb`
+    /// bins of `b` on a grid of `m`): `ceil((p - 1) / b)`, one more where the last bin is
+    /// shorter than `b`, and at most `nb - 1` so that no bin is visited twice.
+    fn reach(p: usize, m: usize, b: usize, nb: usize) -> usize {
+        ((p - 1).div_ceil(b) + usize::from(!m.is_multiple_of(b))).min(nb - 1)
     }
 }
 
@@ -182,6 +201,20 @@ pub(crate) fn sort(
             },
         )?;
     }
+    if method == SpreadMethod::Cells {
+        // SAFETY: thread k < nbins reads start[k], start[k + 1] (nbins + 1 allocated) and
+        // permutes perm between them (<= n, the starts' total).
+        unsafe {
+            dev.launch(
+                nbins,
+                BinOrder {
+                    start: &start,
+                    perm: &mut perm,
+                    nbins: nbins_i,
+                },
+            )?;
+        }
+    }
     Ok(Bins {
         method,
         key: (geo.m, p, b),
@@ -257,6 +290,43 @@ pub(crate) fn spread(
                 }
             }
             Ok(())
+        }
+        SpreadMethod::Cells => {
+            assert_eq!(
+                (CELL_BIN.pow(3), THREADS),
+                (512, 256),
+                "two cells of a bin per thread"
+            );
+            let nbins = bins.nb.pow(3);
+            let reach = SpreadMethod::reach(p, m, b, bins.nb);
+            // SAFETY: block k < nbins (nbins THREADS threads launched) reads start[s],
+            // start[s + 1] of bins s < nbins (the offsets below k taken modulo nb per axis;
+            // nbins + 1 checked) and perm[j] for j between them (< n, checked), the points and
+            // values of i = perm[j] < n (3 n and nf n checked; at most CELL_CHUNK staged, its
+            // window's p <= 24 = MAX_SUPPORT weights per axis), and writes the grid values of
+            // its cells, each below m per axis (checked), fields c < nf (nf m^3 checked).
+            unsafe {
+                dev.launch(
+                    nbins * THREADS as usize,
+                    SpreadCells {
+                        pts,
+                        vals,
+                        perm: &bins.perm,
+                        start: &bins.start,
+                        grid,
+                        n: ni,
+                        nf: nf as i32,
+                        m: mi,
+                        p: pi,
+                        l: geo.l,
+                        h: w.h,
+                        alpha: w.alpha,
+                        norm: w.norm,
+                        nb: bins.nb as i32,
+                        reach: reach as i32,
+                    },
+                )
+            }
         }
         // SAFETY: thread j < n reads perm[j] < n (checked) and then as the atomic spreader's
         // thread perm[j]: points, values and grid indices as in launch::spread (checked
@@ -404,22 +474,45 @@ pub fn work_model(
             grid_lines: warp_lines(&own, &first, m, p) * nf as f64,
             ..phase("spread", 2, zero + point_reads, n * p3 * nf as f64, 0.0)
         }),
-        SpreadMethod::Tiles | SpreadMethod::Sorted => {
+        SpreadMethod::Tiles | SpreadMethod::Sorted | SpreadMethod::Cells => {
             let p = p.min(m);
             let b = method.bin_edge(p);
             let nb = m.div_ceil(b);
             let nbins = (nb * nb * nb) as f64;
+            let cells = method == SpreadMethod::Cells;
             // bin_count (points, bin and rank out, one int atomic each), bin_scan (counts in,
-            // starts out), bin_scatter (bin, rank, start in, perm out), buffers zeroed.
+            // starts out), bin_scatter (bin, rank, start in, perm out), buffers zeroed; for the
+            // cells, bin_order (starts in, perm read and written).
             rows.push(phase(
                 "sort",
-                4,
-                n * 24.0 + n * 8.0 + 8.0 * nbins + n * 12.0 + n * 4.0 + 4.0 * nbins,
+                4 + usize::from(cells),
+                n * 24.0
+                    + n * 8.0
+                    + 8.0 * nbins
+                    + n * 12.0
+                    + n * 4.0
+                    + 4.0 * nbins
+                    + if cells { 8.0 * n + 8.0 * nbins } else { 0.0 },
                 n,
                 0.0,
             ));
             let order = bin_order(&first, b, nb);
-            if method == SpreadMethod::Sorted {
+            if cells {
+                // Each point staged by the (reach + 1)^3 blocks it can reach (its index, its
+                // coordinates and values), each bin's starts read by as many; the grid written
+                // once (a warp's 32 cells: 4 rows of 8), not zeroed.
+                let loads = (SpreadMethod::reach(p, m, b, nb) + 1).pow(3) as f64;
+                rows.push(PhaseWork {
+                    grid_lines: nf as f64 * m3 / 8.0,
+                    ..phase(
+                        "spread",
+                        1,
+                        loads * (point_reads + 4.0 * n + 8.0 * nbins) + 8.0 * nf as f64 * m3,
+                        0.0,
+                        0.0,
+                    )
+                });
+            } else if method == SpreadMethod::Sorted {
                 rows.push(PhaseWork {
                     grid_lines: warp_lines(&order, &first, m, p) * nf as f64,
                     ..phase(

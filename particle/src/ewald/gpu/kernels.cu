@@ -177,6 +177,119 @@ extern "C" __global__ void spread_sorted(const double* pts, const double* vals, 
     spread_point(pts, vals, grid, perm[j], n, 0, nf, m, p, l, h, alpha, norm);
 }
 
+// Each bin's points in ascending point order (one thread per bin, insertion sort): the order
+// bin_scatter's atomics gave them varies from run to run; after this it does not, so the
+// spreader below sums in the same order in every run.
+extern "C" __global__ void bin_order(const int* start, int* perm, int nbins) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= nbins) return;
+    int lo = start[k], hi = start[k + 1];
+    for (int a = lo + 1; a < hi; ++a) {
+        int v = perm[a], c = a - 1;
+        while (c >= lo && perm[c] > v) {
+            perm[c + 1] = perm[c];
+            --c;
+        }
+        perm[c + 1] = v;
+    }
+}
+
+// Edge of spread_cells' bins (grid points): one block of 256 threads per bin of 8^3 cells, two
+// cells per thread; the points of a chunk staged in shared memory (about 41 KB).
+#define CELL_BIN 8
+#define CELL_CHUNK 64
+
+// The NF fields of the block's two cells per thread: every point whose window covers them, from
+// the bins at offsets 0..reach[d] below this one (bins are by the window's first index, so only
+// those reach it), chunk by chunk in a fixed order (bins in turn, each bin's points in
+// ascending order). Each cell is written once: no atomics, the same sum in every run.
+template <int NF>
+__device__ void spread_cells_bin(const double* pts, const double* vals, const int* perm,
+                                 const int* start, double* grid, int n, int m, int p, double l,
+                                 double h, double alpha, double norm, int nb, const int* reach,
+                                 double (*w)[3][MAX_SUPPORT], double (*v)[6], int (*first)[3]) {
+    int k = blockIdx.x;
+    int bin[3] = {k % nb, (k / nb) % nb, k / (nb * nb)};
+    int cell[2][3];
+    bool inside[2];
+    double acc[2][NF];
+    for (int cc = 0; cc < 2; ++cc) {
+        int ci = threadIdx.x + cc * blockDim.x;
+        int local[3] = {ci % CELL_BIN, (ci / CELL_BIN) % CELL_BIN, ci / (CELL_BIN * CELL_BIN)};
+        inside[cc] = true;
+        for (int d = 0; d < 3; ++d) {
+            cell[cc][d] = bin[d] * CELL_BIN + local[d];
+            inside[cc] = inside[cc] && cell[cc][d] < m;
+        }
+        for (int c = 0; c < NF; ++c) acc[cc][c] = 0.0;
+    }
+    for (int oz = 0; oz <= reach[2]; ++oz)
+        for (int oy = 0; oy <= reach[1]; ++oy)
+            for (int ox = 0; ox <= reach[0]; ++ox) {
+                int src = (((bin[2] - oz + nb) % nb) * nb + (bin[1] - oy + nb) % nb) * nb +
+                          (bin[0] - ox + nb) % nb;
+                int lo = start[src], hi = start[src + 1];
+                for (int base = lo; base < hi; base += CELL_CHUNK) {
+                    int cnt = hi - base < CELL_CHUNK ? hi - base : CELL_CHUNK;
+                    __syncthreads();
+                    for (int j = threadIdx.x; j < cnt; j += blockDim.x) {
+                        int i = perm[base + j];
+                        for (int d = 0; d < 3; ++d) {
+                            double d0;
+                            window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &first[j][d],
+                                        &d0, w[j][d]);
+                        }
+                        for (int c = 0; c < NF; ++c) v[j][c] = vals[(long long)c * n + i];
+                    }
+                    __syncthreads();
+                    for (int cc = 0; cc < 2; ++cc) {
+                        if (!inside[cc]) continue;
+                        for (int j = 0; j < cnt; ++j) {
+                            int q[3];
+                            bool hit = true;
+                            for (int d = 0; d < 3; ++d) {
+                                int e = cell[cc][d] - first[j][d];
+                                if (e < 0) e += m;
+                                q[d] = e;
+                                hit = hit && e < p;
+                            }
+                            if (!hit) continue;
+                            double wt = w[j][2][q[2]] * w[j][1][q[1]] * w[j][0][q[0]];
+                            for (int c = 0; c < NF; ++c) acc[cc][c] += wt * v[j][c];
+                        }
+                    }
+                }
+            }
+    long long m3 = (long long)m * m * m;
+    for (int cc = 0; cc < 2; ++cc) {
+        if (!inside[cc]) continue;
+        long long g = ((long long)cell[cc][2] * m + cell[cc][1]) * m + cell[cc][0];
+        for (int c = 0; c < NF; ++c) grid[c * m3 + g] = acc[cc][c];
+    }
+}
+
+// Output-driven spreading (no atomics; every grid value written): nf <= 6 fields of the points
+// sorted into bins of CELL_BIN^3 by bin_count with b = CELL_BIN; reach[d] the bins below a bin
+// along axis d whose points can reach it (at most nb - 1, so that no bin is visited twice).
+extern "C" __global__ void spread_cells(const double* pts, const double* vals, const int* perm,
+                                        const int* start, double* grid, int n, int nf, int m,
+                                        int p, double l, double h, double alpha, double norm,
+                                        int nb, int reach) {
+    // The staged chunk (declared here, in the kernel's own body, as the emulation needs).
+    __shared__ double w[CELL_CHUNK][3][MAX_SUPPORT];
+    __shared__ double v[CELL_CHUNK][6];
+    __shared__ int first[CELL_CHUNK][3];
+    int r[3] = {reach, reach, reach};
+    switch (nf) {
+    case 1: spread_cells_bin<1>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
+    case 2: spread_cells_bin<2>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
+    case 3: spread_cells_bin<3>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
+    case 4: spread_cells_bin<4>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
+    case 5: spread_cells_bin<5>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
+    default: spread_cells_bin<6>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
+    }
+}
+
 // Mode s of the half spectrum: its wavenumber, |k|^2, and whether the sums drop it (k = 0 and
 // the unpaired Nyquist modes, as GaussianGrid::convolve).
 __device__ bool mode_of(long long s, int m, double l, double* k, double* k2) {

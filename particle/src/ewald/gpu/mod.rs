@@ -16,16 +16,18 @@
 //! device from sum to sum (rebuilt when the grid size changes). Kernels are declared in
 //! `signatures.rs` and launched in `launch.rs`.
 //!
-//! Spreading sorts the points into bins on the device and accumulates each bin in a
-//! shared-memory tile, or runs the global-memory spreader in bin order for wide supports
-//! (`binned.rs`; the per-point atomic spreader in the points' order stays as the slow twin). On
-//! a GPU the atomic adds make the last bits vary from run to run.
+//! Spreading sorts the points into bins on the device and sums each bin's grid values from the
+//! points that reach them, without atomics, in the same order in every run (`binned.rs`, the
+//! default; the shared-memory tiles, the global-memory spreader in bin order and the per-point
+//! atomic spreader in the points' order stay selectable, the last as the slow twin). With the
+//! default the sums repeat bit for bit on a GPU; with the atomic spreaders the last bits vary
+//! from run to run.
 
 mod binned;
 mod launch;
 mod signatures;
 
-pub use binned::{MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, work_model};
+pub use binned::{CELL_BIN, MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, work_model};
 pub(crate) use launch::Geometry;
 
 use crate::ewald::gpu::signatures::KERNELS;
@@ -176,7 +178,10 @@ impl GpuFourier {
         let input = g.inputs[usize::from(nf == 6)]
             .as_mut()
             .expect("made by grid()");
-        dev.zero(&mut input.fields)?;
+        // The output-driven spreader writes every grid value; the others add to zeros.
+        if method != SpreadMethod::Cells {
+            dev.zero(&mut input.fields)?;
+        }
         match &bins {
             None => launch::spread(dev, geo, pts, &vals, &mut input.fields, n, nf)?,
             Some(b) => binned::spread(dev, geo, b, pts, &vals, &mut input.fields, (n, nf))?,

@@ -55,6 +55,32 @@ motile_gpu::kernels! {
         n: i32,
     }
 
+    /// Each bin's points in ascending point order (after the scatter's atomics).
+    pub(crate) struct BinOrder = "bin_order" {
+        start: &'a Buffer<i32>,
+        perm: &'a mut Buffer<i32>,
+        nbins: i32,
+    }
+
+    /// Output-driven spreading: each bin's cells summed from the points that reach them.
+    pub(crate) struct SpreadCells = "spread_cells" {
+        pts: &'a Buffer<f64>,
+        vals: &'a Buffer<f64>,
+        perm: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        grid: &'a mut Buffer<f64>,
+        n: i32,
+        nf: i32,
+        m: i32,
+        p: i32,
+        l: f64,
+        h: f64,
+        alpha: f64,
+        norm: f64,
+        nb: i32,
+        reach: i32,
+    }
+
     /// Spread fields `f0..f0 + nf` (`nf <= 3`) bin by bin through shared-memory tiles.
     pub(crate) struct SpreadTiles = "spread_tiles" {
         pts: &'a Buffer<f64>,
