@@ -10,7 +10,8 @@
 //! - [`SpreadMethod::Cells`] (the default at every support): output-driven, no atomics. One
 //!   block per bin of [`CELL_BIN`]^3 grid points sums, for each of its cells, every point whose
 //!   window covers it, from the bins below it that its points' windows can reach (bins are by
-//!   the window's first index), staged chunk by chunk in shared memory, each bin's points in
+//!   the window's first index), taken as one list and staged chunk by chunk in shared memory
+//!   (two barriers per chunk of 64 points), each bin's points in
 //!   ascending order (`bin_order` after the scatter). Each grid value is written once, in the
 //!   same order in every run: the spread repeats bit for bit on a GPU. The H100 measured the
 //!   tiles at 4-5 points per bin at the particle sums' densities (0.03-0.1 points per grid
@@ -299,12 +300,15 @@ pub(crate) fn spread(
             );
             let nbins = bins.nb.pow(3);
             let reach = SpreadMethod::reach(p, m, b, bins.nb);
+            assert!(reach <= 4, "CELL_NEAR holds the bins of a reach up to 4");
             // SAFETY: block k < nbins (nbins THREADS threads launched) reads start[s],
             // start[s + 1] of bins s < nbins (the offsets below k taken modulo nb per axis;
             // nbins + 1 checked) and perm[j] for j between them (< n, checked), the points and
             // values of i = perm[j] < n (3 n and nf n checked; at most CELL_CHUNK staged, its
             // window's p <= 24 = MAX_SUPPORT weights per axis), and writes the grid values of
-            // its cells, each below m per axis (checked), fields c < nf (nf m^3 checked).
+            // its cells, each below m per axis (checked), fields c < nf (nf m^3 checked); its
+            // (reach + 1)^3 <= CELL_NEAR = 125 near bins' starts staged in shared arrays of
+            // that size (reach <= 4 asserted).
             unsafe {
                 dev.launch(
                     nbins * THREADS as usize,

@@ -195,21 +195,47 @@ extern "C" __global__ void bin_order(const int* start, int* perm, int nbins) {
 }
 
 // Edge of spread_cells' bins (grid points): one block of 256 threads per bin of 8^3 cells, two
-// cells per thread; the points of a chunk staged in shared memory (about 41 KB).
+// cells per thread; the points staged in chunks of CELL_CHUNK in shared memory (about 42 KB);
+// at most CELL_NEAR bins reach a bin (a reach of at most 4 per axis: ceil(23 / 8) + 1).
 #define CELL_BIN 8
 #define CELL_CHUNK 64
+#define CELL_NEAR 125
+
+// The shared memory of spread_cells (declared in the kernel's own body, as the emulation needs).
+struct CellStage {
+    double w[CELL_CHUNK][3][MAX_SUPPORT];
+    double v[CELL_CHUNK][6];
+    int first[CELL_CHUNK][3];
+    int lo[CELL_NEAR];
+    int at[CELL_NEAR + 1];
+};
 
 // The NF fields of the block's two cells per thread: every point whose window covers them, from
-// the bins at offsets 0..reach[d] below this one (bins are by the window's first index, so only
-// those reach it), chunk by chunk in a fixed order (bins in turn, each bin's points in
-// ascending order). Each cell is written once: no atomics, the same sum in every run.
+// the bins at offsets 0..reach below this one along each axis (bins are by the window's first
+// index, so only those reach it). Their points, taken as one list (the bins in a fixed order,
+// each bin's points in ascending order), are staged chunk by chunk; each cell sums them in
+// that order and is written once: no atomics, the same sum in every run.
 template <int NF>
 __device__ void spread_cells_bin(const double* pts, const double* vals, const int* perm,
                                  const int* start, double* grid, int n, int m, int p, double l,
-                                 double h, double alpha, double norm, int nb, const int* reach,
-                                 double (*w)[3][MAX_SUPPORT], double (*v)[6], int (*first)[3]) {
+                                 double h, double alpha, double norm, int nb, int reach,
+                                 CellStage* st) {
     int k = blockIdx.x;
     int bin[3] = {k % nb, (k / nb) % nb, k / (nb * nb)};
+    int r1 = reach + 1, near = r1 * r1 * r1;
+    // The near bins' points: bin t's from st->lo[t], at positions st->at[t].. of the list.
+    for (int t = threadIdx.x; t < near; t += blockDim.x) {
+        int ox = t % r1, oy = (t / r1) % r1, oz = t / (r1 * r1);
+        int src = (((bin[2] - oz + nb) % nb) * nb + (bin[1] - oy + nb) % nb) * nb +
+                  (bin[0] - ox + nb) % nb;
+        st->lo[t] = start[src];
+        st->at[t + 1] = start[src + 1] - start[src];
+    }
+    __syncthreads();
+    if (threadIdx.x == 0) {
+        st->at[0] = 0;
+        for (int t = 0; t < near; ++t) st->at[t + 1] += st->at[t];
+    }
     int cell[2][3];
     bool inside[2];
     double acc[2][NF];
@@ -223,43 +249,40 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
         }
         for (int c = 0; c < NF; ++c) acc[cc][c] = 0.0;
     }
-    for (int oz = 0; oz <= reach[2]; ++oz)
-        for (int oy = 0; oy <= reach[1]; ++oy)
-            for (int ox = 0; ox <= reach[0]; ++ox) {
-                int src = (((bin[2] - oz + nb) % nb) * nb + (bin[1] - oy + nb) % nb) * nb +
-                          (bin[0] - ox + nb) % nb;
-                int lo = start[src], hi = start[src + 1];
-                for (int base = lo; base < hi; base += CELL_CHUNK) {
-                    int cnt = hi - base < CELL_CHUNK ? hi - base : CELL_CHUNK;
-                    __syncthreads();
-                    for (int j = threadIdx.x; j < cnt; j += blockDim.x) {
-                        int i = perm[base + j];
-                        for (int d = 0; d < 3; ++d) {
-                            double d0;
-                            window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &first[j][d],
-                                        &d0, w[j][d]);
-                        }
-                        for (int c = 0; c < NF; ++c) v[j][c] = vals[(long long)c * n + i];
-                    }
-                    __syncthreads();
-                    for (int cc = 0; cc < 2; ++cc) {
-                        if (!inside[cc]) continue;
-                        for (int j = 0; j < cnt; ++j) {
-                            int q[3];
-                            bool hit = true;
-                            for (int d = 0; d < 3; ++d) {
-                                int e = cell[cc][d] - first[j][d];
-                                if (e < 0) e += m;
-                                q[d] = e;
-                                hit = hit && e < p;
-                            }
-                            if (!hit) continue;
-                            double wt = w[j][2][q[2]] * w[j][1][q[1]] * w[j][0][q[0]];
-                            for (int c = 0; c < NF; ++c) acc[cc][c] += wt * v[j][c];
-                        }
-                    }
-                }
+    __syncthreads();
+    int total = st->at[near];
+    for (int base = 0; base < total; base += CELL_CHUNK) {
+        int cnt = total - base < CELL_CHUNK ? total - base : CELL_CHUNK;
+        if (base > 0) __syncthreads();
+        for (int j = threadIdx.x; j < cnt; j += blockDim.x) {
+            int g = base + j, t = 0;
+            while (st->at[t + 1] <= g) ++t;
+            int i = perm[st->lo[t] + g - st->at[t]];
+            for (int d = 0; d < 3; ++d) {
+                double d0;
+                window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &st->first[j][d], &d0,
+                            st->w[j][d]);
             }
+            for (int c = 0; c < NF; ++c) st->v[j][c] = vals[(long long)c * n + i];
+        }
+        __syncthreads();
+        for (int cc = 0; cc < 2; ++cc) {
+            if (!inside[cc]) continue;
+            for (int j = 0; j < cnt; ++j) {
+                int q[3];
+                bool hit = true;
+                for (int d = 0; d < 3; ++d) {
+                    int e = cell[cc][d] - st->first[j][d];
+                    if (e < 0) e += m;
+                    q[d] = e;
+                    hit = hit && e < p;
+                }
+                if (!hit) continue;
+                double wt = st->w[j][2][q[2]] * st->w[j][1][q[1]] * st->w[j][0][q[0]];
+                for (int c = 0; c < NF; ++c) acc[cc][c] += wt * st->v[j][c];
+            }
+        }
+    }
     long long m3 = (long long)m * m * m;
     for (int cc = 0; cc < 2; ++cc) {
         if (!inside[cc]) continue;
@@ -269,24 +292,21 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
 }
 
 // Output-driven spreading (no atomics; every grid value written): nf <= 6 fields of the points
-// sorted into bins of CELL_BIN^3 by bin_count with b = CELL_BIN; reach[d] the bins below a bin
-// along axis d whose points can reach it (at most nb - 1, so that no bin is visited twice).
+// sorted into bins of CELL_BIN^3 by bin_count with b = CELL_BIN; reach the bins below a bin
+// along each axis whose points can reach it (at most nb - 1, so that no bin is visited twice,
+// and at most 4).
 extern "C" __global__ void spread_cells(const double* pts, const double* vals, const int* perm,
                                         const int* start, double* grid, int n, int nf, int m,
                                         int p, double l, double h, double alpha, double norm,
                                         int nb, int reach) {
-    // The staged chunk (declared here, in the kernel's own body, as the emulation needs).
-    __shared__ double w[CELL_CHUNK][3][MAX_SUPPORT];
-    __shared__ double v[CELL_CHUNK][6];
-    __shared__ int first[CELL_CHUNK][3];
-    int r[3] = {reach, reach, reach};
+    __shared__ CellStage st;
     switch (nf) {
-    case 1: spread_cells_bin<1>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
-    case 2: spread_cells_bin<2>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
-    case 3: spread_cells_bin<3>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
-    case 4: spread_cells_bin<4>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
-    case 5: spread_cells_bin<5>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
-    default: spread_cells_bin<6>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, r, w, v, first); break;
+    case 1: spread_cells_bin<1>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
+    case 2: spread_cells_bin<2>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
+    case 3: spread_cells_bin<3>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
+    case 4: spread_cells_bin<4>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
+    case 5: spread_cells_bin<5>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
+    default: spread_cells_bin<6>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
     }
 }
 
