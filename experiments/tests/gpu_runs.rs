@@ -33,7 +33,12 @@ fn motile_output(args: &[&str], emulated: bool) -> std::process::Output {
     let mut c = Command::new(env!("CARGO_BIN_EXE_motile"));
     c.args(args).arg("--threads").arg("2");
     if emulated {
-        c.env("MOTILE_GPU_BACKEND", "emulation");
+        // The global-memory spreader in bin order: the default output-driven one runs each of
+        // its many small blocks as 256 OS threads with a barrier on the emulation (6.5 s a sum
+        // of 1 728 points here, against 0.05 s); it is checked against the CPU's sums in
+        // particle/tests/gpu_ewald.rs and in resident steps in particle/tests/gpu_step.rs.
+        c.env("MOTILE_GPU_BACKEND", "emulation")
+            .env("MOTILE_GPU_SPREAD", "sorted");
     }
     c.output().expect("running motile")
 }
@@ -363,5 +368,35 @@ fn a_failed_resident_step_saves_the_state_before_it_and_resumes_on_the_cpu() {
     eprintln!(
         "failed on the emulated GPU at step {failed_at}, resumed on the CPU from the saved \
          state: largest difference from the CPU's run {worst:.1e}"
+    );
+}
+
+/// `MOTILE_GPU_SPREAD` with a value it does not know stops the run, naming the allowed ones.
+#[test]
+fn an_unknown_spreading_method_is_refused_by_name() {
+    if !emulation_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("sbt.toml");
+    std::fs::write(
+        &cfg,
+        "box_length = 4\nrods = 16\nhydrodynamics = \"sbt\"\ndt = 0.01\nt_end = 0.01\nvtk = false\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_motile"))
+        .args(["particle", "run", cfg.to_str().unwrap(), "--out"])
+        .arg(&out)
+        .args(["--device", "gpu", "--threads", "1"])
+        .env("MOTILE_GPU_BACKEND", "emulation")
+        .env("MOTILE_GPU_SPREAD", "bins")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "ran with MOTILE_GPU_SPREAD = bins");
+    assert!(
+        err.contains("MOTILE_GPU_SPREAD = \"bins\"") && err.contains("\"cells\" (the default)"),
+        "the error names the value and the allowed ones: {err}"
     );
 }

@@ -66,6 +66,21 @@ impl SpreadMethod {
         Self::Cells
     }
 
+    /// The method `MOTILE_GPU_SPREAD` names (`cells`, `tiles`, `sorted`, `atomic`), `None`
+    /// where it is unset or empty; any other value is an error naming the allowed ones.
+    pub fn from_env() -> Result<Option<Self>, GpuError> {
+        match std::env::var("MOTILE_GPU_SPREAD").as_deref() {
+            Err(_) | Ok("") => Ok(None),
+            Ok("cells") => Ok(Some(Self::Cells)),
+            Ok("tiles") => Ok(Some(Self::Tiles)),
+            Ok("sorted") => Ok(Some(Self::Sorted)),
+            Ok("atomic") => Ok(Some(Self::Atomic)),
+            Ok(other) => Err(GpuError::Input(format!(
+                "MOTILE_GPU_SPREAD = \"{other}\": allowed \"cells\" (the default), \"tiles\", \"sorted\" or \"atomic\""
+            ))),
+        }
+    }
+
     /// Bin edge (grid cells) for support `p`.
     fn bin_edge(self, p: usize) -> usize {
         match self {

@@ -83,6 +83,12 @@ pub(crate) struct Input {
 impl GpuFourier {
     /// The device `backend` names, with the kernels compiled: [`GpuError::NoDevice`] where
     /// there is none.
+    ///
+    /// `MOTILE_GPU_SPREAD` (`cells`, `tiles`, `sorted` or `atomic`; unset or empty for the
+    /// default choice) picks the spreading method for every sum of the process: for comparing
+    /// the spreaders in whole runs, and for runs on the host emulation, whose threaded blocks
+    /// (an OS thread per GPU thread, a condition-variable barrier) make the output-driven
+    /// spreader's many small blocks slow there. Any other value is an error naming these.
     pub fn open(backend: Backend) -> Result<Self, GpuError> {
         Ok(Self {
             dev: Device::open(backend, &KERNELS)?,
@@ -90,7 +96,7 @@ impl GpuFourier {
             points: None,
             cells: None,
             bins: None,
-            method: None,
+            method: SpreadMethod::from_env()?,
         })
     }
 
