@@ -271,6 +271,18 @@ fn dipole_and_explicit_slender_runs_step_on_the_emulated_gpu_and_resume_on_the_c
     }
 }
 
+/// A slender-body run of 16 rods in a box of 4 to `t_end` (dt 0.01), written into `dir`.
+fn sbt_config(dir: &Path, t_end: f64) -> PathBuf {
+    let cfg = dir.join("sbt.toml");
+    let text = format!(
+        "box_length = 4\nrods = 16\nhydrodynamics = \"sbt\"\ndt = 0.01\nt_end = {t_end}\n\
+         diagnostic_interval = 0.02\nsnapshot_interval = 0.1\ncheckpoint_interval = 0.1\n\
+         vtk = false\n"
+    );
+    std::fs::write(&cfg, text).unwrap();
+    cfg
+}
+
 /// `sbt` steps on the CPU with its sums' Fourier part on the device: the CPU run's time
 /// series (every column but the wall-clock rate within 1e-9 relative: the sums agree to
 /// round-off, and GMRES stops at the same iterations).
@@ -280,14 +292,7 @@ fn a_slender_body_run_with_its_sums_on_the_emulated_gpu_matches_the_cpu() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = tmp.path().join("sbt.toml");
-    std::fs::write(
-        &cfg,
-        "box_length = 4\nrods = 16\nhydrodynamics = \"sbt\"\ndt = 0.01\nt_end = 0.1\n\
-         diagnostic_interval = 0.02\nsnapshot_interval = 0.1\ncheckpoint_interval = 0.1\n\
-         vtk = false\n",
-    )
-    .unwrap();
+    let cfg = sbt_config(tmp.path(), 0.1);
     let (cpu, gpu) = cpu_and_gpu("particle", &cfg, tmp.path());
     let log = std::fs::read_to_string(gpu.join("run.log")).unwrap();
     assert!(
@@ -378,12 +383,7 @@ fn an_unknown_spreading_method_is_refused_by_name() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = tmp.path().join("sbt.toml");
-    std::fs::write(
-        &cfg,
-        "box_length = 4\nrods = 16\nhydrodynamics = \"sbt\"\ndt = 0.01\nt_end = 0.01\nvtk = false\n",
-    )
-    .unwrap();
+    let cfg = sbt_config(tmp.path(), 0.01);
     let out = tmp.path().join("run");
     let o = Command::new(env!("CARGO_BIN_EXE_motile"))
         .args(["particle", "run", cfg.to_str().unwrap(), "--out"])
