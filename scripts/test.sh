@@ -40,6 +40,10 @@ cargo build --release -p motile-experiments --features gpu
 cargo test --release -p motile-meanfield --features gpu --test gpu
 cargo test --release -p motile-particle --features gpu --test gpu_ewald
 cargo test --release -p motile-particle --features gpu --test gpu_step
+# The GPU modules' own unit tests (kernel declarations against their sources, the spreaders'
+# reach and work model), which the default build leaves out with the feature.
+cargo test --release -p motile-particle --features gpu --lib gpu
+cargo test --release -p motile-meanfield --features gpu --lib gpu
 cargo test --release -p motile-experiments --features gpu --test gpu_runs
 # The optional distributed particle run (feature mpi) needs OpenMPI and libclang to build; they
 # are installed when missing (Debian packages), then its tests run motile under mpirun on 1, 2

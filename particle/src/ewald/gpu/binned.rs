@@ -691,6 +691,35 @@ mod tests {
     use super::*;
     use std::collections::HashSet;
 
+    /// Every bin whose points' windows cover a cell of a bin lies at an offset 0..=reach below
+    /// it (modulo the bins per axis), and no offset repeats a bin: by brute force over every
+    /// first index and cell of one axis, for supports 2-24 and grids 8-100 (bins that divide
+    /// the grid and a short last bin).
+    #[test]
+    fn the_output_driven_spreader_reaches_every_bin_that_reaches_it() {
+        let b = CELL_BIN;
+        for m in [8usize, 9, 12, 16, 20, 24, 30, 32, 40, 41, 64, 100] {
+            let nb = m.div_ceil(b);
+            for p in 2..=24usize.min(m) {
+                let reach = SpreadMethod::reach(p, m, b, nb);
+                assert!(
+                    reach < nb && reach <= 4,
+                    "m {m}, p {p}: reach {reach} of {nb}"
+                );
+                for f in 0..m {
+                    for q in 0..p {
+                        let c = (f + q) % m;
+                        let offset = (c / b + nb - f / b) % nb;
+                        assert!(
+                            offset <= reach,
+                            "m {m}, p {p}: a window from {f} covers {c}, {offset} bins up, reach {reach}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     /// The tiles' nonzero cells against a brute-force count (a set of (bin, cell) per point's
     /// support), with points on bin and box boundaries; the atomic spreader's atomics are
     /// `n p^3 nf`.
