@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds what a session with a lent GPU machine runs there (issue 18), into device-bin/ (ignored
 # by git; name it in the device tool's `carry`): the motile binary and the benchmark examples
-# with the gpu feature, the three GPU parity test executables, stripped, device_run.sh and the
+# with the gpu feature, the GPU parity test executables, stripped, device_run.sh and the
 # science phase's config.
 # The device machine has CUDA but no Rust: everything is built here.
 set -euo pipefail
@@ -31,11 +31,12 @@ for line in sys.stdin:
 cp "$(exe motile-meanfield gpu)" device-bin/test_meanfield_gpu
 cp "$(exe motile-particle gpu_ewald)" device-bin/test_particle_gpu_ewald
 cp "$(exe motile-particle gpu_step)" device-bin/test_particle_gpu_step
+cp "$(exe motile-particle gpu_resident)" device-bin/test_particle_gpu_resident
 strip device-bin/*
 cp scripts/device_run.sh scripts/device_compare.py experiments/configs/meanfield_paper_64.toml device-bin/
 # The kernel sets' sources, for the compiler's resource report on the device (device_run.sh ptxas).
 cp meanfield/src/gpu/kernels.cu device-bin/kernels_meanfield.cu
-cat particle/src/ewald/gpu/kernels.cu particle/src/ewald/gpu/scan.cu >device-bin/kernels_particle_sums.cu
+cat particle/src/ewald/gpu/{kernels,resident,scan}.cu >device-bin/kernels_particle_sums.cu
 cat particle/src/step/gpu/{cells,update,contacts,step}.cu particle/src/ewald/gpu/scan.cu \
   >device-bin/kernels_particle_step.cu
 du -sh device-bin

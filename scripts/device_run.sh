@@ -39,7 +39,8 @@ case "${1:-}" in
     # The CUDA tests are #[ignore]d (a run without a GPU reports them as not run): included here.
     { "$B/test_meanfield_gpu" --include-ignored --nocapture --test-threads 1
       "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1
-      "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1; } \
+      "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1
+      "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1; } \
       >"$OUT/parity.txt" 2>&1
     echo "parity exit $?" >>"$OUT/parity.txt"
     tail -40 "$OUT/parity.txt"
@@ -128,9 +129,10 @@ case "${1:-}" in
     { echo "== parity (CUDA tests only)"
       timeout 60 "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1 gpu_sums
       timeout 60 "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1 cuda
+      timeout 40 "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1 cuda
       timeout 40 "$B/test_meanfield_gpu" --include-ignored --nocapture --test-threads 1 --exact gpu_step_matches_the_cpu_step
     } >"$OUT/parity.txt" 2>&1
-    grep -E "test result|FAILED|panicked|Cells|device vs CPU" "$OUT/parity.txt"
+    grep -E "test result|FAILED|panicked|Cells|device vs CPU|within" "$OUT/parity.txt"
     timeout 30 bash "$0" ptxas
     BENCH_ARGS="--cases sum --sum-sizes 1000000,10000000 --cpu-max 0" timeout 60 bash "$0" bench
     BENCH_ARGS="--cases mf --cpu-max 2100000" timeout 40 bash "$0" bench

@@ -40,6 +40,7 @@ cargo build --release -p motile-experiments --features gpu
 cargo test --release -p motile-meanfield --features gpu --test gpu
 cargo test --release -p motile-particle --features gpu --test gpu_ewald
 cargo test --release -p motile-particle --features gpu --test gpu_step
+cargo test --release -p motile-particle --features gpu --test gpu_resident
 # The GPU modules' own unit tests (kernel declarations against their sources, the spreaders'
 # reach and work model), which the default build leaves out with the feature.
 cargo test --release -p motile-particle --features gpu --lib gpu

@@ -124,6 +124,14 @@ pub trait PeriodicStokes: Send + Sync + std::fmt::Debug {
 
     /// Restore what [`Self::adaptive_state`] returned (ignored if it does not fit).
     fn set_adaptive_state(&mut self, _state: &[u32]) {}
+
+    /// The sum whose points, values and results can stay on a device (a
+    /// [`crate::ewald::spectral::SpectralEwald`] with a device: its `*_resident` sums); `None`
+    /// for sums on the CPU.
+    #[cfg(feature = "gpu")]
+    fn resident(&mut self) -> Option<&mut crate::ewald::spectral::SpectralEwald> {
+        None
+    }
 }
 
 /// Shape checks shared by the implementations.

@@ -190,4 +190,40 @@ impl Mobility for Dipole {
             f: &self.density,
         })
     }
+
+    #[cfg(feature = "gpu")]
+    fn flows_on_device(&mut self) -> bool {
+        self.shared.is_none() && self.sum.resident().is_some()
+    }
+
+    #[cfg(feature = "gpu")]
+    fn free_velocities_resident(
+        &mut self,
+        rods: &crate::step::gpu::DeviceRods,
+    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
+        if self.shared.is_some() {
+            return None;
+        }
+        let sigma = stresslet_strength(self.diameter);
+        let sum = self.sum.resident()?;
+        let t = Instant::now();
+        let device = |e: motile_gpu::GpuError| {
+            MobilityError::Sum(crate::ewald::periodic::SumError::Device(e.to_string()))
+        };
+        let run = |sum: &mut crate::ewald::spectral::SpectralEwald| {
+            let n = rods.len;
+            let p = sum.device_sum()?.rod_axes(&rods.q, n).map_err(device)?;
+            let field = sum.stresslets_resident(rods.box_length, (&rods.x, &p), sigma, n)?;
+            let gpu = sum.device_sum()?;
+            gpu.jeffery_velocities((&p, &field.u, &field.grad), n, SWIM_SPEED)
+                .map_err(device)
+        };
+        let out = run(sum);
+        self.report = HydroReport {
+            seconds_sums: t.elapsed().as_secs_f64(),
+            ..HydroReport::default()
+        };
+        self.report.add_sum(self.sum.last_report());
+        Some(out)
+    }
 }

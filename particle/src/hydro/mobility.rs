@@ -257,6 +257,25 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
 
     /// Restore what [`Self::sum_state`] returned.
     fn set_sum_state(&mut self, _state: &[u32]) {}
+
+    /// Whether [`Self::free_velocities_resident`] can run: the flow summed on the device the
+    /// rods are on, without their round trip through the host.
+    #[cfg(feature = "gpu")]
+    fn flows_on_device(&mut self) -> bool {
+        false
+    }
+
+    /// [`Self::free_velocities`] of the rods resident on a device, on that device: velocities
+    /// and angular velocities (triples per rod) left there; the report as the host's. The
+    /// force density for outputs is not set ([`Self::density_for`] sets it from the rods
+    /// downloaded). `None` where this mobility has no such path ([`Self::flows_on_device`]).
+    #[cfg(feature = "gpu")]
+    fn free_velocities_resident(
+        &mut self,
+        _rods: &crate::step::gpu::DeviceRods,
+    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
+        None
+    }
 }
 
 /// Free swimming with local slender-body drag (`hydrodynamics = "none"`).

@@ -71,3 +71,20 @@ pub(crate) fn open(
         "device = \"gpu\": this motile was built without GPU support; build it with `cargo install --path experiments --features gpu` (CUDA is loaded when a run starts: the build needs nothing but cargo)"
     )
 }
+
+/// Whether `mobility` sums its flow on the device the rods are on
+/// ([`motile_particle::hydro::mobility::Mobility::flows_on_device`]); never without the `gpu`
+/// feature.
+pub(crate) fn flows_on_device(
+    mobility: &mut dyn motile_particle::hydro::mobility::Mobility,
+) -> bool {
+    #[cfg(feature = "gpu")]
+    {
+        mobility.flows_on_device()
+    }
+    #[cfg(not(feature = "gpu"))]
+    {
+        let _ = mobility;
+        false
+    }
+}

@@ -79,6 +79,9 @@ pub struct ParticleModel {
     /// rods live there and `rods` is their copy as of the last download (after every step at
     /// the levels with flow, whose sum needs them).
     device: Option<device::DeviceStepper>,
+    /// Whether the device step's flow is summed on the device too (the rods then stay there
+    /// between outputs).
+    resident_flow: bool,
     window: (Instant, u64),
     notes: Vec<String>,
     /// `modes.csv` (with `lowest_modes`): loaded at the first step of an invocation, rows
@@ -126,6 +129,9 @@ impl ParticleModel {
             })
             .collect();
         let resident = cfg.resident();
+        let resident_flow = resident
+            && cfg.hydrodynamics.has_flow()
+            && device::flows_on_device(stepper.mobility_mut());
         let device = if resident {
             Some(device::open(
                 &rods,
@@ -147,11 +153,17 @@ impl ParticleModel {
             ranks,
             before: None,
             device,
+            resident_flow,
             window: (Instant::now(), 0),
             notes: if resident && !cfg.hydrodynamics.has_flow() {
                 vec![
                     "the whole step runs on the GPU (device = \"gpu\", hydrodynamics = \"none\"); the rods are downloaded for outputs and checkpoints".into(),
                 ]
+            } else if resident_flow {
+                vec![format!(
+                    "the whole step runs on the GPU (device = \"gpu\", hydrodynamics = \"{}\"), the flow's sum included; the rods are downloaded for outputs and checkpoints",
+                    cfg.hydrodynamics.name()
+                )]
             } else if resident {
                 vec![format!(
                     "the step runs on the GPU (device = \"gpu\", hydrodynamics = \"{}\"): neighbours, contacts, the move and the overlap projection; the flow is summed on the host with its Fourier part on the GPU, the rods downloaded for it every step",
@@ -516,19 +528,27 @@ impl ParticleModel {
 
     /// A step resident on the GPU ([`ParticleRunConfig::resident`]): the rods stay on the
     /// device; they are downloaded for snapshots and checkpoints, and the state before a
-    /// failed step from the device's copy of it. At the levels with flow the host sums the
-    /// flow of the rods before the step (their copy in `rods`, downloaded after every step)
-    /// and the device steps from those free velocities; the time series' flow norms, the
-    /// lowest modes and the snapshots' point forces are then the CPU step's, of the state
-    /// before the step. Without flow the norms are zero.
+    /// failed step from the device's copy of it. At the levels with flow the flow is summed
+    /// on the device where the mobility can (`dipole`: [`Self::resident_flow`]; the rods are
+    /// then downloaded only before the steps whose outputs need them), else on the host from
+    /// the rods before the step (their copy in `rods`, downloaded after every step); the time
+    /// series' flow norms, the lowest modes and the snapshots' point forces are the CPU's, of
+    /// the state before the step. Without flow the norms are zero.
     fn device_step(&mut self, io: &mut run::RunIo, step: u64) -> Result<(), run::StepFailure> {
         let dt = self.cfg.dt;
         let (diag, snap, _) = self.every;
         let flow = self.cfg.hydrodynamics.has_flow();
+        let resident_flow = self.resident_flow;
         let d = self
             .device
             .as_mut()
             .expect("a device step without a device");
+        if resident_flow && (step.is_multiple_of(diag) || step.is_multiple_of(snap)) {
+            // The outputs below need the state before the step, which stays on the device.
+            d.download(&mut self.rods)?;
+            let p = self.rods.orientations();
+            self.stepper.mobility_mut().density_for(&p);
+        }
         let stepped = if flow {
             d.step_with_flow(dt, self.stepper.mobility_mut(), &self.rods)
         } else {
@@ -542,6 +562,9 @@ impl ParticleModel {
                 let mut rods = self.rods.clone();
                 if !matches!(e, StepError::Hydrodynamics(_)) {
                     d.download_before(&mut rods)?;
+                } else if resident_flow {
+                    // The flow's sum failed on the device, which kept the rods unmoved.
+                    d.download(&mut rods)?;
                 }
                 let mut before =
                     ParticleCheckpoint::of(&rods, &self.stepper, self.step, self.step as f64 * dt);
@@ -576,7 +599,7 @@ impl ParticleModel {
                 })
             })
             .flatten();
-        if flow {
+        if flow && !resident_flow {
             let d = self
                 .device
                 .as_ref()

@@ -19,7 +19,11 @@ pub(crate) struct Geometry {
     pub(crate) xi: f64,
 }
 
-fn check<T: Element>(what: &str, buf: &Buffer<T>, at_least: usize) -> Result<(), GpuError> {
+pub(super) fn check<T: Element>(
+    what: &str,
+    buf: &Buffer<T>,
+    at_least: usize,
+) -> Result<(), GpuError> {
     if buf.len() < at_least {
         return Err(GpuError::Input(format!(
             "{what}: {} values where the kernel reads or writes {at_least}",

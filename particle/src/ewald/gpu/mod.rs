@@ -25,10 +25,12 @@
 
 mod binned;
 mod launch;
+mod resident;
 mod signatures;
 
 pub use binned::{CELL_BIN, MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, work_model};
 pub(crate) use launch::Geometry;
+pub(crate) use resident::StressletInputs;
 
 use crate::ewald::gpu::signatures::KERNELS;
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
@@ -170,9 +172,8 @@ impl GpuFourier {
         geo: &Geometry,
         pts: &Buffer,
         n: usize,
-        (values, nf): (&[f64], usize),
+        (vals, nf): (&Buffer, usize),
     ) -> Result<(), GpuError> {
-        let vals = self.dev.upload(values)?;
         self.grid(geo.m, nf)?;
         let method = self.spread_method(geo.window.p);
         let bins = match method {
@@ -189,8 +190,8 @@ impl GpuFourier {
             dev.zero(&mut input.fields)?;
         }
         match &bins {
-            None => launch::spread(dev, geo, pts, &vals, &mut input.fields, n, nf)?,
-            Some(b) => binned::spread(dev, geo, b, pts, &vals, &mut input.fields, (n, nf))?,
+            None => launch::spread(dev, geo, pts, vals, &mut input.fields, n, nf)?,
+            Some(b) => binned::spread(dev, geo, b, pts, vals, &mut input.fields, (n, nf))?,
         }
         self.bins = bins.map(|b| (generation, b));
         dev.forward(&input.plan, (&input.fields, 0), (&mut input.spectra, 0))
@@ -220,14 +221,14 @@ impl GpuFourier {
     }
 
     /// Inverse transform the three output spectra and gather them (with gradients if asked),
-    /// in bin order where the spread sorted the points.
+    /// in bin order where the spread sorted the points: field-major, left on the device.
     fn back(
         &mut self,
         geo: &Geometry,
         pts: &Buffer,
         n: usize,
         gradient: bool,
-    ) -> Result<Vec<f64>, GpuError> {
+    ) -> Result<Buffer, GpuError> {
         let method = self.spread_method(geo.window.p);
         let g = self.grid.as_mut().expect("spread first");
         let dev = &self.dev;
@@ -239,7 +240,7 @@ impl GpuFourier {
             }
             _ => launch::gather(dev, geo, pts, &g.back, &mut out, n, gradient)?,
         }
-        dev.download(&out)
+        Ok(out)
     }
 
     /// The Fourier part of the RPY sum (radius `a`) at the points: three velocity components
@@ -257,6 +258,7 @@ impl GpuFourier {
         let vals: Vec<f64> = (0..3)
             .flat_map(|d| forces.iter().map(move |f| f[d]))
             .collect();
+        let vals = self.dev.upload(&vals)?;
         self.spread(generation, geo, &pts, n, (&vals, 3))?;
         let g = self.grid.as_mut().expect("spread made it");
         let input = g.inputs[0].as_ref().expect("spread made it");
@@ -267,7 +269,8 @@ impl GpuFourier {
             &input.spectra,
             &mut g.spectra_out,
         )?;
-        let out = self.back(geo, &pts, n, false)?;
+        let back = self.back(geo, &pts, n, false)?;
+        let out = self.dev.download(&back)?;
         self.points = Some((generation, pts));
         Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
     }
@@ -424,6 +427,7 @@ impl GpuFourier {
         let n = points.len();
         let pts = self.points(generation, points)?;
         let vals: Vec<f64> = s.iter().flat_map(|c| c.iter().copied()).collect();
+        let vals = self.dev.upload(&vals)?;
         self.spread(generation, geo, &pts, n, (&vals, 6))?;
         let g = self.grid.as_mut().expect("spread made it");
         let input = g.inputs[1].as_ref().expect("spread made it");
@@ -434,7 +438,8 @@ impl GpuFourier {
             &input.spectra,
             &mut g.spectra_out,
         )?;
-        let out = self.back(geo, &pts, n, true)?;
+        let back = self.back(geo, &pts, n, true)?;
+        let out = self.dev.download(&back)?;
         self.points = Some((generation, pts));
         Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
     }

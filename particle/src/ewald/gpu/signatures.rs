@@ -4,8 +4,13 @@
 use motile_gpu::Buffer;
 
 motile_gpu::kernels! {
-    /// `kernels.cu` (with the prefix sum of `scan.cu`) and its kernels.
-    pub(crate) const KERNELS = concat!(include_str!("kernels.cu"), include_str!("scan.cu"));
+    /// `kernels.cu` (with the resident sums' `resident.cu` and the prefix sum of `scan.cu`)
+    /// and its kernels.
+    pub(crate) const KERNELS = concat!(
+        include_str!("kernels.cu"),
+        include_str!("resident.cu"),
+        include_str!("scan.cu")
+    );
 
     /// Spread `nf` fields of `n` points onto `nf` grids of `m^3` (atomic adds, the points'
     /// order): the binned spreaders' slow twin.
@@ -210,6 +215,96 @@ motile_gpu::kernels! {
         xi: f64,
         r_direct: f64,
         r0sq: f64,
+    }
+
+    /// Each point's wrapped position, cell (`nc` per axis) and rank in it; the cells' counts
+    /// (zeroed by the caller).
+    pub(crate) struct PointCell = "point_cell" {
+        y: &'a Buffer<f64>,
+        wrapped: &'a mut Buffer<f64>,
+        cell: &'a mut Buffer<i32>,
+        rank: &'a mut Buffer<i32>,
+        count: &'a mut Buffer<i32>,
+        n: i32,
+        nc: i32,
+        l: f64,
+    }
+
+    /// Rows of `width` values gathered: `rows_out[k] = rows_in[idx[k]]`.
+    pub(crate) struct TakeRows = "take_rows" {
+        rows_in: &'a Buffer<f64>,
+        idx: &'a Buffer<i32>,
+        rows_out: &'a mut Buffer<f64>,
+        n: i32,
+        width: i32,
+    }
+
+    /// Rows of `width` values scattered: `rows_out[idx[k]] = rows_in[k]`.
+    pub(crate) struct PutRows = "put_rows" {
+        rows_in: &'a Buffer<f64>,
+        idx: &'a Buffer<i32>,
+        rows_out: &'a mut Buffer<f64>,
+        n: i32,
+        width: i32,
+    }
+
+    /// Each cell member's group.
+    pub(crate) struct MemberGroup = "member_group" {
+        members: &'a Buffer<i32>,
+        group: &'a mut Buffer<i32>,
+        n: i32,
+        size: i32,
+    }
+
+    /// The rods' axes from their quaternions.
+    pub(crate) struct RodAxes = "rod_axes" {
+        q: &'a Buffer<f64>,
+        p: &'a mut Buffer<f64>,
+        n: i32,
+    }
+
+    /// The six stresslet components (field-major) and the strengths.
+    pub(crate) struct StressletValues = "stresslet_values" {
+        p: &'a Buffer<f64>,
+        sigma: f64,
+        vals: &'a mut Buffer<f64>,
+        strength: &'a mut Buffer<f64>,
+        n: i32,
+    }
+
+    /// The stresslet sum's velocity, gradient and error-model inputs per point.
+    pub(crate) struct StressletAssemble = "stresslet_assemble" {
+        real: &'a Buffer<f64>,
+        back: &'a Buffer<f64>,
+        p: &'a Buffer<f64>,
+        u: &'a mut Buffer<f64>,
+        grad: &'a mut Buffer<f64>,
+        parts: &'a mut Buffer<f64>,
+        n: i32,
+        sigma: f64,
+        own_c: f64,
+        mu: f64,
+    }
+
+    /// The error model's reductions in fixed chunks.
+    pub(crate) struct EstimateChunks = "estimate_chunks" {
+        parts: &'a Buffer<f64>,
+        w: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        n: i32,
+        nout: i32,
+        chunk: i32,
+    }
+
+    /// The dipole level's free velocities (swimming and Jeffery's rotation).
+    pub(crate) struct JefferyVelocities = "jeffery_velocities" {
+        p: &'a Buffer<f64>,
+        u: &'a Buffer<f64>,
+        grad: &'a Buffer<f64>,
+        v: &'a mut Buffer<f64>,
+        w: &'a mut Buffer<f64>,
+        n: i32,
+        swim: f64,
     }
 }
 

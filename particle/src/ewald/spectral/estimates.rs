@@ -42,10 +42,8 @@ pub(crate) fn estimate_parts(
     out2: impl Fn(usize) -> f64 + Sync,
     n: usize,
 ) -> [f64; 4] {
-    const CHUNK: usize = 4096;
-    let (c_max, c_2) = error_model_constants(output, internal);
-    let (a_max, a_2) = ((c_max * scale).powi(2), (c_2 * scale).powi(2));
-    let far = (FAR_FIELD_SHARE * internal).powi(2);
+    const CHUNK: usize = ESTIMATE_CHUNK;
+    let [a_max, a_2, far] = estimate_weights(output, (scale, internal));
     let parts: Vec<[f64; 4]> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
@@ -60,8 +58,28 @@ pub(crate) fn estimate_parts(
             acc
         })
         .collect();
+    combine_chunks(parts.iter())
+}
+
+/// The targets per chunk of the estimates' reductions (fixed, so that their sums do not
+/// depend on the thread count; the device's are the same chunks).
+pub(crate) const ESTIMATE_CHUNK: usize = 4096;
+
+/// The weights `[a_max, a_2, far]` of an estimate's reductions: per target the max-norm term
+/// `a_max e2 + far |q|^2` and the L2 term `a_2 e2 + far |q|^2` (see [`estimate`]).
+pub(crate) fn estimate_weights(output: SumOutput, (scale, internal): (f64, f64)) -> [f64; 3] {
+    let (c_max, c_2) = error_model_constants(output, internal);
+    [
+        (c_max * scale).powi(2),
+        (c_2 * scale).powi(2),
+        (FAR_FIELD_SHARE * internal).powi(2),
+    ]
+}
+
+/// The chunks' reductions `[max, sum, max, sum]` joined in chunk order.
+pub(crate) fn combine_chunks<'a>(parts: impl Iterator<Item = &'a [f64; 4]>) -> [f64; 4] {
     let mut tot = [0.0f64; 4];
-    for a in &parts {
+    for a in parts {
         tot[0] = tot[0].max(a[0]);
         tot[1] += a[1];
         tot[2] = tot[2].max(a[2]);
@@ -118,9 +136,21 @@ pub(crate) fn stresslet_estimates(
         |t| field.grad[t].iter().map(|r| dot(*r, *r)).sum(),
         local,
     );
+    stresslet_estimates_from([reduce(u), reduce(g)], n, floor, tol)
+}
+
+/// The estimates of a stresslet attempt (velocity, gradient) and the worst estimate/bound
+/// ratio from the reductions of [`estimate_parts`] over all `n` targets.
+pub(crate) fn stresslet_estimates_from(
+    [u, g]: [[f64; 4]; 2],
+    n: usize,
+    floor: impl Fn(i32) -> f64,
+    tol: f64,
+) -> (Vec<ErrorEstimate>, f64) {
+    let outputs = [SumOutput::StressletVelocity, SumOutput::StressletGradient];
     let estimates = vec![
-        estimate_from(outputs[0], reduce(u), n, floor(2)),
-        estimate_from(outputs[1], reduce(g), n, floor(3)),
+        estimate_from(outputs[0], u, n, floor(2)),
+        estimate_from(outputs[1], g, n, floor(3)),
     ];
     let ratio = estimates
         .iter()

@@ -43,6 +43,11 @@
 pub(crate) mod estimates;
 pub(crate) mod real_space;
 pub(crate) mod refinement;
+#[cfg(feature = "gpu")]
+mod resident;
+
+#[cfg(feature = "gpu")]
+pub use resident::ResidentField;
 
 use crate::ewald::grid::{GaussianGrid, GridPoints};
 #[cfg(feature = "gpu")]
@@ -208,20 +213,7 @@ impl SpectralEwald {
         points: &[Vec3],
         group: usize,
     ) -> Result<Prepared, SumError> {
-        if p.cutoff > 0.5 * l * (1.0 + 1e-12) {
-            return Err(SumError::Input(format!(
-                "real-space cutoff {} exceeds half the box {}",
-                p.cutoff,
-                0.5 * l
-            )));
-        }
-        if p.modes < p.support || p.support < 2 || !p.modes.is_multiple_of(2) {
-            return Err(SumError::Input(format!(
-                "Gaussian grid of {} points per axis with support {} (needs an even grid of at \
-                 least the support)",
-                p.modes, p.support
-            )));
-        }
+        check_params(&p, l)?;
         let rebuild = self.grid.is_none() || self.last != Some(p) || self.grid_box != l;
         if rebuild {
             self.grid = Some(GaussianGrid::new(l, p.xi, p.modes, p.support, p.shape));
@@ -463,6 +455,26 @@ impl SpectralEwald {
     }
 }
 
+/// Parameters a sum in a box of side `l` can use: a cutoff within half the box, an even grid
+/// of at least the support.
+fn check_params(p: &EwaldParams, l: f64) -> Result<(), SumError> {
+    if p.cutoff > 0.5 * l * (1.0 + 1e-12) {
+        return Err(SumError::Input(format!(
+            "real-space cutoff {} exceeds half the box {}",
+            p.cutoff,
+            0.5 * l
+        )));
+    }
+    if p.modes < p.support || p.support < 2 || !p.modes.is_multiple_of(2) {
+        return Err(SumError::Input(format!(
+            "Gaussian grid of {} points per axis with support {} (needs an even grid of at \
+             least the support)",
+            p.modes, p.support
+        )));
+    }
+    Ok(())
+}
+
 /// The points of the last sum, prepared for its parameters.
 #[derive(Debug)]
 struct Prepared {
@@ -574,5 +586,10 @@ impl PeriodicStokes for SpectralEwald {
 
     fn set_adaptive_state(&mut self, state: &[u32]) {
         self.refine.set_state(self.tol, state);
+    }
+
+    #[cfg(feature = "gpu")]
+    fn resident(&mut self) -> Option<&mut SpectralEwald> {
+        self.gpu.is_some().then_some(self)
     }
 }

@@ -21,6 +21,13 @@ impl GpuStep {
         })
     }
 
+    /// A buffer's values on the host (a buffer of this device, or of another opened on the
+    /// same backend: CUDA opens device 0's primary context and its default stream for every
+    /// [`Device`], so a resident sum's results are this device's too).
+    pub fn download(&self, buf: &Buffer) -> Result<Vec<f64>, GpuError> {
+        self.dev.download(buf)
+    }
+
     /// What the device is, in words.
     pub fn describe(&self) -> String {
         self.dev.describe()

@@ -41,6 +41,16 @@ pub(super) struct Warm {
     pub(super) len: usize,
 }
 
+/// Where a step's free velocities (before contacts) come from.
+pub(super) enum Free<'a> {
+    /// Swimming alone (the `none` level), computed on the device.
+    Swimming,
+    /// Velocities and angular velocities per rod from the host.
+    Host(&'a [Vec3], &'a [Vec3]),
+    /// The same, already on the device (triples; a resident flow's).
+    Device(Buffer, Buffer),
+}
+
 /// A step's report with its velocities and contact forces left on the device.
 pub(super) struct StepOutput {
     pub(super) report: DeviceStepReport,
@@ -66,7 +76,9 @@ impl GpuStep {
         dt: f64,
         params: &ContactParams,
     ) -> Result<DeviceStepReport, DeviceContactError> {
-        Ok(self.step_output(rods, dt, params, None, None)?.report)
+        Ok(self
+            .step_output(rods, dt, params, Free::Swimming, None)?
+            .report)
     }
 
     /// [`Self::step_local_drag`] with the velocities and contact forces left on the device,
@@ -79,7 +91,7 @@ impl GpuStep {
         rods: &mut DeviceRods,
         dt: f64,
         params: &ContactParams,
-        free: Option<(&[Vec3], &[Vec3])>,
+        free: Free<'_>,
         warm: Option<&Warm>,
     ) -> Result<StepOutput, DeviceContactError> {
         let n = rods.len;
@@ -89,7 +101,18 @@ impl GpuStep {
         let cons = self.constraints(rods, &pairs, params.margin)?;
         let dev = &self.dev;
         let (mut v, mut w) = match free {
-            Some((fv, fw)) => {
+            Free::Device(v, w) => {
+                if v.len() < 3 * n || w.len() < 3 * n {
+                    return Err(GpuError::Input(format!(
+                        "free velocities: {} and {} values for {n} rods",
+                        v.len(),
+                        w.len()
+                    ))
+                    .into());
+                }
+                (v, w)
+            }
+            Free::Host(fv, fw) => {
                 if fv.len() != n || fw.len() != n {
                     return Err(GpuError::Input(format!(
                         "free velocities for {} and {} rods, not {n}",
@@ -103,7 +126,7 @@ impl GpuStep {
                     dev.upload(fw.as_flattened())?,
                 )
             }
-            None => {
+            Free::Swimming => {
                 let mut v = dev.zeros::<f64>(3 * n)?;
                 let mut w = dev.zeros::<f64>(3 * n)?;
                 if rods.q.len() < 4 * n {

@@ -7,7 +7,7 @@
 use super::device::{GpuStep, int};
 use super::signatures::StepStats;
 use super::solver::DeviceContactError;
-use super::step::{StepOutput, Warm};
+use super::step::{Free, StepOutput, Warm};
 use super::update::DeviceRods;
 use crate::hydro::mobility::{Mobility, RodVelocities};
 use crate::model::geometry::Vec3;
@@ -147,6 +147,17 @@ impl DeviceStepper {
         dt: f64,
         free: Option<(&[Vec3], &[Vec3])>,
     ) -> Result<StepReport, StepError> {
+        self.step_with(
+            dt,
+            match free {
+                Some((v, w)) => Free::Host(v, w),
+                None => Free::Swimming,
+            },
+        )
+    }
+
+    /// One step of `dt` from the free velocities `free`.
+    fn step_with(&mut self, dt: f64, free: Free<'_>) -> Result<StepReport, StepError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(StepError::InvalidTimeStep(dt));
         }
@@ -240,9 +251,34 @@ impl DeviceStepper {
         mobility: &mut dyn Mobility,
         at: &RodSet,
     ) -> Result<StepReport, StepError> {
+        if mobility.flows_on_device() {
+            return self.step_with_resident_flow(dt, mobility);
+        }
         let mut free = RodVelocities::zeros(at.len());
         mobility.free_velocities(at, &at.orientations(), &mut free)?;
         let mut report = self.step_from(dt, Some((&free.v, &free.w)))?;
+        report.hydro = mobility.report();
+        Ok(report)
+    }
+
+    /// One step of `dt` at a level whose flow is summed on this device
+    /// ([`Mobility::flows_on_device`]): the free velocities of the rods here from `mobility`
+    /// ([`Mobility::free_velocities_resident`]), then the step from them, the rods never
+    /// leaving the device; the report carries the mobility's. A failure of the flow's sum
+    /// ([`StepError::Hydrodynamics`]) leaves the rods untouched.
+    pub fn step_with_resident_flow(
+        &mut self,
+        dt: f64,
+        mobility: &mut dyn Mobility,
+    ) -> Result<StepReport, StepError> {
+        let Some(free) = mobility.free_velocities_resident(&self.rods) else {
+            return Err(StepError::Device(format!(
+                "the {} mobility has no flow on the device",
+                mobility.name()
+            )));
+        };
+        let (v, w) = free?;
+        let mut report = self.step_with(dt, Free::Device(v, w))?;
         report.hydro = mobility.report();
         Ok(report)
     }

@@ -1,0 +1,507 @@
+//! The sums with their points, values and results on the device (`resident.cu`): for the
+//! particle step resident on a GPU, whose rods never leave the device between outputs. The
+//! point cell list of the real-space part is built on the device (the twin of
+//! [`PointCells::build`](crate::ewald::point_cells::PointCells): the same cells, each one's
+//! points in increasing index, so the same neighbours in the same order); the stresslet sum
+//! is assembled there (the CPU's `stresslet_attempt` pass after the Fourier part) and its error
+//! model reduced there in the CPU's fixed chunks, so the host reads a few numbers per chunk
+//! and decides, as for the CPU's sums, whether the attempt stands.
+#![allow(unsafe_code)]
+
+use super::GpuFourier;
+use super::launch::check as check_len;
+use super::launch::{self, Geometry};
+use super::signatures::{
+    BinOrder, BinScan, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, PointCell,
+    PutRows, RodAxes, StressletAssemble, StressletValues, TakeRows,
+};
+use crate::ewald::kernels::StressletTable;
+use crate::ewald::spectral::estimates::ESTIMATE_CHUNK;
+use motile_gpu::{Buffer, GpuError, THREADS, kernel_int as int};
+
+/// The point cell list on the device: positions wrapped and in cell order, each one's group,
+/// the cells' starts and members (the points' indices in cell order).
+#[derive(Debug)]
+pub(crate) struct ResidentCells {
+    pub(crate) pos: Buffer,
+    pub(crate) group: Buffer<i32>,
+    pub(crate) start: Buffer<i32>,
+    pub(crate) members: Buffer<i32>,
+    /// Cells per axis.
+    pub(crate) n: usize,
+}
+
+/// A stresslet sum's results on the device, and its error model's reductions.
+#[derive(Debug)]
+pub(crate) struct ResidentStresslets {
+    /// Velocities (triples) and gradients (9 per point, `du_i/dx_m` at `3 i + m`), divided by
+    /// the viscosity.
+    pub(crate) u: Buffer,
+    pub(crate) grad: Buffer,
+    /// The estimate's reductions per output (velocity, gradient), the chunks joined.
+    pub(crate) reductions: [[f64; 4]; 2],
+}
+
+/// What a resident stresslet sum needs besides its points: the real-space table, cutoff and
+/// error-model range, the strength (one for all), the Fourier part's own-gradient
+/// coefficient and the viscosity, and the error model's weights per output.
+pub(crate) struct StressletInputs<'a> {
+    pub(crate) table: &'a StressletTable,
+    pub(crate) cutoff: f64,
+    pub(crate) r0: f64,
+    pub(crate) sigma: f64,
+    pub(crate) own_c: f64,
+    pub(crate) mu: f64,
+    pub(crate) weights: [[f64; 3]; 2],
+}
+
+impl GpuFourier {
+    /// The point cell list of the `npts` points `y` (triples) for a real-space cutoff `cutoff`
+    /// in a box of side `l`, points `group` at a time forming a group: [`PointCells::build`]'s
+    /// cells (`floor(2 L / cutoff)` per axis, at least one), built here.
+    ///
+    /// [`PointCells::build`]: crate::ewald::point_cells::PointCells
+    pub(crate) fn resident_cells(
+        &self,
+        y: &Buffer,
+        npts: usize,
+        (l, cutoff): (f64, f64),
+        group: usize,
+    ) -> Result<ResidentCells, GpuError> {
+        let nc = ((2.0 * l / cutoff).floor() as usize).max(1);
+        let ncells = nc.pow(3);
+        let (ni, nci, ncells_i, gi) = (
+            int(npts, "points")?,
+            int(nc, "cells per axis")?,
+            int(ncells, "cells")?,
+            int(group.max(1), "group size")?,
+        );
+        int(3 * npts, "3 x points")?;
+        check_len("points", y, 3 * npts)?;
+        assert_eq!(
+            THREADS, 256,
+            "bin_scan's shared array holds 256 partial sums"
+        );
+        let dev = &self.dev;
+        let mut wrapped = dev.zeros::<f64>(3 * npts)?;
+        let mut cell = dev.zeros::<i32>(npts)?;
+        let mut rank = dev.zeros::<i32>(npts)?;
+        let mut count = dev.zeros::<i32>(ncells)?;
+        let mut start = dev.zeros::<i32>(ncells + 1)?;
+        let mut members = dev.zeros::<i32>(npts)?;
+        // SAFETY: thread i < npts reads y[3 i..3 i + 3] (checked), writes wrapped there (3 n),
+        // cell[i], rank[i] (n) and adds to count[k]: each axis index is clamped to 0..nc (a
+        // wrapped coordinate is in [0, L), so its truncation is >= 0), so k < nc^3 (allocated).
+        unsafe {
+            dev.launch(
+                npts,
+                PointCell {
+                    y,
+                    wrapped: &mut wrapped,
+                    cell: &mut cell,
+                    rank: &mut rank,
+                    count: &mut count,
+                    n: ni,
+                    nc: nci,
+                    l,
+                },
+            )?;
+        }
+        // SAFETY: one block of THREADS = 256 threads (asserted): reads count[0..ncells] and
+        // writes start[0..=ncells] (allocated).
+        unsafe {
+            dev.launch(
+                THREADS as usize,
+                BinScan {
+                    count: &count,
+                    start: &mut start,
+                    nbins: ncells_i,
+                },
+            )?;
+        }
+        // SAFETY: thread i < npts reads cell[i] < ncells, rank[i], start[cell] and writes
+        // members[start[cell] + rank] < start[cell + 1] <= npts (ranks are 0..count).
+        unsafe {
+            dev.launch(
+                npts,
+                BinScatter {
+                    bin: &cell,
+                    rank: &rank,
+                    start: &start,
+                    perm: &mut members,
+                    n: ni,
+                },
+            )?;
+        }
+        // SAFETY: thread k < ncells permutes members between start[k] and start[k + 1] (<=
+        // npts, allocated ncells + 1).
+        unsafe {
+            dev.launch(
+                ncells,
+                BinOrder {
+                    start: &start,
+                    perm: &mut members,
+                    nbins: ncells_i,
+                },
+            )?;
+        }
+        let pos = self.take_rows(&wrapped, &members, npts, 3)?;
+        let mut groups = dev.zeros::<i32>(npts)?;
+        // SAFETY: thread k < npts reads members[k] and writes group[k] (npts each).
+        unsafe {
+            dev.launch(
+                npts,
+                MemberGroup {
+                    members: &members,
+                    group: &mut groups,
+                    n: ni,
+                    size: gi,
+                },
+            )?;
+        }
+        Ok(ResidentCells {
+            pos,
+            group: groups,
+            start,
+            members,
+            n: nc,
+        })
+    }
+
+    /// `out[k] = rows[idx[k]]`, `width` values per row, for `n` rows (`idx` a permutation of
+    /// `0..n`).
+    pub(crate) fn take_rows(
+        &self,
+        rows: &Buffer,
+        idx: &Buffer<i32>,
+        n: usize,
+        width: usize,
+    ) -> Result<Buffer, GpuError> {
+        check_len("rows", rows, width * n)?;
+        check_len("indices", idx, n)?;
+        let mut out = self.dev.zeros::<f64>(width * n)?;
+        // SAFETY: thread k < n reads idx[k] (n checked), a permutation of 0..n (the cells'
+        // members: every point once), so rows at idx[k] width..+width (width n checked); writes
+        // out at k width (width n).
+        unsafe {
+            self.dev.launch(
+                n,
+                TakeRows {
+                    rows_in: rows,
+                    idx,
+                    rows_out: &mut out,
+                    n: int(n, "rows")?,
+                    width: int(width, "row width")?,
+                },
+            )?;
+        }
+        Ok(out)
+    }
+
+    /// `out[idx[k]] = rows[k]`: rows in cell order back to the points' order.
+    pub(crate) fn put_rows(
+        &self,
+        rows: &Buffer,
+        idx: &Buffer<i32>,
+        n: usize,
+        width: usize,
+    ) -> Result<Buffer, GpuError> {
+        check_len("rows", rows, width * n)?;
+        check_len("indices", idx, n)?;
+        let mut out = self.dev.zeros::<f64>(width * n)?;
+        // SAFETY: as take_rows, reading at k and writing at idx[k] < n.
+        unsafe {
+            self.dev.launch(
+                n,
+                PutRows {
+                    rows_in: rows,
+                    idx,
+                    rows_out: &mut out,
+                    n: int(n, "rows")?,
+                    width: int(width, "row width")?,
+                },
+            )?;
+        }
+        Ok(out)
+    }
+
+    /// The axes of `n` rods from their quaternions `q` (4 per rod).
+    pub(crate) fn rod_axes(&self, q: &Buffer, n: usize) -> Result<Buffer, GpuError> {
+        check_len("quaternions", q, 4 * n)?;
+        let mut p = self.dev.zeros::<f64>(3 * n)?;
+        // SAFETY: thread r < n reads q[4 r..4 r + 4] (checked) and writes p[3 r..3 r + 3].
+        unsafe {
+            self.dev.launch(
+                n,
+                RodAxes {
+                    q,
+                    p: &mut p,
+                    n: int(n, "rods")?,
+                },
+            )?;
+        }
+        Ok(p)
+    }
+
+    /// The dipole level's free velocities `(v, w)` of `n` rods with axes `p` in the flow `u`
+    /// with gradient `grad` (as [`ResidentStresslets`]), swimming at `swim`.
+    pub(crate) fn jeffery_velocities(
+        &self,
+        (p, u, grad): (&Buffer, &Buffer, &Buffer),
+        n: usize,
+        swim: f64,
+    ) -> Result<(Buffer, Buffer), GpuError> {
+        check_len("axes", p, 3 * n)?;
+        check_len("velocities", u, 3 * n)?;
+        check_len("gradients", grad, 9 * n)?;
+        let dev = &self.dev;
+        let (mut v, mut w) = (dev.zeros::<f64>(3 * n)?, dev.zeros::<f64>(3 * n)?);
+        // SAFETY: thread t < n reads p, u at 3 t..3 t + 3 and grad at 9 t..9 t + 9 (checked)
+        // and writes v, w at 3 t..3 t + 3 (3 n each).
+        unsafe {
+            dev.launch(
+                n,
+                JefferyVelocities {
+                    p,
+                    u,
+                    grad,
+                    v: &mut v,
+                    w: &mut w,
+                    n: int(n, "rods")?,
+                    swim,
+                },
+            )?;
+        }
+        Ok((v, w))
+    }
+
+    /// One attempt of the stresslet sum of `n` stresslets `sigma p p` at the points `x` with
+    /// axes `p` (triples, on this device), with the parameters of `geo` and `inp`: the
+    /// velocities and gradients left on the device, the error model's reductions read back.
+    pub(crate) fn stresslet_resident(
+        &mut self,
+        generation: u64,
+        geo: &Geometry,
+        inp: &StressletInputs<'_>,
+        (x, p): (&Buffer, &Buffer),
+        n: usize,
+    ) -> Result<ResidentStresslets, GpuError> {
+        let ni = int(n, "points")?;
+        int(13 * n, "13 x points")?;
+        check_len("points", x, 3 * n)?;
+        check_len("axes", p, 3 * n)?;
+        let mut vals = self.dev.zeros::<f64>(6 * n)?;
+        let mut strength = self.dev.zeros::<f64>(n)?;
+        // SAFETY: thread t < n reads p[3 t..3 t + 3] (checked) and writes vals[c n + t] for
+        // c < 6 (6 n) and strength[t] (n).
+        unsafe {
+            self.dev.launch(
+                n,
+                StressletValues {
+                    p,
+                    sigma: inp.sigma,
+                    vals: &mut vals,
+                    strength: &mut strength,
+                    n: ni,
+                },
+            )?;
+        }
+        // The real-space part over the device's cell list, back in the points' order.
+        let cells = self.resident_cells(x, n, (geo.l, inp.cutoff), 1)?;
+        let orient = self.take_rows(p, &cells.members, n, 3)?;
+        let table = &inp.table;
+        let (inv_h, nodes, xi, r_direct, g) = table.parts();
+        let table_buf = self.dev.upload(&g)?;
+        let mut sorted = self.dev.zeros::<f64>(13 * n)?;
+        let real_in = launch::RealSpace {
+            pos: &cells.pos,
+            group: &cells.group,
+            start: &cells.start,
+            table: &table_buf,
+            npts: n,
+            ncell: cells.n,
+            nodes,
+            l: geo.l,
+            cutoff: inp.cutoff,
+            inv_h,
+            r0sq: inp.r0 * inp.r0,
+        };
+        launch::real_space(
+            &self.dev,
+            launch::Real::Stresslet {
+                orient: &orient,
+                sigma: &strength,
+                xi,
+                r_direct,
+            },
+            &real_in,
+            &mut sorted,
+        )?;
+        let real = self.put_rows(&sorted, &cells.members, n, 13)?;
+        drop((sorted, orient, cells));
+        // The Fourier part.
+        self.spread(generation, geo, x, n, (&vals, 6))?;
+        drop(vals);
+        let g = self.grid.as_mut().expect("spread made it");
+        let input = g.inputs[1].as_ref().expect("spread made it");
+        launch::modes(
+            &self.dev,
+            geo,
+            launch::Modes::Stresslet,
+            &input.spectra,
+            &mut g.spectra_out,
+        )?;
+        let back = self.back(geo, x, n, true)?;
+        // Assembly and the error model.
+        let dev = &self.dev;
+        let mut u = dev.zeros::<f64>(3 * n)?;
+        let mut grad = dev.zeros::<f64>(9 * n)?;
+        let mut parts = dev.zeros::<f64>(4 * n)?;
+        // SAFETY: thread t < n reads real[13 t..13 t + 13] (13 n, made above), back[c n + t]
+        // for c < 12 (the gather's 12 n), p (3 n checked), and writes u (3 n), grad (9 n) and
+        // parts (4 n) at its point.
+        unsafe {
+            dev.launch(
+                n,
+                StressletAssemble {
+                    real: &real,
+                    back: &back,
+                    p,
+                    u: &mut u,
+                    grad: &mut grad,
+                    parts: &mut parts,
+                    n: ni,
+                    sigma: inp.sigma,
+                    own_c: inp.own_c,
+                    mu: inp.mu,
+                },
+            )?;
+        }
+        let reductions = self.estimate_reductions(&parts, n, &inp.weights)?;
+        Ok(ResidentStresslets {
+            u,
+            grad,
+            reductions: [reductions[0], reductions[1]],
+        })
+    }
+
+    /// The error model's reductions ([`crate::ewald::spectral::estimates::estimate_parts`]) of
+    /// `weights.len()` outputs over `n` points from `parts` (per point and output: weighted
+    /// strengths, squared output), in the CPU's chunks, joined in chunk order.
+    fn estimate_reductions(
+        &self,
+        parts: &Buffer,
+        n: usize,
+        weights: &[[f64; 3]],
+    ) -> Result<Vec<[f64; 4]>, GpuError> {
+        let nout = weights.len();
+        check_len("estimate inputs", parts, 2 * nout * n)?;
+        let nchunks = n.div_ceil(ESTIMATE_CHUNK).max(1);
+        let dev = &self.dev;
+        let w = dev.upload(weights.as_flattened())?;
+        let mut out = dev.zeros::<f64>(4 * nout * nchunks)?;
+        // SAFETY: thread c < ceil(n / chunk) reads parts at 2 nout t..2 nout (t + 1) for t in
+        // its chunk (< n; 2 nout n checked), w[0..3 nout] (uploaded) and writes out at
+        // 4 (nout c + o)..+4 for o < nout (4 nout nchunks).
+        unsafe {
+            dev.launch(
+                nchunks,
+                EstimateChunks {
+                    parts,
+                    w: &w,
+                    out: &mut out,
+                    n: int(n, "points")?,
+                    nout: int(nout, "outputs")?,
+                    chunk: int(ESTIMATE_CHUNK, "chunk")?,
+                },
+            )?;
+        }
+        let chunks = dev.download(&out)?;
+        Ok((0..nout)
+            .map(|o| {
+                let per: Vec<[f64; 4]> = (0..n.div_ceil(ESTIMATE_CHUNK))
+                    .map(|c| {
+                        let at = 4 * (nout * c + o);
+                        [chunks[at], chunks[at + 1], chunks[at + 2], chunks[at + 3]]
+                    })
+                    .collect();
+                crate::ewald::spectral::estimates::combine_chunks(per.iter())
+            })
+            .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ewald::point_cells::PointCells;
+    use crate::model::geometry::Vec3;
+    use motile_gpu::Backend;
+    use rand::{RngExt, SeedableRng};
+
+    /// The device's point cell list is [`PointCells::build`]'s bit for bit (starts, members,
+    /// wrapped positions in cell order, groups): points of rods' nodes reaching out of the box
+    /// on both sides, points on the faces (a coordinate a rounding error below 0 wraps to L,
+    /// stored as 0), boxes of fewer and more than five cells per axis, groups of 1 and 4; the
+    /// blocks in order and shuffled (the scatter's atomics then take other orders).
+    #[test]
+    fn resident_cells_are_the_host_point_cells_on_the_emulation() {
+        let gpu = match GpuFourier::open(Backend::HostEmulation) {
+            Ok(g) => g,
+            Err(e) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
+                eprintln!("skipped ({e}); set MOTILE_REQUIRE_CXX=1 to make this a failure");
+                return;
+            }
+            Err(e) => panic!("{e} (and MOTILE_REQUIRE_CXX is set)"),
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(29);
+        for (l, cutoff, n, group) in [
+            (6.0, 0.7, 800, 1),
+            (6.0, 0.7, 800, 4),
+            (3.0, 1.4, 200, 1),
+            (10.0, 0.9, 1200, 4),
+        ] {
+            let mut y: Vec<Vec3> = (0..n)
+                .map(|_| std::array::from_fn(|_| rng.random_range(-0.6..l + 0.6)))
+                .collect();
+            y[0] = [0.0, l, -1e-17];
+            y[1] = [l - 1e-15, 0.5 * l, l];
+            let host = PointCells::build(&y, l, cutoff, group);
+            for seed in [0, 11] {
+                gpu.shuffle_blocks(seed);
+                let dev = gpu.dev.upload(y.as_flattened()).unwrap();
+                let cells = gpu.resident_cells(&dev, n, (l, cutoff), group).unwrap();
+                let what =
+                    format!("L {l}, cutoff {cutoff}, {n} points, group {group}, seed {seed}");
+                assert_eq!(cells.n, host.n, "{what}: cells per axis");
+                let start: Vec<usize> = gpu
+                    .dev
+                    .download(&cells.start)
+                    .unwrap()
+                    .iter()
+                    .map(|&s| s as usize)
+                    .collect();
+                assert_eq!(start, host.start, "{what}: cell starts");
+                let members: Vec<u32> = gpu
+                    .dev
+                    .download(&cells.members)
+                    .unwrap()
+                    .iter()
+                    .map(|&m| m as u32)
+                    .collect();
+                assert_eq!(members, host.members, "{what}: members");
+                let group_of: Vec<u32> = gpu
+                    .dev
+                    .download(&cells.group)
+                    .unwrap()
+                    .iter()
+                    .map(|&g| g as u32)
+                    .collect();
+                assert_eq!(group_of, host.group, "{what}: groups");
+                let pos = gpu.dev.download(&cells.pos).unwrap();
+                assert_eq!(pos, host.sorted.as_flattened(), "{what}: wrapped positions");
+            }
+        }
+        gpu.shuffle_blocks(0);
+    }
+}

@@ -1,0 +1,103 @@
+//! The sums with their points, values and results on the device (feature `gpu`): the same
+//! parameter choice, error model and refinement as the sums of host values (`mod.rs`), each
+//! attempt run by [`crate::ewald::gpu::GpuFourier`]'s resident sums, the host reading back
+//! only the error model's reductions (a few numbers per 4 096 points).
+
+use super::estimates::{estimate_weights, stresslet_estimates_from};
+use super::{SpectralEwald, SumTiming, check_params};
+use crate::ewald::gpu::StressletInputs;
+use crate::ewald::kernels::StressletTable;
+use crate::ewald::params::{ERROR_MODEL_RANGE, EwaldParams, STRESSLET_PAIR_COST, SumOutput};
+use crate::ewald::periodic::SumError;
+use crate::model::units::VISCOSITY;
+use motile_gpu::Buffer;
+use std::f64::consts::PI;
+use std::time::Instant;
+
+/// The flow of a stresslet sum left on the device: velocities (triples) and gradients (9 per
+/// point, `du_i/dx_m` at `3 i + m`), as [`crate::ewald::periodic::StressletField`] holds them.
+#[derive(Debug)]
+pub struct ResidentField {
+    pub(crate) u: Buffer,
+    pub(crate) grad: Buffer,
+}
+
+impl SpectralEwald {
+    /// [`crate::ewald::periodic::PeriodicStokes::stresslets`] of `n` stresslets
+    /// `sigma p_n p_n` of one strength `sigma` at `x` with axes `p` (triples on this sum's
+    /// device), the flow left there: the same parameters, estimates, refinement and report
+    /// as the sum of host values. An error where this sum has no device.
+    pub fn stresslets_resident(
+        &mut self,
+        box_length: f64,
+        (x, p): (&Buffer, &Buffer),
+        sigma: f64,
+        n: usize,
+    ) -> Result<ResidentField, SumError> {
+        let l = box_length;
+        if !(sigma.is_finite() && l.is_finite() && l > 0.0) {
+            return Err(SumError::Input(format!(
+                "stresslets on the device: strength {sigma}, box {l}"
+            )));
+        }
+        let outputs = [SumOutput::StressletVelocity, SumOutput::StressletGradient];
+        let floor = |k: i32| sigma.abs() / (8.0 * PI * VISCOSITY * l.powi(k));
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let internal = self.internal_tolerance();
+            let prm = self.fixed.unwrap_or_else(|| {
+                EwaldParams::choose_for(internal, n, l, &outputs, STRESSLET_PAIR_COST)
+            });
+            check_params(&prm, l)?;
+            if self.last != Some(prm) {
+                // The host grid was for other parameters: the next host sum builds its own.
+                self.grid = None;
+            }
+            self.last = Some(prm);
+            self.generation += 1;
+            let t0 = Instant::now();
+            let xi = prm.xi;
+            let scale = |o: SumOutput| internal * o.self_scale(xi) / VISCOSITY;
+            let table = StressletTable::new(prm.cutoff, xi);
+            let inputs = StressletInputs {
+                table: &table,
+                cutoff: prm.cutoff,
+                r0: ERROR_MODEL_RANGE * prm.spacing(l),
+                sigma,
+                own_c: sigma * PI.sqrt() * xi * xi * xi / (2.0 * PI * PI),
+                mu: VISCOSITY,
+                weights: outputs.map(|o| estimate_weights(o, (scale(o), internal))),
+            };
+            let geo = Self::device_geometry(&prm, l);
+            let generation = self.generation;
+            let gpu = self.gpu.as_mut().ok_or_else(|| {
+                SumError::Device("a resident sum on a sum without a device".into())
+            })?;
+            let res = gpu
+                .stresslet_resident(generation, &geo, &inputs, (x, p), n)
+                .map_err(|e| SumError::Device(e.to_string()))?;
+            let (estimates, ratio) = stresslet_estimates_from(res.reductions, n, floor, self.tol);
+            self.timing = SumTiming {
+                fourier: t0.elapsed().as_secs_f64(),
+                ..SumTiming::default()
+            };
+            if self.accept(ratio) {
+                self.record(internal, attempts, estimates);
+                return Ok(ResidentField {
+                    u: res.u,
+                    grad: res.grad,
+                });
+            }
+        }
+    }
+}
+
+impl SpectralEwald {
+    /// The device this sum runs on (for the kernels around a resident sum).
+    pub(crate) fn device_sum(&self) -> Result<&crate::ewald::gpu::GpuFourier, SumError> {
+        self.gpu
+            .as_ref()
+            .ok_or_else(|| SumError::Device("a resident sum on a sum without a device".into()))
+    }
+}

@@ -1,0 +1,221 @@
+//! The `dipole` level's flow summed on the device the rods are on (feature `gpu`:
+//! `Mobility::free_velocities_resident`, `SpectralEwald::stresslets_resident`) against the
+//! same mobility summing on the CPU, on what the simulations produce: swimming rods (one
+//! stresslet strength), non-overlapping, dense enough for contacts every step.
+//! - the free velocities (swimming plus the flow; Jeffery's rotation from its gradient)
+//!   against the CPU's within round-off of the flow, with each spreader, and the sum's report
+//!   (parameters, refinement level, attempts, the error estimates) the CPU's;
+//! - ten steps of the resident stepper with the flow on the device against the CPU's stepper:
+//!   within what the contact solver's tolerance allows (as the steps with the host's flow).
+//!
+//! On the host emulation (skipped with the reason where no C++ compiler runs, a failure with
+//! `MOTILE_REQUIRE_CXX=1`); on CUDA in the `#[ignore]`d test that `scripts/device_run.sh
+//! parity` runs.
+
+use motile_gpu::Backend;
+use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
+use motile_particle::ewald::spectral::SpectralEwald;
+use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::mobility::{Mobility, RodVelocities};
+use motile_particle::model::geometry::{Vec3, axpy, min_image, norm, sub};
+use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::rods::RodSet;
+use motile_particle::model::units::{DEFAULT_DIAMETER, SWIM_SPEED};
+use motile_particle::step::contact::ContactParams;
+use motile_particle::step::gpu::{DeviceStepper, GpuStep};
+use motile_particle::step::stepper::Stepper;
+
+fn dipole_on(backend: Backend, tol: f64, method: Option<SpreadMethod>) -> Dipole {
+    let mut gpu = GpuFourier::open(backend).unwrap();
+    gpu.set_spread_method(method);
+    Dipole::new(
+        Box::new(SpectralEwald::with_device(tol, gpu).unwrap()),
+        DEFAULT_DIAMETER,
+    )
+}
+
+fn triples(v: &[f64]) -> Vec<Vec3> {
+    v.chunks(3).map(|c| [c[0], c[1], c[2]]).collect()
+}
+
+fn largest_difference(a: &[Vec3], b: &[Vec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| norm(sub(*x, *y)))
+        .fold(0.0, f64::max)
+}
+
+/// The free velocities of `rods` from the resident sum against the CPU's sum at tolerance
+/// `tol`: velocities within 1e-12 of the largest flow speed, angular velocities within 1e-12 of
+/// the largest rotation rate (round-off: the two sums differ in the order of their additions,
+/// measured 1e-15-1e-14), the reports the same.
+fn check_free(backend: Backend, rods: &RodSet, tol: f64, method: Option<SpreadMethod>) {
+    let step = GpuStep::open(backend).unwrap();
+    let on_device = step.upload_rods(rods).unwrap();
+    let mut dev = dipole_on(backend, tol, method);
+    assert!(
+        dev.flows_on_device(),
+        "a dipole on a device sum flows there"
+    );
+    let (v, w) = dev
+        .free_velocities_resident(&on_device)
+        .expect("a device path")
+        .unwrap();
+    let (v, w) = (
+        triples(&step.download(&v).unwrap()),
+        triples(&step.download(&w).unwrap()),
+    );
+    let mut cpu = Dipole::new(Box::new(SpectralEwald::new(tol).unwrap()), DEFAULT_DIAMETER);
+    assert!(!cpu.flows_on_device(), "a dipole on the CPU's sum does not");
+    let p = rods.orientations();
+    let mut want = RodVelocities::zeros(rods.len());
+    cpu.free_velocities(rods, &p, &mut want).unwrap();
+    let flow = want
+        .v
+        .iter()
+        .zip(&p)
+        .map(|(v, p)| norm(axpy(*v, -SWIM_SPEED, *p)))
+        .fold(0.0, f64::max);
+    let turn = want.w.iter().map(|w| norm(*w)).fold(0.0, f64::max);
+    assert!(
+        flow > 1e-3 && turn > 1e-3,
+        "the flow is too weak to test: {flow:.1e}, {turn:.1e}"
+    );
+    let (dv, dw) = (
+        largest_difference(&v, &want.v) / flow,
+        largest_difference(&w, &want.w) / turn,
+    );
+    let what = format!("{} rods, tol {tol:e}, spreader {method:?}", rods.len());
+    assert!(
+        dv <= 1e-12 && dw <= 1e-12,
+        "{what}: velocities differ by {dv:.1e} of the largest flow {flow:.2e}, angular \
+         velocities by {dw:.1e} of the largest rate {turn:.2e} (bound 1e-12)"
+    );
+    let (got, want) = (dev.report(), cpu.report());
+    assert_eq!(got.sums, want.sums, "{what}: sums");
+    assert_eq!(got.sum_level, want.sum_level, "{what}: refinement level");
+    let ratio = (got.sum_error_ratio - want.sum_error_ratio).abs() / want.sum_error_ratio;
+    assert!(
+        ratio <= 1e-10,
+        "{what}: estimated error ratios {:.6e} and {:.6e}",
+        got.sum_error_ratio,
+        want.sum_error_ratio
+    );
+    eprintln!(
+        "{what}: velocities within {dv:.1e} of the flow {flow:.2e}, rates within {dw:.1e} of \
+         {turn:.2e}; error ratio {:.3e} (CPU {:.3e}), level {}",
+        got.sum_error_ratio, want.sum_error_ratio, got.sum_level
+    );
+}
+
+/// Ten steps of the resident stepper with its flow on the device against the CPU's stepper
+/// with the CPU's sum: the rods within 10 x steps x the solver tolerance (the bound of the
+/// steps with the host's flow), the same constraints and projections each step.
+fn check_steps(backend: Backend, rods: &RodSet) {
+    const STEPS: usize = 10;
+    let (dt, tol) = (0.02, 1e-8);
+    let l = rods.box_length;
+    let params = ContactParams::default();
+    let mut cpu = rods.clone();
+    let mut stepper = Stepper::new(
+        Box::new(Dipole::new(
+            Box::new(SpectralEwald::new(tol).unwrap()),
+            DEFAULT_DIAMETER,
+        )),
+        params.clone(),
+    );
+    let mut device = DeviceStepper::new(backend, rods, params.clone(), &Vec::new()).unwrap();
+    let mut mobility = dipole_on(backend, tol, Some(SpreadMethod::Sorted));
+    let mut active = 0;
+    for k in 0..STEPS {
+        let want = stepper.step(&mut cpu, dt).unwrap();
+        let got = device.step_with_resident_flow(dt, &mut mobility).unwrap();
+        assert_eq!(
+            got.contact.constraints, want.contact.constraints,
+            "step {k}: constraints on the device and the CPU"
+        );
+        assert_eq!(got.projections, want.projections, "step {k}: projections");
+        assert_eq!(got.hydro.sums, 1, "step {k}: one sum");
+        active += want.contact.active;
+    }
+    assert!(active > 20, "too few active contacts: {active}");
+    let mut on_device = rods.clone();
+    device.download(&mut on_device).unwrap();
+    let dx = (0..rods.len())
+        .map(|i| norm(min_image(sub(on_device.x[i], cpu.x[i]), l)))
+        .fold(0.0, f64::max);
+    let dq = (0..rods.len())
+        .flat_map(|i| (0..4).map(move |d| (i, d)))
+        .map(|(i, d)| (on_device.q[i][d] - cpu.q[i][d]).abs())
+        .fold(0.0, f64::max);
+    let bound = 10.0 * STEPS as f64 * params.tolerance;
+    assert!(
+        dx <= bound && dq <= bound,
+        "after {STEPS} steps the centres differ by {dx:.1e} l, the quaternions by {dq:.1e} \
+         (bound {bound:.0e})"
+    );
+    assert_eq!(on_device.image, cpu.image, "images crossed");
+    eprintln!(
+        "{STEPS} resident dipole steps of {} rods, {active} active contacts: centres within \
+         {dx:.1e} l, quaternions within {dq:.1e}",
+        rods.len()
+    );
+}
+
+fn cases() -> Vec<RodSet> {
+    vec![
+        // Dense (contacts every step) and dilute with a box of many cells.
+        random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).unwrap(),
+        random_nonoverlapping(300, 10.0, DEFAULT_DIAMETER, 5, 1_000_000).unwrap(),
+    ]
+}
+
+#[test]
+fn resident_dipole_flow_matches_the_cpu_on_the_host_emulation() {
+    match GpuFourier::open(Backend::HostEmulation) {
+        Ok(d) => eprintln!("host emulation: {}", d.describe()),
+        Err(e) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
+            eprintln!("skipped ({e}); set MOTILE_REQUIRE_CXX=1 to make this a failure");
+            return;
+        }
+        Err(e) => panic!("{e} (and MOTILE_REQUIRE_CXX is set)"),
+    }
+    let rods = cases();
+    for tol in [1e-4, 1e-8] {
+        check_free(
+            Backend::HostEmulation,
+            &rods[0],
+            tol,
+            Some(SpreadMethod::Sorted),
+        );
+    }
+    check_free(
+        Backend::HostEmulation,
+        &rods[1],
+        1e-6,
+        Some(SpreadMethod::Atomic),
+    );
+    check_free(Backend::HostEmulation, &rods[1], 1e-4, None);
+    check_steps(Backend::HostEmulation, &rods[0]);
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/device_run.sh parity runs it)"]
+fn resident_dipole_flow_matches_the_cpu_on_cuda() {
+    match GpuFourier::open(Backend::Cuda) {
+        Ok(d) => eprintln!("CUDA: {}", d.describe()),
+        Err(e) if std::env::var("MOTILE_REQUIRE_GPU").is_err() => {
+            eprintln!("skipped ({e}); set MOTILE_REQUIRE_GPU=1 to make this a failure");
+            return;
+        }
+        Err(e) => panic!("{e} (and MOTILE_REQUIRE_GPU is set)"),
+    }
+    let rods = cases();
+    for tol in [1e-4, 1e-8] {
+        for method in [None, Some(SpreadMethod::Sorted)] {
+            check_free(Backend::Cuda, &rods[0], tol, method);
+        }
+    }
+    check_free(Backend::Cuda, &rods[1], 1e-6, None);
+    check_steps(Backend::Cuda, &rods[0]);
+}
