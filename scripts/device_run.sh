@@ -14,7 +14,8 @@
 #   profile  where the GPU's time goes (gpu_bench --profile, GPU sides only): each kernel,
 #            transform and transfer of the mean-field step, the sums and the particle steps,
 #            then Nsight Compute's speed-of-light and occupancy of the spreaders and gathers at
-#            1e6 points; into profile.txt and ncu.txt (limits PROFILE_LIMIT, NCU_LIMIT)
+#            1e6 points; into profile.txt and ncu.txt (PROFILE_CASES: the gpu_bench case lists
+#            to profile, one run each; default "mf sum dipole,explicit100,sbt")
 #   ptxas    the compiler's resource report (registers, stack, spills) of every kernel set
 #   check    a second, shorter device check after changes (5 minutes): the CUDA parity tests
 #            only, ptxas, the sums (every spreader at 1e6 points), the mean-field step, the
@@ -99,7 +100,7 @@ case "${1:-}" in
     ;;
   profile)
     P="--profile --reps 1 --cpu-max 0"
-    { for c in mf sum dipole,explicit100,sbt; do
+    { for c in ${PROFILE_CASES:-mf sum dipole,explicit100,sbt}; do
         echo "== gpu_bench $P --cases $c"
         # shellcheck disable=SC2086
         "$B/gpu_bench" $P --cases "$c" 2>&1

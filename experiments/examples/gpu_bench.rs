@@ -430,18 +430,16 @@ impl Bench {
             return;
         }
         // The step resident on the device (`device = "gpu"` runs at this level): the flow
-        // summed from the host (its Fourier part on the device) of the rods downloaded each
-        // step, contacts, the move and the projection on the device.
+        // summed on the device from the rods there (no round trip), contacts, the move and the
+        // projection on the device.
         let mut mobility = make(SpectralEwald::with_device(tol, self.fourier()).unwrap());
         let mut device =
             DeviceStepper::new(self.backend(), &rods, ContactParams::default(), &Vec::new())
                 .expect("the device stepper");
-        let mut at = rods.clone();
         let mut sums = 0.0;
         let mut step = || {
-            device.download(&mut at).expect("download");
             let r = device
-                .step_with_flow(dt, mobility.as_mut(), &at)
+                .step_with_resident_flow(dt, mobility.as_mut())
                 .expect("device step");
             sums = r.hydro.seconds_sums;
         };
@@ -450,7 +448,7 @@ impl Bench {
         self.profile_end(&format!("{case}, resident"), reps + 1, tr);
         let bytes = self.gpu_bytes();
         let note = format!(
-            "resident step (flow from the host): sums {sums:.3} s, the rest {:.3} s{}",
+            "resident step (flow on the device): sums {sums:.3} s, the rest {:.3} s{}",
             tr - sums,
             per_rod(bytes)
         );

@@ -186,7 +186,7 @@ const SOLVER_COLUMNS: [&str; 6] = [
 /// tolerance, 1e-7 l of separation per step: velocities to about 1e-7 / dt = 5e-6 beta l (rotation rates, over arms of about l/2,
 /// twice that), i.e. 1e-5 of rates of order 1; positions to 1e-7 l per step. The flow of the
 /// levels with hydrodynamics is the same function of the rods on both sides (summed on the
-/// host, its Fourier part on the emulated device to round-off), so the same bound holds.
+/// emulated device, rods and all, to round-off of the CPU's sum), so the same bound holds.
 fn resident_run(level: &str, says: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = tmp.path().join(format!("{level}.toml"));
@@ -266,7 +266,7 @@ fn a_run_without_hydrodynamics_steps_on_the_emulated_gpu_and_resumes_on_the_cpu(
 fn dipole_and_explicit_slender_runs_step_on_the_emulated_gpu_and_resume_on_the_cpu() {
     if emulation_available() {
         for level in ["dipole", "sbt-explicit"] {
-            resident_run(level, "the step runs on the GPU");
+            resident_run(level, "the flow's sum included");
         }
     }
 }

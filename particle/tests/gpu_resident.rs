@@ -1,10 +1,12 @@
-//! The `dipole` level's flow summed on the device the rods are on (feature `gpu`:
-//! `Mobility::free_velocities_resident`, `SpectralEwald::stresslets_resident`) against the
-//! same mobility summing on the CPU, on what the simulations produce: swimming rods (one
-//! stresslet strength), non-overlapping, dense enough for contacts every step.
-//! - the free velocities (swimming plus the flow; Jeffery's rotation from its gradient)
-//!   against the CPU's within round-off of the flow, with each spreader, and the sum's report
-//!   (parameters, refinement level, attempts, the error estimates) the CPU's;
+//! The flow of the `dipole` and `sbt-explicit` levels summed on the device the rods are on
+//! (feature `gpu`: `Mobility::free_velocities_resident`, `SpectralEwald::stresslets_resident`
+//! and `rpy_resident`) against the same mobility summing on the CPU, on what the simulations
+//! produce: swimming rods (force-free densities, one stresslet strength), non-overlapping,
+//! dense enough for contacts every step, and dilute in a box of many cells.
+//! - the free velocities (swimming plus the flow: Jeffery's rotation from its gradient at the
+//!   dipole level, the rigid-body projection of the flow at the rods' nodes at the explicit
+//!   level) against the CPU's within round-off of the flow, with each spreader, and the sum's
+//!   report (sums, refinement level, the error estimate) the CPU's;
 //! - ten steps of the resident stepper with the flow on the device against the CPU's stepper:
 //!   within what the contact solver's tolerance allows (as the steps with the host's flow).
 //!
@@ -16,7 +18,9 @@ use motile_gpu::Backend;
 use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::explicit::ExplicitSlender;
 use motile_particle::hydro::mobility::{Mobility, RodVelocities};
+use motile_particle::hydro::slender::SlenderParams;
 use motile_particle::model::geometry::{Vec3, axpy, min_image, norm, sub};
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::rods::RodSet;
@@ -25,13 +29,28 @@ use motile_particle::step::contact::ContactParams;
 use motile_particle::step::gpu::{DeviceStepper, GpuStep};
 use motile_particle::step::stepper::Stepper;
 
-fn dipole_on(backend: Backend, tol: f64, method: Option<SpreadMethod>) -> Dipole {
+/// The mobility of `level` (`dipole` or `sbt-explicit`) on the sum `sum`.
+fn mobility(level: &str, sum: SpectralEwald) -> Box<dyn Mobility> {
+    match level {
+        "dipole" => Box::new(Dipole::new(Box::new(sum), DEFAULT_DIAMETER)),
+        "sbt-explicit" => Box::new(ExplicitSlender::new(
+            SlenderParams::for_diameter(DEFAULT_DIAMETER),
+            Box::new(sum),
+        )),
+        _ => panic!("no level {level}"),
+    }
+}
+
+/// `level`'s mobility on a sum at tolerance `tol` on `backend`, spreading with `method`.
+fn on_device(
+    level: &str,
+    backend: Backend,
+    tol: f64,
+    method: Option<SpreadMethod>,
+) -> Box<dyn Mobility> {
     let mut gpu = GpuFourier::open(backend).unwrap();
     gpu.set_spread_method(method);
-    Dipole::new(
-        Box::new(SpectralEwald::with_device(tol, gpu).unwrap()),
-        DEFAULT_DIAMETER,
-    )
+    mobility(level, SpectralEwald::with_device(tol, gpu).unwrap())
 }
 
 fn triples(v: &[f64]) -> Vec<Vec3> {
@@ -49,24 +68,27 @@ fn largest_difference(a: &[Vec3], b: &[Vec3]) -> f64 {
 /// `tol`: velocities within 1e-12 of the largest flow speed, angular velocities within 1e-12 of
 /// the largest rotation rate (round-off: the two sums differ in the order of their additions,
 /// measured 1e-15-1e-14), the reports the same.
-fn check_free(backend: Backend, rods: &RodSet, tol: f64, method: Option<SpreadMethod>) {
+fn check_free(
+    level: &str,
+    backend: Backend,
+    rods: &RodSet,
+    tol: f64,
+    method: Option<SpreadMethod>,
+) {
     let step = GpuStep::open(backend).unwrap();
-    let on_device = step.upload_rods(rods).unwrap();
-    let mut dev = dipole_on(backend, tol, method);
-    assert!(
-        dev.flows_on_device(),
-        "a dipole on a device sum flows there"
-    );
+    let resident = step.upload_rods(rods).unwrap();
+    let mut dev = on_device(level, backend, tol, method);
+    assert!(dev.flows_on_device(), "{level} on a device sum flows there");
     let (v, w) = dev
-        .free_velocities_resident(&on_device)
+        .free_velocities_resident(&resident)
         .expect("a device path")
         .unwrap();
     let (v, w) = (
         triples(&step.download(&v).unwrap()),
         triples(&step.download(&w).unwrap()),
     );
-    let mut cpu = Dipole::new(Box::new(SpectralEwald::new(tol).unwrap()), DEFAULT_DIAMETER);
-    assert!(!cpu.flows_on_device(), "a dipole on the CPU's sum does not");
+    let mut cpu = mobility(level, SpectralEwald::new(tol).unwrap());
+    assert!(!cpu.flows_on_device(), "{level} on the CPU's sum does not");
     let p = rods.orientations();
     let mut want = RodVelocities::zeros(rods.len());
     cpu.free_velocities(rods, &p, &mut want).unwrap();
@@ -85,7 +107,10 @@ fn check_free(backend: Backend, rods: &RodSet, tol: f64, method: Option<SpreadMe
         largest_difference(&v, &want.v) / flow,
         largest_difference(&w, &want.w) / turn,
     );
-    let what = format!("{} rods, tol {tol:e}, spreader {method:?}", rods.len());
+    let what = format!(
+        "{level}, {} rods, tol {tol:e}, spreader {method:?}",
+        rods.len()
+    );
     assert!(
         dv <= 1e-12 && dw <= 1e-12,
         "{what}: velocities differ by {dv:.1e} of the largest flow {flow:.2e}, angular \
@@ -111,34 +136,34 @@ fn check_free(backend: Backend, rods: &RodSet, tol: f64, method: Option<SpreadMe
 /// Ten steps of the resident stepper with its flow on the device against the CPU's stepper
 /// with the CPU's sum: the rods within 10 x steps x the solver tolerance (the bound of the
 /// steps with the host's flow), the same constraints and projections each step.
-fn check_steps(backend: Backend, rods: &RodSet) {
+fn check_steps(level: &str, backend: Backend, rods: &RodSet) {
     const STEPS: usize = 10;
     let (dt, tol) = (0.02, 1e-8);
     let l = rods.box_length;
     let params = ContactParams::default();
     let mut cpu = rods.clone();
     let mut stepper = Stepper::new(
-        Box::new(Dipole::new(
-            Box::new(SpectralEwald::new(tol).unwrap()),
-            DEFAULT_DIAMETER,
-        )),
+        mobility(level, SpectralEwald::new(tol).unwrap()),
         params.clone(),
     );
     let mut device = DeviceStepper::new(backend, rods, params.clone(), &Vec::new()).unwrap();
-    let mut mobility = dipole_on(backend, tol, Some(SpreadMethod::Sorted));
+    let mut flow = on_device(level, backend, tol, Some(SpreadMethod::Sorted));
     let mut active = 0;
     for k in 0..STEPS {
         let want = stepper.step(&mut cpu, dt).unwrap();
-        let got = device.step_with_resident_flow(dt, &mut mobility).unwrap();
+        let got = device.step_with_resident_flow(dt, flow.as_mut()).unwrap();
         assert_eq!(
             got.contact.constraints, want.contact.constraints,
-            "step {k}: constraints on the device and the CPU"
+            "{level}, step {k}: constraints on the device and the CPU"
         );
-        assert_eq!(got.projections, want.projections, "step {k}: projections");
-        assert_eq!(got.hydro.sums, 1, "step {k}: one sum");
+        assert_eq!(
+            got.projections, want.projections,
+            "{level}, step {k}: projections"
+        );
+        assert_eq!(got.hydro.sums, 1, "{level}, step {k}: one sum");
         active += want.contact.active;
     }
-    assert!(active > 20, "too few active contacts: {active}");
+    assert!(active > 20, "{level}: too few active contacts: {active}");
     let mut on_device = rods.clone();
     device.download(&mut on_device).unwrap();
     let dx = (0..rods.len())
@@ -151,12 +176,12 @@ fn check_steps(backend: Backend, rods: &RodSet) {
     let bound = 10.0 * STEPS as f64 * params.tolerance;
     assert!(
         dx <= bound && dq <= bound,
-        "after {STEPS} steps the centres differ by {dx:.1e} l, the quaternions by {dq:.1e} \
-         (bound {bound:.0e})"
+        "{level}: after {STEPS} steps the centres differ by {dx:.1e} l, the quaternions by \
+         {dq:.1e} (bound {bound:.0e})"
     );
-    assert_eq!(on_device.image, cpu.image, "images crossed");
+    assert_eq!(on_device.image, cpu.image, "{level}: images crossed");
     eprintln!(
-        "{STEPS} resident dipole steps of {} rods, {active} active contacts: centres within \
+        "{STEPS} resident {level} steps of {} rods, {active} active contacts: centres within \
          {dx:.1e} l, quaternions within {dq:.1e}",
         rods.len()
     );
@@ -171,7 +196,7 @@ fn cases() -> Vec<RodSet> {
 }
 
 #[test]
-fn resident_dipole_flow_matches_the_cpu_on_the_host_emulation() {
+fn resident_flow_matches_the_cpu_on_the_host_emulation() {
     match GpuFourier::open(Backend::HostEmulation) {
         Ok(d) => eprintln!("host emulation: {}", d.describe()),
         Err(e) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
@@ -181,27 +206,20 @@ fn resident_dipole_flow_matches_the_cpu_on_the_host_emulation() {
         Err(e) => panic!("{e} (and MOTILE_REQUIRE_CXX is set)"),
     }
     let rods = cases();
-    for tol in [1e-4, 1e-8] {
-        check_free(
-            Backend::HostEmulation,
-            &rods[0],
-            tol,
-            Some(SpreadMethod::Sorted),
-        );
+    let emu = Backend::HostEmulation;
+    for level in ["dipole", "sbt-explicit"] {
+        for tol in [1e-4, 1e-8] {
+            check_free(level, emu, &rods[0], tol, Some(SpreadMethod::Sorted));
+        }
+        check_free(level, emu, &rods[1], 1e-6, Some(SpreadMethod::Atomic));
+        check_steps(level, emu, &rods[0]);
     }
-    check_free(
-        Backend::HostEmulation,
-        &rods[1],
-        1e-6,
-        Some(SpreadMethod::Atomic),
-    );
-    check_free(Backend::HostEmulation, &rods[1], 1e-4, None);
-    check_steps(Backend::HostEmulation, &rods[0]);
+    check_free("dipole", emu, &rods[1], 1e-4, None);
 }
 
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/device_run.sh parity runs it)"]
-fn resident_dipole_flow_matches_the_cpu_on_cuda() {
+fn resident_flow_matches_the_cpu_on_cuda() {
     match GpuFourier::open(Backend::Cuda) {
         Ok(d) => eprintln!("CUDA: {}", d.describe()),
         Err(e) if std::env::var("MOTILE_REQUIRE_GPU").is_err() => {
@@ -211,11 +229,13 @@ fn resident_dipole_flow_matches_the_cpu_on_cuda() {
         Err(e) => panic!("{e} (and MOTILE_REQUIRE_GPU is set)"),
     }
     let rods = cases();
-    for tol in [1e-4, 1e-8] {
-        for method in [None, Some(SpreadMethod::Sorted)] {
-            check_free(Backend::Cuda, &rods[0], tol, method);
+    for level in ["dipole", "sbt-explicit"] {
+        for tol in [1e-4, 1e-8] {
+            for method in [None, Some(SpreadMethod::Sorted)] {
+                check_free(level, Backend::Cuda, &rods[0], tol, method);
+            }
         }
+        check_free(level, Backend::Cuda, &rods[1], 1e-6, None);
+        check_steps(level, Backend::Cuda, &rods[0]);
     }
-    check_free(Backend::Cuda, &rods[1], 1e-6, None);
-    check_steps(Backend::Cuda, &rods[0]);
 }

@@ -529,7 +529,7 @@ impl ParticleModel {
     /// A step resident on the GPU ([`ParticleRunConfig::resident`]): the rods stay on the
     /// device; they are downloaded for snapshots and checkpoints, and the state before a
     /// failed step from the device's copy of it. At the levels with flow the flow is summed
-    /// on the device where the mobility can (`dipole`: [`Self::resident_flow`]; the rods are
+    /// on the device where the mobility can (`dipole`, `sbt-explicit`: [`Self::resident_flow`]; the rods are
     /// then downloaded only before the steps whose outputs need them), else on the host from
     /// the rods before the step (their copy in `rods`, downloaded after every step); the time
     /// series' flow norms, the lowest modes and the snapshots' point forces are the CPU's, of

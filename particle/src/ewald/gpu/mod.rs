@@ -30,7 +30,7 @@ mod signatures;
 
 pub use binned::{CELL_BIN, MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, work_model};
 pub(crate) use launch::Geometry;
-pub(crate) use resident::StressletInputs;
+pub(crate) use resident::{RpyInputs, StressletInputs};
 
 use crate::ewald::gpu::signatures::KERNELS;
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};

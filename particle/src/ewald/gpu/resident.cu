@@ -162,3 +162,142 @@ extern "C" __global__ void jeffery_velocities(const double* p, const double* u,
     w[3 * t + 1] = pt[2] * d[0] - pt[0] * d[2];
     w[3 * t + 2] = pt[0] * d[1] - pt[1] * d[0];
 }
+
+// ---------------------------------------------------------------------------------------------
+// The explicit slender-body level (hydro/explicit.rs): nodes, the RPY sum's own-group
+// corrections (spectral/real_space.rs rpy_assemble) and the rods' rigid-body velocities
+// (hydro/slender.rs flow_velocities).
+
+// Minimum image of a difference (geometry.rs min_image).
+__device__ double min_image_any(double c, double l) {
+    double h = 0.5 * l;
+    if (c > h) {
+        if (c - l <= h) return c - l;
+        return c - l * copysign((double)(long long)(fabs(c / l) + 0.5), c);
+    }
+    if (c < -h) {
+        if (c + l >= -h) return c + l;
+        return c - l * copysign((double)(long long)(fabs(c / l) + 0.5), c);
+    }
+    return c;
+}
+
+// Node k = r m + j of rod r: position x_r + s_j p_r (triples), the weighted force of the
+// isolated swimmer's density (c sign(s_j) p_r) w_j as triples and field-major (3 fields of
+// n m values).
+extern "C" __global__ void node_values(const double* x, const double* p, const double* s,
+                                       const double* w, double* nodes, double* force,
+                                       double* fields, int n, int m, double c) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= n * m) return;
+    int r = k / m, j = k % m;
+    double sign = copysign(1.0, s[j]); // f64::signum
+    long long nm = (long long)n * m;
+    for (int d = 0; d < 3; ++d) {
+        nodes[3 * k + d] = x[3 * r + d] + s[j] * p[3 * r + d];
+        double f = c * sign * p[3 * r + d] * w[j];
+        force[3 * k + d] = f;
+        fields[d * nm + k] = f;
+    }
+}
+
+// The free Fourier part of the RPY tensor (ewald/kernels.rs rpy_fourier_free): (A, B) at r, its
+// limit (A_F(0), 0) at r = 0.
+__device__ void rpy_fourier_free(double r, double xi, double a, double* ab) {
+    const double PI = 3.14159265358979323846;
+    const double PI_3_2 = 5.568327996831708;
+    double a2 = a * a, x2 = xi * xi;
+    if (r == 0.0) {
+        ab[0] = xi * (7.0 * a2 * a2 * x2 * x2 - 10.0 * a2 * x2 + 9.0) / (18.0 * PI_3_2);
+        ab[1] = 0.0;
+        return;
+    }
+    double r3 = r * r * r;
+    double af = (1.0 / r + 2.0 * a2 / (3.0 * r3)) / (8.0 * PI);
+    double bf = (1.0 / r - 2.0 * a2 / r3) / (8.0 * PI);
+    double r2 = r * r;
+    double ec = erfc(xi * r);
+    double e = exp(-x2 * r2);
+    double x4 = x2 * x2;
+    double a4x4 = a2 * a2 * x4, x6 = x4 * x2, x8 = x4 * x4;
+    double a4 = a2 * a2;
+    double poly_a = -4.0 * a4 * r2 * r2 * x8 + 22.0 * a4 * r2 * x6 - 14.0 * a4x4 -
+                    12.0 * a2 * r2 * x4 + 24.0 * a2 * x2 - 9.0;
+    double poly_b =
+        4.0 * a4 * r2 * r2 * x8 - 18.0 * a4 * r2 * x6 + 12.0 * a2 * r2 * x4 - 12.0 * a2 * x2 + 9.0;
+    double g = xi * e / PI_3_2;
+    double cc = ec / (PI * r * r2);
+    double ar = cc * (r2 / 8.0 + a2 / 12.0) + g * (a2 / (6.0 * r2) + poly_a / 36.0);
+    double br = cc * (r2 / 8.0 - a2 / 4.0) + g * (-a2 / (2.0 * r2) + poly_b / 36.0);
+    ab[0] = af - ar;
+    ab[1] = bf - br;
+}
+
+// The RPY sum per point t: real (4 per point, points' order) plus the Fourier part (back: 3
+// fields of n), less the free Fourier part of every point of its own group (itself included),
+// over mu into u (triples); the error model's inputs into parts (weighted strengths with the
+// own group's, |u|^2).
+extern "C" __global__ void rpy_assemble(const double* real, const double* back,
+                                        const double* pts, const double* force, double* u,
+                                        double* parts, int n, int g, double l, double xi,
+                                        double a, double r0sq, double mu) {
+    int t = blockIdx.x * blockDim.x + threadIdx.x;
+    if (t >= n) return;
+    const double* rt = real + 4 * (long long)t;
+    double ut[3];
+    for (int d = 0; d < 3; ++d) ut[d] = rt[d] + back[(long long)d * n + t];
+    double e2 = rt[3];
+    int base = (t / g) * g;
+    for (int j = base; j < base + g; ++j) {
+        double r[3];
+        for (int d = 0; d < 3; ++d) r[d] = min_image_any(pts[3 * t + d] - pts[3 * j + d], l);
+        const double* f = force + 3 * j;
+        double r2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+        double rn = sqrt(r2);
+        double rh[3] = {0.0, 0.0, 0.0};
+        if (rn > 0.0)
+            for (int d = 0; d < 3; ++d) rh[d] = r[d] / rn;
+        double ab[2];
+        rpy_fourier_free(rn, xi, a, ab);
+        double s = ab[1] * (rh[0] * f[0] + rh[1] * f[1] + rh[2] * f[2]);
+        for (int d = 0; d < 3; ++d) ut[d] -= ab[0] * f[d] + s * rh[d];
+        e2 += r0sq / (r0sq + r2) * (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+    }
+    double u2 = 0.0;
+    for (int d = 0; d < 3; ++d) {
+        double v = ut[d] / mu;
+        u[3 * t + d] = v;
+        u2 += v * v;
+    }
+    parts[2 * t] = e2;
+    parts[2 * t + 1] = u2;
+}
+
+// The rods' velocities from the flow u at their m nodes each (hydro/slender.rs
+// flow_velocities, with explicit.rs's swimming): v = U p + [u]_l / l,
+// w = p x (12 / l^3)(I - p p)[s u]_l, [.]_l the rule (s, w).
+extern "C" __global__ void rod_flow_velocities(const double* p, const double* u,
+                                               const double* s, const double* w, double* v,
+                                               double* omega, int n, int m, double swim,
+                                               double rod) {
+    int r = blockIdx.x * blockDim.x + threadIdx.x;
+    if (r >= n) return;
+    double a[3] = {0.0, 0.0, 0.0}, b[3] = {0.0, 0.0, 0.0};
+    for (int j = 0; j < m; ++j) {
+        const double* uj = u + 3 * ((long long)r * m + j);
+        for (int d = 0; d < 3; ++d) {
+            a[d] += w[j] * uj[d];
+            b[d] += w[j] * s[j] * uj[d];
+        }
+    }
+    const double* pn = p + 3 * r;
+    double c = pn[0] * b[0] + pn[1] * b[1] + pn[2] * b[2];
+    double pdot[3];
+    for (int d = 0; d < 3; ++d) {
+        pdot[d] = 12.0 / (rod * rod * rod) * (b[d] - c * pn[d]);
+        v[3 * r + d] = swim * pn[d] + a[d] / rod;
+    }
+    omega[3 * r] = pn[1] * pdot[2] - pn[2] * pdot[1];
+    omega[3 * r + 1] = pn[2] * pdot[0] - pn[0] * pdot[2];
+    omega[3 * r + 2] = pn[0] * pdot[1] - pn[1] * pdot[0];
+}

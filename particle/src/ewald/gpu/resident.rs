@@ -12,10 +12,11 @@ use super::GpuFourier;
 use super::launch::check as check_len;
 use super::launch::{self, Geometry};
 use super::signatures::{
-    BinOrder, BinScan, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, PointCell,
-    PutRows, RodAxes, StressletAssemble, StressletValues, TakeRows,
+    BinOrder, BinScan, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues,
+    PointCell, PutRows, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble,
+    StressletValues, TakeRows,
 };
-use crate::ewald::kernels::StressletTable;
+use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use crate::ewald::spectral::estimates::ESTIMATE_CHUNK;
 use motile_gpu::{Buffer, GpuError, THREADS, kernel_int as int};
 
@@ -40,6 +41,19 @@ pub(crate) struct ResidentStresslets {
     pub(crate) grad: Buffer,
     /// The estimate's reductions per output (velocity, gradient), the chunks joined.
     pub(crate) reductions: [[f64; 4]; 2],
+}
+
+/// What a resident RPY sum needs besides its points: the real-space table, cutoff and
+/// error-model range, the radius, the group size (points per rod), the viscosity and the error
+/// model's weights.
+pub(crate) struct RpyInputs<'a> {
+    pub(crate) table: &'a RealSpaceTable,
+    pub(crate) cutoff: f64,
+    pub(crate) r0: f64,
+    pub(crate) a: f64,
+    pub(crate) group: usize,
+    pub(crate) mu: f64,
+    pub(crate) weights: [f64; 3],
 }
 
 /// What a resident stresslet sum needs besides its points: the real-space table, cutoff and
@@ -383,6 +397,184 @@ impl GpuFourier {
             grad,
             reductions: [reductions[0], reductions[1]],
         })
+    }
+
+    /// The explicit level's nodes of `n` rods with centres `x` and axes `p` (triples on this
+    /// device), `m = s.len()` per rod at `x + s_j p`, and their weighted forces
+    /// `(c sign(s_j) p) w_j`: `(nodes, forces)` as triples and the forces field-major.
+    pub(crate) fn node_values(
+        &self,
+        (x, p): (&Buffer, &Buffer),
+        (s, w): (&[f64], &[f64]),
+        n: usize,
+        c: f64,
+    ) -> Result<(Buffer, Buffer, Buffer), GpuError> {
+        let m = s.len();
+        assert_eq!(w.len(), m, "a weight per node");
+        check_len("centres", x, 3 * n)?;
+        check_len("axes", p, 3 * n)?;
+        int(3 * n * m, "3 x nodes")?;
+        let dev = &self.dev;
+        let (sb, wb) = (dev.upload(s)?, dev.upload(w)?);
+        let mut nodes = dev.zeros::<f64>(3 * n * m)?;
+        let mut force = dev.zeros::<f64>(3 * n * m)?;
+        let mut fields = dev.zeros::<f64>(3 * n * m)?;
+        // SAFETY: thread k < n m reads x, p at 3 (k / m)..+3 (3 n checked), s[k % m], w[k % m]
+        // (m uploaded) and writes nodes, force at 3 k..3 k + 3 and fields at d n m + k (3 n m
+        // each).
+        unsafe {
+            dev.launch(
+                n * m,
+                NodeValues {
+                    x,
+                    p,
+                    s: &sb,
+                    w: &wb,
+                    nodes: &mut nodes,
+                    force: &mut force,
+                    fields: &mut fields,
+                    n: int(n, "rods")?,
+                    m: int(m, "nodes per rod")?,
+                    c,
+                },
+            )?;
+        }
+        Ok((nodes, force, fields))
+    }
+
+    /// The rods' velocities `(v, w)` from the flow `u` at their `m = s.len()` nodes each
+    /// (swimming at `swim` plus the rigid-body projection over the rule `(s, w)` of rods of
+    /// length `rod`).
+    pub(crate) fn rod_flow_velocities(
+        &self,
+        (p, u): (&Buffer, &Buffer),
+        (s, w): (&[f64], &[f64]),
+        n: usize,
+        (swim, rod): (f64, f64),
+    ) -> Result<(Buffer, Buffer), GpuError> {
+        let m = s.len();
+        assert_eq!(w.len(), m, "a weight per node");
+        check_len("axes", p, 3 * n)?;
+        check_len("flow", u, 3 * n * m)?;
+        let dev = &self.dev;
+        let (sb, wb) = (dev.upload(s)?, dev.upload(w)?);
+        let (mut v, mut omega) = (dev.zeros::<f64>(3 * n)?, dev.zeros::<f64>(3 * n)?);
+        // SAFETY: thread r < n reads u at 3 (r m + j)..+3 for j < m (3 n m checked), s, w (m
+        // uploaded), p at 3 r..3 r + 3 (3 n checked) and writes v, omega there (3 n each).
+        unsafe {
+            dev.launch(
+                n,
+                RodFlowVelocities {
+                    p,
+                    u,
+                    s: &sb,
+                    w: &wb,
+                    v: &mut v,
+                    omega: &mut omega,
+                    n: int(n, "rods")?,
+                    m: int(m, "nodes per rod")?,
+                    swim,
+                    rod,
+                },
+            )?;
+        }
+        Ok((v, omega))
+    }
+
+    /// One attempt of the RPY sum of the `n` points `pts` with forces `force` (triples, and
+    /// field-major in `fields`) on this device: the velocities left there, the error model's
+    /// reductions read back.
+    pub(crate) fn rpy_resident(
+        &mut self,
+        generation: u64,
+        geo: &Geometry,
+        inp: &RpyInputs<'_>,
+        (pts, force, fields): (&Buffer, &Buffer, &Buffer),
+        n: usize,
+    ) -> Result<(Buffer, [f64; 4]), GpuError> {
+        let ni = int(n, "points")?;
+        int(4 * n, "4 x points")?;
+        check_len("points", pts, 3 * n)?;
+        check_len("forces", force, 3 * n)?;
+        check_len("force fields", fields, 3 * n)?;
+        if inp.group == 0 || !n.is_multiple_of(inp.group) {
+            return Err(GpuError::Input(format!(
+                "{n} points do not split into groups of {}",
+                inp.group
+            )));
+        }
+        let cells = self.resident_cells(pts, n, (geo.l, inp.cutoff), inp.group)?;
+        let sorted_force = self.take_rows(force, &cells.members, n, 3)?;
+        let (inv_h, nodes, [c, ca, cb], g) = inp.table.parts();
+        let table_buf = self.dev.upload(&g)?;
+        let mut sorted = self.dev.zeros::<f64>(4 * n)?;
+        let real_in = launch::RealSpace {
+            pos: &cells.pos,
+            group: &cells.group,
+            start: &cells.start,
+            table: &table_buf,
+            npts: n,
+            ncell: cells.n,
+            nodes,
+            l: geo.l,
+            cutoff: inp.cutoff,
+            inv_h,
+            r0sq: inp.r0 * inp.r0,
+        };
+        launch::real_space(
+            &self.dev,
+            launch::Real::Rpy {
+                force: &sorted_force,
+                c,
+                ca,
+                cb,
+                a: inp.a,
+            },
+            &real_in,
+            &mut sorted,
+        )?;
+        let real = self.put_rows(&sorted, &cells.members, n, 4)?;
+        drop((sorted, sorted_force, cells));
+        self.spread(generation, geo, pts, n, (fields, 3))?;
+        let g = self.grid.as_mut().expect("spread made it");
+        let input = g.inputs[0].as_ref().expect("spread made it");
+        launch::modes(
+            &self.dev,
+            geo,
+            launch::Modes::Rpy { a: inp.a },
+            &input.spectra,
+            &mut g.spectra_out,
+        )?;
+        let back = self.back(geo, pts, n, false)?;
+        let dev = &self.dev;
+        let mut u = dev.zeros::<f64>(3 * n)?;
+        let mut parts = dev.zeros::<f64>(2 * n)?;
+        // SAFETY: thread t < n reads real[4 t..4 t + 4] (4 n, made above), back[d n + t] for
+        // d < 3 (the gather's 3 n), pts and force at 3 j..3 j + 3 for j in its group (< n: n a
+        // multiple of the group, checked; 3 n checked), and writes u (3 n) and parts (2 n) at
+        // its point.
+        unsafe {
+            dev.launch(
+                n,
+                RpyAssemble {
+                    real: &real,
+                    back: &back,
+                    pts,
+                    force,
+                    u: &mut u,
+                    parts: &mut parts,
+                    n: ni,
+                    g: int(inp.group, "group")?,
+                    l: geo.l,
+                    xi: geo.xi,
+                    a: inp.a,
+                    r0sq: inp.r0 * inp.r0,
+                    mu: inp.mu,
+                },
+            )?;
+        }
+        let reductions = self.estimate_reductions(&parts, n, &[inp.weights])?;
+        Ok((u, reductions[0]))
     }
 
     /// The error model's reductions ([`crate::ewald::spectral::estimates::estimate_parts`]) of

@@ -306,6 +306,51 @@ motile_gpu::kernels! {
         n: i32,
         swim: f64,
     }
+
+    /// The explicit level's nodes and their weighted forces (triples and field-major).
+    pub(crate) struct NodeValues = "node_values" {
+        x: &'a Buffer<f64>,
+        p: &'a Buffer<f64>,
+        s: &'a Buffer<f64>,
+        w: &'a Buffer<f64>,
+        nodes: &'a mut Buffer<f64>,
+        force: &'a mut Buffer<f64>,
+        fields: &'a mut Buffer<f64>,
+        n: i32,
+        m: i32,
+        c: f64,
+    }
+
+    /// The RPY sum's velocities and error-model inputs per point.
+    pub(crate) struct RpyAssemble = "rpy_assemble" {
+        real: &'a Buffer<f64>,
+        back: &'a Buffer<f64>,
+        pts: &'a Buffer<f64>,
+        force: &'a Buffer<f64>,
+        u: &'a mut Buffer<f64>,
+        parts: &'a mut Buffer<f64>,
+        n: i32,
+        g: i32,
+        l: f64,
+        xi: f64,
+        a: f64,
+        r0sq: f64,
+        mu: f64,
+    }
+
+    /// The rods' velocities from the flow at their nodes.
+    pub(crate) struct RodFlowVelocities = "rod_flow_velocities" {
+        p: &'a Buffer<f64>,
+        u: &'a Buffer<f64>,
+        s: &'a Buffer<f64>,
+        w: &'a Buffer<f64>,
+        v: &'a mut Buffer<f64>,
+        omega: &'a mut Buffer<f64>,
+        n: i32,
+        m: i32,
+        swim: f64,
+        rod: f64,
+    }
 }
 
 #[cfg(test)]

@@ -3,12 +3,14 @@
 //! attempt run by [`crate::ewald::gpu::GpuFourier`]'s resident sums, the host reading back
 //! only the error model's reductions (a few numbers per 4 096 points).
 
-use super::estimates::{estimate_weights, stresslet_estimates_from};
+use super::estimates::{estimate_from, estimate_weights, stresslet_estimates_from};
 use super::{SpectralEwald, SumTiming, check_params};
-use crate::ewald::gpu::StressletInputs;
-use crate::ewald::kernels::StressletTable;
-use crate::ewald::params::{ERROR_MODEL_RANGE, EwaldParams, STRESSLET_PAIR_COST, SumOutput};
-use crate::ewald::periodic::SumError;
+use crate::ewald::gpu::{RpyInputs, StressletInputs};
+use crate::ewald::kernels::{RealSpaceTable, StressletTable};
+use crate::ewald::params::{
+    ERROR_MODEL_RANGE, EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput,
+};
+use crate::ewald::periodic::{RpyGeometry, SumError};
 use crate::model::units::VISCOSITY;
 use motile_gpu::Buffer;
 use std::f64::consts::PI;
@@ -99,5 +101,71 @@ impl SpectralEwald {
         self.gpu
             .as_ref()
             .ok_or_else(|| SumError::Device("a resident sum on a sum without a device".into()))
+    }
+}
+
+impl SpectralEwald {
+    /// [`crate::ewald::periodic::PeriodicStokes::rpy`] of the `n` points `pts` with forces
+    /// `force` (triples, and field-major in `fields`, on this sum's device) in groups of
+    /// `geometry.group`, the velocities left there: the same parameters, estimate, refinement
+    /// and report as the sum of host values.
+    pub fn rpy_resident(
+        &mut self,
+        geometry: &RpyGeometry,
+        (pts, force, fields): (&Buffer, &Buffer, &Buffer),
+        n: usize,
+    ) -> Result<Buffer, SumError> {
+        let (l, a) = (geometry.box_length, geometry.radius);
+        if !(l.is_finite() && l > 0.0 && a.is_finite() && a >= 0.0) || geometry.group == 0 {
+            return Err(SumError::Input(format!(
+                "RPY sum on the device: box {l}, radius {a}, group {}",
+                geometry.group
+            )));
+        }
+        let output = SumOutput::RpyVelocity;
+        let mut attempts = 0;
+        loop {
+            attempts += 1;
+            let internal = self.internal_tolerance();
+            let prm = self
+                .fixed
+                .unwrap_or_else(|| EwaldParams::choose_for(internal, n, l, &[output], PAIR_COST));
+            check_params(&prm, l)?;
+            if self.last != Some(prm) {
+                self.grid = None;
+            }
+            self.last = Some(prm);
+            self.generation += 1;
+            let t0 = Instant::now();
+            let scale = internal * output.self_scale(prm.xi) / VISCOSITY;
+            let table = RealSpaceTable::new(prm.cutoff, prm.xi, a);
+            let inputs = RpyInputs {
+                table: &table,
+                cutoff: prm.cutoff,
+                r0: ERROR_MODEL_RANGE * prm.spacing(l),
+                a,
+                group: geometry.group,
+                mu: VISCOSITY,
+                weights: estimate_weights(output, (scale, internal)),
+            };
+            let geo = Self::device_geometry(&prm, l);
+            let generation = self.generation;
+            let gpu = self.gpu.as_mut().ok_or_else(|| {
+                SumError::Device("a resident sum on a sum without a device".into())
+            })?;
+            let (u, reductions) = gpu
+                .rpy_resident(generation, &geo, &inputs, (pts, force, fields), n)
+                .map_err(|e| SumError::Device(e.to_string()))?;
+            let est = estimate_from(output, reductions, n, 0.0);
+            let ratio = est.max_relative.max(est.l2_relative) / self.tol;
+            self.timing = SumTiming {
+                fourier: t0.elapsed().as_secs_f64(),
+                ..SumTiming::default()
+            };
+            if self.accept(ratio) {
+                self.record(internal, attempts, vec![est]);
+                return Ok(u);
+            }
+        }
     }
 }
