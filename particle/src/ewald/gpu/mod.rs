@@ -28,6 +28,7 @@ mod launch;
 mod resident;
 mod signatures;
 
+pub(crate) use binned::prefix_sum;
 pub use binned::{CELL_BIN, MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, work_model};
 pub(crate) use launch::Geometry;
 pub(crate) use resident::{RpyInputs, StressletInputs};

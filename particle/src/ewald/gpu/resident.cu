@@ -129,14 +129,28 @@ extern "C" __global__ void estimate_chunks(const double* parts, const double* w,
     for (int o = 0; o < nout; ++o) {
         double a_max = w[3 * o], a_2 = w[3 * o + 1], far = w[3 * o + 2];
         double acc[4] = {0.0, 0.0, 0.0, 0.0};
-        for (int t = c * chunk; t < hi; ++t) {
-            double e = parts[(long long)2 * nout * t + 2 * o];
-            double q = parts[(long long)2 * nout * t + 2 * o + 1];
-            double m = a_max * e + far * q;
-            acc[0] = fmax(acc[0], m);
-            acc[1] += a_2 * e + far * q;
-            acc[2] = fmax(acc[2], q);
-            acc[3] += q;
+        // Sixteen points' inputs at a time (independent loads in flight), folded in order.
+        const int B = 16;
+        for (int t0 = c * chunk; t0 < hi; t0 += B) {
+            double e[B], q[B];
+#pragma unroll
+            for (int u = 0; u < B; ++u) {
+                long long t = t0 + u;
+                if (t < hi) {
+                    e[u] = parts[2 * nout * t + 2 * o];
+                    q[u] = parts[2 * nout * t + 2 * o + 1];
+                }
+            }
+#pragma unroll
+            for (int u = 0; u < B; ++u) {
+                if (t0 + u < hi) {
+                    double m = a_max * e[u] + far * q[u];
+                    acc[0] = fmax(acc[0], m);
+                    acc[1] += a_2 * e[u] + far * q[u];
+                    acc[2] = fmax(acc[2], q[u]);
+                    acc[3] += q[u];
+                }
+            }
         }
         for (int k = 0; k < 4; ++k) out[4 * (nout * c + o) + k] = acc[k];
     }

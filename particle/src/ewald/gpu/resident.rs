@@ -12,13 +12,12 @@ use super::GpuFourier;
 use super::launch::check as check_len;
 use super::launch::{self, Geometry};
 use super::signatures::{
-    BinOrder, BinScan, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues,
-    PointCell, PutRows, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble,
-    StressletValues, TakeRows,
+    BinOrder, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues, PointCell,
+    PutRows, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble, StressletValues, TakeRows,
 };
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use crate::ewald::spectral::estimates::ESTIMATE_CHUNK;
-use motile_gpu::{Buffer, GpuError, THREADS, kernel_int as int};
+use motile_gpu::{Buffer, GpuError, kernel_int as int};
 
 /// The point cell list on the device: positions wrapped and in cell order, each one's group,
 /// the cells' starts and members (the points' indices in cell order).
@@ -92,10 +91,6 @@ impl GpuFourier {
         );
         int(3 * npts, "3 x points")?;
         check_len("points", y, 3 * npts)?;
-        assert_eq!(
-            THREADS, 256,
-            "bin_scan's shared array holds 256 partial sums"
-        );
         let dev = &self.dev;
         let mut wrapped = dev.zeros::<f64>(3 * npts)?;
         let mut cell = dev.zeros::<i32>(npts)?;
@@ -121,18 +116,7 @@ impl GpuFourier {
                 },
             )?;
         }
-        // SAFETY: one block of THREADS = 256 threads (asserted): reads count[0..ncells] and
-        // writes start[0..=ncells] (allocated).
-        unsafe {
-            dev.launch(
-                THREADS as usize,
-                BinScan {
-                    count: &count,
-                    start: &mut start,
-                    nbins: ncells_i,
-                },
-            )?;
-        }
+        super::binned::prefix_sum(dev, &count, &mut start, ncells)?;
         // SAFETY: thread i < npts reads cell[i] < ncells, rank[i], start[cell] and writes
         // members[start[cell] + rank] < start[cell + 1] <= npts (ranks are 0..count).
         unsafe {
@@ -626,6 +610,7 @@ impl GpuFourier {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ewald::gpu::binned::SCAN_ONE_BLOCK;
     use crate::ewald::point_cells::PointCells;
     use crate::model::geometry::Vec3;
     use motile_gpu::Backend;
@@ -695,5 +680,51 @@ mod tests {
             }
         }
         gpu.shuffle_blocks(0);
+    }
+
+    /// The prefix sum in one block and in three passes against the obvious sum: counts of
+    /// cells as the cell lists produce them (mostly 0-3, some large), lengths around the
+    /// switch between the two and past the tiles' minimum.
+    #[test]
+    fn long_prefix_sums_are_the_sequential_ones_on_the_emulation() {
+        let Ok(gpu) = GpuFourier::open(Backend::HostEmulation) else {
+            assert!(
+                std::env::var("MOTILE_REQUIRE_CXX").is_err(),
+                "no host emulation (and MOTILE_REQUIRE_CXX is set)"
+            );
+            return;
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for n in [
+            1,
+            1000,
+            SCAN_ONE_BLOCK,
+            SCAN_ONE_BLOCK + 1,
+            700_001,
+            2_000_000,
+        ] {
+            let count: Vec<i32> = (0..n)
+                .map(|_| {
+                    if rng.random_range(0..100) == 0 {
+                        rng.random_range(0..400)
+                    } else {
+                        rng.random_range(0..4)
+                    }
+                })
+                .collect();
+            let mut want = vec![0i32; n + 1];
+            for k in 0..n {
+                want[k + 1] = want[k] + count[k];
+            }
+            let dev = gpu.dev.upload(&count).unwrap();
+            let mut start = gpu.dev.zeros::<i32>(n + 1).unwrap();
+            super::super::prefix_sum(&gpu.dev, &dev, &mut start, n).unwrap();
+            let got = gpu.dev.download(&start).unwrap();
+            let first = got.iter().zip(&want).position(|(a, b)| a != b);
+            assert_eq!(
+                first, None,
+                "{n} counts: the starts differ first at {first:?}"
+            );
+        }
     }
 }

@@ -29,3 +29,31 @@ extern "C" __global__ void bin_scan(const int* count, int* start, int nbins) {
         run += count[k];
     }
 }
+
+// The same prefix sum for many values in three launches (prefix_sum in ewald/gpu/binned.rs and
+// step/gpu/device.rs): scan_tiles sums each tile of `tile` counts (one thread per tile),
+// bin_scan scans the tiles' sums, scan_spread writes each tile's starts from its tile's start.
+// Integer sums: the same values as bin_scan's alone, in any launch order.
+extern "C" __global__ void scan_tiles(const int* count, int* sums, int nbins, int tile) {
+    int t = blockIdx.x * blockDim.x + threadIdx.x;
+    long long lo = (long long)t * tile;
+    if (lo >= nbins) return;
+    long long hi = lo + tile < nbins ? lo + tile : nbins;
+    int s = 0;
+    for (long long k = lo; k < hi; ++k) s += count[k];
+    sums[t] = s;
+}
+
+extern "C" __global__ void scan_spread(const int* count, const int* tile_start, int* start,
+                                       int nbins, int tile) {
+    int t = blockIdx.x * blockDim.x + threadIdx.x;
+    long long lo = (long long)t * tile;
+    if (lo >= nbins) return;
+    long long hi = lo + tile < nbins ? lo + tile : nbins;
+    int run = tile_start[t];
+    for (long long k = lo; k < hi; ++k) {
+        start[k] = run;
+        run += count[k];
+    }
+    if (hi == nbins) start[nbins] = run;
+}

@@ -44,6 +44,24 @@ motile_gpu::kernels! {
         nb: i32,
     }
 
+    /// The sums of each tile of `tile` counts (one thread per tile): a long prefix sum's
+    /// first pass.
+    pub(crate) struct ScanTiles = "scan_tiles" {
+        count: &'a Buffer<i32>,
+        sums: &'a mut Buffer<i32>,
+        nbins: i32,
+        tile: i32,
+    }
+
+    /// Each tile's starts from the tiles' scanned sums: a long prefix sum's last pass.
+    pub(crate) struct ScanSpread = "scan_spread" {
+        count: &'a Buffer<i32>,
+        tile_start: &'a Buffer<i32>,
+        start: &'a mut Buffer<i32>,
+        nbins: i32,
+        tile: i32,
+    }
+
     /// The bins' starts: the exclusive prefix sum of their counts (one block).
     pub(crate) struct BinScan = "bin_scan" {
         count: &'a Buffer<i32>,

@@ -3,7 +3,7 @@
 #![allow(unsafe_code)]
 
 use super::signatures;
-use motile_gpu::{Backend, Buffer, Device, GpuError, THREADS};
+use motile_gpu::{Backend, Buffer, Device, GpuError};
 
 /// A device with the step's kernels compiled.
 #[derive(Debug)]
@@ -34,36 +34,14 @@ impl GpuStep {
     }
 
     /// `start[0..=n]`: the exclusive prefix sum of `count[0..n]`, the last value the total
-    /// (`bin_scan`, one block).
+    /// (the sums' `prefix_sum`: scan.cu is in this set too).
     pub(super) fn scan(
         &self,
         count: &Buffer<i32>,
         start: &mut Buffer<i32>,
         n: usize,
     ) -> Result<(), GpuError> {
-        assert_eq!(
-            THREADS, 256,
-            "bin_scan's shared array holds 256 partial sums"
-        );
-        if count.len() < n || start.len() < n + 1 {
-            return Err(GpuError::Input(format!(
-                "prefix sum of {n} values: buffers of {} and {}",
-                count.len(),
-                start.len()
-            )));
-        }
-        // SAFETY: one block of THREADS = 256 threads (asserted, the size of its shared array):
-        // reads count[0..n] and writes start[0..=n], both checked above.
-        unsafe {
-            self.dev.launch(
-                THREADS as usize,
-                signatures::CellScan {
-                    count,
-                    start,
-                    nbins: int(n, "values")?,
-                },
-            )
-        }
+        crate::ewald::gpu::prefix_sum(&self.dev, count, start, n)
     }
 
     /// On the host emulation, run blocks in a random order at every launch (to expose races).

@@ -24,7 +24,30 @@ motile_gpu::kernels! {
         l: f64,
     }
 
-    /// The exclusive prefix sum of `nbins` counts (one block).
+    /// The sums of each tile of `tile` counts (one thread per tile): a long prefix sum's
+    /// first pass.
+    #[allow(dead_code)] // launched by the sums' declaration of the same kernel
+    pub(crate) struct ScanTiles = "scan_tiles" {
+        count: &'a Buffer<i32>,
+        sums: &'a mut Buffer<i32>,
+        nbins: i32,
+        tile: i32,
+    }
+
+    /// Each tile's starts from the tiles' scanned sums: a long prefix sum's last pass.
+    #[allow(dead_code)] // launched by the sums' declaration of the same kernel
+    pub(crate) struct ScanSpread = "scan_spread" {
+        count: &'a Buffer<i32>,
+        tile_start: &'a Buffer<i32>,
+        start: &'a mut Buffer<i32>,
+        nbins: i32,
+        tile: i32,
+    }
+
+    /// The exclusive prefix sum of `nbins` counts (one block); with the two below, declared so
+    /// that this set loads them: [`crate::ewald::gpu`]'s `prefix_sum` launches them (scan.cu is
+    /// in both sets).
+    #[allow(dead_code)] // launched by the sums' declaration of the same kernel
     pub(crate) struct CellScan = "bin_scan" {
         count: &'a Buffer<i32>,
         start: &'a mut Buffer<i32>,
