@@ -286,7 +286,27 @@ impl Bench {
             tm.setup, tm.real, tm.corrections
         );
         let gpu_bytes = self.gpu_bytes();
-        drop(gpu);
+        // The resident product (points, forces and velocities on the device: the product the
+        // resident particle step runs), against the same sum of host values.
+        let up = |v: Vec<f64>| gpu.upload(&v).expect("upload");
+        let (pts, force) = (up(y.as_flattened().to_vec()), up(f.as_flattened().to_vec()));
+        let fields = up((0..3).flat_map(|d| f.iter().map(move |v| v[d])).collect());
+        let mut ur = None;
+        self.profile_begin();
+        let tr = time(reps, || {
+            ur = Some(
+                gpu.rpy_resident(&geo, (&pts, &force, &fields), n)
+                    .expect("resident GPU sum"),
+            )
+        });
+        self.profile_end(&format!("{label}, resident"), reps + 1, tr);
+        let ur = gpu.download(&ur.expect("ran")).expect("download");
+        let resident_diff = ur
+            .chunks(3)
+            .zip(&ug)
+            .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
+            .fold(0.0, f64::max);
+        drop((pts, force, fields, gpu));
         // The other spreaders on the same device, for the before/after ratios (the per-point
         // atomic one; the tiles, the default at 1e-4 before the output-driven spreader; the
         // global-memory one in bin order, the default at 1e-8 before it); skipped at 1e7
@@ -349,6 +369,11 @@ impl Bench {
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
         }
+        let note = format!(
+            "inputs and velocities on the device; differs from the host values' sum by {:.1e}",
+            (resident_diff / largest.max(1e-300)).sqrt()
+        );
+        self.push(&case, "gpu resident", tr, n as f64, "points/s", note);
         for (method, ta, fa, ua) in others {
             let da = sq(&ua, &ug);
             let side = match method {

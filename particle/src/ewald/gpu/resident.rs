@@ -166,6 +166,16 @@ impl GpuFourier {
         })
     }
 
+    /// Values onto the device.
+    pub(crate) fn upload(&self, values: &[f64]) -> Result<Buffer, GpuError> {
+        self.dev.upload(values)
+    }
+
+    /// A buffer's values on the host.
+    pub(crate) fn download(&self, buf: &Buffer) -> Result<Vec<f64>, GpuError> {
+        self.dev.download(buf)
+    }
+
     /// `out[k] = rows[idx[k]]`, `width` values per row, for `n` rows (`idx` a permutation of
     /// `0..n`).
     pub(crate) fn take_rows(

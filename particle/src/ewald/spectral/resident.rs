@@ -169,3 +169,20 @@ impl SpectralEwald {
         }
     }
 }
+
+impl SpectralEwald {
+    /// Values onto this sum's device (inputs of the resident sums, for callers that hold
+    /// their data on the host: benchmarks, tests).
+    pub fn upload(&self, values: &[f64]) -> Result<Buffer, SumError> {
+        self.device_sum()?
+            .upload(values)
+            .map_err(|e| SumError::Device(e.to_string()))
+    }
+
+    /// A buffer of this sum's device (a resident sum's result) on the host.
+    pub fn download(&self, buf: &Buffer) -> Result<Vec<f64>, SumError> {
+        self.device_sum()?
+            .download(buf)
+            .map_err(|e| SumError::Device(e.to_string()))
+    }
+}
