@@ -122,7 +122,10 @@ extern "C" __global__ void stresslet_assemble(const double* real, const double* 
 // points in order (the CPU's sums to the last bit).
 extern "C" __global__ void estimate_chunks(const double* parts, const double* w, double* out,
                                            int n, int nout, int chunk) {
-    int c = blockIdx.x * blockDim.x + threadIdx.x;
+    // One chunk per block, run by its first thread: the chunks' loads spread over the
+    // multiprocessors (a chunk per thread of one block kept them on one).
+    if (threadIdx.x != 0) return;
+    int c = blockIdx.x;
     int nchunks = (n + chunk - 1) / chunk;
     if (c >= nchunks) return;
     int hi = (c + 1) * chunk < n ? (c + 1) * chunk : n;

@@ -586,12 +586,12 @@ impl GpuFourier {
         let dev = &self.dev;
         let w = dev.upload(weights.as_flattened())?;
         let mut out = dev.zeros::<f64>(4 * nout * nchunks)?;
-        // SAFETY: thread c < ceil(n / chunk) reads parts at 2 nout t..2 nout (t + 1) for t in
-        // its chunk (< n; 2 nout n checked), w[0..3 nout] (uploaded) and writes out at
-        // 4 (nout c + o)..+4 for o < nout (4 nout nchunks).
+        // SAFETY: block c < ceil(n / chunk) (its first thread; THREADS per block) reads parts
+        // at 2 nout t..2 nout (t + 1) for t in its chunk (< n; 2 nout n checked), w[0..3 nout]
+        // (uploaded) and writes out at 4 (nout c + o)..+4 for o < nout (4 nout nchunks).
         unsafe {
             dev.launch(
-                nchunks,
+                nchunks * motile_gpu::THREADS as usize,
                 EstimateChunks {
                     parts,
                     w: &w,

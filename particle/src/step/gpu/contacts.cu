@@ -232,14 +232,17 @@ extern "C" __global__ void solver_gp(const double* lam, const double* g, double*
 // them, which keeps the order of the additions and hides the memory latency that a
 // load-then-add loop of one thread per chunk exposes (a millisecond per call at 287 000
 // constraints).
-#define REDUCE_BATCH 16
+#define REDUCE_BATCH 32
 
 // Per chunk c of `chunk` constraints, in order: max |min(lam_new, g_new)|, |s|^2, s.y, |y|^2
 // with s = lam_new - lam, y = g_new - g (4 values at 4 c): fused_stats' partials.
 extern "C" __global__ void solver_stats(const double* lam, const double* lam_new,
                                         const double* g, const double* g_new, double* partial,
                                         int m, int chunk) {
-    int c = blockIdx.x * blockDim.x + threadIdx.x;
+    // One chunk per block, run by its first thread: the chunks' loads spread over the
+    // multiprocessors (a chunk per thread of one block kept them on one).
+    if (threadIdx.x != 0) return;
+    int c = blockIdx.x;
     if ((long long)c * chunk >= m) return;
     int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
     double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
@@ -274,7 +277,10 @@ extern "C" __global__ void solver_stats(const double* lam, const double* lam_new
 // Per chunk: the sums of a a and a b in order from -0.0 (det_sum's partials), at 2 c.
 extern "C" __global__ void solver_dots(const double* a, const double* b, double* partial, int m,
                                        int chunk) {
-    int c = blockIdx.x * blockDim.x + threadIdx.x;
+    // One chunk per block, run by its first thread: the chunks' loads spread over the
+    // multiprocessors (a chunk per thread of one block kept them on one).
+    if (threadIdx.x != 0) return;
+    int c = blockIdx.x;
     if ((long long)c * chunk >= m) return;
     int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
     double aa = -0.0, ab = -0.0;

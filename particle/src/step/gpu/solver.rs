@@ -297,11 +297,12 @@ impl GpuStep {
                 )?;
             }
             self.apply(&mut prob, &gp, None, &mut ag)?;
-            // SAFETY: thread c < ceil(m / CHUNK) reads a, b at c CHUNK..min((c + 1) CHUNK, m)
-            // and writes partial[2 c..2 c + 2] (4 ceil(m / CHUNK) allocated).
+            // SAFETY: block c < ceil(m / CHUNK) (its first thread; THREADS per block) reads a,
+            // b at c CHUNK..min((c + 1) CHUNK, m) and writes partial[2 c..2 c + 2] (4 ceil(m /
+            // CHUNK) allocated).
             unsafe {
                 dev.launch(
-                    nchunks,
+                    nchunks * motile_gpu::THREADS as usize,
                     SolverDots {
                         a: &gp,
                         b: &ag,
@@ -420,11 +421,12 @@ impl GpuStep {
         m: usize,
     ) -> Result<[f64; 4], GpuError> {
         let nchunks = m.div_ceil(CHUNK);
-        // SAFETY: thread c < ceil(m / CHUNK) reads the four vectors at c CHUNK..min((c + 1)
-        // CHUNK, m) (m each) and writes partial[4 c..4 c + 4] (4 ceil(m / CHUNK)).
+        // SAFETY: block c < ceil(m / CHUNK) (its first thread; THREADS per block) reads the
+        // four vectors at c CHUNK..min((c + 1) CHUNK, m) (m each) and writes partial[4 c..4 c +
+        // 4] (4 ceil(m / CHUNK)).
         unsafe {
             self.dev.launch(
-                nchunks,
+                nchunks * motile_gpu::THREADS as usize,
                 SolverStats {
                     lam,
                     lam_new,

@@ -78,7 +78,10 @@ extern "C" __global__ void pair_overlap(const double* x, const double* q, const 
 extern "C" __global__ void step_stats(const double* v, const double* w, const double* q,
                                       const double* ft, double* partial, int n, int chunk,
                                       int has_ft) {
-    int c = blockIdx.x * blockDim.x + threadIdx.x;
+    // One chunk per block, run by its first thread: the chunks' loads spread over the
+    // multiprocessors (a chunk per thread of one block kept them on one).
+    if (threadIdx.x != 0) return;
+    int c = blockIdx.x;
     if ((long long)c * chunk >= n) return;
     int hi = (c + 1) * chunk < n ? (c + 1) * chunk : n;
     double speed = -0.0, p0 = -0.0, p1 = -0.0, p2 = -0.0, vmax = 0.0, wmax = 0.0, bad = -1.0;
