@@ -350,9 +350,12 @@ __device__ void rpy_mode(const double* f, double* out, long long s, long long sl
     }
 }
 
-// The RPY Fourier multiplication: three force spectra in, three velocity spectra out.
-extern "C" __global__ void rpy_modes(const double* input, double* out, int m, double l,
-                                     double xi, double a, double eta, double h) {
+// The RPY Fourier multiplication, in place: three force spectra in, three velocity spectra
+// out (each thread reads its mode's inputs before it writes the outputs).
+extern "C" __global__ void rpy_modes(double* spectra, int m, double l, double xi, double a,
+                                     double eta, double h) {
+    const double* input = spectra;
+    double* out = spectra;
     long long s = (long long)blockIdx.x * blockDim.x + threadIdx.x;
     long long slen = (long long)m * m * (m / 2 + 1);
     if (s >= slen) return;
@@ -371,9 +374,12 @@ extern "C" __global__ void rpy_modes(const double* input, double* out, int m, do
 
 // The stresslet Fourier multiplication: six spectra of the stresslet components (xx, yy, zz,
 // xy, xz, yz) in; the force density f^_i = -i sum_j S^_ij k_j; three velocity spectra out (a
-// point force's, a = 0). The gradient comes from the window's derivative in the gather.
-extern "C" __global__ void stresslet_modes(const double* input, double* out, int m, double l,
-                                           double xi, double eta, double h) {
+// point force's, a = 0), in place of the first three (each thread reads its mode's six inputs
+// before it writes). The gradient comes from the window's derivative in the gather.
+extern "C" __global__ void stresslet_modes(double* spectra, int m, double l, double xi,
+                                           double eta, double h) {
+    const double* input = spectra;
+    double* out = spectra;
     long long s = (long long)blockIdx.x * blockDim.x + threadIdx.x;
     long long slen = (long long)m * m * (m / 2 + 1);
     if (s >= slen) return;

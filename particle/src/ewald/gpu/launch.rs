@@ -95,12 +95,13 @@ pub(super) enum Modes {
     Stresslet,
 }
 
+/// The Fourier-space multiplication in place: the velocity spectra replace the first three
+/// input spectra.
 pub(super) fn modes(
     dev: &Device,
     geo: &Geometry,
     which: Modes,
-    input: &Buffer,
-    out: &mut Buffer,
+    spectra: &mut Buffer,
 ) -> Result<(), GpuError> {
     let m = int(geo.m, "grid size")?;
     let slen = geo.m * geo.m * (geo.m / 2 + 1);
@@ -108,19 +109,17 @@ pub(super) fn modes(
         Modes::Rpy { .. } => 3,
         Modes::Stresslet => 6,
     };
-    check("input spectra", input, 2 * inputs * slen)?;
-    check("velocity spectra", out, 6 * slen)?;
+    check("spectra", spectra, 2 * inputs * slen)?;
     let (l, xi, eta, h) = (geo.l, geo.xi, geo.window.eta, geo.window.h);
-    // SAFETY: thread s < S = m m (m/2 + 1) reads the pairs 2 (c S + s), +1 of `input` for c < 3
-    // (RPY) or 6 (stresslets) (2 inputs S values checked) and writes them in `out` for c < 3
-    // (6 S checked).
+    // SAFETY: thread s < S = m m (m/2 + 1) reads the pairs 2 (c S + s), +1 for c < 3 (RPY) or
+    // 6 (stresslets) (2 inputs S values checked), then writes them for c < 3: every thread
+    // touches only its own mode s.
     unsafe {
         match which {
             Modes::Rpy { a } => dev.launch(
                 slen,
                 RpyModes {
-                    input,
-                    out,
+                    spectra,
                     m,
                     l,
                     xi,
@@ -132,8 +131,7 @@ pub(super) fn modes(
             Modes::Stresslet => dev.launch(
                 slen,
                 StressletModes {
-                    input,
-                    out,
+                    spectra,
                     m,
                     l,
                     xi,

@@ -69,10 +69,10 @@ struct Grid {
     /// The spread fields and their spectra: three (RPY forces) and six (stresslets), each
     /// made when first used.
     inputs: [Option<Input>; 2],
-    /// The three output spectra, and the fields they transform back to.
-    spectra_out: Buffer,
+    /// The inverse transform of three fields: from the first three of an input's spectra
+    /// (the multiplication leaves the velocities there) into the first three of its fields
+    /// (dead after the forward transform), so a sum holds one set of grids.
     inverse3: Fft3,
-    back: Buffer,
 }
 
 /// `nf` spread fields, their forward plan and their spectra.
@@ -147,8 +147,6 @@ impl GpuFourier {
             self.grid = Some(Grid {
                 m,
                 inputs: [None, None],
-                spectra_out: dev.zeros(inverse3.complex_len())?,
-                back: dev.zeros(inverse3.real_len())?,
                 inverse3,
             });
         }
@@ -221,25 +219,36 @@ impl GpuFourier {
         }
     }
 
-    /// Inverse transform the three output spectra and gather them (with gradients if asked),
-    /// in bin order where the spread sorted the points: field-major, left on the device.
-    fn back(
+    /// The Fourier part of a sum of the `n` points `pts` with `nf` field-major values
+    /// `vals`: spread, forward transforms, the multiplication `which` (in place), the inverse
+    /// transform of the three velocity spectra into the first three fields, and the gather
+    /// (with gradients if asked, in bin order where the spread sorted the points): field-major
+    /// values (3, or 12 with gradients) left on the device.
+    fn fourier(
         &mut self,
+        generation: u64,
         geo: &Geometry,
-        pts: &Buffer,
-        n: usize,
-        gradient: bool,
+        (pts, n): (&Buffer, usize),
+        (vals, nf): (&Buffer, usize),
+        (which, gradient): (launch::Modes, bool),
     ) -> Result<Buffer, GpuError> {
+        self.spread(generation, geo, pts, n, (vals, nf))?;
         let method = self.spread_method(geo.window.p);
-        let g = self.grid.as_mut().expect("spread first");
+        let g = self.grid.as_mut().expect("spread made it");
+        let input = g.inputs[usize::from(nf == 6)]
+            .as_mut()
+            .expect("spread made it");
         let dev = &self.dev;
-        dev.inverse(&g.inverse3, (&mut g.spectra_out, 0), (&mut g.back, 0))?;
+        launch::modes(dev, geo, which, &mut input.spectra)?;
+        // The velocity spectra into the first three fields (the input's own buffer).
+        dev.inverse(&g.inverse3, (&mut input.spectra, 0), (&mut input.fields, 0))?;
         let mut out = dev.zeros(if gradient { 12 } else { 3 } * n)?;
+        let back = &input.fields;
         match (&self.bins, method) {
             (Some((_, b)), m) if m != SpreadMethod::Atomic => {
-                binned::gather(dev, geo, b, pts, &g.back, &mut out, (n, gradient))?;
+                binned::gather(dev, geo, b, pts, back, &mut out, (n, gradient))?;
             }
-            _ => launch::gather(dev, geo, pts, &g.back, &mut out, n, gradient)?,
+            _ => launch::gather(dev, geo, pts, back, &mut out, n, gradient)?,
         }
         Ok(out)
     }
@@ -260,17 +269,13 @@ impl GpuFourier {
             .flat_map(|d| forces.iter().map(move |f| f[d]))
             .collect();
         let vals = self.dev.upload(&vals)?;
-        self.spread(generation, geo, &pts, n, (&vals, 3))?;
-        let g = self.grid.as_mut().expect("spread made it");
-        let input = g.inputs[0].as_ref().expect("spread made it");
-        launch::modes(
-            &self.dev,
+        let back = self.fourier(
+            generation,
             geo,
-            launch::Modes::Rpy { a },
-            &input.spectra,
-            &mut g.spectra_out,
+            (&pts, n),
+            (&vals, 3),
+            (launch::Modes::Rpy { a }, false),
         )?;
-        let back = self.back(geo, &pts, n, false)?;
         let out = self.dev.download(&back)?;
         self.points = Some((generation, pts));
         Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))
@@ -429,17 +434,13 @@ impl GpuFourier {
         let pts = self.points(generation, points)?;
         let vals: Vec<f64> = s.iter().flat_map(|c| c.iter().copied()).collect();
         let vals = self.dev.upload(&vals)?;
-        self.spread(generation, geo, &pts, n, (&vals, 6))?;
-        let g = self.grid.as_mut().expect("spread made it");
-        let input = g.inputs[1].as_ref().expect("spread made it");
-        launch::modes(
-            &self.dev,
+        let back = self.fourier(
+            generation,
             geo,
-            launch::Modes::Stresslet,
-            &input.spectra,
-            &mut g.spectra_out,
+            (&pts, n),
+            (&vals, 6),
+            (launch::Modes::Stresslet, true),
         )?;
-        let back = self.back(geo, &pts, n, true)?;
         let out = self.dev.download(&back)?;
         self.points = Some((generation, pts));
         Ok(std::array::from_fn(|c| out[c * n..(c + 1) * n].to_vec()))

@@ -348,18 +348,14 @@ impl GpuFourier {
         let real = self.put_rows(&sorted, &cells.members, n, 13)?;
         drop((sorted, orient, cells));
         // The Fourier part.
-        self.spread(generation, geo, x, n, (&vals, 6))?;
-        drop(vals);
-        let g = self.grid.as_mut().expect("spread made it");
-        let input = g.inputs[1].as_ref().expect("spread made it");
-        launch::modes(
-            &self.dev,
+        let back = self.fourier(
+            generation,
             geo,
-            launch::Modes::Stresslet,
-            &input.spectra,
-            &mut g.spectra_out,
+            (x, n),
+            (&vals, 6),
+            (launch::Modes::Stresslet, true),
         )?;
-        let back = self.back(geo, x, n, true)?;
+        drop(vals);
         // Assembly and the error model.
         let dev = &self.dev;
         let mut u = dev.zeros::<f64>(3 * n)?;
@@ -529,17 +525,13 @@ impl GpuFourier {
         )?;
         let real = self.put_rows(&sorted, &cells.members, n, 4)?;
         drop((sorted, sorted_force, cells));
-        self.spread(generation, geo, pts, n, (fields, 3))?;
-        let g = self.grid.as_mut().expect("spread made it");
-        let input = g.inputs[0].as_ref().expect("spread made it");
-        launch::modes(
-            &self.dev,
+        let back = self.fourier(
+            generation,
             geo,
-            launch::Modes::Rpy { a: inp.a },
-            &input.spectra,
-            &mut g.spectra_out,
+            (pts, n),
+            (fields, 3),
+            (launch::Modes::Rpy { a: inp.a }, false),
         )?;
-        let back = self.back(geo, pts, n, false)?;
         let dev = &self.dev;
         let mut u = dev.zeros::<f64>(3 * n)?;
         let mut parts = dev.zeros::<f64>(2 * n)?;

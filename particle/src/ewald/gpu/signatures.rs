@@ -156,10 +156,9 @@ motile_gpu::kernels! {
         norm: f64,
     }
 
-    /// The RPY multiplication of three force spectra (sphere radius `a`).
+    /// The RPY multiplication of three force spectra (sphere radius `a`), in place.
     pub(crate) struct RpyModes = "rpy_modes" {
-        input: &'a Buffer<f64>,
-        out: &'a mut Buffer<f64>,
+        spectra: &'a mut Buffer<f64>,
         m: i32,
         l: f64,
         xi: f64,
@@ -170,8 +169,7 @@ motile_gpu::kernels! {
 
     /// The point-force velocities of the force density of six stresslet spectra.
     pub(crate) struct StressletModes = "stresslet_modes" {
-        input: &'a Buffer<f64>,
-        out: &'a mut Buffer<f64>,
+        spectra: &'a mut Buffer<f64>,
         m: i32,
         l: f64,
         xi: f64,
