@@ -17,9 +17,11 @@
 #            1e6 points; into profile.txt and ncu.txt (PROFILE_CASES: the gpu_bench case lists
 #            to profile, one run each; default "mf sum dipole,explicit100,sbt")
 #   ptxas    the compiler's resource report (registers, stack, spills) of every kernel set
-#   check    a second, shorter device check after changes (5 minutes): the CUDA parity tests
-#            only, ptxas, the sums (every spreader at 1e6 points), the mean-field step, the
-#            dipole and explicit steps and the whole runs, each phase under its own limit
+#   check    a second, shorter device check after changes (about 7 minutes): the CUDA parity
+#            tests only, ptxas, the sums (every spreader at 1e6 points, the resident product),
+#            the mean-field step, the dipole and explicit steps, the sbt step's profile, the
+#            whole runs and Nsight Compute on the dipole sum's spreader and gather, each phase
+#            under its own limit
 #   meanfield  the paper's mean-field case at 128^3 to t = 128 on the GPU
 #   scaling  the thread-scaling table at 1, 2, 4, 8, 16 threads (SCALING_ARGS passed on)
 #   all      parity, bench (every target case, in two parts), runs and science in one command
@@ -130,18 +132,22 @@ case "${1:-}" in
     { echo "== parity (CUDA tests only)"
       timeout 60 "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1 gpu_sums
       timeout 60 "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1 cuda
-      timeout 40 "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1 cuda
+      timeout 60 "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1 cuda
       timeout 40 "$B/test_meanfield_gpu" --include-ignored --nocapture --test-threads 1 --exact gpu_step_matches_the_cpu_step
     } >"$OUT/parity.txt" 2>&1
-    grep -E "test result|FAILED|panicked|Cells|device vs CPU|within" "$OUT/parity.txt"
+    grep -E "test result|FAILED|panicked|Cells|device vs CPU|steps of" "$OUT/parity.txt"
     timeout 30 bash "$0" ptxas
-    BENCH_ARGS="--cases sum --sum-sizes 1000000,10000000 --cpu-max 0" timeout 60 bash "$0" bench
-    BENCH_ARGS="--cases mf --cpu-max 2100000" timeout 40 bash "$0" bench
+    BENCH_ARGS="--cases sum --sum-sizes 1000000,10000000 --cpu-max 0" timeout 70 bash "$0" bench
+    BENCH_ARGS="--cases mf --cpu-max 0" timeout 40 bash "$0" bench
     BENCH_ARGS="--cases dipole,explicit100 --cpu-max 0" timeout 75 bash "$0" bench
-    timeout 35 bash "$0" runs
-    timeout 45 ncu -k closure_field -c 1 --section SpeedOfLight --section Occupancy \
-      --section LaunchStats "$B/gpu_bench" --cases mf --cpu-max 0 --reps 1 >"$OUT/ncu.txt" 2>&1
-    grep -E "Duration|Throughput|Registers Per|Achieved Occupancy|Local" "$OUT/ncu.txt" | head -20
+    BENCH_ARGS="--cases sbt --cpu-max 0 --profile" timeout 50 bash "$0" bench
+    timeout 40 bash "$0" runs
+    # Where the spreader and the gather of the dipole level's sum spend their time.
+    timeout 60 ncu -k 'regex:spread_cells|gather_sorted' -c 2 --section SpeedOfLight \
+      --section Occupancy --section LaunchStats --section WarpStateStats \
+      --section SchedulerStats --section MemoryWorkloadAnalysis "$B/gpu_bench" --cases dipole \
+      --cpu-max 0 --reps 1 >"$OUT/ncu.txt" 2>&1
+    grep -E "^  [a-z_]+|Duration|Throughput|Registers Per|Achieved Occupancy|Stall|Issued|Eligible|Local|Shared Memory" "$OUT/ncu.txt" | head -60
     ;;
   meanfield)
     # The paper's case (meanfield_paper_64.toml) on 128^3 to t = 128; the run directory stays
