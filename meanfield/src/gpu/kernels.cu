@@ -59,9 +59,10 @@ extern "C" __global__ void strain_spectra(const double2* u, double2* out, int n,
     }
 }
 
-// Derivative spectra: out[(m * 3 + dir) S + s] = i k_dir c[m S + s] for `comps` inputs.
-extern "C" __global__ void derivative_spectra(const double2* c, double2* out, int comps, int n,
-                                              const double* k1) {
+// Derivative spectra: out[(m * 3 + dir) S + s] = i k_dir c[(first + m) S + s] for `comps`
+// inputs from component `first` on.
+extern "C" __global__ void derivative_spectra(const double2* c, int first, double2* out, int comps,
+                                              int n, const double* k1) {
     int h = n / 2 + 1;
     long long S = (long long)n * n * h;
     long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
@@ -70,7 +71,7 @@ extern "C" __global__ void derivative_spectra(const double2* c, double2* out, in
     long long row = s / h;
     double k[3] = {k1[a], k1[row % n], k1[row / n]};
     for (int m = 0; m < comps; m++) {
-        double2 v = c[m * S + s];
+        double2 v = c[(first + m) * S + s];
         for (int dir = 0; dir < 3; dir++) out[(m * 3 + dir) * S + s] = times_i(v, k[dir]);
     }
 }
@@ -209,11 +210,14 @@ extern "C" __global__ void norm_partials(const double2* u, int n, double* partia
 }
 
 // Partials of the step report: max(|u_x| + |u_y| + |u_z|), <E:E>, <E:Q>, <E:S:E> (weighted
-// sums over the six components).
-extern "C" __global__ void report_partials(const double* ug, const double* e, const double* q,
-                                           const double* se, long long N, double* partial) {
+// sums over the six components). The velocity's three fields start at ug + ug_at (it may share
+// a buffer with e).
+extern "C" __global__ void report_partials(const double* ug, long long ug_at, const double* e,
+                                           const double* q, const double* se, long long N,
+                                           double* partial) {
     __shared__ double shared[REDUCE_THREADS];
     long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    ug += ug_at;
     double umax = 0.0, ee = 0.0, eq = 0.0, ese = 0.0;
     if (p < N) {
         umax = fabs(ug[p]) + fabs(ug[N + p]) + fabs(ug[2 * N + p]);
@@ -253,9 +257,10 @@ extern "C" __global__ void strain_from_gradient(const double* g, double* e, long
 }
 
 // S:E from the stored lab-frame tensors (21 per point, rows of the upper triangle); with
-// `stress` set, out = -q + zeta S:E (the active stress), else out = S:E.
-extern "C" __global__ void contract(const double* s21, const double* e, const double* q,
-                                    double zeta, double* out, long long N, int stress) {
+// `stress` set, -q + zeta S:E (the active stress), else S:E, written over e in place (a thread
+// reads its point's six E values before it writes any).
+extern "C" __global__ void contract(const double* s21, double* e, const double* q, double zeta,
+                                    long long N, int stress) {
     long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
     if (p >= N) return;
     const double* m = s21 + 21 * p;
@@ -270,16 +275,19 @@ extern "C" __global__ void contract(const double* s21, const double* e, const do
     t[5] = m[5] * w[0] + m[10] * w[1] + m[14] * w[2] + m[17] * w[3] + m[19] * w[4] + m[20] * w[5];
     // With zeta = 0 the stress is -Q alone (as on the CPU, which skips the contraction then).
     for (int c = 0; c < 6; c++)
-        out[c * N + p] = stress ? (zeta != 0.0 ? -q[c * N + p] + zeta * t[c] : -q[c * N + p]) : t[c];
+        e[c * N + p] = stress ? (zeta != 0.0 ? -q[c * N + p] + zeta * t[c] : -q[c * N + p]) : t[c];
 }
 
 // The explicit terms -u.grad Q + (grad u) Q + Q (grad u)^T - 2 S:E at every point, six
-// components: ug velocity (3 N), g[(i * 3 + k) N] = d_k u_i, dq[(c * 3 + k) N] = d_k Q_c.
-extern "C" __global__ void explicit_terms(const double* ug, const double* g, const double* q,
-                                          const double* dq, const double* se, double* out,
+// components, written over S:E in place (component c of a point is read just before it is
+// written): ug + ug_at the velocity (3 N; it may share a buffer with dq),
+// g[(i * 3 + k) N] = d_k u_i, dq[(c * 3 + k) N] = d_k Q_c.
+extern "C" __global__ void explicit_terms(const double* ug, long long ug_at, const double* g,
+                                          const double* q, const double* dq, double* se,
                                           long long N) {
     long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
     if (p >= N) return;
+    ug += ug_at;
     for (int c = 0; c < 6; c++) {
         int i = SYM_I[c], j = SYM_J[c];
         double adv = ug[p] * dq[(c * 3 + 0) * N + p] + ug[N + p] * dq[(c * 3 + 1) * N + p] +
@@ -289,7 +297,7 @@ extern "C" __global__ void explicit_terms(const double* ug, const double* g, con
             stretch += g[(i * 3 + k) * N + p] * q[sym_index(k, j) * N + p] +
                        q[sym_index(i, k) * N + p] * g[(j * 3 + k) * N + p];
         }
-        out[c * N + p] = -adv + stretch - 2.0 * se[c * N + p];
+        se[c * N + p] = -adv + stretch - 2.0 * se[c * N + p];
     }
 }
 

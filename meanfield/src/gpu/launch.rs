@@ -12,6 +12,7 @@ use crate::gpu::signatures::{
     NonfinitePartials, NormPartials, ReportPartials, ScaleDealias, Stokes, StrainFromGradient,
     StrainSpectra,
 };
+use crate::gpu::work::Layout;
 use crate::solver::grid::SpectralGrid;
 use crate::solver::stepper::History;
 use motile_gpu::{Buffer, Device, Direction, Fft3, THREADS};
@@ -66,7 +67,21 @@ fn split(v: &[f64], count: usize, s: usize) -> Vec<Vec<Complex64>> {
 }
 
 /// Every device buffer of the step. Spectra hold `S = n n (n/2 + 1)` complex values per
-/// component (2 S doubles), grid fields `N = n^3` doubles.
+/// component (2 S doubles), grid fields `N = n^3` doubles (sizes from [`Layout`], which
+/// [`crate::gpu::device_bytes`] adds up). Three scratch buffers hold, one after another within
+/// a step, values whose lifetimes do not overlap (each is dead before the next is written):
+///
+/// | phase | `six` (6 spectra) | `wide` (9 fields or 6 spectra) | `big` (21 fields) | `u_next` (3 spectra) |
+/// |---|---|---|---|---|
+/// | Q to the grid | Q's spectra (transformed) | | | |
+/// | closure | | | S | |
+/// | fixed point | E's spectra, then the stress's | E, then the stress (in place) | S | the next iterate |
+/// | grad u, S:E | E, then S:E (in place) | grad u | S, then E at 0, u at 18 N | one spectrum's derivatives; u's copy |
+/// | explicit terms | S:E, then the terms (in place) | grad u | grad Q at 0, u at 18 N | one spectrum's derivatives |
+/// | IMEX update | the new Q | the terms' spectra | | |
+///
+/// At the commit the new Q's buffer becomes `q_hat` (and the old `q_prev`'s becomes `six`),
+/// and the terms' spectra are copied into `nl_prev`.
 pub(super) struct Buffers {
     n: usize,
     s_len: usize,
@@ -79,25 +94,27 @@ pub(super) struct Buffers {
     coef: Buffer,
     q_hat: Buffer,
     q_prev: Buffer,
-    q_new: Buffer,
-    nl: Buffer,
     nl_prev: Buffer,
     has_prev: bool,
     /// The last accepted step's velocity (the warm start); untouched by a failing step.
     u_hat: Buffer,
-    /// The fixed point's current iterate, and its next one.
+    /// The fixed point's current iterate, and its next one (then scratch).
     u_work: Buffer,
-    u_new: Buffer,
-    spec: Buffer,
+    u_next: Buffer,
+    /// Q on the grid.
     q: Buffer,
-    e: Buffer,
-    se: Buffer,
-    ug: Buffer,
-    g: Buffer,
-    dq: Buffer,
-    vals: Buffer,
-    s21: Buffer,
+    /// Scratch of six spectra (see the table above).
+    six: Buffer,
+    /// Scratch of nine grid fields or six spectra.
+    wide: Buffer,
+    /// The closure's 21 lab-frame components per point, then scratch.
+    big: Buffer,
     partial: Buffer,
+}
+
+/// Where u on the grid lies in `big` (after S is dead): behind the 18 fields of grad Q.
+fn ug_at(n_len: usize) -> usize {
+    18 * n_len
 }
 
 impl Buffers {
@@ -107,9 +124,8 @@ impl Buffers {
         coef: &[f64],
         w: &Wavenumbers,
     ) -> Result<Self, GpuError> {
-        let (s_len, n_len) = (n * n * (n / 2 + 1), n * n * n);
-        let cplx = |k: usize| dev.zeros(2 * k * s_len);
-        let real = |k: usize| dev.zeros(k * n_len);
+        let l = Layout::of(n);
+        let (s_len, n_len) = (l.s, l.n3);
         Ok(Self {
             n,
             s_len,
@@ -119,27 +135,41 @@ impl Buffers {
             k2: dev.upload(&w.k2)?,
             keep: dev.upload(&w.keep)?,
             coef: dev.upload(coef)?,
-            q_hat: cplx(6)?,
-            q_prev: cplx(6)?,
-            q_new: cplx(6)?,
-            nl: cplx(6)?,
-            nl_prev: cplx(6)?,
+            q_hat: dev.zeros(l.spectra(6))?,
+            q_prev: dev.zeros(l.spectra(6))?,
+            nl_prev: dev.zeros(l.spectra(6))?,
             has_prev: false,
-            u_hat: cplx(3)?,
-            u_work: cplx(3)?,
-            u_new: cplx(3)?,
-            spec: cplx(18)?,
-            q: real(6)?,
-            e: real(6)?,
-            se: real(6)?,
-            ug: real(3)?,
-            g: real(9)?,
-            dq: real(18)?,
-            vals: real(6)?,
-            s21: real(21)?,
-            // The largest reduction: four partials per block over 2 * 6 S doubles.
-            partial: dev.zeros(4 * blocks(12 * s_len) + 8)?,
+            u_hat: dev.zeros(l.spectra(3))?,
+            u_work: dev.zeros(l.spectra(3))?,
+            u_next: dev.zeros(l.spectra(3))?,
+            q: dev.zeros(l.fields(6))?,
+            six: dev.zeros(l.spectra(6))?,
+            wide: dev.zeros(l.wide())?,
+            big: dev.zeros(l.fields(21))?,
+            partial: dev.zeros(l.partials())?,
         })
+    }
+
+    /// Bytes of every buffer allocated (the FFT plan apart).
+    #[cfg(test)]
+    fn allocated_bytes(&self) -> usize {
+        let f64s = [
+            &self.k1,
+            &self.k2,
+            &self.coef,
+            &self.q_hat,
+            &self.q_prev,
+            &self.nl_prev,
+            &self.u_hat,
+            &self.u_work,
+            &self.u_next,
+            &self.q,
+            &self.six,
+            &self.wide,
+            &self.big,
+            &self.partial,
+        ];
+        8 * f64s.iter().map(|b| b.len()).sum::<usize>() + 4 * self.keep.len()
     }
 
     pub(super) fn upload_state(
@@ -211,18 +241,18 @@ impl Buffers {
             .collect())
     }
 
-    /// `count` real fields from the first `count` spectra of `spec` (destroyed) into `out`.
-    fn inverse_many(&mut self, dev: &Device, count: usize, out: Field) -> Result<(), GpuError> {
-        let (s, n) = (self.s_len, self.n_len);
-        let dst = match out {
-            Field::Q => &mut self.q,
-            Field::E => &mut self.e,
-            Field::Ug => &mut self.ug,
-            Field::G => &mut self.g,
-            Field::Dq => &mut self.dq,
-        };
+    /// `count` real fields from the first `count` spectra of `src` (destroyed) into `dst`, from
+    /// its double `at` on.
+    fn inverse_many(
+        dev: &Device,
+        fft: &Fft3,
+        src: &mut Buffer,
+        (dst, at): (&mut Buffer, usize),
+        count: usize,
+        (s, n): (usize, usize),
+    ) -> Result<(), GpuError> {
         for c in 0..count {
-            dev.inverse(&self.fft, (&mut self.spec, 2 * c * s), (dst, c * n))?;
+            dev.inverse(fft, (src, 2 * c * s), (dst, at + c * n))?;
         }
         Ok(())
     }
@@ -240,16 +270,17 @@ impl Buffers {
         Ok(())
     }
 
-    /// Q's six spectra to the grid, and the fixed point's iterate set to the last accepted
-    /// velocity.
+    /// Q's six spectra to the grid (through a copy in `six`), and the fixed point's iterate set
+    /// to the last accepted velocity.
     pub(super) fn inverse_q(&mut self, dev: &Device) -> Result<(), GpuError> {
-        let s = self.s_len;
+        let (s, n) = (self.s_len, self.n_len);
         dev.copy((&self.u_hat, 0), (&mut self.u_work, 0), 6 * s)?;
-        dev.copy((&self.q_hat, 0), (&mut self.spec, 0), 12 * s)?;
-        self.inverse_many(dev, 6, Field::Q)
+        dev.copy((&self.q_hat, 0), (&mut self.six, 0), 12 * s)?;
+        Self::inverse_many(dev, &self.fft, &mut self.six, (&mut self.q, 0), 6, (s, n))
     }
 
-    /// The closure field; returns (smallest eigenvalue, largest eigenvalue, entropy sum).
+    /// The closure field into `big`; returns (smallest eigenvalue, largest eigenvalue, entropy
+    /// sum).
     pub(super) fn closure(
         &mut self,
         dev: &Device,
@@ -257,7 +288,7 @@ impl Buffers {
         with_entropy: bool,
     ) -> Result<(f64, f64, f64), GpuError> {
         // SAFETY: closure_field(const double* q, double* s21, const double* coef, int deg,
-        // int with_entropy, long long N, double* partial): q holds 6 N doubles, s21 21 N, coef
+        // int with_entropy, long long N, double* partial): q holds 6 N doubles, big 21 N, coef
         // the 4 (deg + 1)^2 table coefficients uploaded for this degree, partial at least
         // 3 blocks; each thread reads point p < N and writes s21[21 p..21 p + 21] and its
         // block's three partials.
@@ -266,7 +297,7 @@ impl Buffers {
                 self.n_len,
                 ClosureField {
                     q: &self.q,
-                    s21: &mut self.s21,
+                    s21: &mut self.big,
                     coef: &self.coef,
                     deg: deg as i32,
                     with_entropy: i32::from(with_entropy),
@@ -279,48 +310,63 @@ impl Buffers {
         Ok((-r[0], r[1], r[2]))
     }
 
-    /// E of the current u on the grid (6 strain spectra, 6 inverse transforms).
+    /// E of the current u on the grid (6 strain spectra in `six`, 6 inverse transforms into
+    /// `wide`).
     pub(super) fn strain_to_grid(&mut self, dev: &Device) -> Result<(), GpuError> {
         // SAFETY: strain_spectra(const double2* u, double2* out, int n, const double* k1):
-        // u_work holds 3 S values, spec 18 S >= 6 S, k1 n; thread s < S reads u[i S + s] and
-        // writes out[c S + s] for c < 6.
+        // u_work holds 3 S values, six 6 S, k1 n; thread s < S reads u[i S + s] and writes
+        // out[c S + s] for c < 6.
         unsafe {
             dev.launch(
                 self.s_len,
                 StrainSpectra {
                     u: &self.u_work,
-                    out: &mut self.spec,
+                    out: &mut self.six,
                     n: self.n as i32,
                     k1: &self.k1,
                 },
             )
         }?;
-        self.inverse_many(dev, 6, Field::E)
+        let (s, n) = (self.s_len, self.n_len);
+        Self::inverse_many(
+            dev,
+            &self.fft,
+            &mut self.six,
+            (&mut self.wide, 0),
+            6,
+            (s, n),
+        )
     }
 
-    /// The active stress -Q + zeta S:E, forward transformed and dealiased into the first six
-    /// spectra of `spec`.
+    /// The active stress -Q + zeta S:E over the grid E in `wide`, forward transformed and
+    /// dealiased into `six`.
     pub(super) fn stress(&mut self, dev: &Device, zeta: f64) -> Result<(), GpuError> {
         self.contract(dev, zeta, true)?;
         let (s, n) = (self.s_len, self.n_len);
-        Self::forward_six(dev, &self.fft, (&self.se, n), (&mut self.spec, s))?;
-        self.scale_dealias(dev, Spectra::Spec, 6, true)
+        Self::forward_six(dev, &self.fft, (&self.wide, n), (&mut self.six, s))?;
+        self.scale_dealias(dev, Scratch::Six)
     }
 
-    /// `S:E` (or the stress with `stress`) of the grid E into `se`.
+    /// Over the grid E in place: the stress with `stress` (E in `wide`), else `S:E` (E in
+    /// `six`).
     fn contract(&mut self, dev: &Device, zeta: f64, stress: bool) -> Result<(), GpuError> {
-        // SAFETY: contract(const double* s21, const double* e, const double* q, double zeta,
-        // double* out, long long N, int stress): s21 holds 21 N doubles, e, q and se 6 N each;
-        // thread p < N reads and writes index c N + p for c < 6 and s21[21 p..21 p + 21].
+        let e = if stress {
+            &mut self.wide
+        } else {
+            &mut self.six
+        };
+        // SAFETY: contract(const double* s21, double* e, const double* q, double zeta,
+        // long long N, int stress): big holds 21 N doubles, q 6 N, the E buffer (wide: max(9 N,
+        // 12 S), six: 12 S) at least 6 N; thread p < N reads s21[21 p..21 p + 21] and reads
+        // and writes index c N + p for c < 6.
         unsafe {
             dev.launch(
                 self.n_len,
                 Contract {
-                    s21: &self.s21,
-                    e: &self.e,
+                    s21: &self.big,
+                    e,
                     q: &self.q,
                     zeta,
-                    out: &mut self.se,
                     N: self.n_len as i64,
                     stress: i32::from(stress),
                 },
@@ -329,22 +375,16 @@ impl Buffers {
         .map_err(GpuError::from)
     }
 
-    /// Scale by 1/n^3 and dealias `count` spectra of `which`.
-    fn scale_dealias(
-        &mut self,
-        dev: &Device,
-        which: Spectra,
-        count: usize,
-        dealias: bool,
-    ) -> Result<(), GpuError> {
-        let total = count * self.s_len;
+    /// Scale by 1/n^3 and dealias the six spectra at the start of `which`.
+    fn scale_dealias(&mut self, dev: &Device, which: Scratch) -> Result<(), GpuError> {
+        let total = 6 * self.s_len;
         let target = match which {
-            Spectra::Spec => &mut self.spec,
-            Spectra::Nonlinear => &mut self.nl,
+            Scratch::Six => &mut self.six,
+            Scratch::Wide => &mut self.wide,
         };
         // SAFETY: scale_dealias(double2* c, long long count, int n, double scale,
-        // const int* keep, int dealias): the target holds at least `count` complex values
-        // (6 S for the explicit terms, 18 S for spec), keep n ints; thread t < count
+        // const int* keep, int dealias): the target holds at least `count` = 6 S complex
+        // values (six 12 S doubles, wide max(9 N, 12 S)), keep n ints; thread t < count
         // touches c[t] only.
         unsafe {
             dev.launch(
@@ -355,24 +395,24 @@ impl Buffers {
                     n: self.n as i32,
                     scale: 1.0 / self.n_len as f64,
                     keep: &self.keep,
-                    dealias: i32::from(dealias),
+                    dealias: 1,
                 },
             )
         }
         .map_err(GpuError::from)
     }
 
-    /// The Stokes velocity of the stress spectra into `u_new`.
+    /// The Stokes velocity of the stress spectra into `u_next`.
     pub(super) fn stokes(&mut self, dev: &Device) -> Result<(), GpuError> {
         // SAFETY: stokes(const double2* sigma, double2* u, int n, const double* k1,
-        // const double* k2): spec holds 18 S >= 6 S values, u_new 3 S, k1 and k2 n; thread
-        // s < S reads sigma[c S + s] and writes u[i S + s].
+        // const double* k2): six holds 6 S values, u_next 3 S, k1 and k2 n; thread s < S reads
+        // sigma[c S + s] and writes u[i S + s].
         unsafe {
             dev.launch(
                 self.s_len,
                 Stokes {
-                    sigma: &self.spec,
-                    u: &mut self.u_new,
+                    sigma: &self.six,
+                    u: &mut self.u_next,
                     n: self.n as i32,
                     k1: &self.k1,
                     k2: &self.k2,
@@ -382,7 +422,7 @@ impl Buffers {
         .map_err(GpuError::from)
     }
 
-    /// The fixed point's relative change between `u_new` and `u_work` (solver.rs rel_change).
+    /// The fixed point's relative change between `u_next` and `u_work` (solver.rs rel_change).
     pub(super) fn change(&mut self, dev: &Device) -> Result<f64, GpuError> {
         // SAFETY: change_partials(const double2* a, const double2* b, int n, double* partial):
         // both hold 3 S values, partial at least 2 per block; thread s < S reads index c S + s.
@@ -390,7 +430,7 @@ impl Buffers {
             dev.launch(
                 self.s_len,
                 ChangePartials {
-                    a: &self.u_new,
+                    a: &self.u_next,
                     b: &self.u_work,
                     n: self.n as i32,
                     partial: &mut self.partial,
@@ -403,48 +443,70 @@ impl Buffers {
 
     /// The new iterate becomes the current one.
     pub(super) fn accept_u(&mut self) {
-        std::mem::swap(&mut self.u_work, &mut self.u_new);
+        std::mem::swap(&mut self.u_work, &mut self.u_next);
     }
 
-    /// u and grad u on the grid, E from grad u and S:E (the explicit terms' inputs).
+    /// grad u on the grid (`wide`), E from it and S:E over E (`six`; S is dead after), u on
+    /// the grid (`big` at 18 N) and E again (`big` at 0): the explicit terms' and the
+    /// report's inputs. [`Self::report_sums`] must read them before [`Self::explicit_terms`]
+    /// writes grad Q over E.
     pub(super) fn gradients(&mut self, dev: &Device) -> Result<(), GpuError> {
-        let s = self.s_len;
-        dev.copy((&self.u_work, 0), (&mut self.spec, 0), 6 * s)?;
-        self.inverse_many(dev, 3, Field::Ug)?;
-        self.derivatives(dev, 3)?;
-        self.inverse_many(dev, 9, Field::G)?;
-        // SAFETY: strain_from_gradient(const double* g, double* e, long long N): g holds 9 N,
-        // e 6 N doubles; thread p < N touches index c N + p only.
+        let (s, n) = (self.s_len, self.n_len);
+        for i in 0..3 {
+            self.derivatives(dev, Spectrum::U, i)?;
+            let dst = (&mut self.wide, 3 * i * n);
+            Self::inverse_many(dev, &self.fft, &mut self.u_next, dst, 3, (s, n))?;
+        }
+        self.strain_from_gradient(dev, StrainInto::Six)?;
+        self.contract(dev, 0.0, false)?;
+        dev.copy((&self.u_work, 0), (&mut self.u_next, 0), 6 * s)?;
+        let dst = (&mut self.big, ug_at(n));
+        Self::inverse_many(dev, &self.fft, &mut self.u_next, dst, 3, (s, n))?;
+        // The same E, at the start of `big` (the report reads it beside S:E).
+        self.strain_from_gradient(dev, StrainInto::Big)
+    }
+
+    /// E from grad u (`wide`) into `six` or into the start of `big`.
+    fn strain_from_gradient(&mut self, dev: &Device, into: StrainInto) -> Result<(), GpuError> {
+        let e = match into {
+            StrainInto::Six => &mut self.six,
+            StrainInto::Big => &mut self.big,
+        };
+        // SAFETY: strain_from_gradient(const double* g, double* e, long long N): wide holds at
+        // least 9 N doubles, the target at least 6 N (six 12 S, big 21 N); thread p < N touches
+        // index c N + p only.
         unsafe {
             dev.launch(
                 self.n_len,
                 StrainFromGradient {
-                    g: &self.g,
-                    e: &mut self.e,
+                    g: &self.wide,
+                    e,
                     N: self.n_len as i64,
                 },
             )
-        }?;
-        self.contract(dev, 0.0, false)
+        }
+        .map_err(GpuError::from)
     }
 
-    /// Derivative spectra of `comps` inputs (u: 3 from u_work, Q: 6 from q_hat) into spec.
-    fn derivatives(&mut self, dev: &Device, comps: usize) -> Result<(), GpuError> {
-        let input = if comps == 3 {
-            &self.u_work
-        } else {
-            &self.q_hat
+    /// The three derivative spectra of component `first` of u (`u_work`) or Q (`q_hat`) into
+    /// `u_next`.
+    fn derivatives(&mut self, dev: &Device, of: Spectrum, first: usize) -> Result<(), GpuError> {
+        let input = match of {
+            Spectrum::U => &self.u_work,
+            Spectrum::Q => &self.q_hat,
         };
-        // SAFETY: derivative_spectra(const double2* c, double2* out, int comps, int n,
-        // const double* k1): the input holds comps S values (u_work 3 S, q_hat 6 S), spec 18 S
-        // >= 3 comps S; thread s < S writes out[(m 3 + dir) S + s] for m < comps.
+        // SAFETY: derivative_spectra(const double2* c, int first, double2* out, int comps,
+        // int n, const double* k1): the input holds 3 S (u_work, first < 3) or 6 S (q_hat,
+        // first < 6) values, u_next 3 S, k1 n; thread s < S reads c[first S + s] and writes
+        // out[dir S + s] for dir < 3 (one component).
         unsafe {
             dev.launch(
                 self.s_len,
                 DerivativeSpectra {
                     c: input,
-                    out: &mut self.spec,
-                    comps: comps as i32,
+                    first: first as i32,
+                    out: &mut self.u_next,
+                    comps: 1,
                     n: self.n as i32,
                     k1: &self.k1,
                 },
@@ -453,40 +515,46 @@ impl Buffers {
         .map_err(GpuError::from)
     }
 
-    /// The explicit terms' spectra into `nl` (grad Q to the grid, the products, forward,
-    /// dealiased).
+    /// The explicit terms' spectra into `wide` (grad Q to the grid over E in `big`, one Q
+    /// component at a time; the products over S:E in `six`; forward, dealiased).
     pub(super) fn explicit_terms(&mut self, dev: &Device) -> Result<(), GpuError> {
-        self.derivatives(dev, 6)?;
-        self.inverse_many(dev, 18, Field::Dq)?;
-        // SAFETY: explicit_terms(const double* ug, const double* g, const double* q,
-        // const double* dq, const double* se, double* out, long long N): ug 3 N, g 9 N, q 6 N,
-        // dq 18 N, se 6 N, vals 6 N doubles; thread p < N touches index m N + p only.
+        let (s, n) = (self.s_len, self.n_len);
+        for m in 0..6 {
+            self.derivatives(dev, Spectrum::Q, m)?;
+            let dst = (&mut self.big, 3 * m * n);
+            Self::inverse_many(dev, &self.fft, &mut self.u_next, dst, 3, (s, n))?;
+        }
+        // SAFETY: explicit_terms(const double* ug, long long ug_at, const double* g,
+        // const double* q, const double* dq, double* se, long long N): big holds 21 N doubles
+        // (dq its first 18 N, u the 3 N from ug_at = 18 N), wide at least 9 N, q 6 N, six
+        // 12 S >= 6 N; thread p < N reads index m N + p of each (ug from ug_at) and writes
+        // se[c N + p] for c < 6.
         unsafe {
             dev.launch(
                 self.n_len,
                 ExplicitTerms {
-                    ug: &self.ug,
-                    g: &self.g,
+                    ug: &self.big,
+                    ug_at: ug_at(n) as i64,
+                    g: &self.wide,
                     q: &self.q,
-                    dq: &self.dq,
-                    se: &self.se,
-                    out: &mut self.vals,
+                    dq: &self.big,
+                    se: &mut self.six,
                     N: self.n_len as i64,
                 },
             )
         }?;
-        let (s, n) = (self.s_len, self.n_len);
-        Self::forward_six(dev, &self.fft, (&self.vals, n), (&mut self.nl, s))?;
-        self.scale_dealias(dev, Spectra::Nonlinear, 6, true)
+        Self::forward_six(dev, &self.fft, (&self.six, n), (&mut self.wide, s))?;
+        self.scale_dealias(dev, Scratch::Wide)
     }
 
-    /// Whether the explicit terms (or, with `update`, the updated Q) hold a non-finite value.
+    /// Whether the explicit terms (`wide`; or, with `update`, the updated Q in `six`) hold a
+    /// non-finite value.
     fn nonfinite(&mut self, dev: &Device, update: bool) -> Result<bool, GpuError> {
         let count = 2 * 6 * self.s_len;
-        let src = if update { &self.q_new } else { &self.nl };
+        let src = if update { &self.six } else { &self.wide };
         // SAFETY: nonfinite_partials(const double* v, long long count, double* partial): the
-        // spectra hold 6 S complex values = 12 S doubles, read as doubles; partial holds at
-        // least one value per block.
+        // buffer holds at least 6 S complex values = 12 S doubles (six 12 S, wide max(9 N,
+        // 12 S)), read as doubles; partial holds at least one value per block.
         unsafe {
             dev.launch(
                 count,
@@ -508,19 +576,22 @@ impl Buffers {
         self.nonfinite(dev, true)
     }
 
-    /// (max |u_x| + |u_y| + |u_z|, <E:E>, <E:Q>, <E:S:E>) as sums over the grid.
+    /// (max |u_x| + |u_y| + |u_z|, <E:E>, <E:Q>, <E:S:E>) as sums over the grid; after
+    /// [`Self::gradients`], before [`Self::explicit_terms`].
     pub(super) fn report_sums(&mut self, dev: &Device) -> Result<(f64, f64, f64, f64), GpuError> {
-        // SAFETY: report_partials(const double* ug, const double* e, const double* q,
-        // const double* se, long long N, double* partial): ug 3 N, e, q and se 6 N doubles,
-        // partial at least 4 per block; thread p < N reads index c N + p only.
+        // SAFETY: report_partials(const double* ug, long long ug_at, const double* e,
+        // const double* q, const double* se, long long N, double* partial): big holds 21 N
+        // doubles (E its first 6 N, u the 3 N from ug_at = 18 N), q 6 N, six 12 S >= 6 N,
+        // partial at least 4 per block; thread p < N reads index c N + p only (ug from ug_at).
         unsafe {
             dev.launch(
                 self.n_len,
                 ReportPartials {
-                    ug: &self.ug,
-                    e: &self.e,
+                    ug: &self.big,
+                    ug_at: ug_at(self.n_len) as i64,
+                    e: &self.big,
                     q: &self.q,
-                    se: &self.se,
+                    se: &self.six,
                     N: self.n_len as i64,
                     partial: &mut self.partial,
                 },
@@ -547,7 +618,7 @@ impl Buffers {
         Ok(self.reduce(dev, blocks(self.s_len), 1, &[])?[0])
     }
 
-    /// The IMEX update into `q_new`.
+    /// The IMEX update into `six`.
     pub(super) fn imex(
         &mut self,
         dev: &Device,
@@ -559,17 +630,18 @@ impl Buffers {
     ) -> Result<(), GpuError> {
         // SAFETY: imex_update(const double2* q, const double2* nl, const double2* q_prev,
         // const double2* nl_prev, double2* out, int n, const double* k2, double a0, double a1,
-        // double a2, double b0, double b1, double dt, double diffusion, int two): the five
-        // spectra hold 6 S values each, k2 n doubles; thread s < S touches index c S + s.
+        // double a2, double b0, double b1, double dt, double diffusion, int two): q_hat,
+        // q_prev, nl_prev and six hold 6 S values each, wide (the explicit terms) at least
+        // 6 S, k2 n doubles; thread s < S touches index c S + s.
         unsafe {
             dev.launch(
                 self.s_len,
                 ImexUpdate {
                     q: &self.q_hat,
-                    nl: &self.nl,
+                    nl: &self.wide,
                     q_prev: &self.q_prev,
                     nl_prev: &self.nl_prev,
-                    out: &mut self.q_new,
+                    out: &mut self.six,
                     n: self.n as i32,
                     k2: &self.k2,
                     a0: a[0],
@@ -586,30 +658,80 @@ impl Buffers {
         .map_err(GpuError::from)
     }
 
-    /// The step is accepted: Q^{n-1} <- Q^n <- Q^{n+1}, N^{n-1} <- N^n, and the converged
-    /// velocity becomes the next warm start.
-    pub(super) fn commit_step(&mut self) {
+    /// The step is accepted: Q^{n-1} <- Q^n <- Q^{n+1} (the buffers rotate: the new Q's in
+    /// `six` becomes `q_hat`, the old `q_prev`'s becomes `six`), N^{n-1} <- N^n (copied from
+    /// `wide`), and the converged velocity becomes the next warm start.
+    pub(super) fn commit_step(&mut self, dev: &Device) -> Result<(), GpuError> {
+        dev.copy((&self.wide, 0), (&mut self.nl_prev, 0), 12 * self.s_len)?;
         std::mem::swap(&mut self.u_hat, &mut self.u_work);
         std::mem::swap(&mut self.q_prev, &mut self.q_hat);
-        std::mem::swap(&mut self.q_hat, &mut self.q_new);
-        std::mem::swap(&mut self.nl_prev, &mut self.nl);
+        std::mem::swap(&mut self.q_hat, &mut self.six);
         self.has_prev = true;
+        Ok(())
     }
 }
 
-/// Which grid field an inverse transform writes.
+/// Which scratch holds the six spectra to scale and dealias.
 #[derive(Clone, Copy)]
-enum Field {
-    Q,
-    E,
-    Ug,
-    G,
-    Dq,
+enum Scratch {
+    Six,
+    Wide,
 }
 
-/// Which spectra a kernel works on.
+/// Where E from grad u goes: `six` (S:E is contracted over it) or the start of `big` (for the
+/// report).
 #[derive(Clone, Copy)]
-enum Spectra {
-    Spec,
-    Nonlinear,
+enum StrainInto {
+    Six,
+    Big,
+}
+
+/// Whose derivatives: u's (`u_work`) or Q's (`q_hat`).
+#[derive(Clone, Copy)]
+enum Spectrum {
+    U,
+    Q,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Buffers, Wavenumbers};
+    use crate::gpu::signatures::KERNELS;
+    use crate::gpu::work::device_bytes;
+    use crate::solver::grid::SpectralGrid;
+    use motile_gpu::{Backend, Device, GpuError};
+
+    /// The buffers allocated on the host emulation take the bytes `device_bytes` counts, at a
+    /// few small grids.
+    #[test]
+    fn allocation_is_the_counted_bytes() {
+        let dev = match Device::open(Backend::HostEmulation, &KERNELS) {
+            Ok(d) => d,
+            Err(GpuError::NoDevice(why)) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
+                return eprintln!("not run: {why}");
+            }
+            Err(e) => panic!("the host emulation: {e}"),
+        };
+        let deg = 5;
+        let coef = vec![0.0; 4 * (deg + 1) * (deg + 1)];
+        for n in [4, 6, 8, 12] {
+            let w = Wavenumbers::of(&SpectralGrid::new(n));
+            let b = Buffers::new(&dev, n, &coef, &w).unwrap();
+            assert_eq!(b.allocated_bytes(), device_bytes(n, deg), "n = {n}");
+        }
+    }
+
+    /// The step's buffers at 256^3: 33 half spectra, 27 grid fields and a nine-field scratch
+    /// (9.31 GB; 57 spectra and 75 fields, 17.79 GB, before they were shared).
+    #[test]
+    fn bytes_at_256() {
+        let (n, deg) = (256, 20);
+        let (s, n3) = (n * n * (n / 2 + 1), n * n * n);
+        let bytes = device_bytes(n, deg);
+        let fields = 16 * 33 * s + 8 * (27 + 9) * n3;
+        // Beside them the tables and the reductions' partials (13 MB).
+        assert!(bytes >= fields && bytes - fields < 1 << 24, "{bytes}");
+        assert!(bytes < 9_310_000_000, "{bytes}");
+        eprintln!("device_bytes(256) = {bytes}");
+    }
 }

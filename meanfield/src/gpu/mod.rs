@@ -25,7 +25,7 @@ mod signatures;
 mod work;
 
 pub use error::GpuError;
-pub use work::{PhaseWork, work_model};
+pub use work::{PhaseWork, device_bytes, work_model};
 
 use crate::closure::BinghamClosure;
 use crate::gpu::signatures::KERNELS;
@@ -148,13 +148,14 @@ impl GpuMeanField {
                 break;
             }
         }
-        // u, grad u, E, S:E, the explicit terms.
+        // u, grad u, E, S:E and the report's sums over them (before the explicit terms write
+        // grad Q over E), the explicit terms.
         b.gradients(dev)?;
+        let (u_max, ee, eq, ese) = b.report_sums(dev)?;
         b.explicit_terms(dev)?;
         if b.nonfinite_nonlinear(dev)? {
             return Err(MeanFieldError::NonFinite("the right-hand side").into());
         }
-        let (u_max, ee, eq, ese) = b.report_sums(dev)?;
         let u_l2 = b.u_norm(dev)?.sqrt();
         // The IMEX update into the spare buffer; committed only if finite.
         // As MeanFieldStepper::step: the scheme once it has its history, SBDF1 before.
@@ -174,7 +175,7 @@ impl GpuMeanField {
         if b.nonfinite_update(dev)? {
             return Err(MeanFieldError::NonFinite("Q after the step").into());
         }
-        b.commit_step();
+        b.commit_step(dev)?;
         self.prev_dt = Some(dt);
         self.t += dt;
         Ok(MeanFieldStepReport {

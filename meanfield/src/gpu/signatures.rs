@@ -30,6 +30,7 @@ motile_gpu::kernels! {
     /// The spectra of the first derivatives of `comps` fields.
     pub(super) struct DerivativeSpectra = "derivative_spectra" {
         c: &'a Buffer<f64>,
+        first: i32,
         out: &'a mut Buffer<f64>,
         comps: i32,
         n: i32,
@@ -82,6 +83,7 @@ motile_gpu::kernels! {
     /// Block partials of the report's grid sums.
     pub(super) struct ReportPartials = "report_partials" {
         ug: &'a Buffer<f64>,
+        ug_at: i64,
         e: &'a Buffer<f64>,
         q: &'a Buffer<f64>,
         se: &'a Buffer<f64>,
@@ -103,25 +105,24 @@ motile_gpu::kernels! {
         N: i64,
     }
 
-    /// `S:E` (or the stress `-Q + zeta S:E`) per grid point.
+    /// `S:E` (or the stress `-Q + zeta S:E`) per grid point, over E in place.
     pub(super) struct Contract = "contract" {
         s21: &'a Buffer<f64>,
-        e: &'a Buffer<f64>,
+        e: &'a mut Buffer<f64>,
         q: &'a Buffer<f64>,
         zeta: f64,
-        out: &'a mut Buffer<f64>,
         N: i64,
         stress: i32,
     }
 
-    /// The explicit terms of the Q equation per grid point.
+    /// The explicit terms of the Q equation per grid point, over `S:E` in place.
     pub(super) struct ExplicitTerms = "explicit_terms" {
         ug: &'a Buffer<f64>,
+        ug_at: i64,
         g: &'a Buffer<f64>,
         q: &'a Buffer<f64>,
         dq: &'a Buffer<f64>,
-        se: &'a Buffer<f64>,
-        out: &'a mut Buffer<f64>,
+        se: &'a mut Buffer<f64>,
         N: i64,
     }
 

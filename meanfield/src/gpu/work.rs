@@ -57,33 +57,110 @@ pub fn work_model(iterations: usize) -> Vec<PhaseWork> {
             k,
             k as f64 * ((3.0 + 6.0) + (21.0 + 6.0 + 6.0 + 6.0) + 12.0 + (6.0 + 3.0) + 6.0),
         ),
-        // u copied (3 spectra read and written), 3 inverse; derivative_spectra (3 -> 9), 9
-        // inverse; strain_from_gradient (9 -> 6); contract for S:E (21, 6, 6 -> 6).
+        // Per u component derivative_spectra (1 -> 3), 3 inverse; strain_from_gradient (9 ->
+        // 6); contract for S:E over E (21, 6, 6 -> 6); u copied (3 spectra read and written),
+        // 3 inverse; strain_from_gradient again (9 -> 6: E beside u for the report).
         phase(
             "u, grad u, E, S:E",
-            3,
+            6,
             12,
             0,
-            6.0 + (3.0 + 9.0) + (9.0 + 6.0) + (21.0 + 6.0 + 6.0 + 6.0),
+            3.0 * (1.0 + 3.0) + (9.0 + 6.0) + (21.0 + 6.0 + 6.0 + 6.0) + 6.0 + (9.0 + 6.0),
         ),
-        // derivative_spectra (Q 6 -> 18), 18 inverse; explicit_terms (u 3, grad u 9, Q 6,
-        // grad Q 18, S:E 6 -> 6), 6 forward, scale_dealias (6 read and written).
+        // report_partials (u 3, E 6, Q 6, S:E 6); its partials downloaded.
+        phase("report sums", 1, 0, 1, 21.0),
+        // Per Q component derivative_spectra (1 -> 3), 3 inverse (18 in all); explicit_terms
+        // (u 3, grad u 9, Q 6, grad Q 18, S:E 6 -> 6 over S:E), 6 forward, scale_dealias (6
+        // read and written).
         phase(
             "explicit terms",
-            3,
+            8,
             24,
             0,
-            (6.0 + 18.0) + (3.0 + 9.0 + 6.0 + 18.0 + 6.0 + 6.0) + 12.0,
+            6.0 * (1.0 + 3.0) + (3.0 + 9.0 + 6.0 + 18.0 + 6.0 + 6.0) + 12.0,
         ),
-        // nonfinite (6 spectra), report_partials (u 3, E 6, Q 6, S:E 6), norm_partials (u 3),
-        // imex_update (Q, N, Q and N before: 24 -> 6), nonfinite of the update (6); each
-        // reduction's partials downloaded.
+        // nonfinite (6 spectra), norm_partials (u 3), imex_update (Q, N, Q and N before: 24 ->
+        // 6), nonfinite of the update (6); each reduction's partials downloaded; at the commit
+        // N copied into N before (6 spectra read and written).
         phase(
-            "checks, reports, IMEX update",
-            5,
-            0,
+            "checks, IMEX update, commit",
             4,
-            6.0 + 21.0 + 3.0 + (24.0 + 6.0) + 6.0,
+            0,
+            3,
+            6.0 + 3.0 + (24.0 + 6.0) + 6.0 + 12.0,
         ),
     ]
+}
+
+/// The sizes, in values, of the device buffers of a step on an `n^3` grid
+/// ([`super::GpuMeanField`]); `S = n n (n/2 + 1)` complex values per half spectrum (2 S
+/// doubles), `N = n^3` doubles per grid field. One source for the allocation and for
+/// [`device_bytes`].
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Layout {
+    /// Complex values of one half spectrum.
+    pub(super) s: usize,
+    /// Points of the grid.
+    pub(super) n3: usize,
+}
+
+impl Layout {
+    pub(super) fn of(n: usize) -> Self {
+        Self {
+            s: n * n * (n / 2 + 1),
+            n3: n * n * n,
+        }
+    }
+
+    /// Doubles of `count` half spectra.
+    pub(super) fn spectra(&self, count: usize) -> usize {
+        2 * count * self.s
+    }
+
+    /// Doubles of `count` grid fields.
+    pub(super) fn fields(&self, count: usize) -> usize {
+        count * self.n3
+    }
+
+    /// The scratch that holds nine grid fields (the velocity gradient) or six half spectra (the
+    /// stresses, the explicit terms).
+    pub(super) fn wide(&self) -> usize {
+        self.fields(9).max(self.spectra(6))
+    }
+
+    /// The reductions' partials: four per block over the largest reduction (2 * 6 S doubles),
+    /// and a few spare.
+    pub(super) fn partials(&self) -> usize {
+        4 * self
+            .spectra(6)
+            .div_ceil(motile_gpu::THREADS as usize)
+            .max(1)
+            + 8
+    }
+
+    /// Every buffer's `(f64 values, i32 values)` apart from the closure's coefficients:
+    /// Q, Q before, N before, the six-spectra scratch (6 half spectra each); u, its iterate,
+    /// the next iterate (3 each); Q on the grid (6 fields), the fourth moments (21 fields), the
+    /// wide scratch; the wavenumbers and partials (`f64`); the dealiasing mask (`i32`).
+    pub(super) fn values(&self, n: usize) -> (usize, usize) {
+        let f64s = 4 * self.spectra(6)
+            + 3 * self.spectra(3)
+            + self.fields(6)
+            + self.fields(21)
+            + self.wide()
+            + 2 * n
+            + self.partials();
+        (f64s, n)
+    }
+}
+
+/// Device bytes that the step's buffers take on an `n^3` grid with a closure table of degree
+/// `closure_degree` (as [`super::GpuMeanField::open`] allocates them; the cuFFT plan's work
+/// area and the CUDA context apart): 33 half spectra (Q, Q and N before, six of scratch: 6
+/// each; u and its two iterates: 3 each), 27 grid fields (Q, the fourth moments) and a scratch
+/// of nine grid fields (or six half spectra where that is larger). 9.30 GB at 256^3.
+pub fn device_bytes(n: usize, closure_degree: usize) -> usize {
+    let (f64s, i32s) = Layout::of(n).values(n);
+    let coef = 4 * (closure_degree + 1) * (closure_degree + 1);
+    8 * (f64s + coef) + 4 * i32s
 }
