@@ -167,6 +167,9 @@ struct P4<'a> {
     /// The last `(f, u)` computed: GMRES's final true-residual product is at the solution,
     /// so the velocities reuse it instead of summing again.
     cache: Option<(Vec<f64>, Vec<Vec3>)>,
+    /// The nodes on the sum's device (uploaded at the first product).
+    #[cfg(feature = "gpu")]
+    nodes: Option<motile_gpu::Buffer>,
 }
 
 impl P4<'_> {
@@ -200,8 +203,26 @@ impl P4<'_> {
         let t = Instant::now();
         let (u, report) = match &mut self.sum {
             P4Sum::One(sum) => {
-                let u = sum.rpy(&self.geometry, self.points, &weighted(f))?;
-                (u, sum.last_report())
+                let forces = weighted(f);
+                // A sum on a device takes the products through its resident sum (the nodes
+                // uploaded once per solve, one download per product).
+                #[cfg(feature = "gpu")]
+                let on_device = match sum.resident() {
+                    Some(r) => Some((
+                        r.rpy_via_device(&self.geometry, (self.points, &mut self.nodes), &forces)?,
+                        r.last_report(),
+                    )),
+                    None => None,
+                };
+                #[cfg(not(feature = "gpu"))]
+                let on_device = None;
+                match on_device {
+                    Some(done) => done,
+                    None => {
+                        let u = sum.rpy(&self.geometry, self.points, &forces)?;
+                        (u, sum.last_report())
+                    }
+                }
             }
             P4Sum::Shared { sum, part, reach } => {
                 let width = 3 * m;
@@ -352,6 +373,8 @@ impl SlenderBody {
             seconds: 0.0,
             accuracy: HydroReport::default(),
             cache: None,
+            #[cfg(feature = "gpu")]
+            nodes: None,
         };
         let info = gmres_shared(comm, &mut op, rhs, x, &self.params.gmres)
             .map_err(|source| MobilityError::Gmres { stage, source })?;

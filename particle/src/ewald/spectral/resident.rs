@@ -10,7 +10,8 @@ use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use crate::ewald::params::{
     ERROR_MODEL_RANGE, EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput,
 };
-use crate::ewald::periodic::{RpyGeometry, SumError};
+use crate::ewald::periodic::{RpyGeometry, SumError, check_rpy};
+use crate::model::geometry::Vec3;
 use crate::model::units::VISCOSITY;
 use motile_gpu::Buffer;
 use std::f64::consts::PI;
@@ -184,5 +185,34 @@ impl SpectralEwald {
         self.device_sum()?
             .download(buf)
             .map_err(|e| SumError::Device(e.to_string()))
+    }
+}
+
+impl SpectralEwald {
+    /// [`crate::ewald::periodic::PeriodicStokes::rpy`] of host values through
+    /// [`Self::rpy_resident`]: the points uploaded once into `points_on_device` (the caller's
+    /// cache for one set of points: the products of one GMRES solve), the forces each product,
+    /// the velocities downloaded; the cell list, the corrections and the error model on the
+    /// device, the same parameters, refinement and report.
+    pub fn rpy_via_device(
+        &mut self,
+        geometry: &RpyGeometry,
+        (points, points_on_device): (&[Vec3], &mut Option<Buffer>),
+        forces: &[Vec3],
+    ) -> Result<Vec<Vec3>, SumError> {
+        check_rpy(geometry, points, forces)?;
+        let nodes = match points_on_device.take() {
+            Some(b) if b.len() == 3 * points.len() => b,
+            _ => self.upload(points.as_flattened())?,
+        };
+        let force = self.upload(forces.as_flattened())?;
+        let fields: Vec<f64> = (0..3)
+            .flat_map(|d| forces.iter().map(move |v| v[d]))
+            .collect();
+        let fields = self.upload(&fields)?;
+        let u = self.rpy_resident(geometry, (&nodes, &force, &fields), points.len());
+        *points_on_device = Some(nodes);
+        let u = self.download(&u?)?;
+        Ok(u.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
     }
 }
