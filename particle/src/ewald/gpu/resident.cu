@@ -134,26 +134,31 @@ extern "C" __global__ void estimate_chunks(const double* parts, const double* w,
         double acc[4] = {0.0, 0.0, 0.0, 0.0};
         // Sixteen points' inputs at a time (independent loads in flight), folded in order.
         const int B = 16;
-        for (int t0 = c * chunk; t0 < hi; t0 += B) {
+        long long t0 = (long long)c * chunk;
+        // Whole batches without conditions (straight-line loads, issued together), the tail.
+        for (; t0 + B <= hi; t0 += B) {
             double e[B], q[B];
 #pragma unroll
             for (int u = 0; u < B; ++u) {
-                long long t = t0 + u;
-                if (t < hi) {
-                    e[u] = parts[2 * nout * t + 2 * o];
-                    q[u] = parts[2 * nout * t + 2 * o + 1];
-                }
+                e[u] = parts[2 * nout * (t0 + u) + 2 * o];
+                q[u] = parts[2 * nout * (t0 + u) + 2 * o + 1];
             }
 #pragma unroll
             for (int u = 0; u < B; ++u) {
-                if (t0 + u < hi) {
-                    double m = a_max * e[u] + far * q[u];
-                    acc[0] = fmax(acc[0], m);
-                    acc[1] += a_2 * e[u] + far * q[u];
-                    acc[2] = fmax(acc[2], q[u]);
-                    acc[3] += q[u];
-                }
+                double m = a_max * e[u] + far * q[u];
+                acc[0] = fmax(acc[0], m);
+                acc[1] += a_2 * e[u] + far * q[u];
+                acc[2] = fmax(acc[2], q[u]);
+                acc[3] += q[u];
             }
+        }
+        for (; t0 < hi; ++t0) {
+            double e = parts[2 * nout * t0 + 2 * o], q = parts[2 * nout * t0 + 2 * o + 1];
+            double m = a_max * e + far * q;
+            acc[0] = fmax(acc[0], m);
+            acc[1] += a_2 * e + far * q;
+            acc[2] = fmax(acc[2], q);
+            acc[3] += q;
         }
         for (int k = 0; k < 4; ++k) out[4 * (nout * c + o) + k] = acc[k];
     }

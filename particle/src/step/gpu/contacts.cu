@@ -246,27 +246,31 @@ extern "C" __global__ void solver_stats(const double* lam, const double* lam_new
     if ((long long)c * chunk >= m) return;
     int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
     double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
-    for (int k0 = c * chunk; k0 < hi; k0 += REDUCE_BATCH) {
+    int k0 = c * chunk;
+    // Whole batches without conditions (straight-line loads, issued together), then the tail.
+    for (; k0 + REDUCE_BATCH <= hi; k0 += REDUCE_BATCH) {
         double s[REDUCE_BATCH], y[REDUCE_BATCH], mn[REDUCE_BATCH];
 #pragma unroll
         for (int u = 0; u < REDUCE_BATCH; ++u) {
-            int k = k0 + u;
-            if (k < hi) {
-                double ln = lam_new[k], gn = g_new[k];
-                s[u] = ln - lam[k];
-                y[u] = gn - g[k];
-                mn[u] = fabs(fmin(ln, gn));
-            }
+            double ln = lam_new[k0 + u], gn = g_new[k0 + u];
+            s[u] = ln - lam[k0 + u];
+            y[u] = gn - g[k0 + u];
+            mn[u] = fabs(fmin(ln, gn));
         }
 #pragma unroll
         for (int u = 0; u < REDUCE_BATCH; ++u) {
-            if (k0 + u < hi) {
-                a0 = fmax(a0, mn[u]);
-                a1 += s[u] * s[u];
-                a2 += s[u] * y[u];
-                a3 += y[u] * y[u];
-            }
+            a0 = fmax(a0, mn[u]);
+            a1 += s[u] * s[u];
+            a2 += s[u] * y[u];
+            a3 += y[u] * y[u];
         }
+    }
+    for (; k0 < hi; ++k0) {
+        double sk = lam_new[k0] - lam[k0], yk = g_new[k0] - g[k0];
+        a0 = fmax(a0, fabs(fmin(lam_new[k0], g_new[k0])));
+        a1 += sk * sk;
+        a2 += sk * yk;
+        a3 += yk * yk;
     }
     partial[4 * c] = a0;
     partial[4 * c + 1] = a1;
@@ -284,23 +288,23 @@ extern "C" __global__ void solver_dots(const double* a, const double* b, double*
     if ((long long)c * chunk >= m) return;
     int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
     double aa = -0.0, ab = -0.0;
-    for (int k0 = c * chunk; k0 < hi; k0 += REDUCE_BATCH) {
+    int k0 = c * chunk;
+    for (; k0 + REDUCE_BATCH <= hi; k0 += REDUCE_BATCH) {
         double x[REDUCE_BATCH], z[REDUCE_BATCH];
 #pragma unroll
         for (int u = 0; u < REDUCE_BATCH; ++u) {
-            int k = k0 + u;
-            if (k < hi) {
-                x[u] = a[k];
-                z[u] = b[k];
-            }
+            x[u] = a[k0 + u];
+            z[u] = b[k0 + u];
         }
 #pragma unroll
         for (int u = 0; u < REDUCE_BATCH; ++u) {
-            if (k0 + u < hi) {
-                aa += x[u] * x[u];
-                ab += x[u] * z[u];
-            }
+            aa += x[u] * x[u];
+            ab += x[u] * z[u];
         }
+    }
+    for (; k0 < hi; ++k0) {
+        aa += a[k0] * a[k0];
+        ab += a[k0] * b[k0];
     }
     partial[2 * c] = aa;
     partial[2 * c + 1] = ab;

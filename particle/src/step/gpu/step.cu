@@ -71,6 +71,27 @@ extern "C" __global__ void pair_overlap(const double* x, const double* q, const 
     out[k] = -row[9];
 }
 
+// One rod's terms of the step report: |v|, |w|, whether v and w are finite, the axis, the
+// contact force (0 without ft).
+struct StatTerms {
+    double vn, wn, p[3], f[3];
+    bool ok;
+};
+
+__device__ StatTerms stat_terms(const double* v, const double* w, const double* q,
+                                const double* ft, int r, int has_ft) {
+    StatTerms t;
+    const double* a = v + 3 * r;
+    const double* b = w + 3 * r;
+    t.vn = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    t.wn = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+    t.ok = isfinite(a[0]) && isfinite(a[1]) && isfinite(a[2]) && isfinite(b[0]) &&
+           isfinite(b[1]) && isfinite(b[2]);
+    quat_axis(q + 4 * r, t.p);
+    for (int d = 0; d < 3; ++d) t.f[d] = has_ft ? ft[6 * r + d] : 0.0;
+    return t;
+}
+
 // Per chunk c of `chunk` rods, in order: sum |v| (from -0.0, as the CPU's det_sum), the sums of
 // the axes' components, max |v|, max |w| (from 0), the first rod with a non-finite velocity or
 // -1, and the sums of the contact forces' components (0 without ft) (10 values at 10 c): the
@@ -86,41 +107,31 @@ extern "C" __global__ void step_stats(const double* v, const double* w, const do
     int hi = (c + 1) * chunk < n ? (c + 1) * chunk : n;
     double speed = -0.0, p0 = -0.0, p1 = -0.0, p2 = -0.0, vmax = 0.0, wmax = 0.0, bad = -1.0;
     double f0 = -0.0, f1 = -0.0, f2 = -0.0;
-    // Eight rods' terms at a time (independent loads in flight together), folded in order.
+    // Eight rods' terms at a time (straight-line loads, in flight together), folded in order;
+    // then the tail one rod at a time.
     const int B = 8;
-    for (int r0 = c * chunk; r0 < hi; r0 += B) {
-        double vn[B], wn[B], p[B][3], f[B][3];
-        bool ok[B];
+    int r0 = c * chunk;
+    for (; r0 < hi; r0 += B) {
+        int len = hi - r0 < B ? hi - r0 : B;
+        StatTerms t[B];
+        if (len == B) {
 #pragma unroll
-        for (int u = 0; u < B; ++u) {
-            int r = r0 + u;
-            if (r < hi) {
-                const double* a = v + 3 * r;
-                const double* b = w + 3 * r;
-                vn[u] = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-                wn[u] = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
-                ok[u] = isfinite(a[0]) && isfinite(a[1]) && isfinite(a[2]) && isfinite(b[0]) &&
-                        isfinite(b[1]) && isfinite(b[2]);
-                quat_axis(q + 4 * r, p[u]);
-                for (int d = 0; d < 3; ++d) f[u][d] = has_ft ? ft[6 * r + d] : 0.0;
-            }
+            for (int u = 0; u < B; ++u) t[u] = stat_terms(v, w, q, ft, r0 + u, has_ft);
+        } else {
+            for (int u = 0; u < len; ++u) t[u] = stat_terms(v, w, q, ft, r0 + u, has_ft);
         }
-#pragma unroll
-        for (int u = 0; u < B; ++u) {
-            int r = r0 + u;
-            if (r < hi) {
-                if (bad < 0.0 && !ok[u]) bad = (double)r;
-                speed += vn[u];
-                p0 += p[u][0];
-                p1 += p[u][1];
-                p2 += p[u][2];
-                vmax = fmax(vmax, vn[u]);
-                wmax = fmax(wmax, wn[u]);
-                if (has_ft) {
-                    f0 += f[u][0];
-                    f1 += f[u][1];
-                    f2 += f[u][2];
-                }
+        for (int u = 0; u < len; ++u) {
+            if (bad < 0.0 && !t[u].ok) bad = (double)(r0 + u);
+            speed += t[u].vn;
+            p0 += t[u].p[0];
+            p1 += t[u].p[1];
+            p2 += t[u].p[2];
+            vmax = fmax(vmax, t[u].vn);
+            wmax = fmax(wmax, t[u].wn);
+            if (has_ft) {
+                f0 += t[u].f[0];
+                f1 += t[u].f[1];
+                f2 += t[u].f[2];
             }
         }
     }
