@@ -314,13 +314,17 @@ fn binned_spreaders_match_the_atomic_one() {
     };
     let open = |method: SpreadMethod| open_seeded(method, 11);
     let mut rows = Vec::new();
-    // Grids of 10, 20, 30 (the cells' last bin short, their reach clamped to every bin) and 32
-    // (bins dividing the grid, a reach of one bin of four) points per axis.
+    // Grids of 10, 20, 30 (the output-driven spreader's bins of 10 cells, four per thread; at
+    // 1e-8 its reach clamped to every bin), 32 (bins of 8 dividing the grid, a reach of one bin
+    // of four), 36 (bins of 9, three cells per thread) and 22 (bins of 8, the last one short)
+    // points per axis.
     for (l, n, tol, modes) in [
         (5.0, 40, 1e-2, None),
         (8.0, 120, 1e-4, None),
         (5.0, 40, 1e-8, None),
         (8.0, 120, 1e-4, Some(32)),
+        (8.0, 120, 1e-4, Some(36)),
+        (8.0, 120, 1e-4, Some(22)),
     ] {
         let (x, p) = rods(n, l, false, 21);
         let (y, f) = rod_points(&x, &p, true, 4);

@@ -42,9 +42,23 @@ pub const MAX_TILE_SUPPORT: usize = 9;
 /// Bin edge of the sorted global-memory spreader (for locality only).
 const SORTED_BIN: usize = 8;
 
-/// Bin edge of the output-driven spreader: `CELL_BIN` in `kernels.cu` (a block of
-/// [`THREADS`] threads, two of the bin's 512 cells each).
+/// Smallest bin edge of the output-driven spreader (a block of [`THREADS`] threads, two of the
+/// bin's 512 cells each); see [`cell_bin`].
 pub const CELL_BIN: usize = 8;
+
+/// Largest bin edge of the output-driven spreader (1 000 cells: four per thread).
+pub const CELL_BIN_MAX: usize = 10;
+
+/// The output-driven spreader's bin edge for support `p` on a grid of `m`: the smallest edge
+/// from [`CELL_BIN`] to [`CELL_BIN_MAX`] that divides the grid (no short last bin) and is at
+/// least `p - 1` (a window then reaches one bin below its first index along each axis: 8 near
+/// bins instead of 27), else [`CELL_BIN`]. The dipole level's stresslets (support 10) on 270^3
+/// take 9, on 480^3 10; supports of 9 or less on grids divisible by 8 keep 8.
+pub fn cell_bin(p: usize, m: usize) -> usize {
+    (CELL_BIN..=CELL_BIN_MAX)
+        .find(|&b| b + 1 >= p && m.is_multiple_of(b))
+        .unwrap_or(CELL_BIN)
+}
 
 /// How the Fourier part spreads its values onto the grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,11 +96,11 @@ impl SpreadMethod {
         }
     }
 
-    /// Bin edge (grid cells) for support `p`.
-    fn bin_edge(self, p: usize) -> usize {
+    /// Bin edge (grid cells) for support `p` on a grid of `m`.
+    fn bin_edge(self, p: usize, m: usize) -> usize {
         match self {
             Self::Tiles => TILE + 1 - p,
-            Self::Cells => CELL_BIN,
+            Self::Cells => cell_bin(p, m),
             _ => SORTED_BIN,
         }
     }
@@ -151,7 +165,7 @@ pub(crate) fn sort(
         THREADS, 256,
         "bin_scan's shared array holds 256 partial sums"
     );
-    let b = method.bin_edge(p);
+    let b = method.bin_edge(p, geo.m);
     let nb = geo.m.div_ceil(b);
     let nbins = nb.pow(3);
     let (ni, mi, pi, bi, nbi, nbins_i) = (
@@ -321,7 +335,7 @@ pub(crate) fn spread(
     (n, nf): (usize, usize),
 ) -> Result<(), GpuError> {
     let (p, method) = (geo.window.p, bins.method);
-    let (m, b) = (geo.m, method.bin_edge(p));
+    let (m, b) = (geo.m, method.bin_edge(p, geo.m));
     assert_eq!(bins.key, (m, p, b), "bins of this grid, support and method");
     assert!(
         nf <= 6 && p <= 24 && p <= m,
@@ -378,14 +392,18 @@ pub(crate) fn spread(
         }
         SpreadMethod::Cells => {
             assert_eq!(
-                (CELL_BIN.pow(3), THREADS),
-                (512, 256),
-                "two cells of a bin per thread"
+                THREADS, 256,
+                "the kernel's cells per thread are for 256 threads"
+            );
+            assert!(
+                (CELL_BIN..=CELL_BIN_MAX).contains(&b),
+                "bins of {CELL_BIN} to {CELL_BIN_MAX} cells per axis"
             );
             let nbins = bins.nb.pow(3);
             let reach = SpreadMethod::reach(p, m, b, bins.nb);
             assert!(reach <= 4, "CELL_NEAR holds the bins of a reach up to 4");
-            // SAFETY: block k < nbins (nbins THREADS threads launched) reads start[s],
+            // SAFETY: block k < nbins (nbins THREADS threads launched; b^3 <= 1000 cells, at
+            // most 4 per thread, the kernel's largest case) reads start[s],
             // start[s + 1] of bins s < nbins (the offsets below k taken modulo nb per axis;
             // nbins + 1 checked) and perm[j] for j between them (< n, checked), the points and
             // values of i = perm[j] < n (3 n and nf n checked; at most CELL_CHUNK staged, its
@@ -410,6 +428,7 @@ pub(crate) fn spread(
                         h: w.h,
                         alpha: w.alpha,
                         norm: w.norm,
+                        b: b as i32,
                         nb: bins.nb as i32,
                         reach: reach as i32,
                     },
@@ -564,7 +583,7 @@ pub fn work_model(
         }),
         SpreadMethod::Tiles | SpreadMethod::Sorted | SpreadMethod::Cells => {
             let p = p.min(m);
-            let b = method.bin_edge(p);
+            let b = method.bin_edge(p, m);
             let nb = m.div_ceil(b);
             let nbins = (nb * nb * nb) as f64;
             let cells = method == SpreadMethod::Cells;
@@ -641,8 +660,8 @@ pub fn work_model(
     let order = if sorted {
         bin_order(
             &first,
-            method.bin_edge(p.min(m)),
-            m.div_ceil(method.bin_edge(p.min(m))),
+            method.bin_edge(p.min(m), m),
+            m.div_ceil(method.bin_edge(p.min(m), m)),
         )
     } else {
         own
@@ -766,14 +785,17 @@ mod tests {
     /// the grid and a short last bin).
     #[test]
     fn the_output_driven_spreader_reaches_every_bin_that_reaches_it() {
-        let b = CELL_BIN;
-        for m in [8usize, 9, 12, 16, 20, 24, 30, 32, 40, 41, 64, 100] {
+        for (b, m) in [8usize, 9, 12, 16, 20, 24, 30, 32, 40, 41, 64, 100, 270, 480]
+            .into_iter()
+            .flat_map(|m| (CELL_BIN..=CELL_BIN_MAX).map(move |b| (b, m)))
+            .filter(|&(b, m)| m >= b)
+        {
             let nb = m.div_ceil(b);
             for p in 2..=24usize.min(m) {
                 let reach = SpreadMethod::reach(p, m, b, nb);
                 assert!(
                     reach < nb && reach <= 4,
-                    "m {m}, p {p}: reach {reach} of {nb}"
+                    "m {m}, b {b}, p {p}: reach {reach} of {nb}"
                 );
                 for f in 0..m {
                     for q in 0..p {
@@ -781,12 +803,37 @@ mod tests {
                         let offset = (c / b + nb - f / b) % nb;
                         assert!(
                             offset <= reach,
-                            "m {m}, p {p}: a window from {f} covers {c}, {offset} bins up, reach {reach}"
+                            "m {m}, b {b}, p {p}: a window from {f} covers {c}, {offset} bins up, reach {reach}"
                         );
                     }
                 }
             }
         }
+    }
+
+    /// The bin edge takes one near bin per axis where an edge of 8-10 divides the grid.
+    #[test]
+    fn the_output_driven_bins_reach_one_bin_where_they_can() {
+        for (p, m, want) in [
+            (10, 270, 9),
+            (10, 480, 10),
+            (9, 240, 8),
+            (6, 250, 10),
+            (9, 180, 9),
+        ] {
+            let b = cell_bin(p, m);
+            assert_eq!(b, want, "support {p}, grid {m}");
+            assert_eq!(
+                SpreadMethod::reach(p, m, b, m / b),
+                1,
+                "support {p}, grid {m}"
+            );
+        }
+        assert_eq!(
+            cell_bin(16, 324),
+            CELL_BIN,
+            "no edge of 8-10 covers a support of 16"
+        );
     }
 
     /// The tiles' nonzero cells against a brute-force count (a set of (bin, cell) per point's
@@ -795,7 +842,7 @@ mod tests {
     #[test]
     fn the_work_model_counts_the_tiles_cells() {
         let (l, m, p) = (7.0, 20usize, 5usize);
-        let b = SpreadMethod::Tiles.bin_edge(p);
+        let b = SpreadMethod::Tiles.bin_edge(p, m);
         let nb = m.div_ceil(b);
         let mut points: Vec<[f64; 3]> = (0..300)
             .map(|i| {

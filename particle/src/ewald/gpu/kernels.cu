@@ -194,10 +194,10 @@ extern "C" __global__ void bin_order(const int* start, int* perm, int nbins) {
     }
 }
 
-// Edge of spread_cells' bins (grid points): one block of 256 threads per bin of 8^3 cells, two
-// cells per thread; the points staged in chunks of CELL_CHUNK in shared memory (about 42 KB);
-// at most CELL_NEAR bins reach a bin (a reach of at most 4 per axis: ceil(23 / 8) + 1).
-#define CELL_BIN 8
+// spread_cells' bins: b^3 grid points, b = 8-10 (binned.rs cell_bin), one block of 256
+// threads per bin, CPT = 2-4 cells per thread; the points staged in chunks of CELL_CHUNK in
+// shared memory (about 42 KB); at most CELL_NEAR bins reach a bin (a reach of at most 4 per
+// axis: ceil(23 / 8) + 1).
 #define CELL_CHUNK 64
 #define CELL_NEAR 125
 
@@ -215,10 +215,10 @@ struct CellStage {
 // index, so only those reach it). Their points, taken as one list (the bins in a fixed order,
 // each bin's points in ascending order), are staged chunk by chunk; each cell sums them in
 // that order and is written once: no atomics, the same sum in every run.
-template <int NF>
+template <int NF, int CPT>
 __device__ void spread_cells_bin(const double* pts, const double* vals, const int* perm,
                                  const int* start, double* grid, int n, int m, int p, double l,
-                                 double h, double alpha, double norm, int nb, int reach,
+                                 double h, double alpha, double norm, int b, int nb, int reach,
                                  CellStage* st) {
     int k = blockIdx.x;
     int bin[3] = {k % nb, (k / nb) % nb, k / (nb * nb)};
@@ -236,15 +236,15 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
         st->at[0] = 0;
         for (int t = 0; t < near; ++t) st->at[t + 1] += st->at[t];
     }
-    int cell[2][3];
-    bool inside[2];
-    double acc[2][NF];
-    for (int cc = 0; cc < 2; ++cc) {
+    int cell[CPT][3];
+    bool inside[CPT];
+    double acc[CPT][NF];
+    for (int cc = 0; cc < CPT; ++cc) {
         int ci = threadIdx.x + cc * blockDim.x;
-        int local[3] = {ci % CELL_BIN, (ci / CELL_BIN) % CELL_BIN, ci / (CELL_BIN * CELL_BIN)};
-        inside[cc] = true;
+        int local[3] = {ci % b, (ci / b) % b, ci / (b * b)};
+        inside[cc] = ci < b * b * b;
         for (int d = 0; d < 3; ++d) {
-            cell[cc][d] = bin[d] * CELL_BIN + local[d];
+            cell[cc][d] = bin[d] * b + local[d];
             inside[cc] = inside[cc] && cell[cc][d] < m;
         }
         for (int c = 0; c < NF; ++c) acc[cc][c] = 0.0;
@@ -266,7 +266,7 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
             for (int c = 0; c < NF; ++c) st->v[j][c] = vals[(long long)c * n + i];
         }
         __syncthreads();
-        for (int cc = 0; cc < 2; ++cc) {
+        for (int cc = 0; cc < CPT; ++cc) {
             if (!inside[cc]) continue;
             for (int j = 0; j < cnt; ++j) {
                 int q[3];
@@ -284,29 +284,44 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
         }
     }
     long long m3 = (long long)m * m * m;
-    for (int cc = 0; cc < 2; ++cc) {
+    for (int cc = 0; cc < CPT; ++cc) {
         if (!inside[cc]) continue;
         long long g = ((long long)cell[cc][2] * m + cell[cc][1]) * m + cell[cc][0];
         for (int c = 0; c < NF; ++c) grid[c * m3 + g] = acc[cc][c];
     }
 }
 
+// The cells per thread of bins of edge b (at most 10: 1 000 cells, 4 per thread).
+template <int NF>
+__device__ void spread_cells_nf(const double* pts, const double* vals, const int* perm,
+                                const int* start, double* grid, int n, int m, int p, double l,
+                                double h, double alpha, double norm, int b, int nb, int reach,
+                                CellStage* st) {
+    int cells = b * b * b;
+    if (cells <= 512)
+        spread_cells_bin<NF, 2>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, st);
+    else if (cells <= 768)
+        spread_cells_bin<NF, 3>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, st);
+    else
+        spread_cells_bin<NF, 4>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, st);
+}
+
 // Output-driven spreading (no atomics; every grid value written): nf <= 6 fields of the points
-// sorted into bins of CELL_BIN^3 by bin_count with b = CELL_BIN; reach the bins below a bin
-// along each axis whose points can reach it (at most nb - 1, so that no bin is visited twice,
-// and at most 4).
+// sorted into bins of b^3 (8 <= b <= 10) by bin_count; reach the bins below a bin along each
+// axis whose points can reach it (at most nb - 1, so that no bin is visited twice, and at
+// most 4).
 extern "C" __global__ void spread_cells(const double* pts, const double* vals, const int* perm,
                                         const int* start, double* grid, int n, int nf, int m,
                                         int p, double l, double h, double alpha, double norm,
-                                        int nb, int reach) {
+                                        int b, int nb, int reach) {
     __shared__ CellStage st;
     switch (nf) {
-    case 1: spread_cells_bin<1>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
-    case 2: spread_cells_bin<2>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
-    case 3: spread_cells_bin<3>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
-    case 4: spread_cells_bin<4>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
-    case 5: spread_cells_bin<5>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
-    default: spread_cells_bin<6>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, nb, reach, &st); break;
+    case 1: spread_cells_nf<1>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, &st); break;
+    case 2: spread_cells_nf<2>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, &st); break;
+    case 3: spread_cells_nf<3>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, &st); break;
+    case 4: spread_cells_nf<4>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, &st); break;
+    case 5: spread_cells_nf<5>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, &st); break;
+    default: spread_cells_nf<6>(pts, vals, perm, start, grid, n, m, p, l, h, alpha, norm, b, nb, reach, &st); break;
     }
 }
 

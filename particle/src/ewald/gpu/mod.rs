@@ -29,7 +29,9 @@ mod resident;
 mod signatures;
 
 pub(crate) use binned::prefix_sum;
-pub use binned::{CELL_BIN, MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, work_model};
+pub use binned::{
+    CELL_BIN, CELL_BIN_MAX, MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, cell_bin, work_model,
+};
 pub(crate) use launch::Geometry;
 pub(crate) use resident::{RpyInputs, StressletInputs};
 

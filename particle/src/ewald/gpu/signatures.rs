@@ -100,6 +100,7 @@ motile_gpu::kernels! {
         h: f64,
         alpha: f64,
         norm: f64,
+        b: i32,
         nb: i32,
         reach: i32,
     }
