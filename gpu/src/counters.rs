@@ -27,6 +27,21 @@ pub struct Counters {
 }
 
 impl Counters {
+    /// Add `other`'s counts (another device's: a step on one device whose sums run on
+    /// another).
+    pub fn add(&mut self, other: &Counters) {
+        for (k, v) in &other.by_kernel {
+            *self.by_kernel.entry(k).or_insert(0) += v;
+        }
+        self.launches += other.launches;
+        self.forward += other.forward;
+        self.inverse += other.inverse;
+        self.uploads += other.uploads;
+        self.upload_bytes += other.upload_bytes;
+        self.downloads += other.downloads;
+        self.download_bytes += other.download_bytes;
+    }
+
     /// What was done after `before` (an earlier reading of the same device's counters).
     pub fn since(&self, before: &Counters) -> Counters {
         let by_kernel = self

@@ -9,7 +9,7 @@ use motile_meanfield::solver::grid::SpectralGrid;
 use motile_meanfield::solver::params::MeanFieldParams;
 use motile_meanfield::solver::rhs::MeanFieldRhs;
 use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
-use motile_particle::ewald::gpu::SpreadMethod;
+use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
@@ -161,6 +161,55 @@ pub(crate) fn counted_table() {
                 r.contact.iterations,
                 r.projections,
                 c.launches,
+                c.downloads,
+                c.download_bytes,
+                c.uploads,
+                c.upload_bytes
+            );
+        }
+    }
+    // The same levels with the flow summed on the device (what runs use): the stepper's and
+    // the sum's device together.
+    for level in ["dipole", "sbt-explicit"] {
+        let sum = || {
+            let gpu = GpuFourier::open(Backend::HostEmulation).expect("host emulation");
+            SpectralEwald::with_device(1e-4, gpu).expect("tolerance")
+        };
+        let mut mobility: Box<dyn Mobility> = match level {
+            "dipole" => Box::new(Dipole::new(Box::new(sum()), DEFAULT_DIAMETER)),
+            _ => Box::new(ExplicitSlender::new(
+                SlenderParams::default(),
+                Box::new(sum()),
+            )),
+        };
+        let mut d = DeviceStepper::new(
+            Backend::HostEmulation,
+            &rods,
+            ContactParams::default(),
+            &Vec::new(),
+        )
+        .expect("device stepper");
+        let counted = |d: &DeviceStepper, m: &mut dyn Mobility| {
+            let mut c = d.counters();
+            if let Some(s) = m.sum_counters() {
+                c.add(&s);
+            }
+            c
+        };
+        for k in 0..3 {
+            let before = counted(&d, mobility.as_mut());
+            let r = d
+                .step_with_resident_flow(0.02, mobility.as_mut())
+                .expect("device step");
+            let c = counted(&d, mobility.as_mut()).since(&before);
+            println!(
+                "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections) | {} | {} + {} | {} ({}) | {} ({}) |",
+                k + 1,
+                r.contact.iterations,
+                r.projections,
+                c.launches,
+                c.forward,
+                c.inverse,
                 c.downloads,
                 c.download_bytes,
                 c.uploads,

@@ -192,6 +192,11 @@ impl Mobility for Dipole {
     }
 
     #[cfg(feature = "gpu")]
+    fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
+        self.sum.resident().and_then(|s| s.device_counters())
+    }
+
+    #[cfg(feature = "gpu")]
     fn flows_on_device(&mut self) -> bool {
         self.shared.is_none() && self.sum.resident().is_some()
     }

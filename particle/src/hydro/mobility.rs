@@ -258,6 +258,13 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     /// Restore what [`Self::sum_state`] returned.
     fn set_sum_state(&mut self, _state: &[u32]) {}
 
+    /// What the device of this mobility's sum has been asked to do so far (`None` without a
+    /// sum on a device): for counting a resident step's work with its flow.
+    #[cfg(feature = "gpu")]
+    fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
+        None
+    }
+
     /// Whether [`Self::free_velocities_resident`] can run: the flow summed on the device the
     /// rods are on, without their round trip through the host.
     #[cfg(feature = "gpu")]

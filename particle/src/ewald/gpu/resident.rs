@@ -166,6 +166,11 @@ impl GpuFourier {
         })
     }
 
+    /// What the device has been asked to do so far.
+    pub(crate) fn counters(&self) -> motile_gpu::Counters {
+        self.dev.counters()
+    }
+
     /// Values onto the device.
     pub(crate) fn upload(&self, values: &[f64]) -> Result<Buffer, GpuError> {
         self.dev.upload(values)

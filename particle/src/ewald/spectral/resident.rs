@@ -216,3 +216,10 @@ impl SpectralEwald {
         Ok(u.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
     }
 }
+
+impl SpectralEwald {
+    /// What this sum's device has been asked to do so far (`None` for a sum on the CPU).
+    pub fn device_counters(&self) -> Option<motile_gpu::Counters> {
+        self.gpu.as_ref().map(|g| g.counters())
+    }
+}
