@@ -19,7 +19,7 @@ use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
-use motile_particle::hydro::mobility::{Mobility, RodVelocities};
+use motile_particle::hydro::mobility::{Mobility, RodVelocities, RodsOnDevice};
 use motile_particle::hydro::slender::SlenderParams;
 use motile_particle::model::geometry::{Vec3, axpy, min_image, norm, sub};
 use motile_particle::model::init::random_nonoverlapping;
@@ -80,7 +80,12 @@ fn check_free(
     let mut dev = on_device(level, backend, tol, method);
     assert!(dev.flows_on_device(), "{level} on a device sum flows there");
     let (v, w) = dev
-        .free_velocities_resident(&resident)
+        .free_velocities_resident(RodsOnDevice {
+            x: &resident.x,
+            q: &resident.q,
+            len: resident.len,
+            box_length: resident.box_length,
+        })
         .expect("a device path")
         .unwrap();
     let (v, w) = (

@@ -125,11 +125,12 @@ pub trait PeriodicStokes: Send + Sync + std::fmt::Debug {
     /// Restore what [`Self::adaptive_state`] returned (ignored if it does not fit).
     fn set_adaptive_state(&mut self, _state: &[u32]) {}
 
-    /// The sum whose points, values and results can stay on a device (a
-    /// [`crate::ewald::spectral::SpectralEwald`] with a device: its `*_resident` sums); `None`
-    /// for sums on the CPU.
+    /// This sum as `Any` where its points, values and results can stay on a device (a
+    /// `SpectralEwald` with a device: its `*_resident` sums), `None` for sums on the CPU;
+    /// `ewald::spectral::resident::resident_sum` turns it into the sum (this module stays below the
+    /// spectral one).
     #[cfg(feature = "gpu")]
-    fn resident(&mut self) -> Option<&mut crate::ewald::spectral::SpectralEwald> {
+    fn resident_any(&mut self) -> Option<&mut dyn std::any::Any> {
         None
     }
 }

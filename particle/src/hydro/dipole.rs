@@ -13,6 +13,8 @@
 
 use crate::ewald::periodic::{PeriodicStokes, StressletField};
 use crate::ewald::shared::SharedEwald;
+#[cfg(feature = "gpu")]
+use crate::ewald::spectral::resident::resident_sum;
 use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
 };
@@ -193,32 +195,32 @@ impl Mobility for Dipole {
 
     #[cfg(feature = "gpu")]
     fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
-        self.sum.resident().and_then(|s| s.device_counters())
+        resident_sum(self.sum.as_mut()).and_then(|s| s.device_counters())
     }
 
     #[cfg(feature = "gpu")]
     fn flows_on_device(&mut self) -> bool {
-        self.shared.is_none() && self.sum.resident().is_some()
+        self.shared.is_none() && resident_sum(self.sum.as_mut()).is_some()
     }
 
     #[cfg(feature = "gpu")]
     fn free_velocities_resident(
         &mut self,
-        rods: &crate::step::gpu::DeviceRods,
+        rods: crate::hydro::mobility::RodsOnDevice<'_>,
     ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
         if self.shared.is_some() {
             return None;
         }
         let sigma = stresslet_strength(self.diameter);
-        let sum = self.sum.resident()?;
+        let sum = resident_sum(self.sum.as_mut())?;
         let t = Instant::now();
         let device = |e: motile_gpu::GpuError| {
             MobilityError::Sum(crate::ewald::periodic::SumError::Device(e.to_string()))
         };
         let run = |sum: &mut crate::ewald::spectral::SpectralEwald| {
             let n = rods.len;
-            let p = sum.device_sum()?.rod_axes(&rods.q, n).map_err(device)?;
-            let field = sum.stresslets_resident(rods.box_length, (&rods.x, &p), sigma, n)?;
+            let p = sum.device_sum()?.rod_axes(rods.q, n).map_err(device)?;
+            let field = sum.stresslets_resident(rods.box_length, (rods.x, &p), sigma, n)?;
             let gpu = sum.device_sum()?;
             gpu.jeffery_velocities((&p, &field.u, &field.grad), n, SWIM_SPEED)
                 .map_err(device)

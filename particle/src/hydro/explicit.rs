@@ -12,6 +12,8 @@
 
 use crate::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use crate::ewald::shared::SharedEwald;
+#[cfg(feature = "gpu")]
+use crate::ewald::spectral::resident::resident_sum;
 use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
 };
@@ -234,18 +236,18 @@ impl Mobility for ExplicitSlender {
 
     #[cfg(feature = "gpu")]
     fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
-        self.sum.resident().and_then(|s| s.device_counters())
+        resident_sum(self.sum.as_mut()).and_then(|s| s.device_counters())
     }
 
     #[cfg(feature = "gpu")]
     fn flows_on_device(&mut self) -> bool {
-        self.shared.is_none() && self.sum.resident().is_some()
+        self.shared.is_none() && resident_sum(self.sum.as_mut()).is_some()
     }
 
     #[cfg(feature = "gpu")]
     fn free_velocities_resident(
         &mut self,
-        rods: &crate::step::gpu::DeviceRods,
+        rods: crate::hydro::mobility::RodsOnDevice<'_>,
     ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
         if self.shared.is_some() {
             return None;
@@ -253,7 +255,7 @@ impl Mobility for ExplicitSlender {
         let geometry = self.geometry(rods.box_length);
         let c = SWIM_SPEED / (2.0 * eta(self.diameter));
         let (s, w) = (self.s.clone(), self.w.clone());
-        let sum = self.sum.resident()?;
+        let sum = resident_sum(self.sum.as_mut())?;
         let t = Instant::now();
         let device = |e: motile_gpu::GpuError| {
             MobilityError::Sum(crate::ewald::periodic::SumError::Device(e.to_string()))
@@ -261,9 +263,9 @@ impl Mobility for ExplicitSlender {
         let run = |sum: &mut crate::ewald::spectral::SpectralEwald| {
             let n = rods.len;
             let gpu = sum.device_sum()?;
-            let p = gpu.rod_axes(&rods.q, n).map_err(device)?;
+            let p = gpu.rod_axes(rods.q, n).map_err(device)?;
             let (nodes, force, fields) = gpu
-                .node_values((&rods.x, &p), (&s, &w), n, c)
+                .node_values((rods.x, &p), (&s, &w), n, c)
                 .map_err(device)?;
             let u = sum.rpy_resident(&geometry, (&nodes, &force, &fields), n * s.len())?;
             drop((nodes, force, fields));

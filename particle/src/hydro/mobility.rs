@@ -279,10 +279,26 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     #[cfg(feature = "gpu")]
     fn free_velocities_resident(
         &mut self,
-        _rods: &crate::step::gpu::DeviceRods,
+        _rods: RodsOnDevice<'_>,
     ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
         None
     }
+}
+
+/// Rods resident on a device, as a mobility's flow on that device reads them: centres
+/// (triples, in `[0, L)^3`) and unit quaternions (`w, x, y, z`) of `len` rods in a box of side
+/// `box_length`.
+#[cfg(feature = "gpu")]
+#[derive(Clone, Copy, Debug)]
+pub struct RodsOnDevice<'a> {
+    /// Centres.
+    pub x: &'a motile_gpu::Buffer,
+    /// Quaternions.
+    pub q: &'a motile_gpu::Buffer,
+    /// How many rods.
+    pub len: usize,
+    /// The box side.
+    pub box_length: f64,
 }
 
 /// Free swimming with local slender-body drag (`hydrodynamics = "none"`).

@@ -24,6 +24,8 @@
 
 use crate::ewald::periodic::{PeriodicStokes, RpyGeometry, SumError};
 use crate::ewald::shared::SharedEwald;
+#[cfg(feature = "gpu")]
+use crate::ewald::spectral::resident::resident_sum;
 use crate::hydro::gmres::{GmresInfo, GmresParams, LinOp, gmres_shared};
 use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
@@ -207,7 +209,7 @@ impl P4<'_> {
                 // A sum on a device takes the products through its resident sum (the nodes
                 // uploaded once per solve, one download per product).
                 #[cfg(feature = "gpu")]
-                let on_device = match sum.resident() {
+                let on_device = match resident_sum(&mut **sum) {
                     Some(r) => Some((
                         r.rpy_via_device(&self.geometry, (self.points, &mut self.nodes), &forces)?,
                         r.last_report(),

@@ -27,8 +27,7 @@
 
 use crate::ewald::gpu::launch::Geometry;
 use crate::ewald::gpu::signatures::{
-    BinCount, BinOrder, BinScan, BinScatter, GatherSorted, ScanSpread, ScanTiles, SpreadCells,
-    SpreadSorted, SpreadTiles,
+    BinCount, BinOrder, BinScatter, GatherSorted, SpreadCells, SpreadSorted, SpreadTiles,
 };
 use motile_gpu::{Buffer, Device, GpuError, THREADS};
 
@@ -97,7 +96,7 @@ impl SpreadMethod {
     }
 
     /// Bin edge (grid cells) for support `p` on a grid of `m`.
-    fn bin_edge(self, p: usize, m: usize) -> usize {
+    pub(super) fn bin_edge(self, p: usize, m: usize) -> usize {
         match self {
             Self::Tiles => TILE + 1 - p,
             Self::Cells => cell_bin(p, m),
@@ -108,7 +107,7 @@ impl SpreadMethod {
     /// The bins below a bin, per axis, whose points' windows can reach it (support `p`, `nb`
     /// bins of `b` on a grid of `m`): `ceil((p - 1) / b)`, one more where the last bin is
     /// shorter than `b`, and at most `nb - 1` so that no bin is visited twice.
-    fn reach(p: usize, m: usize, b: usize, nb: usize) -> usize {
+    pub(super) fn reach(p: usize, m: usize, b: usize, nb: usize) -> usize {
         ((p - 1).div_ceil(b) + usize::from(!m.is_multiple_of(b))).min(nb - 1)
     }
 }
@@ -204,7 +203,7 @@ pub(crate) fn sort(
             },
         )?;
     }
-    prefix_sum(dev, &count, &mut start, nbins)?;
+    super::scan::prefix_sum(dev, &count, &mut start, nbins)?;
     // SAFETY: thread i < n reads bin[i] (< nbins), rank[i] and start[bin[i]] and writes
     // perm[start[bin] + rank] < start[bin + 1] <= n: the ranks of a bin are 0..count (the
     // atomic's old values) and the starts their prefix sums.
@@ -241,86 +240,6 @@ pub(crate) fn sort(
         perm,
         start,
     })
-}
-
-/// Counts up to which one block scans them alone ([`prefix_sum`]).
-pub(crate) const SCAN_ONE_BLOCK: usize = 1 << 16;
-
-/// `start[0..=n]`: the exclusive prefix sum of `count[0..n]`, the last value the total. Up to
-/// [`SCAN_ONE_BLOCK`] counts one block (`bin_scan`); more in three passes (`scan_tiles`, whose
-/// at most 16 384 tile sums `bin_scan` scans, then `scan_spread`): a single block over millions
-/// of cells took milliseconds. Integer sums: the same starts either way.
-pub(crate) fn prefix_sum(
-    dev: &Device,
-    count: &Buffer<i32>,
-    start: &mut Buffer<i32>,
-    n: usize,
-) -> Result<(), GpuError> {
-    assert_eq!(
-        THREADS, 256,
-        "bin_scan's shared array holds 256 partial sums"
-    );
-    check("counts", count, n)?;
-    check("starts", start, n + 1)?;
-    let ni = int(n, "counts")?;
-    if n <= SCAN_ONE_BLOCK {
-        // SAFETY: one block of THREADS = 256 threads (its shared array's size, asserted): each
-        // thread reads count[k] and writes start[k] for k in its chunk of 0..n, thread 0
-        // start[n] (n + 1 checked).
-        return unsafe {
-            dev.launch(
-                THREADS as usize,
-                BinScan {
-                    count,
-                    start,
-                    nbins: ni,
-                },
-            )
-        };
-    }
-    let tile = n.div_ceil(1 << 14).max(32);
-    let ntiles = n.div_ceil(tile);
-    let mut sums = dev.zeros::<i32>(ntiles)?;
-    let mut tile_start = dev.zeros::<i32>(ntiles + 1)?;
-    let ti = int(tile, "scan tile")?;
-    // SAFETY: thread t < ntiles reads count[t tile..min((t + 1) tile, n)] (n checked) and
-    // writes sums[t] (ntiles).
-    unsafe {
-        dev.launch(
-            ntiles,
-            ScanTiles {
-                count,
-                sums: &mut sums,
-                nbins: ni,
-                tile: ti,
-            },
-        )?;
-    }
-    // SAFETY: as above, over the ntiles sums into ntiles + 1 starts.
-    unsafe {
-        dev.launch(
-            THREADS as usize,
-            BinScan {
-                count: &sums,
-                start: &mut tile_start,
-                nbins: int(ntiles, "scan tiles")?,
-            },
-        )?;
-    }
-    // SAFETY: thread t < ntiles reads tile_start[t] (ntiles + 1) and count over its tile, and
-    // writes start over its tile, the last tile's thread start[n] (n + 1 checked).
-    unsafe {
-        dev.launch(
-            ntiles,
-            ScanSpread {
-                count,
-                tile_start: &tile_start,
-                start,
-                nbins: ni,
-                tile: ti,
-            },
-        )
-    }
 }
 
 /// Spread `nf` fields (field-major values of the `n` points) onto `nf` grids of `m^3` with the
@@ -508,276 +427,9 @@ pub(crate) fn gather(
     }
 }
 
-/// One phase's work in the work model ([`work_model`]): what its kernels request of global
-/// memory (loads and stores; atomics counted apart), their global and shared-memory atomic
-/// adds, and its kernel launches (FFTs counted as one launch each).
-#[derive(Clone, Debug, PartialEq)]
-pub struct PhaseWork {
-    /// The phase.
-    pub phase: &'static str,
-    /// Kernel launches.
-    pub launches: usize,
-    /// Global-memory bytes loaded and stored (without atomics).
-    pub bytes: f64,
-    /// Global-memory atomic adds (each a read-modify-write of 8 bytes at the cache).
-    pub global_atomics: f64,
-    /// Shared-memory atomic adds.
-    pub shared_atomics: f64,
-    /// Distinct 128-byte lines of the grids that the phase's warps (32 consecutive threads;
-    /// for the tiles, each bin's block) touch, summed over warps: the traffic at the cache
-    /// (times 128 bytes), where the order of the points shows. Estimated from up to 4096
-    /// warps evenly spaced; 0 for phases that do not touch the grids point by point.
-    pub grid_lines: f64,
-}
-
-/// The first grid index of a window along one axis, as `window_first` in `kernels.cu`.
-fn first_index(y: f64, l: f64, m: usize, p: usize) -> usize {
-    let h = l / m as f64;
-    let mut f = y - l * (y / l).floor();
-    if f >= l {
-        f = 0.0;
-    }
-    let i0 = -(0.5 * p as f64 - f / h).floor();
-    (i0 as i64).rem_euclid(m as i64) as usize
-}
-
-/// The work of one Fourier part on the device with `method`, counted from the points
-/// themselves: `nf` fields spread (3 for RPY forces, 6 for stresslets), three gathered (with
-/// the window's derivative if `gradient`), on an `m^3` grid with support `p`. The tiles'
-/// global atomics are their nonzero cells, found per bin from the points' supports. Phases:
-/// values up, the sort (once per generation: the products of a GMRES solve share it), spread,
-/// FFTs and the mode multiplication (each transform counted as two passes over its data, read
-/// and written), gather, values down.
-pub fn work_model(
-    points: &[[f64; 3]],
-    l: f64,
-    (m, p): (usize, usize),
-    (nf, gradient): (usize, bool),
-    method: SpreadMethod,
-) -> Vec<PhaseWork> {
-    let n = points.len() as f64;
-    let outputs = if gradient { 12.0 } else { 3.0 };
-    let (m3, p3) = ((m * m * m) as f64, (p * p * p) as f64);
-    let half = (m * m * (m / 2 + 1)) as f64 * 16.0; // one half spectrum's bytes
-    let phase = |phase, launches, bytes, global_atomics, shared_atomics| PhaseWork {
-        phase,
-        launches,
-        bytes,
-        global_atomics,
-        shared_atomics,
-        grid_lines: 0.0,
-    };
-    let first: Vec<[usize; 3]> = points
-        .iter()
-        .map(|y| std::array::from_fn(|d| first_index(y[d], l, m, p.min(m))))
-        .collect();
-    let own: Vec<usize> = (0..points.len()).collect();
-    let mut rows = vec![phase("values up", 0, 8.0 * nf as f64 * n, 0.0, 0.0)];
-    // The grid zeroed, spread; then per point its 3 coordinates and nf values.
-    let point_reads = n * 8.0 * (3.0 + nf as f64);
-    let zero = 8.0 * nf as f64 * m3;
-    match method {
-        SpreadMethod::Atomic => rows.push(PhaseWork {
-            grid_lines: warp_lines(&own, &first, m, p) * nf as f64,
-            ..phase("spread", 2, zero + point_reads, n * p3 * nf as f64, 0.0)
-        }),
-        SpreadMethod::Tiles | SpreadMethod::Sorted | SpreadMethod::Cells => {
-            let p = p.min(m);
-            let b = method.bin_edge(p, m);
-            let nb = m.div_ceil(b);
-            let nbins = (nb * nb * nb) as f64;
-            let cells = method == SpreadMethod::Cells;
-            // bin_count (points, bin and rank out, one int atomic each), bin_scan (counts in,
-            // starts out), bin_scatter (bin, rank, start in, perm out), buffers zeroed; for the
-            // cells, bin_order (starts in, perm read and written).
-            rows.push(phase(
-                "sort",
-                4 + usize::from(cells),
-                n * 24.0
-                    + n * 8.0
-                    + 8.0 * nbins
-                    + n * 12.0
-                    + n * 4.0
-                    + 4.0 * nbins
-                    + if cells { 8.0 * n + 8.0 * nbins } else { 0.0 },
-                n,
-                0.0,
-            ));
-            let order = bin_order(&first, b, nb);
-            if cells {
-                // Each point staged by the (reach + 1)^3 blocks it can reach (its index, its
-                // coordinates and values), each bin's starts read by as many; the grid written
-                // once (a warp's 32 cells: 4 rows of 8), not zeroed.
-                let loads = (SpreadMethod::reach(p, m, b, nb) + 1).pow(3) as f64;
-                rows.push(PhaseWork {
-                    grid_lines: nf as f64 * m3 / 8.0,
-                    ..phase(
-                        "spread",
-                        1,
-                        loads * (point_reads + 4.0 * n + 8.0 * nbins) + 8.0 * nf as f64 * m3,
-                        0.0,
-                        0.0,
-                    )
-                });
-            } else if method == SpreadMethod::Sorted {
-                rows.push(PhaseWork {
-                    grid_lines: warp_lines(&order, &first, m, p) * nf as f64,
-                    ..phase(
-                        "spread",
-                        2,
-                        zero + point_reads + 4.0 * n,
-                        n * p3 * nf as f64,
-                        0.0,
-                    )
-                });
-            } else {
-                let passes = nf.div_ceil(3);
-                let (cells, lines) = tile_cells(&first, m, p, b, nb);
-                rows.push(PhaseWork {
-                    grid_lines: lines as f64 * nf as f64,
-                    ..phase(
-                        "spread",
-                        1 + passes,
-                        zero + point_reads + passes as f64 * (4.0 * n + 8.0 * nbins),
-                        cells as f64 * nf as f64,
-                        n * p3 * nf as f64,
-                    )
-                });
-            }
-        }
-    }
-    // Forward transforms of nf fields, the mode multiplication (nf spectra in, 3 out), the
-    // inverse transform of 3.
-    let fft = |fields: f64| 2.0 * fields * (8.0 * m3 + half);
-    rows.push(phase(
-        "FFTs and modes",
-        3,
-        fft(nf as f64) + half * (nf as f64 + 3.0) + fft(3.0),
-        0.0,
-        0.0,
-    ));
-    let sorted = method != SpreadMethod::Atomic;
-    let order = if sorted {
-        bin_order(
-            &first,
-            method.bin_edge(p.min(m), m),
-            m.div_ceil(method.bin_edge(p.min(m), m)),
-        )
-    } else {
-        own
-    };
-    let gather_lines = warp_lines(&order, &first, m, p) * 3.0;
-    rows.push(PhaseWork {
-        grid_lines: gather_lines,
-        ..phase(
-            "gather",
-            2,
-            8.0 * outputs * n // zeroed output
-            + n * 24.0
-            + if sorted { 4.0 * n } else { 0.0 }
-            + n * p3 * 3.0 * 8.0
-            + 8.0 * outputs * n,
-            0.0,
-            0.0,
-        )
-    });
-    rows.push(phase("values down", 0, 8.0 * outputs * n, 0.0, 0.0));
-    rows
-}
-
-/// The points in bin order (by bin, then by index), as the sort leaves them up to the order
-/// within a bin.
-fn bin_order(first: &[[usize; 3]], b: usize, nb: usize) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..first.len()).collect();
-    order.sort_by_key(|&i| {
-        let f = &first[i];
-        (f[2] / b * nb + f[1] / b) * nb + f[0] / b
-    });
-    order
-}
-
-/// Distinct 128-byte grid lines (16 doubles along x; one field) touched by the supports of
-/// each warp's 32 points in `order`, summed over warps (from up to 4096 warps evenly spaced,
-/// scaled to all).
-fn warp_lines(order: &[usize], first: &[[usize; 3]], m: usize, p: usize) -> f64 {
-    let p = p.min(m);
-    let warps = order.len().div_ceil(32);
-    let sample = warps.min(4096);
-    let mut lines = Vec::new();
-    let mut total = 0usize;
-    for k in 0..sample {
-        let w = k * warps / sample;
-        lines.clear();
-        for &i in &order[32 * w..(32 * w + 32).min(order.len())] {
-            let f = &first[i];
-            for qz in 0..p {
-                let z = (f[2] + qz) % m;
-                for qy in 0..p {
-                    let y = (f[1] + qy) % m;
-                    for qx in [0, p - 1] {
-                        lines.push((z * m + y) * m.div_ceil(16) + (f[0] + qx) % m / 16);
-                    }
-                    // A support wider than a line spans the ones between too.
-                    let (a, e) = (f[0] / 16, (f[0] + p - 1) / 16);
-                    for x in a + 1..e {
-                        lines.push((z * m + y) * m.div_ceil(16) + x % m.div_ceil(16));
-                    }
-                }
-            }
-        }
-        lines.sort_unstable();
-        lines.dedup();
-        total += lines.len();
-    }
-    total as f64 * warps as f64 / sample.max(1) as f64
-}
-
-/// The tiles' nonzero cells over all bins (per bin, the union of its points' supports in the
-/// bin's tile, as rows of bits), and the distinct grid lines (16 doubles along x, one field)
-/// those cells lie on.
-fn tile_cells(first: &[[usize; 3]], m: usize, p: usize, b: usize, nb: usize) -> (usize, usize) {
-    let bin = |f: &[usize; 3]| (f[2] / b * nb + f[1] / b) * nb + f[0] / b;
-    let order = bin_order(first, b, nb);
-    let (mut cells, mut lines) = (0, 0);
-    let mut rows = vec![0u64; TILE * TILE];
-    let mut k = 0;
-    let mut touched = Vec::new();
-    while k < order.len() {
-        let this = bin(&first[order[k]]);
-        rows.fill(0);
-        while k < order.len() && bin(&first[order[k]]) == this {
-            let f = &first[order[k]];
-            let o = [f[0] % b, f[1] % b, f[2] % b];
-            let mask = ((1u64 << p) - 1) << o[0];
-            for qz in 0..p {
-                for qy in 0..p {
-                    rows[(o[2] + qz) * TILE + o[1] + qy] |= mask;
-                }
-            }
-            k += 1;
-        }
-        cells += rows.iter().map(|r| r.count_ones() as usize).sum::<usize>();
-        let origin = [this % nb * b, this / nb % nb * b, this / (nb * nb) * b];
-        touched.clear();
-        for (r, &bits) in rows.iter().enumerate() {
-            let (z, y) = ((origin[2] + r / TILE) % m, (origin[1] + r % TILE) % m);
-            for t in 0..TILE {
-                if bits >> t & 1 == 1 {
-                    touched.push(((z * m + y) * m.div_ceil(16)) + (origin[0] + t) % m / 16);
-                }
-            }
-        }
-        touched.sort_unstable();
-        touched.dedup();
-        lines += touched.len();
-    }
-    (cells, lines)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::collections::HashSet;
 
     /// Every bin whose points' windows cover a cell of a bin lies at an offset 0..=reach below
     /// it (modulo the bins per axis), and no offset repeats a bin: by brute force over every
@@ -833,51 +485,6 @@ mod tests {
             cell_bin(16, 324),
             CELL_BIN,
             "no edge of 8-10 covers a support of 16"
-        );
-    }
-
-    /// The tiles' nonzero cells against a brute-force count (a set of (bin, cell) per point's
-    /// support), with points on bin and box boundaries; the atomic spreader's atomics are
-    /// `n p^3 nf`.
-    #[test]
-    fn the_work_model_counts_the_tiles_cells() {
-        let (l, m, p) = (7.0, 20usize, 5usize);
-        let b = SpreadMethod::Tiles.bin_edge(p, m);
-        let nb = m.div_ceil(b);
-        let mut points: Vec<[f64; 3]> = (0..300)
-            .map(|i| {
-                let x = |k: usize| ((i * k * 7919) % 10007) as f64 / 10007.0 * l;
-                [x(3), x(5), x(11)]
-            })
-            .collect();
-        points.push([0.0, 0.0, 0.0]);
-        points.push([l - 1e-12, 2.8, 3.5]);
-        let mut set = HashSet::new();
-        for y in &points {
-            let f: [usize; 3] = std::array::from_fn(|d| first_index(y[d], l, m, p));
-            let bin = (f[2] / b * nb + f[1] / b) * nb + f[0] / b;
-            for qz in 0..p {
-                for qy in 0..p {
-                    for qx in 0..p {
-                        set.insert((bin, f[0] % b + qx, f[1] % b + qy, f[2] % b + qz));
-                    }
-                }
-            }
-        }
-        let first: Vec<[usize; 3]> = points
-            .iter()
-            .map(|y| std::array::from_fn(|d| first_index(y[d], l, m, p)))
-            .collect();
-        assert_eq!(tile_cells(&first, m, p, b, nb).0, set.len());
-        let rows = work_model(&points, l, (m, p), (3, false), SpreadMethod::Atomic);
-        let spread = rows.iter().find(|r| r.phase == "spread").unwrap();
-        assert_eq!(spread.global_atomics, (points.len() * p * p * p * 3) as f64);
-        let rows = work_model(&points, l, (m, p), (6, true), SpreadMethod::Tiles);
-        let spread = rows.iter().find(|r| r.phase == "spread").unwrap();
-        assert_eq!(spread.global_atomics, (set.len() * 6) as f64);
-        assert_eq!(
-            spread.launches, 3,
-            "the grid zeroed, two passes of three fields"
         );
     }
 }

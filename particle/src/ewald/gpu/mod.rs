@@ -25,15 +25,15 @@
 
 mod binned;
 mod launch;
-mod resident;
+pub(crate) mod resident;
+mod scan;
 mod signatures;
+mod work;
 
-pub(crate) use binned::prefix_sum;
-pub use binned::{
-    CELL_BIN, CELL_BIN_MAX, MAX_TILE_SUPPORT, PhaseWork, SpreadMethod, TILE, cell_bin, work_model,
-};
+pub use binned::{CELL_BIN, CELL_BIN_MAX, MAX_TILE_SUPPORT, SpreadMethod, TILE, cell_bin};
 pub(crate) use launch::Geometry;
-pub(crate) use resident::{RpyInputs, StressletInputs};
+pub(crate) use scan::prefix_sum;
+pub use work::{PhaseWork, work_model};
 
 use crate::ewald::gpu::signatures::KERNELS;
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};

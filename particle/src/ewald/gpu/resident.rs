@@ -16,7 +16,6 @@ use super::signatures::{
     PutRows, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble, StressletValues, TakeRows,
 };
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
-use crate::ewald::spectral::estimates::ESTIMATE_CHUNK;
 use motile_gpu::{Buffer, GpuError, kernel_int as int};
 
 /// The point cell list on the device: positions wrapped and in cell order, each one's group,
@@ -38,8 +37,8 @@ pub(crate) struct ResidentStresslets {
     /// the viscosity.
     pub(crate) u: Buffer,
     pub(crate) grad: Buffer,
-    /// The estimate's reductions per output (velocity, gradient), the chunks joined.
-    pub(crate) reductions: [[f64; 4]; 2],
+    /// The estimate's reductions per output (velocity, gradient) and chunk.
+    pub(crate) reductions: [Vec<[f64; 4]>; 2],
 }
 
 /// What a resident RPY sum needs besides its points: the real-space table, cutoff and
@@ -53,6 +52,8 @@ pub(crate) struct RpyInputs<'a> {
     pub(crate) group: usize,
     pub(crate) mu: f64,
     pub(crate) weights: [f64; 3],
+    /// Points per chunk of the error model's reductions.
+    pub(crate) chunk: usize,
 }
 
 /// What a resident stresslet sum needs besides its points: the real-space table, cutoff and
@@ -66,6 +67,8 @@ pub(crate) struct StressletInputs<'a> {
     pub(crate) own_c: f64,
     pub(crate) mu: f64,
     pub(crate) weights: [[f64; 3]; 2],
+    /// Points per chunk of the error model's reductions.
+    pub(crate) chunk: usize,
 }
 
 impl GpuFourier {
@@ -116,7 +119,7 @@ impl GpuFourier {
                 },
             )?;
         }
-        super::binned::prefix_sum(dev, &count, &mut start, ncells)?;
+        super::scan::prefix_sum(dev, &count, &mut start, ncells)?;
         // SAFETY: thread i < npts reads cell[i] < ncells, rank[i], start[cell] and writes
         // members[start[cell] + rank] < start[cell + 1] <= npts (ranks are 0..count).
         unsafe {
@@ -386,11 +389,13 @@ impl GpuFourier {
                 },
             )?;
         }
-        let reductions = self.estimate_reductions(&parts, n, &inp.weights)?;
+        let mut reductions = self.estimate_reductions(&parts, n, &inp.weights, inp.chunk)?;
+        let g = reductions.pop().expect("two outputs");
+        let v = reductions.pop().expect("two outputs");
         Ok(ResidentStresslets {
             u,
             grad,
-            reductions: [reductions[0], reductions[1]],
+            reductions: [v, g],
         })
     }
 
@@ -486,7 +491,7 @@ impl GpuFourier {
         inp: &RpyInputs<'_>,
         (pts, force, fields): (&Buffer, &Buffer, &Buffer),
         n: usize,
-    ) -> Result<(Buffer, [f64; 4]), GpuError> {
+    ) -> Result<(Buffer, Vec<[f64; 4]>), GpuError> {
         let ni = int(n, "points")?;
         int(4 * n, "4 x points")?;
         check_len("points", pts, 3 * n)?;
@@ -564,22 +569,24 @@ impl GpuFourier {
                 },
             )?;
         }
-        let reductions = self.estimate_reductions(&parts, n, &[inp.weights])?;
-        Ok((u, reductions[0]))
+        let mut reductions = self.estimate_reductions(&parts, n, &[inp.weights], inp.chunk)?;
+        Ok((u, reductions.pop().expect("one output")))
     }
 
-    /// The error model's reductions ([`crate::ewald::spectral::estimates::estimate_parts`]) of
-    /// `weights.len()` outputs over `n` points from `parts` (per point and output: weighted
-    /// strengths, squared output), in the CPU's chunks, joined in chunk order.
+    /// The error model's reductions (the CPU's `estimate_parts`) of `weights.len()` outputs
+    /// over `n` points from `parts` (per point and output: weighted strengths, squared
+    /// output), per chunk of `chunk` points in order: for each output, each chunk's
+    /// `[max, sum, max, sum]`.
     fn estimate_reductions(
         &self,
         parts: &Buffer,
         n: usize,
         weights: &[[f64; 3]],
-    ) -> Result<Vec<[f64; 4]>, GpuError> {
+        chunk: usize,
+    ) -> Result<Vec<Vec<[f64; 4]>>, GpuError> {
         let nout = weights.len();
         check_len("estimate inputs", parts, 2 * nout * n)?;
-        let nchunks = n.div_ceil(ESTIMATE_CHUNK).max(1);
+        let nchunks = n.div_ceil(chunk).max(1);
         let dev = &self.dev;
         let w = dev.upload(weights.as_flattened())?;
         let mut out = dev.zeros::<f64>(4 * nout * nchunks)?;
@@ -595,20 +602,19 @@ impl GpuFourier {
                     out: &mut out,
                     n: int(n, "points")?,
                     nout: int(nout, "outputs")?,
-                    chunk: int(ESTIMATE_CHUNK, "chunk")?,
+                    chunk: int(chunk, "chunk")?,
                 },
             )?;
         }
         let chunks = dev.download(&out)?;
         Ok((0..nout)
             .map(|o| {
-                let per: Vec<[f64; 4]> = (0..n.div_ceil(ESTIMATE_CHUNK))
+                (0..n.div_ceil(chunk))
                     .map(|c| {
                         let at = 4 * (nout * c + o);
                         [chunks[at], chunks[at + 1], chunks[at + 2], chunks[at + 3]]
                     })
-                    .collect();
-                crate::ewald::spectral::estimates::combine_chunks(per.iter())
+                    .collect()
             })
             .collect())
     }
@@ -617,7 +623,7 @@ impl GpuFourier {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ewald::gpu::binned::SCAN_ONE_BLOCK;
+    use crate::ewald::gpu::scan::SCAN_ONE_BLOCK;
     use crate::ewald::point_cells::PointCells;
     use crate::model::geometry::Vec3;
     use motile_gpu::Backend;

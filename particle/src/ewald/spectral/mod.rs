@@ -44,10 +44,7 @@ pub(crate) mod estimates;
 pub(crate) mod real_space;
 pub(crate) mod refinement;
 #[cfg(feature = "gpu")]
-mod resident;
-
-#[cfg(feature = "gpu")]
-pub use resident::ResidentField;
+pub mod resident;
 
 use crate::ewald::grid::{GaussianGrid, GridPoints};
 #[cfg(feature = "gpu")]
@@ -589,7 +586,7 @@ impl PeriodicStokes for SpectralEwald {
     }
 
     #[cfg(feature = "gpu")]
-    fn resident(&mut self) -> Option<&mut SpectralEwald> {
-        self.gpu.is_some().then_some(self)
+    fn resident_any(&mut self) -> Option<&mut dyn std::any::Any> {
+        if self.gpu.is_some() { Some(self) } else { None }
     }
 }

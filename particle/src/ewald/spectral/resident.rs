@@ -3,9 +3,11 @@
 //! attempt run by [`crate::ewald::gpu::GpuFourier`]'s resident sums, the host reading back
 //! only the error model's reductions (a few numbers per 4 096 points).
 
-use super::estimates::{estimate_from, estimate_weights, stresslet_estimates_from};
+use super::estimates::{
+    ESTIMATE_CHUNK, combine_chunks, estimate_from, estimate_weights, stresslet_estimates_from,
+};
 use super::{SpectralEwald, SumTiming, check_params};
-use crate::ewald::gpu::{RpyInputs, StressletInputs};
+use crate::ewald::gpu::resident::{RpyInputs, StressletInputs};
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use crate::ewald::params::{
     ERROR_MODEL_RANGE, EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput,
@@ -71,6 +73,7 @@ impl SpectralEwald {
                 own_c: sigma * PI.sqrt() * xi * xi * xi / (2.0 * PI * PI),
                 mu: VISCOSITY,
                 weights: outputs.map(|o| estimate_weights(o, (scale(o), internal))),
+                chunk: ESTIMATE_CHUNK,
             };
             let geo = Self::device_geometry(&prm, l);
             let generation = self.generation;
@@ -80,7 +83,8 @@ impl SpectralEwald {
             let res = gpu
                 .stresslet_resident(generation, &geo, &inputs, (x, p), n)
                 .map_err(|e| SumError::Device(e.to_string()))?;
-            let (estimates, ratio) = stresslet_estimates_from(res.reductions, n, floor, self.tol);
+            let joined = res.reductions.each_ref().map(|r| combine_chunks(r.iter()));
+            let (estimates, ratio) = stresslet_estimates_from(joined, n, floor, self.tol);
             self.timing = SumTiming {
                 fourier: t0.elapsed().as_secs_f64(),
                 ..SumTiming::default()
@@ -148,6 +152,7 @@ impl SpectralEwald {
                 group: geometry.group,
                 mu: VISCOSITY,
                 weights: estimate_weights(output, (scale, internal)),
+                chunk: ESTIMATE_CHUNK,
             };
             let geo = Self::device_geometry(&prm, l);
             let generation = self.generation;
@@ -157,7 +162,7 @@ impl SpectralEwald {
             let (u, reductions) = gpu
                 .rpy_resident(generation, &geo, &inputs, (pts, force, fields), n)
                 .map_err(|e| SumError::Device(e.to_string()))?;
-            let est = estimate_from(output, reductions, n, 0.0);
+            let est = estimate_from(output, combine_chunks(reductions.iter()), n, 0.0);
             let ratio = est.max_relative.max(est.l2_relative) / self.tol;
             self.timing = SumTiming {
                 fourier: t0.elapsed().as_secs_f64(),
@@ -222,4 +227,12 @@ impl SpectralEwald {
     pub fn device_counters(&self) -> Option<motile_gpu::Counters> {
         self.gpu.as_ref().map(|g| g.counters())
     }
+}
+
+/// The sum behind `sum` where it can keep its points, values and results on a device (a
+/// [`SpectralEwald`] with a device), else `None`.
+pub fn resident_sum(
+    sum: &mut dyn crate::ewald::periodic::PeriodicStokes,
+) -> Option<&mut SpectralEwald> {
+    sum.resident_any()?.downcast_mut::<SpectralEwald>()
 }

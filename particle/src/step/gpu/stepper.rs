@@ -272,7 +272,13 @@ impl DeviceStepper {
         dt: f64,
         mobility: &mut dyn Mobility,
     ) -> Result<StepReport, StepError> {
-        let Some(free) = mobility.free_velocities_resident(&self.rods) else {
+        let rods = crate::hydro::mobility::RodsOnDevice {
+            x: &self.rods.x,
+            q: &self.rods.q,
+            len: self.rods.len,
+            box_length: self.rods.box_length,
+        };
+        let Some(free) = mobility.free_velocities_resident(rods) else {
             return Err(StepError::Device(format!(
                 "the {} mobility has no flow on the device",
                 mobility.name()
