@@ -16,6 +16,7 @@
 
 use motile_gpu::Backend;
 use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
+use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
@@ -192,6 +193,36 @@ fn check_steps(level: &str, backend: Backend, rods: &RodSet) {
     );
 }
 
+/// A sum of host values after a resident sum of other points with the same parameters gives
+/// the bits it gave before: no device cache made for the resident sum's points (their bins,
+/// their generation) is taken for the host's points.
+fn check_caches(backend: Backend) {
+    let mut gpu = GpuFourier::open(backend).unwrap();
+    gpu.set_spread_method(Some(SpreadMethod::Sorted));
+    let mut sum = SpectralEwald::with_device(1e-4, gpu).unwrap();
+    let l = 10.0;
+    let few = random_nonoverlapping(300, l, DEFAULT_DIAMETER, 5, 1_000_000).unwrap();
+    let many = random_nonoverlapping(600, l, DEFAULT_DIAMETER, 6, 1_000_000).unwrap();
+    let geometry = RpyGeometry {
+        box_length: l,
+        radius: 0.1,
+        group: 1,
+    };
+    let forces = |r: &RodSet| r.orientations();
+    let first = sum.rpy(&geometry, &few.x, &forces(&few)).unwrap();
+    sum.fixed = sum.last_params();
+    let other = sum
+        .rpy_via_device(&geometry, (&many.x, &mut None), &forces(&many))
+        .unwrap();
+    assert_eq!(other.len(), many.len());
+    let again = sum.rpy(&geometry, &few.x, &forces(&few)).unwrap();
+    let differ = first.iter().zip(&again).filter(|(a, b)| a != b).count();
+    assert_eq!(
+        differ, 0,
+        "a host sum after a resident sum of 600 other points: {differ} of 300 velocities changed"
+    );
+}
+
 fn cases() -> Vec<RodSet> {
     vec![
         // Dense (contacts every step) and dilute with a box of many cells.
@@ -220,6 +251,7 @@ fn resident_flow_matches_the_cpu_on_the_host_emulation() {
         check_steps(level, emu, &rods[0]);
     }
     check_free("dipole", emu, &rods[1], 1e-4, None);
+    check_caches(emu);
 }
 
 #[test]

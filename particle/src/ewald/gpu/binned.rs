@@ -121,6 +121,8 @@ pub(crate) struct Bins {
     pub(crate) key: (usize, usize, usize),
     /// Bins per axis.
     nb: usize,
+    /// How many points were sorted.
+    pub(crate) n: usize,
     /// Points in bin order.
     perm: Buffer<i32>,
     /// Start of each bin in `perm` (`nb^3 + 1` values).
@@ -234,6 +236,7 @@ pub(crate) fn sort(
         }
     }
     Ok(Bins {
+        n,
         method,
         key: (geo.m, p, b),
         nb,

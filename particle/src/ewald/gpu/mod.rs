@@ -211,6 +211,7 @@ impl GpuFourier {
         match self.bins.take() {
             Some((g, b))
                 if g == generation
+                    && b.n == n
                     && b.method == method
                     && b.key.0 == geo.m
                     && b.key.1 == geo.window.p =>

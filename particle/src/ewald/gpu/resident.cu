@@ -12,7 +12,7 @@ __device__ double wrap_coordinate(double c, double l) {
 }
 
 // Point i's wrapped position, its cell (nc per axis of side L / nc; index (z nc + y) nc + x,
-// each clamped to nc - 1 as PointCells::build) and its rank among the cell's points (the
+// each clamped to 0..nc - 1 as PointCells::build) and its rank among the cell's points (the
 // counts' old value; counts zeroed by the caller).
 extern "C" __global__ void point_cell(const double* y, double* wrapped, int* cell, int* rank,
                                       int* count, int n, int nc, double l) {
@@ -24,6 +24,7 @@ extern "C" __global__ void point_cell(const double* y, double* wrapped, int* cel
         double w = wrap_coordinate(y[3 * i + d], l);
         wrapped[3 * i + d] = w;
         int c = (int)(w * scale);
+        if (c < 0) c = 0; // a coordinate that is not finite (the CPU's `as usize` saturates too)
         if (c > nc - 1) c = nc - 1;
         k = k * nc + c;
     }

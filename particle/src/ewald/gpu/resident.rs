@@ -102,8 +102,9 @@ impl GpuFourier {
         let mut start = dev.zeros::<i32>(ncells + 1)?;
         let mut members = dev.zeros::<i32>(npts)?;
         // SAFETY: thread i < npts reads y[3 i..3 i + 3] (checked), writes wrapped there (3 n),
-        // cell[i], rank[i] (n) and adds to count[k]: each axis index is clamped to 0..nc (a
-        // wrapped coordinate is in [0, L), so its truncation is >= 0), so k < nc^3 (allocated).
+        // cell[i], rank[i] (n) and adds to count[k]: each axis index is clamped to 0..nc in the
+        // kernel (both ends: a coordinate that is not finite truncates to anything), so
+        // k < nc^3 (allocated).
         unsafe {
             dev.launch(
                 npts,

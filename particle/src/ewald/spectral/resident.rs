@@ -59,6 +59,10 @@ impl SpectralEwald {
                 // The host grid was for other parameters: the next host sum builds its own.
                 self.grid = None;
             }
+            // The host sums' prepared points (and the generation they were made under) are
+            // not this sum's: the next host sum prepares afresh under a new generation, so no
+            // device cache of this sum's points (bins) is taken for its.
+            self.prepared = None;
             self.last = Some(prm);
             self.generation += 1;
             let t0 = Instant::now();
@@ -139,6 +143,7 @@ impl SpectralEwald {
             if self.last != Some(prm) {
                 self.grid = None;
             }
+            self.prepared = None;
             self.last = Some(prm);
             self.generation += 1;
             let t0 = Instant::now();
