@@ -113,6 +113,19 @@ fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
             "RPY contract: {max:e}, {l2:e} at {tol:e}"
         );
         assert!(largest(&vectors(&ud)) > 0.0, "a flow");
+        // The resident product (points, forces and velocities on the device) against the
+        // direct sum too.
+        let ur = dev.rpy_via_device(&geo, (&y, &mut None), &f).unwrap();
+        let (max, l2) = errors(&vectors(&ur), &vectors(&exact), 0.0);
+        rows.push(format!(
+            "RPY resident, tol {tol:.0e}: vs the direct sum max-relative {:.2} tol, L2 {:.2} tol",
+            max / tol,
+            l2 / tol
+        ));
+        assert!(
+            max <= tol && l2 <= tol && dev.last_report().unwrap().met,
+            "resident RPY contract: {max:e}, {l2:e} at {tol:e}"
+        );
     }
     // 60 point stresslets (the dipole level's sources) in a box of 6.
     let l = 6.0;
@@ -158,6 +171,43 @@ fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
             dev.last_report().unwrap().met,
             "the device sum met its estimate"
         );
+        // The resident sum (centres, axes, velocities and gradients on the device), both
+        // outputs against the direct sum.
+        let (xb, pb) = (
+            dev.upload(x.as_flattened()).unwrap(),
+            dev.upload(p.as_flattened()).unwrap(),
+        );
+        let field = dev
+            .stresslets_resident(l, (&xb, &pb), SIGMA, x.len())
+            .unwrap();
+        let ru: Vec<Vec<f64>> = dev
+            .download(&field.u)
+            .unwrap()
+            .chunks(3)
+            .map(<[f64]>::to_vec)
+            .collect();
+        let rg: Vec<Vec<f64>> = dev
+            .download(&field.grad)
+            .unwrap()
+            .chunks(9)
+            .map(<[f64]>::to_vec)
+            .collect();
+        let ru_err = errors(&ru, &vectors(&exact.u), floor(2));
+        let rg_err = errors(&rg, &matrices(&exact.grad), floor(3));
+        rows.push(format!(
+            "stresslets resident, tol {tol:.0e}: vs the direct sum velocity {:.2} / {:.2} tol, \
+             gradient {:.2} / {:.2} tol",
+            ru_err.0 / tol,
+            ru_err.1 / tol,
+            rg_err.0 / tol,
+            rg_err.1 / tol
+        ));
+        for (what, (max, l2)) in [("velocity", ru_err), ("gradient", rg_err)] {
+            assert!(
+                max <= tol && l2 <= tol,
+                "resident stresslet {what} contract: {max:e}, {l2:e} at {tol:e}"
+            );
+        }
     }
     rows
 }

@@ -208,29 +208,24 @@ impl Mobility for Dipole {
         &mut self,
         rods: crate::hydro::mobility::RodsOnDevice<'_>,
     ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
-        if self.shared.is_some() {
-            return None;
-        }
+        use crate::hydro::mobility::device_error;
         let sigma = stresslet_strength(self.diameter);
-        let sum = resident_sum(self.sum.as_mut())?;
-        let t = Instant::now();
-        let device = |e: motile_gpu::GpuError| {
-            MobilityError::Sum(crate::ewald::periodic::SumError::Device(e.to_string()))
-        };
-        let run = |sum: &mut crate::ewald::spectral::SpectralEwald| {
-            let n = rods.len;
-            let p = sum.device_sum()?.rod_axes(rods.q, n).map_err(device)?;
-            let field = sum.stresslets_resident(rods.box_length, (rods.x, &p), sigma, n)?;
-            let gpu = sum.device_sum()?;
-            gpu.jeffery_velocities((&p, &field.u, &field.grad), n, SWIM_SPEED)
-                .map_err(device)
-        };
-        let out = run(sum);
-        self.report = HydroReport {
-            seconds_sums: t.elapsed().as_secs_f64(),
-            ..HydroReport::default()
-        };
-        self.report.add_sum(self.sum.last_report());
-        Some(out)
+        let shared = self.shared.is_some();
+        crate::hydro::mobility::on_resident_sum(
+            self.sum.as_mut(),
+            shared,
+            &mut self.report,
+            |sum| {
+                let n = rods.len;
+                let p = sum
+                    .device_sum()?
+                    .rod_axes(rods.q, n)
+                    .map_err(device_error)?;
+                let field = sum.stresslets_resident(rods.box_length, (rods.x, &p), sigma, n)?;
+                let gpu = sum.device_sum()?;
+                gpu.jeffery_velocities((&p, &field.u, &field.grad), n, SWIM_SPEED)
+                    .map_err(device_error)
+            },
+        )
     }
 }

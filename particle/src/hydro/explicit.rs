@@ -249,36 +249,28 @@ impl Mobility for ExplicitSlender {
         &mut self,
         rods: crate::hydro::mobility::RodsOnDevice<'_>,
     ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
-        if self.shared.is_some() {
-            return None;
-        }
+        use crate::hydro::mobility::device_error;
         let geometry = self.geometry(rods.box_length);
         let c = SWIM_SPEED / (2.0 * eta(self.diameter));
-        let (s, w) = (self.s.clone(), self.w.clone());
-        let sum = resident_sum(self.sum.as_mut())?;
-        let t = Instant::now();
-        let device = |e: motile_gpu::GpuError| {
-            MobilityError::Sum(crate::ewald::periodic::SumError::Device(e.to_string()))
-        };
-        let run = |sum: &mut crate::ewald::spectral::SpectralEwald| {
-            let n = rods.len;
-            let gpu = sum.device_sum()?;
-            let p = gpu.rod_axes(rods.q, n).map_err(device)?;
-            let (nodes, force, fields) = gpu
-                .node_values((rods.x, &p), (&s, &w), n, c)
-                .map_err(device)?;
-            let u = sum.rpy_resident(&geometry, (&nodes, &force, &fields), n * s.len())?;
-            drop((nodes, force, fields));
-            sum.device_sum()?
-                .rod_flow_velocities((&p, &u), (&s, &w), n, (SWIM_SPEED, ROD_LENGTH))
-                .map_err(device)
-        };
-        let out = run(sum);
-        self.report = HydroReport {
-            seconds_sums: t.elapsed().as_secs_f64(),
-            ..HydroReport::default()
-        };
-        self.report.add_sum(self.sum.last_report());
-        Some(out)
+        let (s, w) = (&self.s, &self.w);
+        let shared = self.shared.is_some();
+        crate::hydro::mobility::on_resident_sum(
+            self.sum.as_mut(),
+            shared,
+            &mut self.report,
+            |sum| {
+                let n = rods.len;
+                let gpu = sum.device_sum()?;
+                let p = gpu.rod_axes(rods.q, n).map_err(device_error)?;
+                let (nodes, force, fields) = gpu
+                    .node_values((rods.x, &p), (s, w), n, c)
+                    .map_err(device_error)?;
+                let u = sum.rpy_resident(&geometry, (&nodes, &force, &fields), n * s.len())?;
+                drop((nodes, force, fields));
+                sum.device_sum()?
+                    .rod_flow_velocities((&p, &u), (s, w), n, (SWIM_SPEED, ROD_LENGTH))
+                    .map_err(device_error)
+            },
+        )
     }
 }

@@ -285,6 +285,36 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     }
 }
 
+/// The shell of [`Mobility::free_velocities_resident`] for a mobility on the sum `sum`: `None`
+/// where the sum is shared among ranks or not on a device, else `run` on the resident sum,
+/// timed into a fresh `report` with the sum's accuracy report.
+#[cfg(feature = "gpu")]
+pub(crate) fn on_resident_sum<T>(
+    sum: &mut dyn crate::ewald::periodic::PeriodicStokes,
+    shared: bool,
+    report: &mut HydroReport,
+    run: impl FnOnce(&mut crate::ewald::spectral::SpectralEwald) -> Result<T, MobilityError>,
+) -> Option<Result<T, MobilityError>> {
+    if shared {
+        return None;
+    }
+    let resident = crate::ewald::spectral::resident::resident_sum(sum)?;
+    let t = std::time::Instant::now();
+    let out = run(resident);
+    *report = HydroReport {
+        seconds_sums: t.elapsed().as_secs_f64(),
+        ..HydroReport::default()
+    };
+    report.add_sum(sum.last_report());
+    Some(out)
+}
+
+/// A device's failure as the mobility's (its sum's device).
+#[cfg(feature = "gpu")]
+pub(crate) fn device_error(e: motile_gpu::GpuError) -> MobilityError {
+    MobilityError::Sum(crate::ewald::periodic::SumError::Device(e.to_string()))
+}
+
 /// Rods resident on a device, as a mobility's flow on that device reads them: centres
 /// (triples, in `[0, L)^3`) and unit quaternions (`w, x, y, z`) of `len` rods in a box of side
 /// `box_length`.

@@ -32,22 +32,19 @@ extern "C" __global__ void point_cell(const double* y, double* wrapped, int* cel
     rank[i] = atomicAdd(&count[k], 1);
 }
 
-// rows_out[k] = rows_in[idx[k]], width values per row: the points' values in cell order
-// (idx the cells' members).
-extern "C" __global__ void take_rows(const double* rows_in, const int* idx, double* rows_out,
-                                     int n, int width) {
+// Rows of width values moved by a permutation idx of 0..n: rows_out[k] = rows_in[idx[k]]
+// (scatter 0: the points' values into cell order, idx the cells' members), or
+// rows_out[idx[k]] = rows_in[k] (scatter 1: back to the points' order).
+extern "C" __global__ void permute_rows(const double* rows_in, const int* idx, double* rows_out,
+                                        int n, int width, int scatter) {
     int k = blockIdx.x * blockDim.x + threadIdx.x;
     if (k >= n) return;
     long long from = (long long)idx[k] * width, to = (long long)k * width;
-    for (int c = 0; c < width; ++c) rows_out[to + c] = rows_in[from + c];
-}
-
-// rows_out[idx[k]] = rows_in[k]: values in cell order back to the points' order.
-extern "C" __global__ void put_rows(const double* rows_in, const int* idx, double* rows_out,
-                                    int n, int width) {
-    int k = blockIdx.x * blockDim.x + threadIdx.x;
-    if (k >= n) return;
-    long long from = (long long)k * width, to = (long long)idx[k] * width;
+    if (scatter) {
+        long long t = from;
+        from = to;
+        to = t;
+    }
     for (int c = 0; c < width; ++c) rows_out[to + c] = rows_in[from + c];
 }
 

@@ -12,8 +12,8 @@ use super::GpuFourier;
 use super::launch::check as check_len;
 use super::launch::{self, Geometry};
 use super::signatures::{
-    BinOrder, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues, PointCell,
-    PutRows, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble, StressletValues, TakeRows,
+    BinOrder, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues, PermuteRows,
+    PointCell, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble, StressletValues,
 };
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use motile_gpu::{Buffer, GpuError, kernel_int as int};
@@ -147,7 +147,7 @@ impl GpuFourier {
                 },
             )?;
         }
-        let pos = self.take_rows(&wrapped, &members, npts, 3)?;
+        let pos = self.permute_rows(&wrapped, &members, (npts, 3), false)?;
         let mut groups = dev.zeros::<i32>(npts)?;
         // SAFETY: thread k < npts reads members[k] and writes group[k] (npts each).
         unsafe {
@@ -186,56 +186,31 @@ impl GpuFourier {
     }
 
     /// `out[k] = rows[idx[k]]`, `width` values per row, for `n` rows (`idx` a permutation of
-    /// `0..n`).
-    pub(crate) fn take_rows(
+    /// `0..n`: the cells' members), or with `scatter` `out[idx[k]] = rows[k]` (back to the
+    /// points' order).
+    pub(crate) fn permute_rows(
         &self,
         rows: &Buffer,
         idx: &Buffer<i32>,
-        n: usize,
-        width: usize,
+        (n, width): (usize, usize),
+        scatter: bool,
     ) -> Result<Buffer, GpuError> {
         check_len("rows", rows, width * n)?;
         check_len("indices", idx, n)?;
         let mut out = self.dev.zeros::<f64>(width * n)?;
         // SAFETY: thread k < n reads idx[k] (n checked), a permutation of 0..n (the cells'
-        // members: every point once), so rows at idx[k] width..+width (width n checked); writes
-        // out at k width (width n).
+        // members: every point once), and moves the row of width values between k and idx[k]
+        // (both below n; width n checked and allocated).
         unsafe {
             self.dev.launch(
                 n,
-                TakeRows {
+                PermuteRows {
                     rows_in: rows,
                     idx,
                     rows_out: &mut out,
                     n: int(n, "rows")?,
                     width: int(width, "row width")?,
-                },
-            )?;
-        }
-        Ok(out)
-    }
-
-    /// `out[idx[k]] = rows[k]`: rows in cell order back to the points' order.
-    pub(crate) fn put_rows(
-        &self,
-        rows: &Buffer,
-        idx: &Buffer<i32>,
-        n: usize,
-        width: usize,
-    ) -> Result<Buffer, GpuError> {
-        check_len("rows", rows, width * n)?;
-        check_len("indices", idx, n)?;
-        let mut out = self.dev.zeros::<f64>(width * n)?;
-        // SAFETY: as take_rows, reading at k and writing at idx[k] < n.
-        unsafe {
-            self.dev.launch(
-                n,
-                PutRows {
-                    rows_in: rows,
-                    idx,
-                    rows_out: &mut out,
-                    n: int(n, "rows")?,
-                    width: int(width, "row width")?,
+                    scatter: i32::from(scatter),
                 },
             )?;
         }
@@ -325,7 +300,7 @@ impl GpuFourier {
         }
         // The real-space part over the device's cell list, back in the points' order.
         let cells = self.resident_cells(x, n, (geo.l, inp.cutoff), 1)?;
-        let orient = self.take_rows(p, &cells.members, n, 3)?;
+        let orient = self.permute_rows(p, &cells.members, (n, 3), false)?;
         let table = &inp.table;
         let (inv_h, nodes, xi, r_direct, g) = table.parts();
         let table_buf = self.dev.upload(&g)?;
@@ -354,7 +329,7 @@ impl GpuFourier {
             &real_in,
             &mut sorted,
         )?;
-        let real = self.put_rows(&sorted, &cells.members, n, 13)?;
+        let real = self.permute_rows(&sorted, &cells.members, (n, 13), true)?;
         drop((sorted, orient, cells));
         // The Fourier part.
         let back = self.fourier(
@@ -505,7 +480,7 @@ impl GpuFourier {
             )));
         }
         let cells = self.resident_cells(pts, n, (geo.l, inp.cutoff), inp.group)?;
-        let sorted_force = self.take_rows(force, &cells.members, n, 3)?;
+        let sorted_force = self.permute_rows(force, &cells.members, (n, 3), false)?;
         let (inv_h, nodes, [c, ca, cb], g) = inp.table.parts();
         let table_buf = self.dev.upload(&g)?;
         let mut sorted = self.dev.zeros::<f64>(4 * n)?;
@@ -534,7 +509,7 @@ impl GpuFourier {
             &real_in,
             &mut sorted,
         )?;
-        let real = self.put_rows(&sorted, &cells.members, n, 4)?;
+        let real = self.permute_rows(&sorted, &cells.members, (n, 4), true)?;
         drop((sorted, sorted_force, cells));
         let back = self.fourier(
             generation,

@@ -247,22 +247,15 @@ motile_gpu::kernels! {
         l: f64,
     }
 
-    /// Rows of `width` values gathered: `rows_out[k] = rows_in[idx[k]]`.
-    pub(crate) struct TakeRows = "take_rows" {
+    /// Rows of `width` values moved by a permutation: gathered (`rows_out[k] =
+    /// rows_in[idx[k]]`) or, with `scatter` 1, scattered (`rows_out[idx[k]] = rows_in[k]`).
+    pub(crate) struct PermuteRows = "permute_rows" {
         rows_in: &'a Buffer<f64>,
         idx: &'a Buffer<i32>,
         rows_out: &'a mut Buffer<f64>,
         n: i32,
         width: i32,
-    }
-
-    /// Rows of `width` values scattered: `rows_out[idx[k]] = rows_in[k]`.
-    pub(crate) struct PutRows = "put_rows" {
-        rows_in: &'a Buffer<f64>,
-        idx: &'a Buffer<i32>,
-        rows_out: &'a mut Buffer<f64>,
-        n: i32,
-        width: i32,
+        scatter: i32,
     }
 
     /// Each cell member's group.

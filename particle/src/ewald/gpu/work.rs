@@ -4,6 +4,7 @@
 //! for each [`SpreadMethod`]; no device needed.
 
 use super::binned::{SpreadMethod, TILE};
+use super::scan::SCAN_ONE_BLOCK;
 
 /// One phase's work in the work model ([`work_model`]): what its kernels request of global
 /// memory (loads and stores; atomics counted apart), their global and shared-memory atomic
@@ -89,7 +90,8 @@ pub fn work_model(
             // cells, bin_order (starts in, perm read and written).
             rows.push(phase(
                 "sort",
-                4 + usize::from(cells),
+                // A long prefix sum takes three launches instead of one (scan.rs).
+                4 + usize::from(cells) + 2 * usize::from(nbins as usize > SCAN_ONE_BLOCK),
                 n * 24.0
                     + n * 8.0
                     + 8.0 * nbins

@@ -23,11 +23,29 @@ use std::time::Instant;
 /// point, `du_i/dx_m` at `3 i + m`), as [`crate::ewald::periodic::StressletField`] holds them.
 #[derive(Debug)]
 pub struct ResidentField {
-    pub(crate) u: Buffer,
-    pub(crate) grad: Buffer,
+    /// Velocities.
+    pub u: Buffer,
+    /// Gradients.
+    pub grad: Buffer,
 }
 
 impl SpectralEwald {
+    /// Before an attempt on the device with parameters `prm` in a box of side `l`: the
+    /// parameters checked and recorded, a new generation (the device caches keyed by it are
+    /// then this attempt's). The host grid goes where the parameters change, and the host
+    /// sums' prepared points always (their generation is not this sum's: the next host sum
+    /// prepares afresh, so no device cache of this sum's points is taken for its).
+    fn begin_resident_attempt(&mut self, prm: EwaldParams, l: f64) -> Result<(), SumError> {
+        check_params(&prm, l)?;
+        if self.last != Some(prm) {
+            self.grid = None;
+        }
+        self.prepared = None;
+        self.last = Some(prm);
+        self.generation += 1;
+        Ok(())
+    }
+
     /// [`crate::ewald::periodic::PeriodicStokes::stresslets`] of `n` stresslets
     /// `sigma p_n p_n` of one strength `sigma` at `x` with axes `p` (triples on this sum's
     /// device), the flow left there: the same parameters, estimates, refinement and report
@@ -54,17 +72,7 @@ impl SpectralEwald {
             let prm = self.fixed.unwrap_or_else(|| {
                 EwaldParams::choose_for(internal, n, l, &outputs, STRESSLET_PAIR_COST)
             });
-            check_params(&prm, l)?;
-            if self.last != Some(prm) {
-                // The host grid was for other parameters: the next host sum builds its own.
-                self.grid = None;
-            }
-            // The host sums' prepared points (and the generation they were made under) are
-            // not this sum's: the next host sum prepares afresh under a new generation, so no
-            // device cache of this sum's points (bins) is taken for its.
-            self.prepared = None;
-            self.last = Some(prm);
-            self.generation += 1;
+            self.begin_resident_attempt(prm, l)?;
             let t0 = Instant::now();
             let xi = prm.xi;
             let scale = |o: SumOutput| internal * o.self_scale(xi) / VISCOSITY;
@@ -139,13 +147,7 @@ impl SpectralEwald {
             let prm = self
                 .fixed
                 .unwrap_or_else(|| EwaldParams::choose_for(internal, n, l, &[output], PAIR_COST));
-            check_params(&prm, l)?;
-            if self.last != Some(prm) {
-                self.grid = None;
-            }
-            self.prepared = None;
-            self.last = Some(prm);
-            self.generation += 1;
+            self.begin_resident_attempt(prm, l)?;
             let t0 = Instant::now();
             let scale = internal * output.self_scale(prm.xi) / VISCOSITY;
             let table = RealSpaceTable::new(prm.cutoff, prm.xi, a);
