@@ -124,7 +124,7 @@ fn parity(n: usize, backend: Backend) {
             "step {k}: transforms (forward, inverse) for {iters} fixed-point iterations"
         );
         // The work model's launches, transforms and round trips are the step's.
-        let model = motile_meanfield::gpu::work_model(rg.rhs.iterations);
+        let model = motile_meanfield::gpu::work_model(rg.rhs.iterations, k > 0);
         let sum = |f: fn(&motile_meanfield::gpu::PhaseWork) -> usize| {
             model.iter().map(f).sum::<usize>() as u64
         };

@@ -76,27 +76,31 @@ extern "C" __global__ void derivative_spectra(const double2* c, int first, doubl
     }
 }
 
-// Zero-mean Stokes velocity u = (I - kk/k^2)/k^2 . (i k . sigma) of six stress spectra.
-extern "C" __global__ void stokes(const double2* sigma, double2* u, int n, const double* k1,
-                                  const double* k2) {
+// Half-spectrum index s of an n^3 grid: its wavenumbers k, whether the 2/3 rule keeps it
+// (scale_dealias's test), and |k|^2 (k2 summed as in stokes_into) returned.
+__device__ double mode_wavenumbers(long long s, int n, const double* k1, const double* k2,
+                                   const int* keep, double k[3], bool* kept) {
     int h = n / 2 + 1;
-    long long S = (long long)n * n * h;
-    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
-    if (s >= S) return;
     int a = (int)(s % h);
     long long row = s / h;
     int b = (int)(row % n), d = (int)(row / n);
-    double kk = k2[a] + k2[b] + k2[d];
-    if (kk == 0.0) {
-        for (int i = 0; i < 3; i++) u[i * S + s] = make_double2(0.0, 0.0);
-        return;
-    }
-    double k[3] = {k1[a], k1[b], k1[d]};
+    *kept = 3 * a <= n && keep[b] != 0 && keep[d] != 0;
+    k[0] = k1[a];
+    k[1] = k1[b];
+    k[2] = k1[d];
+    return k2[a] + k2[b] + k2[d];
+}
+
+// One mode of the zero-mean Stokes velocity u = (I - kk/k^2)/k^2 . (i k . sigma) of a
+// symmetric stress sig (grid.rs stokes_into, the same operations in the same order); kk > 0.
+__device__ void stokes_mode(const double2 sig[6], const double k[3], double kk, double2 u[3]) {
     double2 f[3];
+#pragma unroll
     for (int i = 0; i < 3; i++) {
         double2 sum = make_double2(0.0, 0.0);
+#pragma unroll
         for (int j = 0; j < 3; j++) {
-            double2 sij = sigma[sym_index(i, j) * S + s];
+            double2 sij = sig[sym_index(i, j)];
             sum.x += k[j] * sij.x;
             sum.y += k[j] * sij.y;
         }
@@ -105,9 +109,65 @@ extern "C" __global__ void stokes(const double2* sigma, double2* u, int n, const
     double2 kf = make_double2(k[0] * f[0].x + k[1] * f[1].x + k[2] * f[2].x,
                               k[0] * f[0].y + k[1] * f[1].y + k[2] * f[2].y);
     double k1sq = fmax(k[0] * k[0] + k[1] * k[1] + k[2] * k[2], 1e-300);
+#pragma unroll
     for (int i = 0; i < 3; i++) {
         double c = k[i] / k1sq;
-        u[i * S + s] = make_double2((f[i].x - kf.x * c) / kk, (f[i].y - kf.y * c) / kk);
+        u[i] = make_double2((f[i].x - kf.x * c) / kk, (f[i].y - kf.y * c) / kk);
+    }
+}
+
+// Zero-mean Stokes velocity of six stress spectra, each scaled by `scale` and dealiased by
+// the 2/3 rule as it is read (scale_dealias fused in: the raw forward transforms of the stress
+// in, the same values as scale_dealias then stokes).
+extern "C" __global__ void stokes(const double2* sigma, double2* u, int n, const double* k1,
+                                  const double* k2, double scale, const int* keep) {
+    long long S = (long long)n * n * (n / 2 + 1);
+    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (s >= S) return;
+    double k[3];
+    bool kept;
+    double kk = mode_wavenumbers(s, n, k1, k2, keep, k, &kept);
+    if (kk == 0.0 || !kept) {
+        // A dropped mode's stress is zero, and so is its velocity (the unfused kernels gave
+        // +-0 there; the velocity is only ever added to or transformed).
+        for (int i = 0; i < 3; i++) u[i * S + s] = make_double2(0.0, 0.0);
+        return;
+    }
+    double2 sig[6];
+#pragma unroll
+    for (int c = 0; c < 6; c++) {
+        double2 v = sigma[c * S + s];
+        sig[c] = make_double2(v.x * scale, v.y * scale);
+    }
+    double2 out[3];
+    stokes_mode(sig, k, kk, out);
+    for (int i = 0; i < 3; i++) u[i * S + s] = out[i];
+}
+
+// The fixed point's first iterate (stepper.rs warm_start): u = u_hat + the Stokes velocity of
+// -(Q - Q_prev) over the modes the 2/3 rule keeps.
+extern "C" __global__ void warm_start(const double2* q, const double2* q_prev, const double2* u_hat,
+                                      double2* u, int n, const double* k1, const double* k2,
+                                      const int* keep) {
+    long long S = (long long)n * n * (n / 2 + 1);
+    long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (s >= S) return;
+    double k[3];
+    bool kept;
+    double kk = mode_wavenumbers(s, n, k1, k2, keep, k, &kept);
+    double2 out[3] = {make_double2(0.0, 0.0), make_double2(0.0, 0.0), make_double2(0.0, 0.0)};
+    if (kk != 0.0) {
+        double2 sig[6];
+#pragma unroll
+        for (int c = 0; c < 6; c++) {
+            double2 v = q[c * S + s], w = q_prev[c * S + s];
+            sig[c] = kept ? make_double2(-(v.x - w.x), -(v.y - w.y)) : make_double2(0.0, 0.0);
+        }
+        stokes_mode(sig, k, kk, out);
+    }
+    for (int i = 0; i < 3; i++) {
+        double2 g = u_hat[i * S + s];
+        u[i * S + s] = make_double2(g.x + out[i].x, g.y + out[i].y);
     }
 }
 
@@ -315,81 +375,98 @@ __device__ double dot3(const double* a, const double* b) {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
+// No small array of the closure's per-point code is indexed with a run-time index: such an
+// index puts the array in local memory (a 232-byte stack frame before, read and written at
+// every access); with compile-time indices (templates, unrolled loops, selects) every value
+// stays in a register. The floating-point operations and their order are unchanged.
+
+// One Jacobi rotation of the pair (p, q) (p, q template arguments: constant indices).
+template <int p, int q>
+__device__ void jacobi_rotate(double m[3][3], double r[3][3]) {
+    if (m[p][q] == 0.0) return;
+    double theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+    double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+    if (theta == 0.0) t = 1.0;
+    double c = 1.0 / sqrt(t * t + 1.0);
+    double s = t * c;
+#pragma unroll
+    for (int k = 0; k < 3; k++) {
+        double mkp = m[k][p], mkq = m[k][q];
+        m[k][p] = c * mkp - s * mkq;
+        m[k][q] = s * mkp + c * mkq;
+    }
+#pragma unroll
+    for (int k = 0; k < 3; k++) {
+        double mpk = m[p][k], mqk = m[q][k];
+        m[p][k] = c * mpk - s * mqk;
+        m[q][k] = s * mpk + c * mqk;
+    }
+#pragma unroll
+    for (int k = 0; k < 3; k++) {
+        double rkp = r[k][p], rkq = r[k][q];
+        r[k][p] = c * rkp - s * rkq;
+        r[k][q] = s * rkp + c * rkq;
+    }
+}
+
 // Cyclic Jacobi rotations (the slow twin, eigen.rs sym3_eigen): w eigenvalues, r columns.
 __device__ void jacobi3(const double am[3][3], double w[3], double r[3][3]) {
     double m[3][3];
+#pragma unroll
     for (int i = 0; i < 3; i++)
+#pragma unroll
         for (int j = 0; j < 3; j++) {
             m[i][j] = am[i][j];
             r[i][j] = i == j ? 1.0 : 0.0;
         }
-    const int P[3] = {0, 0, 1}, Q[3] = {1, 2, 2};
     for (int sweep = 0; sweep < 50; sweep++) {
         double off = fabs(m[0][1]) + fabs(m[0][2]) + fabs(m[1][2]);
         double scale = fabs(m[0][0]) + fabs(m[1][1]) + fabs(m[2][2]);
         if (off <= 1e-300 || off <= 2.220446049250313e-16 * 1e-3 * scale) break;
-        for (int r_ = 0; r_ < 3; r_++) {
-            int p = P[r_], q = Q[r_];
-            if (m[p][q] == 0.0) continue;
-            double theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
-            double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
-            if (theta == 0.0) t = 1.0;
-            double c = 1.0 / sqrt(t * t + 1.0);
-            double s = t * c;
-            for (int k = 0; k < 3; k++) {
-                double mkp = m[k][p], mkq = m[k][q];
-                m[k][p] = c * mkp - s * mkq;
-                m[k][q] = s * mkp + c * mkq;
-            }
-            for (int k = 0; k < 3; k++) {
-                double mpk = m[p][k], mqk = m[q][k];
-                m[p][k] = c * mpk - s * mqk;
-                m[q][k] = s * mpk + c * mqk;
-            }
-            for (int k = 0; k < 3; k++) {
-                double rkp = r[k][p], rkq = r[k][q];
-                r[k][p] = c * rkp - s * rkq;
-                r[k][q] = s * rkp + c * rkq;
-            }
-        }
+        jacobi_rotate<0, 1>(m, r);
+        jacobi_rotate<0, 2>(m, r);
+        jacobi_rotate<1, 2>(m, r);
     }
     w[0] = m[0][0];
     w[1] = m[1][1];
     w[2] = m[2][2];
 }
 
-// Eigenvalues descending, eigenvector columns permuted with them (stable for ties).
-__device__ void sort_desc(double w[3], double r[3][3]) {
-    int o[3] = {0, 1, 2};
-    for (int a = 0; a < 3; a++)
-        for (int b = 0; b < 2 - a; b++)
-            if (w[o[b + 1]] > w[o[b]]) {
-                int t = o[b];
-                o[b] = o[b + 1];
-                o[b + 1] = t;
-            }
-    double w2[3], r2[3][3];
-    for (int c = 0; c < 3; c++) {
-        w2[c] = w[o[c]];
-        for (int i = 0; i < 3; i++) r2[i][c] = r[i][o[c]];
-    }
-    for (int c = 0; c < 3; c++) {
-        w[c] = w2[c];
-        for (int i = 0; i < 3; i++) r[i][c] = r2[i][c];
+// Positions a < b of the sort: the value at b moves first if strictly larger (ties keep their
+// order), its eigenvector column with it.
+template <int a, int b>
+__device__ void order_pair(double w[3], double r[3][3]) {
+    if (w[b] > w[a]) {
+        double t = w[a];
+        w[a] = w[b];
+        w[b] = t;
+#pragma unroll
+        for (int i = 0; i < 3; i++) {
+            double u = r[i][a];
+            r[i][a] = r[i][b];
+            r[i][b] = u;
+        }
     }
 }
 
-__device__ void eigen_sorted(const double a[3][3], double w[3], double r[3][3]) {
+// Eigenvalues descending, eigenvector columns permuted with them (stable for ties): the
+// bubble sort's comparisons (0, 1), (1, 2), (0, 1) as a fixed network on the values, the same
+// permutation as bubble-sorting an index array.
+__device__ void sort_desc(double w[3], double r[3][3]) {
+    order_pair<0, 1>(w, r);
+    order_pair<1, 2>(w, r);
+    order_pair<0, 1>(w, r);
+}
+
+// The closed form (eigen.rs): false where it does not apply (the caller then uses jacobi3),
+// else w and r unsorted.
+__device__ bool eigen_closed(const double a[3][3], double w[3], double r[3][3]) {
     double c = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
     double b0 = a[0][0] - c, b1 = a[1][1] - c, b2 = a[2][2] - c;
     double off2 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
     double p2 = (b0 * b0 + b1 * b1 + b2 * b2 + 2.0 * off2) / 6.0;
     double scale = fabs(a[0][0]) + fabs(a[1][1]) + fabs(a[2][2]) + sqrt(off2);
-    if (isnan(p2) || p2 <= 0.0 || sqrt(6.0 * p2) <= 1e-9 * scale) {
-        jacobi3(a, w, r);
-        sort_desc(w, r);
-        return;
-    }
+    if (isnan(p2) || p2 <= 0.0 || sqrt(6.0 * p2) <= 1e-9 * scale) return false;
     double p = sqrt(p2);
     double det = b0 * (b1 * b2 - a[1][2] * a[1][2]) - a[0][1] * (a[0][1] * b2 - a[1][2] * a[0][2]) +
                  a[0][2] * (a[0][1] * a[1][2] - b1 * a[0][2]);
@@ -408,14 +485,13 @@ __device__ void eigen_sorted(const double a[3][3], double w[3], double r[3][3]) 
     cross3(rows[0], rows[2], cr[1]);
     cross3(rows[1], rows[2], cr[2]);
     double nr[3] = {dot3(cr[0], cr[0]), dot3(cr[1], cr[1]), dot3(cr[2], cr[2])};
+    // The longest cross product, selected by value.
     int k = (nr[0] >= nr[1] && nr[0] >= nr[2]) ? 0 : (nr[1] >= nr[2] ? 1 : 2);
-    if (isnan(nr[k]) || nr[k] <= 0.0) {
-        jacobi3(a, w, r);
-        sort_desc(w, r);
-        return;
-    }
-    double v[3], inv = 1.0 / sqrt(nr[k]);
-    for (int d = 0; d < 3; d++) v[d] = cr[k][d] * inv;
+    double nk = k == 0 ? nr[0] : (k == 1 ? nr[1] : nr[2]);
+    if (isnan(nk) || nk <= 0.0) return false;
+    double v[3], inv = 1.0 / sqrt(nk);
+#pragma unroll
+    for (int d = 0; d < 3; d++) v[d] = (k == 0 ? cr[0][d] : (k == 1 ? cr[1][d] : cr[2][d])) * inv;
     double axis[3] = {0.0, 0.0, 0.0};
     if (fabs(v[0]) <= fabs(v[1]) && fabs(v[0]) <= fabs(v[2])) axis[0] = 1.0;
     else if (fabs(v[1]) <= fabs(v[2])) axis[1] = 1.0;
@@ -426,6 +502,7 @@ __device__ void eigen_sorted(const double a[3][3], double w[3], double r[3][3]) 
     for (int d = 0; d < 3; d++) u[d] *= un;
     cross3(v, u, wv);
     double au[3], aw[3], av[3];
+#pragma unroll
     for (int i = 0; i < 3; i++) {
         au[i] = dot3(a[i], u);
         aw[i] = dot3(a[i], wv);
@@ -450,25 +527,34 @@ __device__ void eigen_sorted(const double a[3][3], double w[3], double r[3][3]) 
         }
     }
     double lv = dot3(v, av);
-    double hi = e1, lo = e2;
-    const double* vh = t1;
-    const double* vl = t2;
-    if (e1 < e2) {
-        hi = e2;
-        lo = e1;
-        vh = t2;
-        vl = t1;
+    // The pair's larger eigenvalue first; copies (pointers to the columns were run-time indices).
+    bool swap = e1 < e2;
+    double hi = swap ? e2 : e1, lo = swap ? e1 : e2;
+    double vh[3], vl[3];
+#pragma unroll
+    for (int d = 0; d < 3; d++) {
+        vh[d] = swap ? t2[d] : t1[d];
+        vl[d] = swap ? t1[d] : t2[d];
     }
-    const double* cols[3];
     if (largest) {
         w[0] = lv; w[1] = hi; w[2] = lo;
-        cols[0] = v; cols[1] = vh; cols[2] = vl;
+#pragma unroll
+        for (int i = 0; i < 3; i++) {
+            r[i][0] = v[i]; r[i][1] = vh[i]; r[i][2] = vl[i];
+        }
     } else {
         w[0] = hi; w[1] = lo; w[2] = lv;
-        cols[0] = vh; cols[1] = vl; cols[2] = v;
+#pragma unroll
+        for (int i = 0; i < 3; i++) {
+            r[i][0] = vh[i]; r[i][1] = vl[i]; r[i][2] = v[i];
+        }
     }
-    for (int cidx = 0; cidx < 3; cidx++)
-        for (int i = 0; i < 3; i++) r[i][cidx] = cols[cidx][i];
+    return true;
+}
+
+// Eigenvalues descending with their eigenvector columns: the closed form, else Jacobi sweeps.
+__device__ void eigen_sorted(const double a[3][3], double w[3], double r[3][3]) {
+    if (!eigen_closed(a, w, r)) jacobi3(a, w, r);
     sort_desc(w, r);
 }
 
@@ -505,20 +591,79 @@ __device__ void chebyshev_tables(const double* coef, int n1, double sx, double s
     for (int t3 = 0; t3 < T; t3++) f[t3] = acc[t3];
 }
 
-// One point of the closure field: s21 the lab-frame tensor, lo/hi the extreme eigenvalues of
-// Q / tr Q, ent the entropy density c ln c + c h(Q/c) (when asked). coef: four tables of
+// The default degree's tables (deg 20, closure.rs DEFAULT_DEGREE), staged in shared memory
+// once per block: every thread of a warp reads the same coefficient at the same time, a
+// shared-memory broadcast instead of a global load per coefficient. Layout [t][i][k], the pair
+// (c[t][i][2k], c[t][i][2k + 1]) as one double2 (one 16-byte load for two coefficients), the
+// last pair of a row padded with 0 (never read).
+#define CHEB_N1 21
+#define CHEB_PAIRS ((CHEB_N1 + 1) / 2)
+
+__device__ void stage_tables(const double* coef, int tables, double2* tab) {
+    for (int e = threadIdx.x; e < tables * CHEB_N1 * CHEB_PAIRS; e += blockDim.x) {
+        int row = e / CHEB_PAIRS, j = 2 * (e % CHEB_PAIRS);
+        const double* c = coef + row * CHEB_N1;
+        tab[e] = make_double2(c[j], j + 1 < CHEB_N1 ? c[j + 1] : 0.0);
+    }
+}
+
+// chebyshev_tables for n1 = CHEB_N1 from the staged tables, the same sums in the same order:
+// T_j(sy) computed once per point into registers by the same recurrence (the generic loop
+// recomputes the same values for every row), the j loop unrolled so that they stay there.
+template <int T>
+__device__ void chebyshev_tables_staged(const double2* tab, double sx, double sy, double* f) {
+    double ty[CHEB_N1];
+    double tya = 1.0, tyb = sy;
+#pragma unroll
+    for (int j = 0; j < CHEB_N1; j++) ty[j] = chebyshev_next(j, sy, &tya, &tyb);
+    double acc[T];
+#pragma unroll
+    for (int t3 = 0; t3 < T; t3++) acc[t3] = 0.0;
+    double txa = 1.0, txb = sx;
+    for (int i = 0; i < CHEB_N1; i++) {
+        double tx = chebyshev_next(i, sx, &txa, &txb);
+        double rowv[T];
+#pragma unroll
+        for (int t3 = 0; t3 < T; t3++) rowv[t3] = 0.0;
+#pragma unroll
+        for (int k = 0; k < CHEB_PAIRS; k++)
+#pragma unroll
+            for (int t3 = 0; t3 < T; t3++) {
+                double2 c = tab[(t3 * CHEB_N1 + i) * CHEB_PAIRS + k];
+                rowv[t3] += ty[2 * k] * c.x;
+                if (2 * k + 1 < CHEB_N1) rowv[t3] += ty[2 * k + 1] * c.y;
+            }
+#pragma unroll
+        for (int t3 = 0; t3 < T; t3++) acc[t3] += tx * rowv[t3];
+    }
+#pragma unroll
+    for (int t3 = 0; t3 < T; t3++) f[t3] = acc[t3];
+}
+
+// The lab-frame tensor's component indices, compile-time where cc is (SYM_I, SYM_J).
+__device__ int sym_i(int cc) { return cc < 3 ? 0 : (cc < 5 ? 1 : 2); }
+__device__ int sym_j(int cc) { return cc < 3 ? cc : (cc < 5 ? cc - 2 : 2); }
+
+// One point of the closure field, first half: c = tr Q, w and r the eigenvalues and
+// eigenvectors of Q / c, f the tables at its collapsed coordinates, lo/hi the extreme
+// eigenvalues, ent the entropy density c ln c + c h(Q/c) (when asked). coef: four tables of
 // (deg + 1)^2 Chebyshev coefficients, [f][i (x)][j (y)]: S_1111, S_2222, S_1122 and the
-// entropy's regular part.
-__device__ void closure_point(const double* q, long long N, long long p, const double* coef,
-                              int deg, int with_entropy, double* s21, double* lo, double* hi,
-                              double* ent) {
+// entropy's regular part; tab the staged tables (read where staged, for deg = CHEB_N1 - 1).
+__device__ void closure_moments(const double* q, long long N, long long p, const double* coef,
+                                const double2* tab, bool staged, int deg, int with_entropy,
+                                double* c_out, double w[3], double r[3][3], double f[4],
+                                double* lo, double* hi, double* ent) {
     double a[3][3];
+#pragma unroll
     for (int i = 0; i < 3; i++)
+#pragma unroll
         for (int j = 0; j < 3; j++) a[i][j] = q[sym_index(i, j) * N + p];
     double c = a[0][0] + a[1][1] + a[2][2];
+#pragma unroll
     for (int i = 0; i < 3; i++)
+#pragma unroll
         for (int j = 0; j < 3; j++) a[i][j] /= c;
-    double w[3], r[3][3];
+    *c_out = c;
     eigen_sorted(a, w, r);
     *lo = w[2];
     *hi = w[0];
@@ -527,8 +672,12 @@ __device__ void closure_point(const double* q, long long N, long long p, const d
     double y = x < 1.0 ? fmin(fmax(w[1] / (1.0 - x), 0.0), 1.0) : 0.5;
     double sx = 2.0 * x - 1.0, sy = 2.0 * y - 1.0;
     int n1 = deg + 1;
-    double f[4] = {0.0, 0.0, 0.0, 0.0};
-    if (with_entropy) {
+    f[3] = 0.0;
+    if (staged && with_entropy) {
+        chebyshev_tables_staged<4>(tab, sx, sy, f);
+    } else if (staged) {
+        chebyshev_tables_staged<3>(tab, sx, sy, f);
+    } else if (with_entropy) {
         chebyshev_tables<4>(coef, n1, sx, sy, f);
     } else {
         chebyshev_tables<3>(coef, n1, sx, sy, f);
@@ -539,6 +688,11 @@ __device__ void closure_point(const double* q, long long N, long long p, const d
                              log(fmax(w[2], 1e-300)));
         *ent = c * log(fmax(c, 1e-300)) + c * (f[3] - sing);
     }
+}
+
+// Second half: s21 the lab-frame tensor (as lab_fourth) from closure_moments' c, w, r, f.
+__device__ void lab_tensor(double c, const double w[3], const double r[3][3], const double f[4],
+                           double* s21) {
     // The full S_iijj from the three tabulated ones and sum_j S_iijj = mu_i, scaled by c.
     double s11 = f[0], s22 = f[1], s12 = f[2];
     double s13 = w[0] - s11 - s12;
@@ -547,20 +701,26 @@ __device__ void closure_point(const double* q, long long N, long long p, const d
     double s[3][3] = {{s11 * c, s12 * c, s13 * c}, {s12 * c, s22 * c, s23 * c}, {s13 * c, s23 * c, s33 * c}};
     // Lab frame: S = sum_ab s_ab P^a P^b + sum_{a<b} s_ab Q^ab Q^ab.
     double P[3][6], Qm[3][6];
+#pragma unroll
     for (int cc = 0; cc < 6; cc++) {
-        int i = SYM_I[cc], j = SYM_J[cc];
+        int i = sym_i(cc), j = sym_j(cc);
+#pragma unroll
         for (int aa = 0; aa < 3; aa++) P[aa][cc] = r[i][aa] * r[j][aa];
         Qm[0][cc] = r[i][0] * r[j][1] + r[i][1] * r[j][0];
         Qm[1][cc] = r[i][0] * r[j][2] + r[i][2] * r[j][0];
         Qm[2][cc] = r[i][1] * r[j][2] + r[i][2] * r[j][1];
     }
     double sp[3][6];
+#pragma unroll
     for (int b = 0; b < 3; b++)
+#pragma unroll
         for (int cc = 0; cc < 6; cc++)
             sp[b][cc] = s[0][b] * P[0][cc] + s[1][b] * P[1][cc] + s[2][b] * P[2][cc];
     double qs[3] = {s[0][1], s[0][2], s[1][2]};
     int k = 0;
+#pragma unroll
     for (int cc = 0; cc < 6; cc++)
+#pragma unroll
         for (int d = cc; d < 6; d++) {
             s21[k] = P[0][cc] * sp[0][d] + P[1][cc] * sp[1][d] + P[2][cc] * sp[2][d] +
                      qs[0] * Qm[0][cc] * Qm[0][d] + qs[1] * Qm[1][cc] * Qm[1][d] +
@@ -571,13 +731,37 @@ __device__ void closure_point(const double* q, long long N, long long p, const d
 
 // The closure field over the grid, with per-block partials: partial[3 b] = -(smallest
 // eigenvalue), partial[3 b + 1] = largest eigenvalue, partial[3 b + 2] = sum of the entropy
-// density (0 unless asked).
-extern "C" __global__ void __launch_bounds__(REDUCE_THREADS) closure_field(const double* q, double* s21, const double* coef, int deg,
+// density (0 unless asked). Two blocks per multiprocessor asked for: at most 128 registers
+// (the compiler's choice, 168, left one block of 8 warps; three blocks spill).
+extern "C" __global__ void __launch_bounds__(REDUCE_THREADS, 2) closure_field(const double* q, double* s21, const double* coef, int deg,
                                          int with_entropy, long long N, double* partial) {
     __shared__ double shared[REDUCE_THREADS];
-    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
-    double lo = 1e300, hi = -1e300, ent = 0.0;
-    if (p < N) closure_point(q, N, p, coef, deg, with_entropy, s21 + 21 * p, &lo, &hi, &ent);
+    // One buffer, two uses: the staged tables, then the block's tensors (point-major, as s21),
+    // written out by consecutive threads (a thread writing its own 21 values, 168 bytes apart
+    // from its neighbour's, made every store touch 32 sectors). 43 KB: with the reductions'
+    // 2 KB, under the 48 KB of static shared memory.
+    __shared__ union {
+        double2 tab[4 * CHEB_N1 * CHEB_PAIRS];
+        double out[21 * REDUCE_THREADS];
+    } buf;
+    // deg is the launch's: every thread of the block stages or none does. All threads reach
+    // every barrier (the p < N tests are around the work only).
+    bool staged = deg + 1 == CHEB_N1;
+    if (staged) {
+        stage_tables(coef, with_entropy ? 4 : 3, buf.tab);
+        __syncthreads();
+    }
+    long long first = blockIdx.x * (long long)blockDim.x;
+    long long p = first + threadIdx.x;
+    double lo = 1e300, hi = -1e300, ent = 0.0, c = 0.0, w[3], r[3][3], f[4];
+    if (p < N)
+        closure_moments(q, N, p, coef, buf.tab, staged, deg, with_entropy, &c, w, r, f, &lo,
+                        &hi, &ent);
+    __syncthreads(); // every thread done with the tables before they are overwritten
+    if (p < N) lab_tensor(c, w, r, f, buf.out + 21 * threadIdx.x);
+    __syncthreads();
+    long long count = 21 * (N - first < (long long)blockDim.x ? N - first : (long long)blockDim.x);
+    for (long long e = threadIdx.x; e < count; e += blockDim.x) s21[21 * first + e] = buf.out[e];
     block_max(shared, -lo, &partial[3 * blockIdx.x]);
     block_max(shared, hi, &partial[3 * blockIdx.x + 1]);
     block_sum(shared, ent, &partial[3 * blockIdx.x + 2]);

@@ -10,7 +10,7 @@ use crate::gpu::error::GpuError;
 use crate::gpu::signatures::{
     ChangePartials, ClosureField, Contract, DerivativeSpectra, ExplicitTerms, ImexUpdate,
     NonfinitePartials, NormPartials, ReportPartials, ScaleDealias, Stokes, StrainFromGradient,
-    StrainSpectra,
+    StrainSpectra, WarmStart,
 };
 use crate::gpu::work::Layout;
 use crate::solver::grid::SpectralGrid;
@@ -270,11 +270,34 @@ impl Buffers {
         Ok(())
     }
 
-    /// Q's six spectra to the grid (through a copy in `six`), and the fixed point's iterate set
-    /// to the last accepted velocity.
+    /// Q's six spectra to the grid (through a copy in `six`), and the fixed point's first
+    /// iterate (stepper.rs `warm_start`): the last accepted velocity, plus the Stokes flow of
+    /// Q's change since the previous state where there is one.
     pub(super) fn inverse_q(&mut self, dev: &Device) -> Result<(), GpuError> {
         let (s, n) = (self.s_len, self.n_len);
-        dev.copy((&self.u_hat, 0), (&mut self.u_work, 0), 6 * s)?;
+        if self.has_prev {
+            // SAFETY: warm_start(const double2* q, const double2* q_prev, const double2*
+            // u_hat, double2* u, int n, const double* k1, const double* k2, const int* keep):
+            // q_hat and q_prev hold 6 S values, u_hat and u_work 3 S, k1, k2 and keep n;
+            // thread s < S reads index c S + s of each and writes u[i S + s] for i < 3.
+            unsafe {
+                dev.launch(
+                    s,
+                    WarmStart {
+                        q: &self.q_hat,
+                        q_prev: &self.q_prev,
+                        u_hat: &self.u_hat,
+                        u: &mut self.u_work,
+                        n: self.n as i32,
+                        k1: &self.k1,
+                        k2: &self.k2,
+                        keep: &self.keep,
+                    },
+                )
+            }?;
+        } else {
+            dev.copy((&self.u_hat, 0), (&mut self.u_work, 0), 6 * s)?;
+        }
         dev.copy((&self.q_hat, 0), (&mut self.six, 0), 12 * s)?;
         Self::inverse_many(dev, &self.fft, &mut self.six, (&mut self.q, 0), 6, (s, n))
     }
@@ -338,13 +361,12 @@ impl Buffers {
         )
     }
 
-    /// The active stress -Q + zeta S:E over the grid E in `wide`, forward transformed and
-    /// dealiased into `six`.
+    /// The active stress -Q + zeta S:E over the grid E in `wide`, forward transformed into
+    /// `six` (unscaled: [`Self::stokes`] scales and dealiases as it reads them).
     pub(super) fn stress(&mut self, dev: &Device, zeta: f64) -> Result<(), GpuError> {
         self.contract(dev, zeta, true)?;
         let (s, n) = (self.s_len, self.n_len);
-        Self::forward_six(dev, &self.fft, (&self.wide, n), (&mut self.six, s))?;
-        self.scale_dealias(dev, Scratch::Six)
+        Self::forward_six(dev, &self.fft, (&self.wide, n), (&mut self.six, s))
     }
 
     /// Over the grid E in place: the stress with `stress` (E in `wide`), else `S:E` (E in
@@ -375,17 +397,14 @@ impl Buffers {
         .map_err(GpuError::from)
     }
 
-    /// Scale by 1/n^3 and dealias the six spectra at the start of `which`.
-    fn scale_dealias(&mut self, dev: &Device, which: Scratch) -> Result<(), GpuError> {
+    /// Scale by 1/n^3 and dealias the six spectra at the start of `wide` (the explicit
+    /// terms'; the stress's are scaled and dealiased by [`Self::stokes`] as it reads them).
+    fn scale_dealias(&mut self, dev: &Device) -> Result<(), GpuError> {
         let total = 6 * self.s_len;
-        let target = match which {
-            Scratch::Six => &mut self.six,
-            Scratch::Wide => &mut self.wide,
-        };
+        let target = &mut self.wide;
         // SAFETY: scale_dealias(double2* c, long long count, int n, double scale,
-        // const int* keep, int dealias): the target holds at least `count` = 6 S complex
-        // values (six 12 S doubles, wide max(9 N, 12 S)), keep n ints; thread t < count
-        // touches c[t] only.
+        // const int* keep, int dealias): wide holds at least `count` = 6 S complex values
+        // (max(9 N, 12 S) doubles), keep n ints; thread t < count touches c[t] only.
         unsafe {
             dev.launch(
                 total,
@@ -402,11 +421,12 @@ impl Buffers {
         .map_err(GpuError::from)
     }
 
-    /// The Stokes velocity of the stress spectra into `u_next`.
+    /// The Stokes velocity of the stress spectra (raw forward transforms, scaled and
+    /// dealiased as they are read) into `u_next`.
     pub(super) fn stokes(&mut self, dev: &Device) -> Result<(), GpuError> {
         // SAFETY: stokes(const double2* sigma, double2* u, int n, const double* k1,
-        // const double* k2): six holds 6 S values, u_next 3 S, k1 and k2 n; thread s < S reads
-        // sigma[c S + s] and writes u[i S + s].
+        // const double* k2, double scale, const int* keep): six holds 6 S values, u_next 3 S,
+        // k1, k2 and keep n; thread s < S reads sigma[c S + s] and writes u[i S + s].
         unsafe {
             dev.launch(
                 self.s_len,
@@ -416,6 +436,8 @@ impl Buffers {
                     n: self.n as i32,
                     k1: &self.k1,
                     k2: &self.k2,
+                    scale: 1.0 / self.n_len as f64,
+                    keep: &self.keep,
                 },
             )
         }
@@ -544,7 +566,7 @@ impl Buffers {
             )
         }?;
         Self::forward_six(dev, &self.fft, (&self.six, n), (&mut self.wide, s))?;
-        self.scale_dealias(dev, Scratch::Wide)
+        self.scale_dealias(dev)
     }
 
     /// Whether the explicit terms (`wide`; or, with `update`, the updated Q in `six`) hold a
@@ -669,13 +691,6 @@ impl Buffers {
         self.has_prev = true;
         Ok(())
     }
-}
-
-/// Which scratch holds the six spectra to scale and dealias.
-#[derive(Clone, Copy)]
-enum Scratch {
-    Six,
-    Wide,
 }
 
 /// Where E from grad u goes: `six` (S:E is contracted over it) or the start of `big` (for the

@@ -37,13 +37,27 @@ motile_gpu::kernels! {
         k1: &'a Buffer<f64>,
     }
 
-    /// The Stokes solve: u from the stress spectra.
+    /// The Stokes solve: u from the stress spectra, scaled and dealiased as they are read.
     pub(super) struct Stokes = "stokes" {
         sigma: &'a Buffer<f64>,
         u: &'a mut Buffer<f64>,
         n: i32,
         k1: &'a Buffer<f64>,
         k2: &'a Buffer<f64>,
+        scale: f64,
+        keep: &'a Buffer<i32>,
+    }
+
+    /// The fixed point's first iterate: u_hat plus the Stokes flow of -(Q - Q_prev).
+    pub(super) struct WarmStart = "warm_start" {
+        q: &'a Buffer<f64>,
+        q_prev: &'a Buffer<f64>,
+        u_hat: &'a Buffer<f64>,
+        u: &'a mut Buffer<f64>,
+        n: i32,
+        k1: &'a Buffer<f64>,
+        k2: &'a Buffer<f64>,
+        keep: &'a Buffer<i32>,
     }
 
     /// The IMEX update of Q.

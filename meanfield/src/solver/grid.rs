@@ -18,7 +18,7 @@ pub(crate) struct RowWavenumbers {
     /// `(2 pi m_1)^2` and `(2 pi m_2)^2`.
     pub(crate) k_sq: [f64; 2],
     /// Whether the row survives the 2/3 rule.
-    keep: bool,
+    pub(crate) keep: bool,
 }
 
 /// Spectral grid on the unit cube: wavenumbers, real-to-complex transforms, dealiasing.

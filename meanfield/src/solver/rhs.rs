@@ -11,8 +11,8 @@
 //! formed on the grid and dealiased by the 2/3 rule: after each forward transform of a product,
 //! modes with any `|m_d| > n/3` are zeroed.
 //!
-//! The Stokes problem is solved by fixed-point iteration on `u` (warm-started from the previous
-//! step): `u <- Stokes(div(-Q + zeta S:E(u)))`. The closure depends on Q only, so its eigenframe
+//! The Stokes problem is solved by fixed-point iteration on `u` (started from the stepper's
+//! guess, `stepper::warm_start`): `u <- Stokes(div(-Q + zeta S:E(u)))`. The closure depends on Q only, so its eigenframe
 //! and interpolated fourth moments are computed once per right-hand side and only re-contracted
 //! with each new `E`.
 
