@@ -120,6 +120,8 @@ struct Bench {
     reps: usize,
     cpu_max: usize,
     profile: bool,
+    /// The device's memory in use before any case (the CUDA context, every context on it).
+    base_bytes: Option<usize>,
     probe: GpuFourier,
     rows: Vec<Row>,
 }
@@ -259,6 +261,10 @@ impl Bench {
         } else {
             "CPU side left out (--cpu-max)".into()
         };
+        let note = format!(
+            "{note}; cuFFT work areas {:.2} GB",
+            motile_gpu::fft_work_bytes() as f64 / 1e9
+        );
         self.push(&case, "gpu", tg, 1.0, "steps/s", note);
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
@@ -457,6 +463,7 @@ impl Bench {
         // The step resident on the device (`device = "gpu"` runs at this level): the flow
         // summed on the device from the rods there (no round trip), contacts, the move and the
         // projection on the device.
+        motile_gpu::reset_peak();
         let mut mobility = make(SpectralEwald::with_device(tol, self.fourier()).unwrap());
         let mut device =
             DeviceStepper::new(self.backend(), &rods, ContactParams::default(), &Vec::new())
@@ -472,10 +479,17 @@ impl Bench {
         let tr = time(reps, &mut step);
         self.profile_end(&format!("{case}, resident"), reps + 1, tr);
         let bytes = self.gpu_bytes();
+        // What the step's own buffers and cuFFT's work areas take, counted by the process
+        // (no device needed), beside the device's total in use (context included).
+        let (peak, work) = (motile_gpu::peak_bytes(), motile_gpu::fft_work_bytes());
         let note = format!(
-            "resident step (flow on the device): sums {sums:.3} s, the rest {:.3} s{}",
+            "resident step (flow on the device): sums {sums:.3} s, the rest {:.3} s{}; per rod:              buffers at their peak {:.0} bytes, cuFFT work areas {:.0}, the context and the              driver's pool the rest (in use before any case: {})",
             tr - sums,
-            per_rod(bytes)
+            per_rod(bytes),
+            peak as f64 / n as f64,
+            work as f64 / n as f64,
+            self.base_bytes
+                .map_or("-".into(), |b| format!("{:.2} GB", b as f64 / 1e9))
         );
         self.push(&case, "gpu resident", tr, 1.0, "steps/s", note);
         if let Some(last) = self.rows.last_mut() {
@@ -520,6 +534,7 @@ fn main() {
         reps,
         cpu_max,
         profile,
+        base_bytes: probe.memory().ok().flatten().map(|(used, _)| used),
         probe,
         rows: Vec::new(),
     };

@@ -2,6 +2,8 @@
 //! interleaved complex values), `i32` (`int*`) and `u32` (`unsigned int*`), so that integers
 //! stay integers on the device.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 mod sealed {
     pub trait Sealed {}
     impl Sealed for f64 {}
@@ -52,6 +54,12 @@ pub struct Buffer<T: Element = f64> {
     pub(crate) data: Data<T>,
 }
 
+impl<T: Element> Drop for Buffer<T> {
+    fn drop(&mut self) {
+        LIVE.fetch_sub(Self::bytes(self.len), Ordering::Relaxed);
+    }
+}
+
 #[derive(Debug)]
 pub(crate) enum Data<T: Element> {
     Host(Vec<T>),
@@ -59,7 +67,42 @@ pub(crate) enum Data<T: Element> {
     Cuda(cudarc::driver::CudaSlice<T>),
 }
 
+/// Bytes of the buffers alive in this process (all devices), and the most there have been
+/// since the last [`reset_peak`]: a tally that needs no device (the host emulation's buffers
+/// count as CUDA's would), for memory budgets measured without a GPU and for breaking down a
+/// GPU's use. A CUDA buffer of no values counts the one value the driver is asked for.
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+/// Bytes of the device buffers alive now (every device of the process; FFT plans' work areas
+/// and the driver's own memory apart).
+pub fn live_bytes() -> usize {
+    LIVE.load(Ordering::Relaxed)
+}
+
+/// The most bytes of device buffers alive at once since the last [`reset_peak`] (or since the
+/// process started).
+pub fn peak_bytes() -> usize {
+    PEAK.load(Ordering::Relaxed)
+}
+
+/// Start a new peak at the bytes alive now.
+pub fn reset_peak() {
+    PEAK.store(LIVE.load(Ordering::Relaxed), Ordering::Relaxed);
+}
+
 impl<T: Element> Buffer<T> {
+    /// Wrap `data` of `len` values, counted in the tally.
+    pub(crate) fn new(len: usize, data: Data<T>) -> Self {
+        let now = LIVE.fetch_add(Self::bytes(len), Ordering::Relaxed) + Self::bytes(len);
+        PEAK.fetch_max(now, Ordering::Relaxed);
+        Self { len, data }
+    }
+
+    fn bytes(len: usize) -> usize {
+        len.max(1) * std::mem::size_of::<T>()
+    }
+
     /// Number of values.
     pub fn len(&self) -> usize {
         self.len

@@ -6,7 +6,7 @@ use crate::error::{DeviceInfo, GpuError};
 use crate::kernel::{Arg, THREADS};
 use cudarc::cufft::{CudaFft, sys::cufftType, sys::double2};
 use cudarc::driver::{
-    CudaContext, CudaFunction, CudaSlice, CudaStream, LaunchConfig, PushKernelArg,
+    CudaContext, CudaFunction, CudaSlice, CudaStream, DevicePtrMut, LaunchConfig, PushKernelArg,
 };
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -134,6 +134,9 @@ impl Cuda {
     /// `(bytes in use, total bytes)`.
     pub(crate) fn memory(&self) -> Result<(usize, usize), GpuError> {
         self.stream.context().bind_to_thread().map_err(driver)?;
+        // Freed buffers go back to the driver's pool at a synchronisation (its release
+        // threshold is 0), so what is in use is read after one.
+        self.stream.synchronize().map_err(driver)?;
         let (free, total) = cudarc::driver::result::mem_get_info().map_err(driver)?;
         Ok((total - free, total))
     }
@@ -187,6 +190,7 @@ impl Cuda {
         m: usize,
         batch: usize,
         (forward, inverse): (bool, bool),
+        in_place: bool,
     ) -> Result<(Option<CudaFft>, Option<CudaFft>), GpuError> {
         let int = |v: usize, what: &str| {
             i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds cuFFT's int")))
@@ -195,13 +199,18 @@ impl Cuda {
         let real = int(m * m * m, "grid points")?;
         let half = int(m * m * (m / 2 + 1), "half-spectrum size")?;
         let b = int(batch, "batch")?;
-        let plan = |kind, idist, odist| {
+        // In place: each field's real values padded to rows of 2 (m/2 + 1), its half spectrum
+        // over them (cuFFT's layout for in-place real transforms).
+        let padded = int(2 * m * m * (m / 2 + 1), "padded grid values")?;
+        let real_embed = [n[0], n[1], int(2 * (m / 2 + 1), "padded row")?];
+        let half_embed = [n[0], n[1], int(m / 2 + 1, "half row")?];
+        let plan = |kind, (inembed, idist): (Option<&[i32]>, i32), (onembed, odist)| {
             CudaFft::plan_many(
                 &n,
-                None,
+                inembed,
                 1,
                 idist,
-                None,
+                onembed,
                 1,
                 odist,
                 kind,
@@ -209,6 +218,14 @@ impl Cuda {
                 self.stream.clone(),
             )
             .map_err(fft)
+        };
+        let (real, half) = if in_place {
+            (
+                (Some(&real_embed[..]), padded),
+                (Some(&half_embed[..]), half),
+            )
+        } else {
+            ((None, real), (None, half))
         };
         Ok((
             if forward {
@@ -222,6 +239,32 @@ impl Cuda {
                 None
             },
         ))
+    }
+
+    /// An in-place batch of `plan` over `len` values of `buf` from `at` (the padded fields,
+    /// or their spectra): forward (D2Z) or inverse (Z2D).
+    pub(crate) fn fft_in_place(
+        &self,
+        plan: Option<&CudaFft>,
+        buf: &mut CudaSlice<f64>,
+        (at, len): (usize, usize),
+        forward: bool,
+    ) -> Result<(), GpuError> {
+        let plan = plan.ok_or_else(|| GpuError::Input("no plan for this direction".into()))?;
+        let mut view = buf.slice_mut(at..at + len);
+        let (ptr, _record) = view.device_ptr_mut(&self.stream);
+        // SAFETY: the plan was made for in-place transforms of this batch (fft3 with
+        // in_place), whose padded fields and spectra are exactly `len` values from `at`
+        // (checked by the caller); the pointer is this view's, valid while `_record` lives,
+        // on the plan's stream; an f64 offset that is even keeps double2's alignment.
+        unsafe {
+            if forward {
+                cudarc::cufft::result::exec_d2z(plan.handle(), ptr as *mut f64, ptr as *mut double2)
+            } else {
+                cudarc::cufft::result::exec_z2d(plan.handle(), ptr as *mut double2, ptr as *mut f64)
+            }
+        }
+        .map_err(fft)
     }
 
     /// # Safety
@@ -265,6 +308,15 @@ impl Cuda {
         // the buffers: the caller's contract.
         unsafe { b.launch(cfg) }.map_err(driver)?;
         Ok(())
+    }
+}
+
+/// Bytes of the work area cuFFT holds for `plan` (0 for none).
+pub(crate) fn work_size(plan: Option<&CudaFft>) -> Result<usize, GpuError> {
+    match plan {
+        // SAFETY: the handle is a live plan (the CudaFft owns it); cufftGetSize only reads it.
+        Some(p) => unsafe { cudarc::cufft::result::get_size(p.handle()) }.map_err(fft),
+        None => Ok(0),
     }
 }
 

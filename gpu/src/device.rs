@@ -155,7 +155,7 @@ impl Device {
                 })
             },
         )?;
-        Ok(Buffer { len, data })
+        Ok(Buffer::new(len, data))
     }
 
     /// Copy `data` into `buf`, which must have its length.
@@ -204,7 +204,7 @@ impl Device {
             #[cfg(feature = "cuda")]
             Inner::Cuda(c) => Data::Cuda(c.zeros(len)?),
         };
-        Ok(Buffer { len, data })
+        Ok(Buffer::new(len, data))
     }
 
     /// Set every value of `buf` to zero.

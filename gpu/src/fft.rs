@@ -6,6 +6,7 @@ use crate::buffer::{Buffer, Data};
 use crate::cuda;
 use crate::device::{Device, Inner};
 use crate::error::GpuError;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A plan for batches of 3D real transforms of `M^3` grids.
 #[derive(Debug)]
@@ -14,6 +15,25 @@ pub struct Fft3 {
     batch: usize,
     direction: Direction,
     inner: FftInner,
+    work: usize,
+    /// In place: each field's half spectrum over its real values, which lie in cuFFT's
+    /// padded layout (rows of `2 (M/2 + 1)` values, the last `2 (M/2 + 1) - M` unused).
+    in_place: bool,
+}
+
+/// Bytes of the work areas that the FFT plans alive in this process hold (cuFFT's; none on
+/// the host emulation).
+static WORK: AtomicUsize = AtomicUsize::new(0);
+
+/// Bytes of the work areas of the FFT plans alive now (every device of the process).
+pub fn fft_work_bytes() -> usize {
+    WORK.load(Ordering::Relaxed)
+}
+
+impl Drop for Fft3 {
+    fn drop(&mut self) {
+        WORK.fetch_sub(self.work, Ordering::Relaxed);
+    }
 }
 
 enum FftInner {
@@ -58,6 +78,22 @@ impl Fft3 {
         2 * self.batch * self.spectrum_len()
     }
 
+    /// `f64` values of one field in the in-place layout, `2 M M (M/2 + 1)`: its padded real
+    /// values, or its half spectrum.
+    pub fn padded_field_len(&self) -> usize {
+        2 * self.spectrum_len()
+    }
+
+    /// `f64` values of an in-place plan's batch, `batch` padded fields.
+    pub fn padded_len(&self) -> usize {
+        self.batch * self.padded_field_len()
+    }
+
+    /// Bytes of the work areas cuFFT holds for this plan (0 on the host emulation).
+    pub fn work_bytes(&self) -> usize {
+        self.work
+    }
+
     /// Complex values of one half spectrum, `M M (M/2 + 1)`.
     pub fn spectrum_len(&self) -> usize {
         self.m * self.m * (self.m / 2 + 1)
@@ -67,13 +103,40 @@ impl Fft3 {
 impl Device {
     /// A plan for batches of `batch` real transforms of `m^3` grids in the directions asked for.
     pub fn fft3(&self, m: usize, batch: usize, direction: Direction) -> Result<Fft3, GpuError> {
+        self.plan(m, batch, direction, false)
+    }
+
+    /// A plan for batches of `batch` in-place real transforms of `m^3` grids: each field's
+    /// real values in the padded layout (`x` rows of `2 (m/2 + 1)` values, see
+    /// [`Fft3::padded_field_len`]) and its half spectrum in the same memory, for
+    /// [`Self::forward_in_place`] and [`Self::inverse_in_place`]. Half the memory of a field
+    /// and its spectrum apart.
+    pub fn fft3_in_place(
+        &self,
+        m: usize,
+        batch: usize,
+        direction: Direction,
+    ) -> Result<Fft3, GpuError> {
+        self.plan(m, batch, direction, true)
+    }
+
+    fn plan(
+        &self,
+        m: usize,
+        batch: usize,
+        direction: Direction,
+        in_place: bool,
+    ) -> Result<Fft3, GpuError> {
         if m < 2 || batch == 0 {
             return Err(GpuError::Input(format!(
                 "an FFT plan of {batch} grids of {m}^3"
             )));
         }
-        let inner = match &self.inner {
-            Inner::Host(_) => FftInner::Host(motile_analysis::fft3::RealFft3::new([m; 3])),
+        let (inner, work) = match &self.inner {
+            Inner::Host(_) => (
+                FftInner::Host(motile_analysis::fft3::RealFft3::new([m; 3])),
+                0,
+            ),
             #[cfg(feature = "cuda")]
             Inner::Cuda(c) => {
                 let (forward, inverse) = c.fft3(
@@ -83,15 +146,21 @@ impl Device {
                         direction != Direction::Inverse,
                         direction != Direction::Forward,
                     ),
+                    in_place,
                 )?;
-                FftInner::Cuda { forward, inverse }
+                let work = crate::cuda::work_size(forward.as_ref())?
+                    + crate::cuda::work_size(inverse.as_ref())?;
+                (FftInner::Cuda { forward, inverse }, work)
             }
         };
+        WORK.fetch_add(work, Ordering::Relaxed);
         Ok(Fft3 {
             m,
             batch,
             direction,
             inner,
+            work,
+            in_place,
         })
     }
 
@@ -105,6 +174,11 @@ impl Device {
         (spectra, spectra_at): (&mut Buffer, usize),
     ) -> Result<(), GpuError> {
         check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        if plan.in_place {
+            return Err(GpuError::Input(
+                "an out-of-place transform with an in-place plan".into(),
+            ));
+        }
         if plan.direction == Direction::Inverse {
             return Err(GpuError::Input(
                 "a forward transform with an inverse-only plan".into(),
@@ -156,6 +230,11 @@ impl Device {
         (real, real_at): (&mut Buffer, usize),
     ) -> Result<(), GpuError> {
         check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        if plan.in_place {
+            return Err(GpuError::Input(
+                "an out-of-place transform with an in-place plan".into(),
+            ));
+        }
         if plan.direction == Direction::Forward {
             return Err(GpuError::Input(
                 "an inverse transform with a forward-only plan".into(),
@@ -194,6 +273,119 @@ impl Device {
                 }
             }
         })
+    }
+}
+
+impl Device {
+    /// Forward transforms of the batch of padded real fields at `buf[at..]` into their half
+    /// spectra, in place (offset in `f64` values, even), with a plan of
+    /// [`Self::fft3_in_place`].
+    pub fn forward_in_place(
+        &self,
+        plan: &Fft3,
+        (buf, at): (&mut Buffer, usize),
+    ) -> Result<(), GpuError> {
+        self.in_place(plan, (buf, at), true)
+    }
+
+    /// Inverse transforms (unnormalised) of the batch of half spectra at `buf[at..]` into
+    /// their padded real fields, in place, as [`Self::forward_in_place`].
+    pub fn inverse_in_place(
+        &self,
+        plan: &Fft3,
+        (buf, at): (&mut Buffer, usize),
+    ) -> Result<(), GpuError> {
+        self.in_place(plan, (buf, at), false)
+    }
+
+    fn in_place(
+        &self,
+        plan: &Fft3,
+        (buf, at): (&mut Buffer, usize),
+        forward: bool,
+    ) -> Result<(), GpuError> {
+        let len = plan.padded_len();
+        if !plan.in_place || at + len > buf.len || at % 2 != 0 {
+            return Err(GpuError::Input(format!(
+                "in-place FFT of {} grids of {}^3 needs an in-place plan and {len} values from                  {at} (even); the buffer holds {}",
+                plan.batch, plan.m, buf.len
+            )));
+        }
+        let wrong = if forward {
+            Direction::Inverse
+        } else {
+            Direction::Forward
+        };
+        if plan.direction == wrong {
+            return Err(GpuError::Input(format!(
+                "an in-place {} transform with a plan for the other direction",
+                if forward { "forward" } else { "inverse" }
+            )));
+        }
+        self.count(|c| {
+            if forward {
+                c.forward += plan.batch as u64;
+            } else {
+                c.inverse += plan.batch as u64;
+            }
+        });
+        let name = || {
+            format!(
+                "{} FFT {}^3 x {} in place",
+                if forward { "forward" } else { "inverse" },
+                plan.m,
+                plan.batch
+            )
+        };
+        self.timed(name, || match (&plan.inner, &mut buf.data) {
+            (FftInner::Host(fft), Data::Host(x)) => {
+                host_in_place(fft, plan, &mut x[at..at + len], forward);
+                Ok(())
+            }
+            #[cfg(feature = "cuda")]
+            (
+                FftInner::Cuda {
+                    forward: f,
+                    inverse: i,
+                },
+                Data::Cuda(x),
+            ) => match (&self.inner, forward) {
+                (Inner::Cuda(c), true) => c.fft_in_place(f.as_ref(), x, (at, len), true),
+                (Inner::Cuda(c), false) => c.fft_in_place(i.as_ref(), x, (at, len), false),
+                _ => Err(GpuError::foreign()),
+            },
+            #[allow(unreachable_patterns)]
+            _ => Err(GpuError::foreign()),
+        })
+    }
+}
+
+/// The host emulation's in-place transforms of `x`, the batch's padded fields.
+fn host_in_place(fft: &motile_analysis::fft3::RealFft3, plan: &Fft3, x: &mut [f64], forward: bool) {
+    let m = plan.m;
+    let (row, s) = (2 * (m / 2 + 1), plan.spectrum_len());
+    let mut real = vec![0.0; m * m * m];
+    let mut spec = vec![num_complex::Complex64::default(); s];
+    for field in x.chunks_exact_mut(plan.padded_field_len()) {
+        if forward {
+            for (dst, src) in real.chunks_exact_mut(m).zip(field.chunks_exact(row)) {
+                dst.copy_from_slice(&src[..m]);
+            }
+            fft.forward(&real, &mut spec);
+            for (j, z) in spec.iter().enumerate() {
+                field[2 * j] = z.re;
+                field[2 * j + 1] = z.im;
+            }
+        } else {
+            for (j, z) in spec.iter_mut().enumerate() {
+                *z = num_complex::Complex64::new(field[2 * j], field[2 * j + 1]);
+            }
+            fft.inverse(&mut spec, &mut real);
+            for (dst, src) in field.chunks_exact_mut(row).zip(real.chunks_exact(m)) {
+                dst[..m].copy_from_slice(src);
+                dst[m..].fill(0.0);
+            }
+        }
     }
 }
 

@@ -41,11 +41,11 @@ mod kernel;
 mod launch;
 pub mod profile;
 
-pub use buffer::{Buffer, Element};
+pub use buffer::{Buffer, Element, live_bytes, peak_bytes, reset_peak};
 pub use counters::Counters;
 pub use device::{Backend, Device, probe};
 pub use error::{DeviceInfo, GpuError, kernel_int};
-pub use fft::{Direction, Fft3};
+pub use fft::{Direction, Fft3, fft_work_bytes};
 #[doc(hidden)]
 pub use kernel::Arg;
 pub use kernel::{Kernel, KernelArg, KernelSet, THREADS, c_type_code};

@@ -221,6 +221,67 @@ fn transforms_have_the_cufft_layout_and_scaling() {
     );
 }
 
+/// In-place transforms: the real values in cuFFT's padded layout (rows of 2 (m/2 + 1)) give the
+/// out-of-place plan's spectra bit for bit over the same memory, whatever the padding holds,
+/// and transform back into the padded rows; an in-place plan refuses out-of-place calls and
+/// the other way round.
+#[test]
+fn in_place_transforms_match_the_out_of_place_ones() {
+    let Some(dev) = device() else { return };
+    for m in [6, 7] {
+        let batch = 2;
+        let (row, n3) = (2 * (m / 2 + 1), m * m * m);
+        let plan = dev.fft3(m, batch, Direction::Both).unwrap();
+        let inplace = dev.fft3_in_place(m, batch, Direction::Both).unwrap();
+        assert_eq!(inplace.padded_len(), batch * m * m * row);
+        let real: Vec<f64> = (0..batch * n3)
+            .map(|i| ((i * 37 % 101) as f64 - 50.0) / 7.0)
+            .collect();
+        // The same values padded, with garbage in the padding.
+        let mut padded = vec![f64::NAN; inplace.padded_len()];
+        for (dst, src) in padded.chunks_exact_mut(row).zip(real.chunks_exact(m)) {
+            dst[..m].copy_from_slice(src);
+        }
+        let mut grid = dev.upload(&padded).unwrap();
+        dev.forward_in_place(&inplace, (&mut grid, 0)).unwrap();
+        let mut spectra = dev.zeros(plan.complex_len()).unwrap();
+        dev.forward(&plan, (&dev.upload(&real).unwrap(), 0), (&mut spectra, 0))
+            .unwrap();
+        let (a, b) = (
+            dev.download(&grid).unwrap(),
+            dev.download(&spectra).unwrap(),
+        );
+        assert_eq!(
+            a.len(),
+            b.len(),
+            "m = {m}: a spectrum over each padded field"
+        );
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "m = {m}: in-place spectra differ from the out-of-place ones"
+        );
+        dev.inverse_in_place(&inplace, (&mut grid, 0)).unwrap();
+        let back = dev.download(&grid).unwrap();
+        let err = back
+            .chunks_exact(row)
+            .zip(real.chunks_exact(m))
+            .flat_map(|(p, r)| p[..m].iter().zip(r).map(|(x, y)| (x / n3 as f64 - y).abs()))
+            .fold(0.0, f64::max);
+        assert!(err < 1e-13, "m = {m}: in-place round trip error {err:e}");
+        assert!(dev.forward_in_place(&plan, (&mut grid, 0)).is_err());
+        assert!(
+            dev.forward(
+                &inplace,
+                (&dev.upload(&real).unwrap(), 0),
+                (&mut spectra, 0)
+            )
+            .is_err()
+        );
+        let short = &mut dev.zeros(inplace.padded_len() - 2).unwrap();
+        assert!(dev.inverse_in_place(&inplace, (short, 0)).is_err());
+    }
+}
+
 /// A source with block reductions in shared memory (`__syncthreads`) runs each block's threads
 /// concurrently: a tree sum per block gives each block's exact partial.
 #[test]

@@ -265,7 +265,7 @@ pub(crate) fn spread(
     );
     check("points", pts, 3 * n)?;
     check("values", vals, nf * n)?;
-    check("grid", grid, nf * m.pow(3))?;
+    check("grid", grid, nf * super::padded_field(m))?;
     check("bin order", &bins.perm, n)?;
     check("bin starts", &bins.start, bins.nb.pow(3) + 1)?;
     let (ni, mi, pi) = (int(n, "points")?, int(m, "grid size")?, int(p, "support")?);
@@ -400,7 +400,7 @@ pub(crate) fn gather(
     );
     let outputs = if gradient { 12 } else { 3 };
     check("points", pts, 3 * n)?;
-    check("grid", grid, 3 * m.pow(3))?;
+    check("grid", grid, 3 * super::padded_field(m))?;
     check("gathered values", out, outputs * n)?;
     check("bin order", &bins.perm, n)?;
     let (ni, mi, pi) = (int(n, "points")?, int(m, "grid size")?, int(p, "support")?);

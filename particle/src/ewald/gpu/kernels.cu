@@ -7,10 +7,15 @@
 // declared once more in signatures.rs (checked against this file when a device opens it).
 //
 // Layouts: points as x, y, z triples; point values field-major (field c of point i at
-// c n + i); grids M^3 per field, x fastest; half spectra M M (M/2 + 1) complex values per
-// field as (re, im) pairs, the x mode fastest.
+// c n + i); grids in cuFFT's in-place layout: per field M M rows of R = 2 (M/2 + 1) values, x
+// fastest (the last R - M of a row unused), and the field's half spectrum, M M (M/2 + 1)
+// complex values as (re, im) pairs with the x mode fastest, over the same memory.
 
 #define MAX_SUPPORT 24
+
+// Values of one padded grid row, and of one field (its real values or its half spectrum).
+__device__ long long grid_row(int m) { return 2LL * (m / 2 + 1); }
+__device__ long long grid_field(int m) { return (long long)m * m * grid_row(m); }
 
 // The window of one point along one axis: the first grid index of its support (in 0..m), the
 // offset d0 of that grid point from the point (in [-w, -w + h)), and the p weights
@@ -54,7 +59,7 @@ __device__ void spread_point(const double* pts, const double* vals, double* grid
         window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &f[d], &d0[d], w[d]);
     double v[6];
     for (int c = 0; c < nf; ++c) v[c] = vals[(long long)(f0 + c) * n + i];
-    long long m3 = (long long)m * m * m;
+    long long m3 = grid_field(m), r = grid_row(m);
     for (int qz = 0; qz < p; ++qz) {
         int z = f[2] + qz;
         if (z >= m) z -= m;
@@ -62,7 +67,7 @@ __device__ void spread_point(const double* pts, const double* vals, double* grid
             int y = f[1] + qy;
             if (y >= m) y -= m;
             double wzy = w[2][qz] * w[1][qy];
-            long long row = ((long long)z * m + y) * m;
+            long long row = ((long long)z * m + y) * r;
             for (int qx = 0; qx < p; ++qx) {
                 int x = f[0] + qx;
                 if (x >= m) x -= m;
@@ -156,10 +161,10 @@ extern "C" __global__ void spread_tiles(const double* pts, const double* vals, c
         }
     }
     __syncthreads();
-    long long m3 = (long long)m * m * m;
+    long long m3 = grid_field(m), r = grid_row(m);
     for (int cell = threadIdx.x; cell < t3; cell += blockDim.x) {
         int tx = cell % TILE, ty = (cell / TILE) % TILE, tz = cell / (TILE * TILE);
-        long long g = ((long long)((origin[2] + tz) % m) * m + (origin[1] + ty) % m) * m +
+        long long g = ((long long)((origin[2] + tz) % m) * m + (origin[1] + ty) % m) * r +
                       (origin[0] + tx) % m;
         for (int c = 0; c < nf; ++c) {
             double v = tile[c * t3 + cell];
@@ -283,10 +288,10 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
             }
         }
     }
-    long long m3 = (long long)m * m * m;
+    long long m3 = grid_field(m), r = grid_row(m);
     for (int cc = 0; cc < CPT; ++cc) {
         if (!inside[cc]) continue;
-        long long g = ((long long)cell[cc][2] * m + cell[cc][1]) * m + cell[cc][0];
+        long long g = ((long long)cell[cc][2] * m + cell[cc][1]) * r + cell[cc][0];
         for (int c = 0; c < NF; ++c) grid[c * m3 + g] = acc[cc][c];
     }
 }
@@ -436,14 +441,14 @@ __device__ void gather_point(const double* pts, const double* grid, double* out,
     }
     double acc[12];
     for (int c = 0; c < 12; ++c) acc[c] = 0.0;
-    long long m3 = (long long)m * m * m;
+    long long m3 = grid_field(m), r = grid_row(m);
     for (int qz = 0; qz < p; ++qz) {
         int z = f[2] + qz;
         if (z >= m) z -= m;
         for (int qy = 0; qy < p; ++qy) {
             int y = f[1] + qy;
             if (y >= m) y -= m;
-            long long row = ((long long)z * m + y) * m;
+            long long row = ((long long)z * m + y) * r;
             double wzy = w[2][qz] * w[1][qy];
             double wz_dy = w[2][qz] * dw[1][qy];
             double dz_wy = dw[2][qz] * w[1][qy];

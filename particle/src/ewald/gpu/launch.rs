@@ -60,7 +60,7 @@ pub(super) fn spread(
     );
     check("points", pts, 3 * n)?;
     check("values", vals, nf * n)?;
-    check("grid", grid, nf * geo.m.pow(3))?;
+    check("grid", grid, nf * super::padded_field(geo.m))?;
     let w = &geo.window;
     // SAFETY: thread i < n reads pts[3 i..3 i + 3] (3 n checked) and vals[c n + i] for c < nf
     // (nf n checked), and adds to grid[c m^3 + idx] with idx < m^3 (every index is reduced into
@@ -159,7 +159,7 @@ pub(super) fn gather(
     );
     let outputs = if gradient { 12 } else { 3 };
     check("points", pts, 3 * n)?;
-    check("grid", grid, 3 * geo.m.pow(3))?;
+    check("grid", grid, 3 * super::padded_field(geo.m))?;
     check("gathered values", out, outputs * n)?;
     let w = &geo.window;
     // SAFETY: thread i < n reads pts[3 i..3 i + 3] (3 n checked), grid[c m^3 + idx] for c < 3

@@ -71,18 +71,24 @@ struct Grid {
     /// The spread fields and their spectra: three (RPY forces) and six (stresslets), each
     /// made when first used.
     inputs: [Option<Input>; 2],
-    /// The inverse transform of three fields: from the first three of an input's spectra
-    /// (the multiplication leaves the velocities there) into the first three of its fields
-    /// (dead after the forward transform), so a sum holds one set of grids.
+    /// The inverse transform of three fields, in place: the first three of an input's spectra
+    /// (the multiplication leaves the velocities there) into the first three of its fields.
     inverse3: Fft3,
 }
 
-/// `nf` spread fields, their forward plan and their spectra.
+/// Values of one field of a sum's grid in the in-place layout: `m m` rows of `2 (m/2 + 1)`
+/// real values (the last `2 (m/2 + 1) - m` unused), or the half spectrum over them.
+pub(crate) fn padded_field(m: usize) -> usize {
+    2 * m * m * (m / 2 + 1)
+}
+
+/// `nf` spread fields and their in-place forward plan: each field's real values in cuFFT's
+/// padded layout (`x` rows of `2 (m/2 + 1)` values), its half spectrum over them, so a sum
+/// holds one grid per field (`2 m m (m/2 + 1)` values).
 #[derive(Debug)]
 pub(crate) struct Input {
     plan: Fft3,
-    fields: Buffer,
-    pub(crate) spectra: Buffer,
+    grids: Buffer,
 }
 
 impl GpuFourier {
@@ -145,7 +151,7 @@ impl GpuFourier {
         let dev = &self.dev;
         if self.grid.as_ref().is_none_or(|g| g.m != m) {
             self.grid = None; // the old buffers go first
-            let inverse3 = dev.fft3(m, 3, Direction::Inverse)?;
+            let inverse3 = dev.fft3_in_place(m, 3, Direction::Inverse)?;
             self.grid = Some(Grid {
                 m,
                 inputs: [None, None],
@@ -155,10 +161,9 @@ impl GpuFourier {
         let g = self.grid.as_mut().expect("made above");
         let slot = &mut g.inputs[usize::from(nf == 6)];
         if slot.is_none() {
-            let plan = dev.fft3(m, nf, Direction::Forward)?;
+            let plan = dev.fft3_in_place(m, nf, Direction::Forward)?;
             *slot = Some(Input {
-                fields: dev.zeros(plan.real_len())?,
-                spectra: dev.zeros(plan.complex_len())?,
+                grids: dev.zeros(plan.padded_len())?,
                 plan,
             });
         }
@@ -188,14 +193,14 @@ impl GpuFourier {
             .expect("made by grid()");
         // The output-driven spreader writes every grid value; the others add to zeros.
         if method != SpreadMethod::Cells {
-            dev.zero(&mut input.fields)?;
+            dev.zero(&mut input.grids)?;
         }
         match &bins {
-            None => launch::spread(dev, geo, pts, vals, &mut input.fields, n, nf)?,
-            Some(b) => binned::spread(dev, geo, b, pts, vals, &mut input.fields, (n, nf))?,
+            None => launch::spread(dev, geo, pts, vals, &mut input.grids, n, nf)?,
+            Some(b) => binned::spread(dev, geo, b, pts, vals, &mut input.grids, (n, nf))?,
         }
         self.bins = bins.map(|b| (generation, b));
-        dev.forward(&input.plan, (&input.fields, 0), (&mut input.spectra, 0))
+        dev.forward_in_place(&input.plan, (&mut input.grids, 0))
     }
 
     /// The points of `generation` sorted into bins for `method`: the cached sort, or a new one
@@ -242,11 +247,11 @@ impl GpuFourier {
             .as_mut()
             .expect("spread made it");
         let dev = &self.dev;
-        launch::modes(dev, geo, which, &mut input.spectra)?;
-        // The velocity spectra into the first three fields (the input's own buffer).
-        dev.inverse(&g.inverse3, (&mut input.spectra, 0), (&mut input.fields, 0))?;
+        launch::modes(dev, geo, which, &mut input.grids)?;
+        // The velocity spectra back to the grid, in place.
+        dev.inverse_in_place(&g.inverse3, (&mut input.grids, 0))?;
         let mut out = dev.zeros(if gradient { 12 } else { 3 } * n)?;
-        let back = &input.fields;
+        let back = &input.grids;
         match (&self.bins, method) {
             (Some((_, b)), m) if m != SpreadMethod::Atomic => {
                 binned::gather(dev, geo, b, pts, back, &mut out, (n, gradient))?;
