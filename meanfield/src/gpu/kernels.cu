@@ -10,6 +10,11 @@
 __device__ __constant__ int SYM_I[6] = {0, 0, 0, 1, 1, 2};
 __device__ __constant__ int SYM_J[6] = {0, 1, 2, 1, 2, 2};
 
+// The row and column of symmetric component cc (SYM_I, SYM_J), as arithmetic: with cc a
+// compile-time value (an unrolled loop) the indices are constants, no memory is read.
+__device__ int sym_i(int cc) { return cc < 3 ? 0 : (cc < 5 ? 1 : 2); }
+__device__ int sym_j(int cc) { return cc < 3 ? cc : (cc < 5 ? cc - 2 : 2); }
+
 __device__ int sym_index(int i, int j) {
     int a = i < j ? i : j;
     int b = i < j ? j : i;
@@ -23,25 +28,73 @@ __device__ double2 times_i(double2 z, double k) {
     return make_double2(-k * z.y, k * z.x);
 }
 
+// Component m = i * 3 + k of the velocity gradient d_k u_i at point p: eight fields are stored
+// (g[m N + p] for m < 8), and d_z u_z = -(d_x u_x + d_y u_y) (div u = 0).
+__device__ double grad_at(const double* g, long long N, long long p, int m) {
+    return m == 8 ? -(g[p] + g[4 * N + p]) : g[m * N + p];
+}
+
+// E_c = (g_ij + g_ji) / 2 at point p from the velocity gradient (grad_at).
+__device__ void strain_at(const double* g, long long N, long long p, double e[6]) {
+#pragma unroll
+    for (int c = 0; c < 6; c++) {
+        int i = sym_i(c), j = sym_j(c);
+        e[c] = 0.5 * (grad_at(g, N, p, i * 3 + j) + grad_at(g, N, p, j * 3 + i));
+    }
+}
+
+__device__ void block_sum(double* shared, double v, double* out) {
+    int t = threadIdx.x;
+    shared[t] = v;
+    __syncthreads();
+    for (int w = REDUCE_THREADS / 2; w > 0; w /= 2) {
+        if (t < w) shared[t] += shared[t + w];
+        __syncthreads();
+    }
+    if (t == 0) *out = shared[0];
+    __syncthreads();
+}
+
+__device__ void block_max(double* shared, double v, double* out) {
+    int t = threadIdx.x;
+    shared[t] = v;
+    __syncthreads();
+    for (int w = REDUCE_THREADS / 2; w > 0; w /= 2) {
+        if (t < w) shared[t] = fmax(shared[t], shared[t + w]);
+        __syncthreads();
+    }
+    if (t == 0) *out = shared[0];
+    __syncthreads();
+}
+
 // ---------------------------------------------------------------------------------------------
 // Spectral loops.
 
-// After a forward transform: scale by 1/n^3, and zero the modes the 2/3 rule drops.
+// After a forward transform: scale by 1/n^3, and zero the modes the 2/3 rule drops; per block
+// the count of non-finite values after (nonfinite_partials of the result, fused in).
 extern "C" __global__ void scale_dealias(double2* c, long long count, int n, double scale,
-                                         const int* keep, int dealias) {
+                                         const int* keep, int dealias, double* partial) {
+    __shared__ double shared[REDUCE_THREADS];
     long long t = blockIdx.x * (long long)blockDim.x + threadIdx.x;
-    if (t >= count) return;
-    int h = n / 2 + 1;
-    long long s = t % ((long long)n * n * h);
-    int a = (int)(s % h);
-    long long row = s / h;
-    int b = (int)(row % n), d = (int)(row / n);
-    bool kept = !dealias || (3 * a <= n && keep[b] != 0 && keep[d] != 0);
-    double2 v = c[t];
-    c[t] = kept ? make_double2(v.x * scale, v.y * scale) : make_double2(0.0, 0.0);
+    double bad = 0.0;
+    if (t < count) {
+        int h = n / 2 + 1;
+        long long s = t % ((long long)n * n * h);
+        int a = (int)(s % h);
+        long long row = s / h;
+        int b = (int)(row % n), d = (int)(row / n);
+        bool kept = !dealias || (3 * a <= n && keep[b] != 0 && keep[d] != 0);
+        double2 v = c[t];
+        double2 r = kept ? make_double2(v.x * scale, v.y * scale) : make_double2(0.0, 0.0);
+        c[t] = r;
+        bad = (isfinite(r.x) ? 0.0 : 1.0) + (isfinite(r.y) ? 0.0 : 1.0);
+    }
+    block_sum(shared, bad, &partial[blockIdx.x]);
 }
 
-// The six strain spectra (i/2)(k_j u_i + k_i u_j) of velocity spectra u (three components).
+// The strain spectra (i/2)(k_j u_i + k_i u_j) of velocity spectra u (three components): the
+// first five (xx, xy, xz, yy, yz); E is trace-free (div u = 0), so contract takes
+// E_zz = -(E_xx + E_yy) and the fixed point transforms five fields, not six.
 extern "C" __global__ void strain_spectra(const double2* u, double2* out, int n, const double* k1) {
     int h = n / 2 + 1;
     long long S = (long long)n * n * h;
@@ -50,8 +103,9 @@ extern "C" __global__ void strain_spectra(const double2* u, double2* out, int n,
     int a = (int)(s % h);
     long long row = s / h;
     double k[3] = {k1[a], k1[row % n], k1[row / n]};
-    for (int c = 0; c < 6; c++) {
-        int i = SYM_I[c], j = SYM_J[c];
+#pragma unroll
+    for (int c = 0; c < 5; c++) {
+        int i = sym_i(c), j = sym_j(c);
         double2 ui = u[i * S + s], uj = u[j * S + s];
         // 0.5 i (u_i k_j + u_j k_i)
         double2 w = make_double2(ui.x * k[j] + uj.x * k[i], ui.y * k[j] + uj.y * k[i]);
@@ -116,9 +170,9 @@ __device__ void stokes_mode(const double2 sig[6], const double k[3], double kk, 
     }
 }
 
-// Zero-mean Stokes velocity of six stress spectra, each scaled by `scale` and dealiased by
-// the 2/3 rule as it is read (scale_dealias fused in: the raw forward transforms of the stress
-// in, the same values as scale_dealias then stokes).
+// Zero-mean Stokes velocity of a trace-free stress from the spectra of its first five
+// components (contract), each scaled by `scale` and dealiased by the 2/3 rule as it is read
+// (scale_dealias fused in), sigma_zz = -(sigma_xx + sigma_yy).
 extern "C" __global__ void stokes(const double2* sigma, double2* u, int n, const double* k1,
                                   const double* k2, double scale, const int* keep) {
     long long S = (long long)n * n * (n / 2 + 1);
@@ -135,10 +189,11 @@ extern "C" __global__ void stokes(const double2* sigma, double2* u, int n, const
     }
     double2 sig[6];
 #pragma unroll
-    for (int c = 0; c < 6; c++) {
+    for (int c = 0; c < 5; c++) {
         double2 v = sigma[c * S + s];
         sig[c] = make_double2(v.x * scale, v.y * scale);
     }
+    sig[5] = make_double2(-(sig[0].x + sig[3].x), -(sig[0].y + sig[3].y));
     double2 out[3];
     stokes_mode(sig, k, kk, out);
     for (int i = 0; i < 3; i++) u[i * S + s] = out[i];
@@ -172,58 +227,42 @@ extern "C" __global__ void warm_start(const double2* q, const double2* q_prev, c
 }
 
 // Variable-step IMEX update (SBDF1 when `two` is 0), six components:
-// out = (-a1 q + dt b0 N [- a2 q_prev + dt b1 N_prev]) / (a0 + dt D |k|^2).
+// out = (-a1 q + dt b0 N [- a2 q_prev + dt b1 N_prev]) / (a0 + dt D |k|^2); per block the
+// count of non-finite values written (nonfinite_partials of the result, fused in).
 extern "C" __global__ void imex_update(const double2* q, const double2* nl, const double2* q_prev,
                                        const double2* nl_prev, double2* out, int n,
                                        const double* k2, double a0, double a1, double a2,
                                        double b0, double b1, double dt, double diffusion,
-                                       int two) {
+                                       int two, double* partial) {
+    __shared__ double shared[REDUCE_THREADS];
     int h = n / 2 + 1;
     long long S = (long long)n * n * h;
     long long s = blockIdx.x * (long long)blockDim.x + threadIdx.x;
-    if (s >= S) return;
-    int a = (int)(s % h);
-    long long row = s / h;
-    double kk = k2[a] + k2[row % n] + k2[row / n];
-    double den = a0 + dt * diffusion * kk;
-    for (int c = 0; c < 6; c++) {
-        long long i = c * S + s;
-        double2 r = make_double2(-a1 * q[i].x + dt * b0 * nl[i].x, -a1 * q[i].y + dt * b0 * nl[i].y);
-        if (two) {
-            r.x += -a2 * q_prev[i].x + dt * b1 * nl_prev[i].x;
-            r.y += -a2 * q_prev[i].y + dt * b1 * nl_prev[i].y;
+    double bad = 0.0;
+    if (s < S) {
+        int a = (int)(s % h);
+        long long row = s / h;
+        double kk = k2[a] + k2[row % n] + k2[row / n];
+        double den = a0 + dt * diffusion * kk;
+        for (int c = 0; c < 6; c++) {
+            long long i = c * S + s;
+            double2 r = make_double2(-a1 * q[i].x + dt * b0 * nl[i].x,
+                                     -a1 * q[i].y + dt * b0 * nl[i].y);
+            if (two) {
+                r.x += -a2 * q_prev[i].x + dt * b1 * nl_prev[i].x;
+                r.y += -a2 * q_prev[i].y + dt * b1 * nl_prev[i].y;
+            }
+            double2 o = make_double2(r.x / den, r.y / den);
+            out[i] = o;
+            bad += (isfinite(o.x) ? 0.0 : 1.0) + (isfinite(o.y) ? 0.0 : 1.0);
         }
-        out[i] = make_double2(r.x / den, r.y / den);
     }
+    block_sum(shared, bad, &partial[blockIdx.x]);
 }
 
 // ---------------------------------------------------------------------------------------------
 // Deterministic block reductions: each block sums its fixed range in a fixed tree order and
 // writes one partial per block; the host adds the partials in block order.
-
-__device__ void block_sum(double* shared, double v, double* out) {
-    int t = threadIdx.x;
-    shared[t] = v;
-    __syncthreads();
-    for (int w = REDUCE_THREADS / 2; w > 0; w /= 2) {
-        if (t < w) shared[t] += shared[t + w];
-        __syncthreads();
-    }
-    if (t == 0) *out = shared[0];
-    __syncthreads();
-}
-
-__device__ void block_max(double* shared, double v, double* out) {
-    int t = threadIdx.x;
-    shared[t] = v;
-    __syncthreads();
-    for (int w = REDUCE_THREADS / 2; w > 0; w /= 2) {
-        if (t < w) shared[t] = fmax(shared[t], shared[t + w]);
-        __syncthreads();
-    }
-    if (t == 0) *out = shared[0];
-    __syncthreads();
-}
 
 __device__ double spectral_weight(long long s, int n) {
     int h = n / 2 + 1;
@@ -270,9 +309,9 @@ extern "C" __global__ void norm_partials(const double2* u, int n, double* partia
 }
 
 // Partials of the step report: max(|u_x| + |u_y| + |u_z|), <E:E>, <E:Q>, <E:S:E> (weighted
-// sums over the six components). The velocity's three fields start at ug + ug_at (it may share
-// a buffer with e).
-extern "C" __global__ void report_partials(const double* ug, long long ug_at, const double* e,
+// sums over the six components), E from the velocity gradient g as strain_at. The velocity's
+// three fields start at ug + ug_at.
+extern "C" __global__ void report_partials(const double* ug, long long ug_at, const double* g,
                                            const double* q, const double* se, long long N,
                                            double* partial) {
     __shared__ double shared[REDUCE_THREADS];
@@ -281,9 +320,12 @@ extern "C" __global__ void report_partials(const double* ug, long long ug_at, co
     double umax = 0.0, ee = 0.0, eq = 0.0, ese = 0.0;
     if (p < N) {
         umax = fabs(ug[p]) + fabs(ug[N + p]) + fabs(ug[2 * N + p]);
+        double e[6];
+        strain_at(g, N, p, e);
+#pragma unroll
         for (int c = 0; c < 6; c++) {
-            double w = (SYM_I[c] == SYM_J[c]) ? 1.0 : 2.0;
-            double ec = e[c * N + p];
+            double w = (sym_i(c) == sym_j(c)) ? 1.0 : 2.0;
+            double ec = e[c];
             ee += w * ec * ec;
             eq += w * ec * q[c * N + p];
             ese += w * ec * se[c * N + p];
@@ -295,47 +337,54 @@ extern "C" __global__ void report_partials(const double* ug, long long ug_at, co
     block_sum(shared, ese, &partial[4 * blockIdx.x + 3]);
 }
 
-// Partials of the number of non-finite entries among `count` doubles.
-extern "C" __global__ void nonfinite_partials(const double* v, long long count, double* partial) {
-    __shared__ double shared[REDUCE_THREADS];
-    long long t = blockIdx.x * (long long)blockDim.x + threadIdx.x;
-    double bad = (t < count && !isfinite(v[t])) ? 1.0 : 0.0;
-    block_sum(shared, bad, &partial[blockIdx.x]);
-}
 
 // ---------------------------------------------------------------------------------------------
 // Pointwise grid loops.
 
-// E_c = (g_ij + g_ji) / 2 from the velocity gradient g[(i * 3 + k) N + p] = d_k u_i.
-extern "C" __global__ void strain_from_gradient(const double* g, double* e, long long N) {
-    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
-    if (p >= N) return;
-    for (int c = 0; c < 6; c++) {
-        int i = SYM_I[c], j = SYM_J[c];
-        e[c * N + p] = 0.5 * (g[(i * 3 + j) * N + p] + g[(j * 3 + i) * N + p]);
-    }
-}
-
-// S:E from the stored lab-frame tensors (21 per point, rows of the upper triangle); with
-// `stress` set, -q + zeta S:E (the active stress), else S:E, written over e in place (a thread
-// reads its point's six E values before it writes any).
-extern "C" __global__ void contract(const double* s21, double* e, const double* q, double zeta,
-                                    long long N, int stress) {
-    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
-    if (p >= N) return;
-    const double* m = s21 + 21 * p;
-    double w[6] = {e[p], 2.0 * e[N + p], 2.0 * e[2 * N + p], e[3 * N + p], 2.0 * e[4 * N + p],
-                   e[5 * N + p]};
-    double t[6];
+// S:E at one point from its stored lab-frame tensor m (21 values, rows of the upper
+// triangle) and E's six components.
+__device__ void contract_point(const double* m, const double e[6], double t[6]) {
+    double w[6] = {e[0], 2.0 * e[1], 2.0 * e[2], e[3], 2.0 * e[4], e[5]};
     t[0] = m[0] * w[0] + m[1] * w[1] + m[2] * w[2] + m[3] * w[3] + m[4] * w[4] + m[5] * w[5];
     t[1] = m[1] * w[0] + m[6] * w[1] + m[7] * w[2] + m[8] * w[3] + m[9] * w[4] + m[10] * w[5];
     t[2] = m[2] * w[0] + m[7] * w[1] + m[11] * w[2] + m[12] * w[3] + m[13] * w[4] + m[14] * w[5];
     t[3] = m[3] * w[0] + m[8] * w[1] + m[12] * w[2] + m[15] * w[3] + m[16] * w[4] + m[17] * w[5];
     t[4] = m[4] * w[0] + m[9] * w[1] + m[13] * w[2] + m[16] * w[3] + m[18] * w[4] + m[19] * w[5];
     t[5] = m[5] * w[0] + m[10] * w[1] + m[14] * w[2] + m[17] * w[3] + m[19] * w[4] + m[20] * w[5];
+}
+
+// The active stress -q + zeta S:E from the stored lab-frame tensors and the grid E (its first
+// five components; E_zz = -(E_xx + E_yy)), its deviatoric part's first five components
+// written over e in place (a thread reads its point's E values before it writes any): the
+// isotropic part drives no flow (stokes projects it out), so the fixed point transforms five
+// fields, and stokes takes sigma_zz = -(sigma_xx + sigma_yy).
+extern "C" __global__ void contract(const double* s21, double* e, const double* q, double zeta,
+                                    long long N) {
+    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (p >= N) return;
+    double ep[6] = {e[p], e[N + p], e[2 * N + p], e[3 * N + p], e[4 * N + p], 0.0};
+    ep[5] = -(ep[0] + ep[3]);
+    double t[6], sig[6];
+    contract_point(s21 + 21 * p, ep, t);
     // With zeta = 0 the stress is -Q alone (as on the CPU, which skips the contraction then).
-    for (int c = 0; c < 6; c++)
-        e[c * N + p] = stress ? (zeta != 0.0 ? -q[c * N + p] + zeta * t[c] : -q[c * N + p]) : t[c];
+#pragma unroll
+    for (int c = 0; c < 6; c++) sig[c] = zeta != 0.0 ? -q[c * N + p] + zeta * t[c] : -q[c * N + p];
+    double third = (sig[0] + sig[3] + sig[5]) / 3.0;
+    sig[0] -= third;
+    sig[3] -= third;
+#pragma unroll
+    for (int c = 0; c < 5; c++) e[c * N + p] = sig[c];
+}
+
+// S:E over the grid, E from the velocity gradient g as strain_at, into se.
+extern "C" __global__ void contract_gradient(const double* s21, const double* g, double* se,
+                                             long long N) {
+    long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
+    if (p >= N) return;
+    double e[6], t[6];
+    strain_at(g, N, p, e);
+    contract_point(s21 + 21 * p, e, t);
+    for (int c = 0; c < 6; c++) se[c * N + p] = t[c];
 }
 
 // The explicit terms -u.grad Q + (grad u) Q + Q (grad u)^T - 2 S:E at every point, six
@@ -348,14 +397,16 @@ extern "C" __global__ void explicit_terms(const double* ug, long long ug_at, con
     long long p = blockIdx.x * (long long)blockDim.x + threadIdx.x;
     if (p >= N) return;
     ug += ug_at;
+#pragma unroll
     for (int c = 0; c < 6; c++) {
-        int i = SYM_I[c], j = SYM_J[c];
+        int i = sym_i(c), j = sym_j(c);
         double adv = ug[p] * dq[(c * 3 + 0) * N + p] + ug[N + p] * dq[(c * 3 + 1) * N + p] +
                      ug[2 * N + p] * dq[(c * 3 + 2) * N + p];
         double stretch = 0.0;
+#pragma unroll
         for (int k = 0; k < 3; k++) {
-            stretch += g[(i * 3 + k) * N + p] * q[sym_index(k, j) * N + p] +
-                       q[sym_index(i, k) * N + p] * g[(j * 3 + k) * N + p];
+            stretch += grad_at(g, N, p, i * 3 + k) * q[sym_index(k, j) * N + p] +
+                       q[sym_index(i, k) * N + p] * grad_at(g, N, p, j * 3 + k);
         }
         se[c * N + p] = -adv + stretch - 2.0 * se[c * N + p];
     }
@@ -641,8 +692,6 @@ __device__ void chebyshev_tables_staged(const double2* tab, double sx, double sy
 }
 
 // The lab-frame tensor's component indices, compile-time where cc is (SYM_I, SYM_J).
-__device__ int sym_i(int cc) { return cc < 3 ? 0 : (cc < 5 ? 1 : 2); }
-__device__ int sym_j(int cc) { return cc < 3 ? cc : (cc < 5 ? cc - 2 : 2); }
 
 // One point of the closure field, first half: c = tr Q, w and r the eigenvalues and
 // eigenvectors of Q / c, f the tables at its collapsed coordinates, lo/hi the extreme

@@ -8,9 +8,8 @@
 
 use crate::gpu::error::GpuError;
 use crate::gpu::signatures::{
-    ChangePartials, ClosureField, Contract, DerivativeSpectra, ExplicitTerms, ImexUpdate,
-    NonfinitePartials, NormPartials, ReportPartials, ScaleDealias, Stokes, StrainFromGradient,
-    StrainSpectra, WarmStart,
+    ChangePartials, ClosureField, Contract, ContractGradient, DerivativeSpectra, ExplicitTerms,
+    ImexUpdate, NormPartials, ReportPartials, ScaleDealias, Stokes, StrainSpectra, WarmStart,
 };
 use crate::gpu::work::Layout;
 use crate::solver::grid::SpectralGrid;
@@ -257,14 +256,16 @@ impl Buffers {
         Ok(())
     }
 
-    /// Six real fields of `src` forward transformed into the first six spectra of `dst`.
-    fn forward_six(
+    /// The first `count` real fields of `src` forward transformed into the first `count`
+    /// spectra of `dst`.
+    fn forward_many(
         dev: &Device,
         fwd: &Fft3,
         (src, n): (&Buffer, usize),
         (dst, s): (&mut Buffer, usize),
+        count: usize,
     ) -> Result<(), GpuError> {
-        for c in 0..6 {
+        for c in 0..count {
             dev.forward(fwd, (src, c * n), (dst, 2 * c * s))?;
         }
         Ok(())
@@ -333,12 +334,12 @@ impl Buffers {
         Ok((-r[0], r[1], r[2]))
     }
 
-    /// E of the current u on the grid (6 strain spectra in `six`, 6 inverse transforms into
-    /// `wide`).
+    /// E of the current u on the grid: its first five components (E is trace-free), 5 strain
+    /// spectra in `six`, 5 inverse transforms into `wide`.
     pub(super) fn strain_to_grid(&mut self, dev: &Device) -> Result<(), GpuError> {
         // SAFETY: strain_spectra(const double2* u, double2* out, int n, const double* k1):
         // u_work holds 3 S values, six 6 S, k1 n; thread s < S reads u[i S + s] and writes
-        // out[c S + s] for c < 6.
+        // out[c S + s] for c < 5.
         unsafe {
             dev.launch(
                 self.s_len,
@@ -356,41 +357,35 @@ impl Buffers {
             &self.fft,
             &mut self.six,
             (&mut self.wide, 0),
-            6,
+            5,
             (s, n),
         )
     }
 
-    /// The active stress -Q + zeta S:E over the grid E in `wide`, forward transformed into
-    /// `six` (unscaled: [`Self::stokes`] scales and dealiases as it reads them).
+    /// The active stress -Q + zeta S:E over the grid E in `wide`: its deviatoric part's first
+    /// five components forward transformed into `six` (unscaled: [`Self::stokes`] scales and
+    /// dealiases them as it reads them, and completes the trace-free tensor).
     pub(super) fn stress(&mut self, dev: &Device, zeta: f64) -> Result<(), GpuError> {
-        self.contract(dev, zeta, true)?;
+        self.contract(dev, zeta)?;
         let (s, n) = (self.s_len, self.n_len);
-        Self::forward_six(dev, &self.fft, (&self.wide, n), (&mut self.six, s))
+        Self::forward_many(dev, &self.fft, (&self.wide, n), (&mut self.six, s), 5)
     }
 
-    /// Over the grid E in place: the stress with `stress` (E in `wide`), else `S:E` (E in
-    /// `six`).
-    fn contract(&mut self, dev: &Device, zeta: f64, stress: bool) -> Result<(), GpuError> {
-        let e = if stress {
-            &mut self.wide
-        } else {
-            &mut self.six
-        };
+    /// The stress `-Q + zeta S:E` over the grid E in `wide` (five components), its deviatoric
+    /// part's first five components in place.
+    fn contract(&mut self, dev: &Device, zeta: f64) -> Result<(), GpuError> {
         // SAFETY: contract(const double* s21, double* e, const double* q, double zeta,
-        // long long N, int stress): big holds 21 N doubles, q 6 N, the E buffer (wide: max(9 N,
-        // 12 S), six: 12 S) at least 6 N; thread p < N reads s21[21 p..21 p + 21] and reads
-        // and writes index c N + p for c < 6.
+        // long long N): big holds 21 N doubles, q 6 N, wide max(9 N, 12 S) >= 6 N; thread
+        // p < N reads s21[21 p..21 p + 21] and reads and writes index c N + p for c < 6.
         unsafe {
             dev.launch(
                 self.n_len,
                 Contract {
                     s21: &self.big,
-                    e,
+                    e: &mut self.wide,
                     q: &self.q,
                     zeta,
                     N: self.n_len as i64,
-                    stress: i32::from(stress),
                 },
             )
         }
@@ -403,8 +398,9 @@ impl Buffers {
         let total = 6 * self.s_len;
         let target = &mut self.wide;
         // SAFETY: scale_dealias(double2* c, long long count, int n, double scale,
-        // const int* keep, int dealias): wide holds at least `count` = 6 S complex values
-        // (max(9 N, 12 S) doubles), keep n ints; thread t < count touches c[t] only.
+        // const int* keep, int dealias, double* partial): wide holds at least `count` = 6 S
+        // complex values (max(9 N, 12 S) doubles), keep n ints, partial at least one per
+        // block; thread t < count touches c[t] only, each block writes its partial.
         unsafe {
             dev.launch(
                 total,
@@ -415,6 +411,7 @@ impl Buffers {
                     scale: 1.0 / self.n_len as f64,
                     keep: &self.keep,
                     dealias: 1,
+                    partial: &mut self.partial,
                 },
             )
         }
@@ -468,46 +465,36 @@ impl Buffers {
         std::mem::swap(&mut self.u_work, &mut self.u_next);
     }
 
-    /// grad u on the grid (`wide`), E from it and S:E over E (`six`; S is dead after), u on
-    /// the grid (`big` at 18 N) and E again (`big` at 0): the explicit terms' and the
-    /// report's inputs. [`Self::report_sums`] must read them before [`Self::explicit_terms`]
-    /// writes grad Q over E.
+    /// grad u on the grid (`wide`), S:E with E from it (`six`; S is dead after), u on the
+    /// grid (`big` at 18 N): the explicit terms' and the report's inputs.
+    /// [`Self::report_sums`] must read them before [`Self::explicit_terms`] writes grad Q
+    /// over `big`.
     pub(super) fn gradients(&mut self, dev: &Device) -> Result<(), GpuError> {
         let (s, n) = (self.s_len, self.n_len);
+        // Eight components: d_z u_z = -(d_x u_x + d_y u_y) (div u = 0) where it is read.
         for i in 0..3 {
             self.derivatives(dev, Spectrum::U, i)?;
             let dst = (&mut self.wide, 3 * i * n);
-            Self::inverse_many(dev, &self.fft, &mut self.u_next, dst, 3, (s, n))?;
+            let count = if i == 2 { 2 } else { 3 };
+            Self::inverse_many(dev, &self.fft, &mut self.u_next, dst, count, (s, n))?;
         }
-        self.strain_from_gradient(dev, StrainInto::Six)?;
-        self.contract(dev, 0.0, false)?;
-        dev.copy((&self.u_work, 0), (&mut self.u_next, 0), 6 * s)?;
-        let dst = (&mut self.big, ug_at(n));
-        Self::inverse_many(dev, &self.fft, &mut self.u_next, dst, 3, (s, n))?;
-        // The same E, at the start of `big` (the report reads it beside S:E).
-        self.strain_from_gradient(dev, StrainInto::Big)
-    }
-
-    /// E from grad u (`wide`) into `six` or into the start of `big`.
-    fn strain_from_gradient(&mut self, dev: &Device, into: StrainInto) -> Result<(), GpuError> {
-        let e = match into {
-            StrainInto::Six => &mut self.six,
-            StrainInto::Big => &mut self.big,
-        };
-        // SAFETY: strain_from_gradient(const double* g, double* e, long long N): wide holds at
-        // least 9 N doubles, the target at least 6 N (six 12 S, big 21 N); thread p < N touches
-        // index c N + p only.
+        // SAFETY: contract_gradient(const double* s21, const double* g, double* se,
+        // long long N): big holds 21 N doubles, wide at least 9 N, six 12 S >= 6 N; thread
+        // p < N reads s21[21 p..21 p + 21] and g[m N + p] for m < 8, writes se[c N + p].
         unsafe {
             dev.launch(
-                self.n_len,
-                StrainFromGradient {
+                n,
+                ContractGradient {
+                    s21: &self.big,
                     g: &self.wide,
-                    e,
-                    N: self.n_len as i64,
+                    se: &mut self.six,
+                    N: n as i64,
                 },
             )
-        }
-        .map_err(GpuError::from)
+        }?;
+        dev.copy((&self.u_work, 0), (&mut self.u_next, 0), 6 * s)?;
+        let dst = (&mut self.big, ug_at(n));
+        Self::inverse_many(dev, &self.fft, &mut self.u_next, dst, 3, (s, n))
     }
 
     /// The three derivative spectra of component `first` of u (`u_work`) or Q (`q_hat`) into
@@ -565,53 +552,37 @@ impl Buffers {
                 },
             )
         }?;
-        Self::forward_six(dev, &self.fft, (&self.six, n), (&mut self.wide, s))?;
+        Self::forward_many(dev, &self.fft, (&self.six, n), (&mut self.wide, s), 6)?;
         self.scale_dealias(dev)
     }
 
-    /// Whether the explicit terms (`wide`; or, with `update`, the updated Q in `six`) hold a
-    /// non-finite value.
-    fn nonfinite(&mut self, dev: &Device, update: bool) -> Result<bool, GpuError> {
-        let count = 2 * 6 * self.s_len;
-        let src = if update { &self.six } else { &self.wide };
-        // SAFETY: nonfinite_partials(const double* v, long long count, double* partial): the
-        // buffer holds at least 6 S complex values = 12 S doubles (six 12 S, wide max(9 N,
-        // 12 S)), read as doubles; partial holds at least one value per block.
-        unsafe {
-            dev.launch(
-                count,
-                NonfinitePartials {
-                    v: src,
-                    count: count as i64,
-                    partial: &mut self.partial,
-                },
-            )
-        }?;
-        Ok(self.reduce(dev, blocks(count), 1, &[])?[0] > 0.0)
-    }
-
+    /// Whether the explicit terms hold a non-finite value (counted by [`Self::explicit_terms`]'s
+    /// scaling: the partials it left).
     pub(super) fn nonfinite_nonlinear(&mut self, dev: &Device) -> Result<bool, GpuError> {
-        self.nonfinite(dev, false)
+        Ok(self.reduce(dev, blocks(6 * self.s_len), 1, &[])?[0] > 0.0)
     }
 
+    /// Whether the updated Q holds a non-finite value (counted by [`Self::imex`]: the
+    /// partials it left).
     pub(super) fn nonfinite_update(&mut self, dev: &Device) -> Result<bool, GpuError> {
-        self.nonfinite(dev, true)
+        Ok(self.reduce(dev, blocks(self.s_len), 1, &[])?[0] > 0.0)
     }
 
     /// (max |u_x| + |u_y| + |u_z|, <E:E>, <E:Q>, <E:S:E>) as sums over the grid; after
     /// [`Self::gradients`], before [`Self::explicit_terms`].
     pub(super) fn report_sums(&mut self, dev: &Device) -> Result<(f64, f64, f64, f64), GpuError> {
-        // SAFETY: report_partials(const double* ug, long long ug_at, const double* e,
+        // SAFETY: report_partials(const double* ug, long long ug_at, const double* g,
         // const double* q, const double* se, long long N, double* partial): big holds 21 N
-        // doubles (E its first 6 N, u the 3 N from ug_at = 18 N), q 6 N, six 12 S >= 6 N,
-        // partial at least 4 per block; thread p < N reads index c N + p only (ug from ug_at).
+        // doubles (u the 3 N from ug_at = 18 N), wide (grad u) at least 9 N, q 6 N, six
+        // 12 S >= 6 N, partial at least 4 per block; thread p < N reads index c N + p only
+        // (ug from ug_at).
         unsafe {
             dev.launch(
                 self.n_len,
                 ReportPartials {
                     ug: &self.big,
                     ug_at: ug_at(self.n_len) as i64,
-                    e: &self.big,
+                    g: &self.wide,
                     q: &self.q,
                     se: &self.six,
                     N: self.n_len as i64,
@@ -652,9 +623,11 @@ impl Buffers {
     ) -> Result<(), GpuError> {
         // SAFETY: imex_update(const double2* q, const double2* nl, const double2* q_prev,
         // const double2* nl_prev, double2* out, int n, const double* k2, double a0, double a1,
-        // double a2, double b0, double b1, double dt, double diffusion, int two): q_hat,
+        // double a2, double b0, double b1, double dt, double diffusion, int two,
+        // double* partial): q_hat,
         // q_prev, nl_prev and six hold 6 S values each, wide (the explicit terms) at least
-        // 6 S, k2 n doubles; thread s < S touches index c S + s.
+        // 6 S, k2 n doubles, partial (the non-finite counts) at least one per block; thread
+        // s < S touches index c S + s, each block writes its partial.
         unsafe {
             dev.launch(
                 self.s_len,
@@ -674,6 +647,7 @@ impl Buffers {
                     dt,
                     diffusion,
                     two: i32::from(two),
+                    partial: &mut self.partial,
                 },
             )
         }
@@ -691,14 +665,6 @@ impl Buffers {
         self.has_prev = true;
         Ok(())
     }
-}
-
-/// Where E from grad u goes: `six` (S:E is contracted over it) or the start of `big` (for the
-/// report).
-#[derive(Clone, Copy)]
-enum StrainInto {
-    Six,
-    Big,
 }
 
 /// Whose derivatives: u's (`u_work`) or Q's (`q_hat`).

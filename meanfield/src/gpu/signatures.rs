@@ -9,7 +9,8 @@ motile_gpu::kernels! {
     /// `kernels.cu` and its kernels.
     pub(super) const KERNELS = include_str!("kernels.cu");
 
-    /// Scale `count` spectrum values and zero the modes the 2/3 rule drops.
+    /// Scale `count` spectrum values and zero the modes the 2/3 rule drops; block counts of
+    /// non-finite results.
     pub(super) struct ScaleDealias = "scale_dealias" {
         c: &'a mut Buffer<f64>,
         count: i64,
@@ -17,6 +18,7 @@ motile_gpu::kernels! {
         scale: f64,
         keep: &'a Buffer<i32>,
         dealias: i32,
+        partial: &'a mut Buffer<f64>,
     }
 
     /// The spectra of E from those of u.
@@ -60,7 +62,7 @@ motile_gpu::kernels! {
         keep: &'a Buffer<i32>,
     }
 
-    /// The IMEX update of Q.
+    /// The IMEX update of Q; block counts of non-finite results.
     pub(super) struct ImexUpdate = "imex_update" {
         q: &'a Buffer<f64>,
         nl: &'a Buffer<f64>,
@@ -77,6 +79,7 @@ motile_gpu::kernels! {
         dt: f64,
         diffusion: f64,
         two: i32,
+        partial: &'a mut Buffer<f64>,
     }
 
     /// Block partials of the fixed point's change `|a - b|^2` and norm `|a|^2`.
@@ -98,35 +101,28 @@ motile_gpu::kernels! {
     pub(super) struct ReportPartials = "report_partials" {
         ug: &'a Buffer<f64>,
         ug_at: i64,
-        e: &'a Buffer<f64>,
+        g: &'a Buffer<f64>,
         q: &'a Buffer<f64>,
         se: &'a Buffer<f64>,
         N: i64,
         partial: &'a mut Buffer<f64>,
     }
 
-    /// Block counts of non-finite values.
-    pub(super) struct NonfinitePartials = "nonfinite_partials" {
-        v: &'a Buffer<f64>,
-        count: i64,
-        partial: &'a mut Buffer<f64>,
-    }
-
-    /// E on the grid from the velocity gradient.
-    pub(super) struct StrainFromGradient = "strain_from_gradient" {
-        g: &'a Buffer<f64>,
-        e: &'a mut Buffer<f64>,
-        N: i64,
-    }
-
-    /// `S:E` (or the stress `-Q + zeta S:E`) per grid point, over E in place.
+    /// The stress `-Q + zeta S:E` per grid point, over E in place.
     pub(super) struct Contract = "contract" {
         s21: &'a Buffer<f64>,
         e: &'a mut Buffer<f64>,
         q: &'a Buffer<f64>,
         zeta: f64,
         N: i64,
-        stress: i32,
+    }
+
+    /// `S:E` per grid point, E from the velocity gradient.
+    pub(super) struct ContractGradient = "contract_gradient" {
+        s21: &'a Buffer<f64>,
+        g: &'a Buffer<f64>,
+        se: &'a mut Buffer<f64>,
+        N: i64,
     }
 
     /// The explicit terms of the Q equation per grid point, over `S:E` in place.
