@@ -108,7 +108,26 @@ pub(super) struct Buffers {
     wide: Buffer,
     /// The closure's 21 lab-frame components per point, then scratch.
     big: Buffer,
+    /// The fixed point's change partials (downloaded every iteration).
     partial: Buffer,
+    /// The step's other reductions' partials, each in its own buffer so that one download at
+    /// the end of the step reads them all (no host round trip in between): the closure's, the
+    /// report's, the explicit terms' non-finite count, `|u|^2`, the update's non-finite count.
+    step_partials: [Buffer; 5],
+}
+
+/// What the step's reductions give, read in one download at the end of the step
+/// ([`Buffers::step_sums`]).
+pub(super) struct StepSums {
+    pub(super) min_eigenvalue: f64,
+    pub(super) max_eigenvalue: f64,
+    pub(super) entropy_sum: f64,
+    pub(super) u_max: f64,
+    /// Grid sums of E:E, E:Q and E:S:E.
+    pub(super) e_sums: (f64, f64, f64),
+    pub(super) terms_nonfinite: bool,
+    pub(super) u_norm_sqr: f64,
+    pub(super) update_nonfinite: bool,
 }
 
 /// Where u on the grid lies in `big` (after S is dead): behind the 18 fields of grad Q.
@@ -146,6 +165,13 @@ impl Buffers {
             wide: dev.zeros(l.wide())?,
             big: dev.zeros(l.fields(21))?,
             partial: dev.zeros(l.partials())?,
+            step_partials: [
+                dev.zeros(l.step_partials()[0])?,
+                dev.zeros(l.step_partials()[1])?,
+                dev.zeros(l.step_partials()[2])?,
+                dev.zeros(l.step_partials()[3])?,
+                dev.zeros(l.step_partials()[4])?,
+            ],
         })
     }
 
@@ -168,7 +194,8 @@ impl Buffers {
             &self.big,
             &self.partial,
         ];
-        8 * f64s.iter().map(|b| b.len()).sum::<usize>() + 4 * self.keep.len()
+        let step: usize = self.step_partials.iter().map(|b| b.len()).sum();
+        8 * (f64s.iter().map(|b| b.len()).sum::<usize>() + step) + 4 * self.keep.len()
     }
 
     pub(super) fn upload_state(
@@ -218,16 +245,16 @@ impl Buffers {
         Ok((q, hist, u))
     }
 
-    /// Sum of the first `blocks * stride` partials, `stride` per block: per slot, the block
-    /// values in block order (max for the slots in `max_slots`).
+    /// Sum of the first `blocks * stride` partials of `partial`, `stride` per block: per
+    /// slot, the block values in block order (max for the slots in `max_slots`).
     fn reduce(
-        &self,
         dev: &Device,
+        partial: &Buffer,
         blocks: usize,
         stride: usize,
         max_slots: &[usize],
     ) -> Result<Vec<f64>, GpuError> {
-        let host = dev.download_range(&self.partial, 0, blocks * stride)?;
+        let host = dev.download_range(partial, 0, blocks * stride)?;
         Ok((0..stride)
             .map(|slot| {
                 let vals = (0..blocks).map(|b| host[b * stride + slot]);
@@ -303,14 +330,14 @@ impl Buffers {
         Self::inverse_many(dev, &self.fft, &mut self.six, (&mut self.q, 0), 6, (s, n))
     }
 
-    /// The closure field into `big`; returns (smallest eigenvalue, largest eigenvalue, entropy
-    /// sum).
+    /// The closure field into `big` (its partials: the smallest and largest eigenvalue, the
+    /// entropy sum, read by [`Self::step_sums`]).
     pub(super) fn closure(
         &mut self,
         dev: &Device,
         deg: usize,
         with_entropy: bool,
-    ) -> Result<(f64, f64, f64), GpuError> {
+    ) -> Result<(), GpuError> {
         // SAFETY: closure_field(const double* q, double* s21, const double* coef, int deg,
         // int with_entropy, long long N, double* partial): q holds 6 N doubles, big 21 N, coef
         // the 4 (deg + 1)^2 table coefficients uploaded for this degree, partial at least
@@ -326,12 +353,33 @@ impl Buffers {
                     deg: deg as i32,
                     with_entropy: i32::from(with_entropy),
                     N: self.n_len as i64,
-                    partial: &mut self.partial,
+                    partial: &mut self.step_partials[0],
                 },
             )
-        }?;
-        let r = self.reduce(dev, blocks(self.n_len), 3, &[0, 1])?;
-        Ok((-r[0], r[1], r[2]))
+        }
+        .map_err(GpuError::from)
+    }
+
+    /// The step's reductions, in one download (the first waits for the step's kernels, the
+    /// others find nothing queued), each folded in block order as before.
+    pub(super) fn step_sums(&self, dev: &Device) -> Result<StepSums, GpuError> {
+        let p = &self.step_partials;
+        let (n, s) = (blocks(self.n_len), blocks(self.s_len));
+        let closure = Self::reduce(dev, &p[0], n, 3, &[0, 1])?;
+        let report = Self::reduce(dev, &p[1], n, 4, &[0])?;
+        let terms = Self::reduce(dev, &p[2], blocks(6 * self.s_len), 1, &[])?;
+        let norm = Self::reduce(dev, &p[3], s, 1, &[])?;
+        let update = Self::reduce(dev, &p[4], s, 1, &[])?;
+        Ok(StepSums {
+            min_eigenvalue: -closure[0],
+            max_eigenvalue: closure[1],
+            entropy_sum: closure[2],
+            u_max: report[0],
+            e_sums: (report[1], report[2], report[3]),
+            terms_nonfinite: terms[0] > 0.0,
+            u_norm_sqr: norm[0],
+            update_nonfinite: update[0] > 0.0,
+        })
     }
 
     /// E of the current u on the grid: its first five components (E is trace-free), 5 strain
@@ -411,7 +459,7 @@ impl Buffers {
                     scale: 1.0 / self.n_len as f64,
                     keep: &self.keep,
                     dealias: 1,
-                    partial: &mut self.partial,
+                    partial: &mut self.step_partials[2],
                 },
             )
         }
@@ -456,7 +504,7 @@ impl Buffers {
                 },
             )
         }?;
-        let r = self.reduce(dev, blocks(self.s_len), 2, &[])?;
+        let r = Self::reduce(dev, &self.partial, blocks(self.s_len), 2, &[])?;
         Ok((r[0] / r[1].max(FLOW_FLOOR * FLOW_FLOOR)).sqrt())
     }
 
@@ -556,21 +604,10 @@ impl Buffers {
         self.scale_dealias(dev)
     }
 
-    /// Whether the explicit terms hold a non-finite value (counted by [`Self::explicit_terms`]'s
-    /// scaling: the partials it left).
-    pub(super) fn nonfinite_nonlinear(&mut self, dev: &Device) -> Result<bool, GpuError> {
-        Ok(self.reduce(dev, blocks(6 * self.s_len), 1, &[])?[0] > 0.0)
-    }
-
-    /// Whether the updated Q holds a non-finite value (counted by [`Self::imex`]: the
-    /// partials it left).
-    pub(super) fn nonfinite_update(&mut self, dev: &Device) -> Result<bool, GpuError> {
-        Ok(self.reduce(dev, blocks(self.s_len), 1, &[])?[0] > 0.0)
-    }
-
-    /// (max |u_x| + |u_y| + |u_z|, <E:E>, <E:Q>, <E:S:E>) as sums over the grid; after
-    /// [`Self::gradients`], before [`Self::explicit_terms`].
-    pub(super) fn report_sums(&mut self, dev: &Device) -> Result<(f64, f64, f64, f64), GpuError> {
+    /// The partials of (max |u_x| + |u_y| + |u_z|, <E:E>, <E:Q>, <E:S:E>) as sums over the
+    /// grid (read by [`Self::step_sums`]); after [`Self::gradients`], before
+    /// [`Self::explicit_terms`].
+    pub(super) fn report_sums(&mut self, dev: &Device) -> Result<(), GpuError> {
         // SAFETY: report_partials(const double* ug, long long ug_at, const double* g,
         // const double* q, const double* se, long long N, double* partial): big holds 21 N
         // doubles (u the 3 N from ug_at = 18 N), wide (grad u) at least 9 N, q 6 N, six
@@ -586,16 +623,16 @@ impl Buffers {
                     q: &self.q,
                     se: &self.six,
                     N: self.n_len as i64,
-                    partial: &mut self.partial,
+                    partial: &mut self.step_partials[1],
                 },
             )
-        }?;
-        let r = self.reduce(dev, blocks(self.n_len), 4, &[0])?;
-        Ok((r[0], r[1], r[2], r[3]))
+        }
+        .map_err(GpuError::from)
     }
 
-    /// sum over the spectrum of |u|^2 (Parseval).
-    pub(super) fn u_norm(&mut self, dev: &Device) -> Result<f64, GpuError> {
+    /// The partials of the sum over the spectrum of |u|^2 (Parseval; read by
+    /// [`Self::step_sums`]).
+    pub(super) fn u_norm(&mut self, dev: &Device) -> Result<(), GpuError> {
         // SAFETY: norm_partials(const double2* u, int n, double* partial): u_work holds 3 S
         // values, partial at least one per block; thread s < S reads index c S + s.
         unsafe {
@@ -604,11 +641,11 @@ impl Buffers {
                 NormPartials {
                     u: &self.u_work,
                     n: self.n as i32,
-                    partial: &mut self.partial,
+                    partial: &mut self.step_partials[3],
                 },
             )
-        }?;
-        Ok(self.reduce(dev, blocks(self.s_len), 1, &[])?[0])
+        }
+        .map_err(GpuError::from)
     }
 
     /// The IMEX update into `six`.
@@ -647,7 +684,7 @@ impl Buffers {
                     dt,
                     diffusion,
                     two: i32::from(two),
-                    partial: &mut self.partial,
+                    partial: &mut self.step_partials[4],
                 },
             )
         }
@@ -710,7 +747,7 @@ mod tests {
         let (s, n3) = (n * n * (n / 2 + 1), n * n * n);
         let bytes = device_bytes(n, deg);
         let fields = 16 * 33 * s + 8 * (27 + 9) * n3;
-        // Beside them the tables and the reductions' partials (13 MB).
+        // Beside them the tables and the reductions' partials (6 MB).
         assert!(bytes >= fields && bytes - fields < 1 << 24, "{bytes}");
         assert!(bytes < 9_310_000_000, "{bytes}");
         eprintln!("device_bytes(256) = {bytes}");

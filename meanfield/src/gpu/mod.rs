@@ -131,9 +131,9 @@ impl GpuMeanField {
         let npts = (n * n * n) as f64;
         // Q to the grid.
         b.inverse_q(dev)?;
-        // The closure field.
-        let (min_eigenvalue, max_eigenvalue, entropy_sum) =
-            b.closure(dev, self.deg, with_entropy)?;
+        // The closure field (its reductions, like the report's, are read at the end of the
+        // step in one download).
+        b.closure(dev, self.deg, with_entropy)?;
         // The Stokes fixed point from the previous u.
         let mut report = RhsReport::default();
         let zeta = self.params.zeta;
@@ -151,13 +151,11 @@ impl GpuMeanField {
         // u, grad u, E, S:E and the report's sums over them (before the explicit terms write
         // grad Q over E), the explicit terms.
         b.gradients(dev)?;
-        let (u_max, ee, eq, ese) = b.report_sums(dev)?;
+        b.report_sums(dev)?;
         b.explicit_terms(dev)?;
-        if b.nonfinite_nonlinear(dev)? {
-            return Err(MeanFieldError::NonFinite("the right-hand side").into());
-        }
-        let u_l2 = b.u_norm(dev)?.sqrt();
-        // The IMEX update into the spare buffer; committed only if finite.
+        b.u_norm(dev)?;
+        // The IMEX update into the spare buffer; committed only if the terms and it are
+        // finite.
         // As MeanFieldStepper::step: the scheme once it has its history, SBDF1 before.
         let (scheme, w) = match self.prev_dt {
             Some(prev) if self.scheme.steps == 2 => (self.scheme, dt / prev),
@@ -172,22 +170,27 @@ impl GpuMeanField {
             self.params.diffusion,
             self.prev_dt.is_some() && scheme.steps == 2,
         )?;
-        if b.nonfinite_update(dev)? {
+        let sums = b.step_sums(dev)?;
+        if sums.terms_nonfinite {
+            return Err(MeanFieldError::NonFinite("the right-hand side").into());
+        }
+        if sums.update_nonfinite {
             return Err(MeanFieldError::NonFinite("Q after the step").into());
         }
         b.commit_step(dev)?;
+        let (ee, eq, ese) = sums.e_sums;
         self.prev_dt = Some(dt);
         self.t += dt;
         Ok(MeanFieldStepReport {
             rhs: report,
-            min_eigenvalue,
-            u_l2,
-            u_max,
+            min_eigenvalue: sums.min_eigenvalue,
+            u_l2: sums.u_norm_sqr.sqrt(),
+            u_max: sums.u_max,
             e_l2: (ee / npts).sqrt(),
             e_dot_q: eq / npts,
-            max_eigenvalue,
+            max_eigenvalue: sums.max_eigenvalue,
             entropy: if with_entropy {
-                entropy_sum / npts
+                sums.entropy_sum / npts
             } else {
                 f64::NAN
             },

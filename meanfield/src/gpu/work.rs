@@ -53,8 +53,8 @@ pub fn work_model(iterations: usize, with_history: bool) -> Vec<PhaseWork> {
             phase("Q to the grid", 0, 6, 0, 2.0 * (3.0 + 6.0))
         },
         // closure_field: Q (6) in, the 21 fourth-moment components out (its tables are small
-        // and cached); the eigenvalue and entropy partials downloaded.
-        phase("closure field", 1, 0, 1, 6.0 + 21.0),
+        // and cached); its partials read at the end of the step.
+        phase("closure field", 1, 0, 0, 6.0 + 21.0),
         // Per iteration (E and the deviatoric stress are trace-free: five components each):
         // strain_spectra (u 3 -> 5), 5 inverse, contract (S 21, E 5, Q 6 -> 5), 5 forward,
         // stokes (5 -> 3, scaling and dealiasing as it reads), change (u and its new value:
@@ -76,8 +76,8 @@ pub fn work_model(iterations: usize, with_history: bool) -> Vec<PhaseWork> {
             0,
             3.0 * (1.0 + 3.0) + (21.0 + 8.0 + 6.0) + 6.0,
         ),
-        // report_partials (u 3, grad u 8, Q 6, S:E 6); its partials downloaded.
-        phase("report sums", 1, 0, 1, 23.0),
+        // report_partials (u 3, grad u 8, Q 6, S:E 6); its partials read at the end.
+        phase("report sums", 1, 0, 0, 23.0),
         // Per Q component derivative_spectra (1 -> 3), 3 inverse (18 in all); explicit_terms
         // (u 3, grad u 8, Q 6, grad Q 18, S:E 6 -> 6 over S:E), 6 forward, scale_dealias (6
         // read and written, its non-finite count per block beside).
@@ -88,18 +88,24 @@ pub fn work_model(iterations: usize, with_history: bool) -> Vec<PhaseWork> {
             0,
             6.0 * (1.0 + 3.0) + (3.0 + 8.0 + 6.0 + 18.0 + 6.0 + 6.0) + 12.0,
         ),
-        // The explicit terms' non-finite count downloaded; norm_partials (u 3), imex_update
-        // (Q, N, Q and N before: 24 -> 6, its non-finite count per block beside); each
-        // reduction's partials downloaded; at the commit N copied into N before (6 spectra
-        // read and written).
+        // norm_partials (u 3), imex_update (Q, N, Q and N before: 24 -> 6, its non-finite
+        // count per block beside); the partials of the step's reductions (the closure's, the
+        // report's, the non-finite counts, |u|^2) read in five downloads back to back at the
+        // end (only the first waits for the device); at the commit N copied into N before (6
+        // spectra read and written).
         phase(
             "checks, IMEX update, commit",
             2,
             0,
-            3,
+            5,
             3.0 + (24.0 + 6.0) + 12.0,
         ),
     ]
+}
+
+/// Blocks of [`motile_gpu::THREADS`] threads over `elements`, at least one (launch.rs).
+fn blocks(elements: usize) -> usize {
+    elements.div_ceil(motile_gpu::THREADS as usize).max(1)
 }
 
 /// The sizes, in values, of the device buffers of a step on an `n^3` grid
@@ -138,14 +144,23 @@ impl Layout {
         self.fields(9).max(self.spectra(6))
     }
 
-    /// The reductions' partials: four per block over the largest reduction (2 * 6 S doubles),
-    /// and a few spare.
+    /// The fixed point's change partials: two per block over a spectrum.
     pub(super) fn partials(&self) -> usize {
-        4 * self
-            .spectra(6)
-            .div_ceil(motile_gpu::THREADS as usize)
-            .max(1)
-            + 8
+        2 * blocks(self.s)
+    }
+
+    /// The step's other reductions' partials, one buffer each: the closure's (3 per block over
+    /// the grid), the report's (4 per block over the grid), the explicit terms' non-finite
+    /// counts (one per block over 6 spectra), `|u|^2` and the update's non-finite counts (one
+    /// per block over a spectrum).
+    pub(super) fn step_partials(&self) -> [usize; 5] {
+        [
+            3 * blocks(self.n3),
+            4 * blocks(self.n3),
+            blocks(6 * self.s),
+            blocks(self.s),
+            blocks(self.s),
+        ]
     }
 
     /// Every buffer's `(f64 values, i32 values)` apart from the closure's coefficients:
@@ -159,7 +174,8 @@ impl Layout {
             + self.fields(21)
             + self.wide()
             + 2 * n
-            + self.partials();
+            + self.partials()
+            + self.step_partials().iter().sum::<usize>();
         (f64s, n)
     }
 }
