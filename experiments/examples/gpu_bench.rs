@@ -3,7 +3,7 @@
 //! ```text
 //! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- \
 //!     [--device cuda|emulation] [--small] [--cases mf,sum,dipole,explicit,sbt] [--reps 3]
-//!     [--cpu-max N] [--sum-sizes 100000,1000000] [--profile] [--out FILE.csv]
+//!     [--cpu-max N] [--sum-sizes 100000,1000000] [--lengths 100,175] [--profile] [--out FILE.csv]
 //! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- --model [--small]
 //! ```
 //!
@@ -564,7 +564,16 @@ fn main() {
         }
     }
     if has("dipole") {
-        for l in if small { vec![5.0] } else { vec![100.0, 175.0] } {
+        let lengths = if let Some(list) = arg("--lengths") {
+            list.split(',')
+                .map(|x| x.trim().parse().expect("--lengths"))
+                .collect()
+        } else if small {
+            vec![5.0]
+        } else {
+            vec![100.0, 175.0]
+        };
+        for l in lengths {
             b.steps("dipole", l);
         }
     }

@@ -198,9 +198,19 @@ impl Cuda {
         let n = [int(m, "grid size")?; 3];
         let real = int(m * m * m, "grid points")?;
         let half = int(m * m * (m / 2 + 1), "half-spectrum size")?;
-        let b = int(batch, "batch")?;
         // In place: each field's real values padded to rows of 2 (m/2 + 1), its half spectrum
-        // over them (cuFFT's layout for in-place real transforms).
+        // over them (cuFFT's layout for in-place real transforms). How the plan describes it
+        // (`in_place_layout`): the layout given (embed), cuFFT's default for in-place
+        // execution (basic), or one field per plan, executed once per field (single).
+        let layout = in_place_layout();
+        let b = int(
+            if in_place && layout == "single" {
+                1
+            } else {
+                batch
+            },
+            "batch",
+        )?;
         let padded = int(2 * m * m * (m / 2 + 1), "padded grid values")?;
         let real_embed = [n[0], n[1], int(2 * (m / 2 + 1), "padded row")?];
         let half_embed = [n[0], n[1], int(m / 2 + 1, "half row")?];
@@ -219,7 +229,9 @@ impl Cuda {
             )
             .map_err(fft)
         };
-        let (real, half) = if in_place {
+        let (real, half) = if in_place && layout == "basic" {
+            ((None, padded), (None, half))
+        } else if in_place {
             (
                 (Some(&real_embed[..]), padded),
                 (Some(&half_embed[..]), half),
@@ -247,24 +259,41 @@ impl Cuda {
         &self,
         plan: Option<&CudaFft>,
         buf: &mut CudaSlice<f64>,
-        (at, len): (usize, usize),
+        (at, len, field): (usize, usize, usize),
         forward: bool,
     ) -> Result<(), GpuError> {
         let plan = plan.ok_or_else(|| GpuError::Input("no plan for this direction".into()))?;
-        let mut view = buf.slice_mut(at..at + len);
-        let (ptr, _record) = view.device_ptr_mut(&self.stream);
-        // SAFETY: the plan was made for in-place transforms of this batch (fft3 with
-        // in_place), whose padded fields and spectra are exactly `len` values from `at`
-        // (checked by the caller); the pointer is this view's, valid while `_record` lives,
-        // on the plan's stream; an f64 offset that is even keeps double2's alignment.
-        unsafe {
-            if forward {
-                cudarc::cufft::result::exec_d2z(plan.handle(), ptr as *mut f64, ptr as *mut double2)
-            } else {
-                cudarc::cufft::result::exec_z2d(plan.handle(), ptr as *mut double2, ptr as *mut f64)
+        // A plan of one field (layout "single") runs once per field.
+        let step = if in_place_layout() == "single" {
+            field
+        } else {
+            len
+        };
+        for from in (at..at + len).step_by(step) {
+            let mut view = buf.slice_mut(from..from + step);
+            let (ptr, _record) = view.device_ptr_mut(&self.stream);
+            // SAFETY: the plan was made for in-place transforms of `step / field` padded
+            // fields (fft3 with in_place), exactly `step` values from `from` inside the
+            // caller's checked range; the pointer is this view's, valid while `_record`
+            // lives, on the plan's stream; an even f64 offset keeps double2's alignment.
+            unsafe {
+                if forward {
+                    cudarc::cufft::result::exec_d2z(
+                        plan.handle(),
+                        ptr as *mut f64,
+                        ptr as *mut double2,
+                    )
+                } else {
+                    cudarc::cufft::result::exec_z2d(
+                        plan.handle(),
+                        ptr as *mut double2,
+                        ptr as *mut f64,
+                    )
+                }
             }
+            .map_err(fft)?;
         }
-        .map_err(fft)
+        Ok(())
     }
 
     /// # Safety
@@ -308,6 +337,18 @@ impl Cuda {
         // the buffers: the caller's contract.
         unsafe { b.launch(cfg) }.map_err(driver)?;
         Ok(())
+    }
+}
+
+/// How in-place plans describe their padded layout, from `MOTILE_CUFFT_IN_PLACE`: `embed`
+/// (the default: the padded dimensions given), `basic` (none given: cuFFT's own in-place
+/// layout, the same memory) or `single` (a plan of one field, run once per field). A
+/// diagnostic for comparing cuFFT's algorithms on a device; the results are the same layout.
+fn in_place_layout() -> String {
+    match std::env::var("MOTILE_CUFFT_IN_PLACE").as_deref() {
+        Ok("basic") => "basic".into(),
+        Ok("single") => "single".into(),
+        _ => "embed".into(),
     }
 }
 

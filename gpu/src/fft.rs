@@ -350,8 +350,12 @@ impl Device {
                 },
                 Data::Cuda(x),
             ) => match (&self.inner, forward) {
-                (Inner::Cuda(c), true) => c.fft_in_place(f.as_ref(), x, (at, len), true),
-                (Inner::Cuda(c), false) => c.fft_in_place(i.as_ref(), x, (at, len), false),
+                (Inner::Cuda(c), true) => {
+                    c.fft_in_place(f.as_ref(), x, (at, len, plan.padded_field_len()), true)
+                }
+                (Inner::Cuda(c), false) => {
+                    c.fft_in_place(i.as_ref(), x, (at, len, plan.padded_field_len()), false)
+                }
                 _ => Err(GpuError::foreign()),
             },
             #[allow(unreachable_patterns)]
