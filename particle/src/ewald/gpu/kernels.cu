@@ -472,12 +472,94 @@ __device__ void gather_point(const double* pts, const double* grid, double* out,
     for (int c = 0; c < outputs; ++c) out[(long long)c * n + i] = h3 * acc[c];
 }
 
+// gather_point with a compile-time support P: the x axis's weights in registers (the inner loop
+// unrolled; a run-time support keeps all the weights in local memory, 1 248 bytes of stack),
+// the y and z axes' apart (read once per row). The same operations in the same order.
+template <int P>
+__device__ void gather_point_p(const double* pts, const double* grid, double* out, int i, int n,
+                               int gradient, int m, double l, double h, double alpha,
+                               double norm) {
+    int f[3];
+    double d0[3];
+    double wx[P], dwx[P], wy[P], dwy[P], wz[P], dwz[P];
+    window_axis(pts[3 * i], l, m, P, h, alpha, norm, &f[0], &d0[0], wx);
+    window_axis(pts[3 * i + 1], l, m, P, h, alpha, norm, &f[1], &d0[1], wy);
+    window_axis(pts[3 * i + 2], l, m, P, h, alpha, norm, &f[2], &d0[2], wz);
+#pragma unroll
+    for (int q = 0; q < P; ++q) {
+        dwx[q] = 2.0 * alpha * (d0[0] + q * h) * wx[q];
+        dwy[q] = 2.0 * alpha * (d0[1] + q * h) * wy[q];
+        dwz[q] = 2.0 * alpha * (d0[2] + q * h) * wz[q];
+    }
+    double acc[12];
+#pragma unroll
+    for (int c = 0; c < 12; ++c) acc[c] = 0.0;
+    long long m3 = grid_field(m), r = grid_row(m);
+    for (int qz = 0; qz < P; ++qz) {
+        int z = f[2] + qz;
+        if (z >= m) z -= m;
+        for (int qy = 0; qy < P; ++qy) {
+            int y = f[1] + qy;
+            if (y >= m) y -= m;
+            long long row = ((long long)z * m + y) * r;
+            double wzy = wz[qz] * wy[qy];
+            double wz_dy = wz[qz] * dwy[qy];
+            double dz_wy = dwz[qz] * wy[qy];
+#pragma unroll
+            for (int qx = 0; qx < P; ++qx) {
+                int x = f[0] + qx;
+                if (x >= m) x -= m;
+#pragma unroll
+                for (int c = 0; c < 3; ++c) {
+                    double g = grid[c * m3 + row + x];
+                    acc[c] += wzy * wx[qx] * g;
+                    if (gradient) {
+                        acc[3 + 3 * c] += wzy * dwx[qx] * g;
+                        acc[3 + 3 * c + 1] += wz_dy * wx[qx] * g;
+                        acc[3 + 3 * c + 2] += dz_wy * wx[qx] * g;
+                    }
+                }
+            }
+        }
+    }
+    double h3 = h * h * h;
+    int outputs = gradient ? 12 : 3;
+    for (int c = 0; c < outputs; ++c) out[(long long)c * n + i] = h3 * acc[c];
+}
+
+// gather_point for point i, through gather_point_p for the supports the sums use (6-16: the
+// tolerances 1e-2 to 1e-8), the run-time loop for others.
+__device__ void gather_any(const double* pts, const double* grid, double* out, int i, int n,
+                           int gradient, int m, int p, double l, double h, double alpha,
+                           double norm) {
+    switch (p) {
+#define GATHER_P(P)                                                                          \
+    case P:                                                                                  \
+        gather_point_p<P>(pts, grid, out, i, n, gradient, m, l, h, alpha, norm);             \
+        return;
+        GATHER_P(6)
+        GATHER_P(7)
+        GATHER_P(8)
+        GATHER_P(9)
+        GATHER_P(10)
+        GATHER_P(11)
+        GATHER_P(12)
+        GATHER_P(13)
+        GATHER_P(14)
+        GATHER_P(15)
+        GATHER_P(16)
+#undef GATHER_P
+    default:
+        gather_point(pts, grid, out, i, n, gradient, m, p, l, h, alpha, norm);
+    }
+}
+
 extern "C" __global__ void gather(const double* pts, const double* grid, double* out, int n,
                                   int gradient, int m, int p, double l, double h,
                                   double alpha, double norm) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
-    gather_point(pts, grid, out, i, n, gradient, m, p, l, h, alpha, norm);
+    gather_any(pts, grid, out, i, n, gradient, m, p, l, h, alpha, norm);
 }
 
 // The gather over the points in bin order (thread j gathers point perm[j]): neighbouring
@@ -487,7 +569,7 @@ extern "C" __global__ void gather_sorted(const double* pts, const double* grid, 
                                          double l, double h, double alpha, double norm) {
     int j = blockIdx.x * blockDim.x + threadIdx.x;
     if (j >= n) return;
-    gather_point(pts, grid, out, perm[j], n, gradient, m, p, l, h, alpha, norm);
+    gather_any(pts, grid, out, perm[j], n, gradient, m, p, l, h, alpha, norm);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -227,85 +227,81 @@ extern "C" __global__ void solver_gp(const double* lam, const double* g, double*
     gp[k] = (lam[k] > 0.0 || g[k] < 0.0) ? g[k] : 0.0;
 }
 
-// The sequential reductions below fold their chunk in order, as the CPU does; each thread
-// loads REDUCE_BATCH elements at a time (independent loads, in flight together) before folding
-// them, which keeps the order of the additions and hides the memory latency that a
-// load-then-add loop of one thread per chunk exposes (a millisecond per call at 287 000
-// constraints).
-#define REDUCE_BATCH 32
+// The sequential reductions below fold their chunk in order, as the CPU does. One block per
+// chunk: its threads compute the terms of blockDim.x consecutive elements at a time into shared
+// memory (their loads in flight together, across the block), then its first thread folds them
+// in order; the additions' order, and so every bit, is the one-thread fold's. (One thread per
+// chunk loading and folding alone took 0.23 ms per call at L/l = 100: the fold waited on each
+// batch's loads and on its own arithmetic.) Each kernel is launched with one block per chunk
+// (`chunk` elements, the CPU's chunk size).
+#define FOLD_THREADS 256
 
 // Per chunk c of `chunk` constraints, in order: max |min(lam_new, g_new)|, |s|^2, s.y, |y|^2
 // with s = lam_new - lam, y = g_new - g (4 values at 4 c): fused_stats' partials.
 extern "C" __global__ void solver_stats(const double* lam, const double* lam_new,
                                         const double* g, const double* g_new, double* partial,
                                         int m, int chunk) {
-    // One chunk per block, run by its first thread: the chunks' loads spread over the
-    // multiprocessors (a chunk per thread of one block kept them on one).
-    if (threadIdx.x != 0) return;
-    int c = blockIdx.x;
-    if ((long long)c * chunk >= m) return;
+    __shared__ double sh_s[FOLD_THREADS], sh_y[FOLD_THREADS], sh_mn[FOLD_THREADS];
+    int c = blockIdx.x, t = threadIdx.x;
+    if ((long long)c * chunk >= m) return; // the whole block
     int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
     double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
-    int k0 = c * chunk;
-    // Whole batches without conditions (straight-line loads, issued together), then the tail.
-    for (; k0 + REDUCE_BATCH <= hi; k0 += REDUCE_BATCH) {
-        double s[REDUCE_BATCH], y[REDUCE_BATCH], mn[REDUCE_BATCH];
-#pragma unroll
-        for (int u = 0; u < REDUCE_BATCH; ++u) {
-            double ln = lam_new[k0 + u], gn = g_new[k0 + u];
-            s[u] = ln - lam[k0 + u];
-            y[u] = gn - g[k0 + u];
-            mn[u] = fabs(fmin(ln, gn));
+    for (int k0 = c * chunk; k0 < hi; k0 += FOLD_THREADS) {
+        int k = k0 + t;
+        if (k < hi) {
+            double ln = lam_new[k], gn = g_new[k];
+            sh_s[t] = ln - lam[k];
+            sh_y[t] = gn - g[k];
+            sh_mn[t] = fabs(fmin(ln, gn));
         }
-#pragma unroll
-        for (int u = 0; u < REDUCE_BATCH; ++u) {
-            a0 = fmax(a0, mn[u]);
-            a1 += s[u] * s[u];
-            a2 += s[u] * y[u];
-            a3 += y[u] * y[u];
+        __syncthreads();
+        if (t == 0) {
+            int len = hi - k0 < FOLD_THREADS ? hi - k0 : FOLD_THREADS;
+            for (int u = 0; u < len; ++u) {
+                double su = sh_s[u], yu = sh_y[u];
+                a0 = fmax(a0, sh_mn[u]);
+                a1 += su * su;
+                a2 += su * yu;
+                a3 += yu * yu;
+            }
         }
+        __syncthreads();
     }
-    for (; k0 < hi; ++k0) {
-        double sk = lam_new[k0] - lam[k0], yk = g_new[k0] - g[k0];
-        a0 = fmax(a0, fabs(fmin(lam_new[k0], g_new[k0])));
-        a1 += sk * sk;
-        a2 += sk * yk;
-        a3 += yk * yk;
+    if (t == 0) {
+        partial[4 * c] = a0;
+        partial[4 * c + 1] = a1;
+        partial[4 * c + 2] = a2;
+        partial[4 * c + 3] = a3;
     }
-    partial[4 * c] = a0;
-    partial[4 * c + 1] = a1;
-    partial[4 * c + 2] = a2;
-    partial[4 * c + 3] = a3;
 }
 
 // Per chunk: the sums of a a and a b in order from -0.0 (det_sum's partials), at 2 c.
 extern "C" __global__ void solver_dots(const double* a, const double* b, double* partial, int m,
                                        int chunk) {
-    // One chunk per block, run by its first thread: the chunks' loads spread over the
-    // multiprocessors (a chunk per thread of one block kept them on one).
-    if (threadIdx.x != 0) return;
-    int c = blockIdx.x;
-    if ((long long)c * chunk >= m) return;
+    __shared__ double sh_a[FOLD_THREADS], sh_b[FOLD_THREADS];
+    int c = blockIdx.x, t = threadIdx.x;
+    if ((long long)c * chunk >= m) return; // the whole block
     int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
     double aa = -0.0, ab = -0.0;
-    int k0 = c * chunk;
-    for (; k0 + REDUCE_BATCH <= hi; k0 += REDUCE_BATCH) {
-        double x[REDUCE_BATCH], z[REDUCE_BATCH];
-#pragma unroll
-        for (int u = 0; u < REDUCE_BATCH; ++u) {
-            x[u] = a[k0 + u];
-            z[u] = b[k0 + u];
+    for (int k0 = c * chunk; k0 < hi; k0 += FOLD_THREADS) {
+        int k = k0 + t;
+        if (k < hi) {
+            sh_a[t] = a[k];
+            sh_b[t] = b[k];
         }
-#pragma unroll
-        for (int u = 0; u < REDUCE_BATCH; ++u) {
-            aa += x[u] * x[u];
-            ab += x[u] * z[u];
+        __syncthreads();
+        if (t == 0) {
+            int len = hi - k0 < FOLD_THREADS ? hi - k0 : FOLD_THREADS;
+            for (int u = 0; u < len; ++u) {
+                double x = sh_a[u];
+                aa += x * x;
+                ab += x * sh_b[u];
+            }
         }
+        __syncthreads();
     }
-    for (; k0 < hi; ++k0) {
-        aa += a[k0] * a[k0];
-        ab += a[k0] * b[k0];
+    if (t == 0) {
+        partial[2 * c] = aa;
+        partial[2 * c + 1] = ab;
     }
-    partial[2 * c] = aa;
-    partial[2 * c + 1] = ab;
 }

@@ -21,6 +21,10 @@ use super::update::DeviceRods;
 use crate::step::contact::{ContactError, ContactParams, ContactReport, next_step};
 use motile_gpu::{Buffer, GpuError};
 
+// The fold kernels (solver_stats, solver_dots, step_stats) stage FOLD_THREADS = 256 elements
+// per round in shared memory, one per thread of a block: every launch has that many.
+const _: () = assert!(motile_gpu::THREADS == 256);
+
 /// The CPU's reduction chunk, so the device's partial sums are the CPU's.
 use crate::parallel::reduce::CHUNK;
 
@@ -297,9 +301,10 @@ impl GpuStep {
                 )?;
             }
             self.apply(&mut prob, &gp, None, &mut ag)?;
-            // SAFETY: block c < ceil(m / CHUNK) (its first thread; THREADS per block) reads a,
-            // b at c CHUNK..min((c + 1) CHUNK, m) and writes partial[2 c..2 c + 2] (4 ceil(m /
-            // CHUNK) allocated).
+            // SAFETY: block c < ceil(m / CHUNK) (its THREADS = FOLD_THREADS threads load its
+            // elements in turn, its first thread folds them) reads a, b at c
+            // CHUNK..min((c + 1) CHUNK, m) and writes partial[2 c..2 c + 2] (4 ceil(m / CHUNK)
+            // allocated).
             unsafe {
                 dev.launch(
                     nchunks * motile_gpu::THREADS as usize,
@@ -421,9 +426,10 @@ impl GpuStep {
         m: usize,
     ) -> Result<[f64; 4], GpuError> {
         let nchunks = m.div_ceil(CHUNK);
-        // SAFETY: block c < ceil(m / CHUNK) (its first thread; THREADS per block) reads the
-        // four vectors at c CHUNK..min((c + 1) CHUNK, m) (m each) and writes partial[4 c..4 c +
-        // 4] (4 ceil(m / CHUNK)).
+        // SAFETY: block c < ceil(m / CHUNK) (its THREADS = FOLD_THREADS threads load its
+        // elements in turn, its first thread folds them) reads the four vectors at c
+        // CHUNK..min((c + 1) CHUNK, m) (m each) and writes partial[4 c..4 c + 4] (4 ceil(m /
+        // CHUNK)).
         unsafe {
             self.dev.launch(
                 nchunks * motile_gpu::THREADS as usize,

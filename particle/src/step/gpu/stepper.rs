@@ -189,9 +189,9 @@ impl DeviceStepper {
         let mut partial = dev
             .zeros::<f64>(10 * nchunks.max(1))
             .map_err(device_error)?;
-        // SAFETY: block c < ceil(n / CHUNK) (its first thread; THREADS per block) reads v, w
-        // (3 n), q (4 n) and, with has_ft, ft (6 n) at its chunk's rods, and writes
-        // partial[10 c..10 c + 10] (10 ceil(n / CHUNK)).
+        // SAFETY: block c < ceil(n / CHUNK) (its 256 threads compute its rods' terms in turn,
+        // its first thread folds them) reads v, w (3 n), q (4 n) and, with has_ft, ft (6 n) at
+        // its chunk's rods, and writes partial[10 c..10 c + 10] (10 ceil(n / CHUNK)).
         unsafe {
             dev.launch(
                 nchunks * motile_gpu::THREADS as usize,
