@@ -17,12 +17,10 @@
 __device__ long long grid_row(int m) { return 2LL * (m / 2 + 1); }
 __device__ long long grid_field(int m) { return (long long)m * m * grid_row(m); }
 
-// The window of one point along one axis: the first grid index of its support (in 0..m), the
-// offset d0 of that grid point from the point (in [-w, -w + h)), and the p weights
-// norm exp(-alpha (d0 + q h)^2). As GaussianGrid::prepare_reusing (which builds the same
-// exponentials by a recurrence).
-__device__ void window_axis(double y, double l, int m, int p, double h, double alpha,
-                            double norm, int* first, double* d0, double* w) {
+// The window of one point along one axis: the first grid index of its support (in 0..m) and
+// the offset d0 of that grid point from the point (in [-w, -w + h)).
+__device__ void window_start(double y, double l, int m, int p, double h, int* first,
+                             double* d0) {
     double f = y - l * floor(y / l);
     if (f >= l) f = 0.0;
     double t = f / h;
@@ -30,12 +28,21 @@ __device__ void window_axis(double y, double l, int m, int p, double h, double a
     long long fi = ((long long)i0) % m;
     if (fi < 0) fi += m;
     *first = (int)fi;
-    double d = (i0 - t) * h;
-    *d0 = d;
-    for (int q = 0; q < p; ++q) {
-        double r = d + q * h;
-        w[q] = norm * exp(-alpha * r * r);
-    }
+    *d0 = (i0 - t) * h;
+}
+
+// The window's weight at support index q: norm exp(-alpha (d0 + q h)^2).
+__device__ double window_weight(double d0, int q, double h, double alpha, double norm) {
+    double r = d0 + q * h;
+    return norm * exp(-alpha * r * r);
+}
+
+// window_start and the p weights (window_weight). As GaussianGrid::prepare_reusing (which
+// builds the same exponentials by a recurrence).
+__device__ void window_axis(double y, double l, int m, int p, double h, double alpha,
+                            double norm, int* first, double* d0, double* w) {
+    window_start(y, l, m, p, h, first, d0);
+    for (int q = 0; q < p; ++q) w[q] = window_weight(*d0, q, h, alpha, norm);
 }
 
 // The first grid index of a point's window along one axis (in 0..m), as window_axis.
@@ -427,41 +434,67 @@ extern "C" __global__ void stresslet_modes(double* spectra, int m, double l, dou
 
 // Gather three fields back to the n points: h^3 sum_grid G(x) g(y - x) at out[c n + i], and
 // with gradient != 0 also d/dy_m at out[(3 + 3 c + m) n + i] from the window's derivative
-// g'(y - x_q) = 2 alpha (d0 + q h) g (as gather_gradient_point).
+// g'(y - x_q) = 2 alpha (d0 + q h) g (as gather_gradient_point). With a compile-time support
+// P > 0 the x axis's weights are computed once into registers (the inner loop unrolled); with
+// P = 0 (the support p_rt at run time) each weight is computed where it is used. The y and z
+// axes' weights are computed per row. No local arrays: the kernels that call this need no
+// stack, so the driver reserves no local memory for them (a stack of window weights, 1 248
+// bytes per thread, reserved that many bytes for every thread the device can hold: 0.34 GB on
+// an H100). The weights are window_weight's values, the sums' operations in the same order.
+template <int P>
 __device__ void gather_point(const double* pts, const double* grid, double* out, int i, int n,
-                             int gradient, int m, int p, double l, double h, double alpha,
+                             int gradient, int m, int p_rt, double l, double h, double alpha,
                              double norm) {
+    const int p = P > 0 ? P : p_rt;
     int f[3];
     double d0[3];
-    double w[3][MAX_SUPPORT];
-    double dw[3][MAX_SUPPORT];
-    for (int d = 0; d < 3; ++d) {
-        window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &f[d], &d0[d], w[d]);
-        for (int q = 0; q < p; ++q) dw[d][q] = 2.0 * alpha * (d0[d] + q * h) * w[d][q];
+    for (int d = 0; d < 3; ++d) window_start(pts[3 * i + d], l, m, p, h, &f[d], &d0[d]);
+    double wx[P > 0 ? P : 1], dwx[P > 0 ? P : 1];
+    if (P > 0) {
+#pragma unroll
+        for (int q = 0; q < (P > 0 ? P : 1); ++q) {
+            wx[q] = window_weight(d0[0], q, h, alpha, norm);
+            dwx[q] = 2.0 * alpha * (d0[0] + q * h) * wx[q];
+        }
     }
     double acc[12];
+#pragma unroll
     for (int c = 0; c < 12; ++c) acc[c] = 0.0;
     long long m3 = grid_field(m), r = grid_row(m);
     for (int qz = 0; qz < p; ++qz) {
         int z = f[2] + qz;
         if (z >= m) z -= m;
+        double wz = window_weight(d0[2], qz, h, alpha, norm);
+        double dwz = 2.0 * alpha * (d0[2] + qz * h) * wz;
         for (int qy = 0; qy < p; ++qy) {
             int y = f[1] + qy;
             if (y >= m) y -= m;
             long long row = ((long long)z * m + y) * r;
-            double wzy = w[2][qz] * w[1][qy];
-            double wz_dy = w[2][qz] * dw[1][qy];
-            double dz_wy = dw[2][qz] * w[1][qy];
-            for (int qx = 0; qx < p; ++qx) {
+            double wy = window_weight(d0[1], qy, h, alpha, norm);
+            double dwy = 2.0 * alpha * (d0[1] + qy * h) * wy;
+            double wzy = wz * wy;
+            double wz_dy = wz * dwy;
+            double dz_wy = dwz * wy;
+#pragma unroll
+            for (int qx = 0; qx < (P > 0 ? P : p); ++qx) {
                 int x = f[0] + qx;
                 if (x >= m) x -= m;
+                double wxq, dwxq;
+                if (P > 0) {
+                    wxq = wx[qx];
+                    dwxq = dwx[qx];
+                } else {
+                    wxq = window_weight(d0[0], qx, h, alpha, norm);
+                    dwxq = 2.0 * alpha * (d0[0] + qx * h) * wxq;
+                }
+#pragma unroll
                 for (int c = 0; c < 3; ++c) {
                     double g = grid[c * m3 + row + x];
-                    acc[c] += wzy * w[0][qx] * g;
+                    acc[c] += wzy * wxq * g;
                     if (gradient) {
-                        acc[3 + 3 * c] += wzy * dw[0][qx] * g;
-                        acc[3 + 3 * c + 1] += wz_dy * w[0][qx] * g;
-                        acc[3 + 3 * c + 2] += dz_wy * w[0][qx] * g;
+                        acc[3 + 3 * c] += wzy * dwxq * g;
+                        acc[3 + 3 * c + 1] += wz_dy * wxq * g;
+                        acc[3 + 3 * c + 2] += dz_wy * wxq * g;
                     }
                 }
             }
@@ -472,71 +505,18 @@ __device__ void gather_point(const double* pts, const double* grid, double* out,
     for (int c = 0; c < outputs; ++c) out[(long long)c * n + i] = h3 * acc[c];
 }
 
-// gather_point with a compile-time support P: the x axis's weights in registers (the inner loop
-// unrolled; a run-time support keeps all the weights in local memory, 1 248 bytes of stack),
-// the y and z axes' apart (read once per row). The same operations in the same order.
-template <int P>
-__device__ void gather_point_p(const double* pts, const double* grid, double* out, int i, int n,
-                               int gradient, int m, double l, double h, double alpha,
-                               double norm) {
-    int f[3];
-    double d0[3];
-    double wx[P], dwx[P], wy[P], dwy[P], wz[P], dwz[P];
-    window_axis(pts[3 * i], l, m, P, h, alpha, norm, &f[0], &d0[0], wx);
-    window_axis(pts[3 * i + 1], l, m, P, h, alpha, norm, &f[1], &d0[1], wy);
-    window_axis(pts[3 * i + 2], l, m, P, h, alpha, norm, &f[2], &d0[2], wz);
-#pragma unroll
-    for (int q = 0; q < P; ++q) {
-        dwx[q] = 2.0 * alpha * (d0[0] + q * h) * wx[q];
-        dwy[q] = 2.0 * alpha * (d0[1] + q * h) * wy[q];
-        dwz[q] = 2.0 * alpha * (d0[2] + q * h) * wz[q];
-    }
-    double acc[12];
-#pragma unroll
-    for (int c = 0; c < 12; ++c) acc[c] = 0.0;
-    long long m3 = grid_field(m), r = grid_row(m);
-    for (int qz = 0; qz < P; ++qz) {
-        int z = f[2] + qz;
-        if (z >= m) z -= m;
-        for (int qy = 0; qy < P; ++qy) {
-            int y = f[1] + qy;
-            if (y >= m) y -= m;
-            long long row = ((long long)z * m + y) * r;
-            double wzy = wz[qz] * wy[qy];
-            double wz_dy = wz[qz] * dwy[qy];
-            double dz_wy = dwz[qz] * wy[qy];
-#pragma unroll
-            for (int qx = 0; qx < P; ++qx) {
-                int x = f[0] + qx;
-                if (x >= m) x -= m;
-#pragma unroll
-                for (int c = 0; c < 3; ++c) {
-                    double g = grid[c * m3 + row + x];
-                    acc[c] += wzy * wx[qx] * g;
-                    if (gradient) {
-                        acc[3 + 3 * c] += wzy * dwx[qx] * g;
-                        acc[3 + 3 * c + 1] += wz_dy * wx[qx] * g;
-                        acc[3 + 3 * c + 2] += dz_wy * wx[qx] * g;
-                    }
-                }
-            }
-        }
-    }
-    double h3 = h * h * h;
-    int outputs = gradient ? 12 : 3;
-    for (int c = 0; c < outputs; ++c) out[(long long)c * n + i] = h3 * acc[c];
-}
-
-// gather_point for point i, through gather_point_p for the supports the sums use (6-16: the
-// tolerances 1e-2 to 1e-8), the run-time loop for others.
+// gather_point for point i with the support compiled in for the supports the sums use (4-20:
+// window tolerances 3e-2 to 1e-10), at run time for others.
 __device__ void gather_any(const double* pts, const double* grid, double* out, int i, int n,
                            int gradient, int m, int p, double l, double h, double alpha,
                            double norm) {
     switch (p) {
 #define GATHER_P(P)                                                                          \
     case P:                                                                                  \
-        gather_point_p<P>(pts, grid, out, i, n, gradient, m, l, h, alpha, norm);             \
+        gather_point<P>(pts, grid, out, i, n, gradient, m, P, l, h, alpha, norm);            \
         return;
+        GATHER_P(4)
+        GATHER_P(5)
         GATHER_P(6)
         GATHER_P(7)
         GATHER_P(8)
@@ -548,9 +528,13 @@ __device__ void gather_any(const double* pts, const double* grid, double* out, i
         GATHER_P(14)
         GATHER_P(15)
         GATHER_P(16)
+        GATHER_P(17)
+        GATHER_P(18)
+        GATHER_P(19)
+        GATHER_P(20)
 #undef GATHER_P
     default:
-        gather_point(pts, grid, out, i, n, gradient, m, p, l, h, alpha, norm);
+        gather_point<0>(pts, grid, out, i, n, gradient, m, p, l, h, alpha, norm);
     }
 }
 
