@@ -485,7 +485,9 @@ impl Bench {
         // (no device needed), beside the device's total in use (context included).
         let (peak, work) = (motile_gpu::peak_bytes(), motile_gpu::fft_work_bytes());
         let note = format!(
-            "resident step (flow on the device): sums {sums:.3} s, the rest {:.3} s{}; per rod:              buffers at their peak {:.0} bytes, cuFFT work areas {:.0}, the context and the              driver's pool the rest (in use before any case: {})",
+            "resident step (flow on the device): sums {sums:.3} s, the rest {:.3} s{}; per rod: \
+             buffers at their peak {:.0} bytes, cuFFT work areas {:.0}, the context and the \
+             driver's pool the rest (in use before any case: {})",
             tr - sums,
             per_rod(bytes),
             peak as f64 / n as f64,

@@ -191,7 +191,7 @@ impl Cuda {
         batch: usize,
         (forward, inverse): (bool, bool),
         in_place: bool,
-    ) -> Result<(Option<CudaFft>, Option<CudaFft>), GpuError> {
+    ) -> Result<(Option<CudaFft>, Option<CudaFft>, bool), GpuError> {
         let int = |v: usize, what: &str| {
             i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds cuFFT's int")))
         };
@@ -203,14 +203,8 @@ impl Cuda {
         // (`in_place_layout`): the layout given (embed), cuFFT's default for in-place
         // execution (basic), or one field per plan, executed once per field (single).
         let layout = in_place_layout();
-        let b = int(
-            if in_place && layout == "single" {
-                1
-            } else {
-                batch
-            },
-            "batch",
-        )?;
+        let per_field = in_place && layout == "single";
+        let b = int(if per_field { 1 } else { batch }, "batch")?;
         let padded = int(2 * m * m * (m / 2 + 1), "padded grid values")?;
         let real_embed = [n[0], n[1], int(2 * (m / 2 + 1), "padded row")?];
         let half_embed = [n[0], n[1], int(m / 2 + 1, "half row")?];
@@ -250,25 +244,21 @@ impl Cuda {
             } else {
                 None
             },
+            per_field,
         ))
     }
 
     /// An in-place batch of `plan` over `len` values of `buf` from `at` (the padded fields,
-    /// or their spectra): forward (D2Z) or inverse (Z2D).
+    /// or their spectra): forward (D2Z) or inverse (Z2D), `step` values per execution (the
+    /// whole batch, or one field for a plan of one field).
     pub(crate) fn fft_in_place(
         &self,
         plan: Option<&CudaFft>,
         buf: &mut CudaSlice<f64>,
-        (at, len, field): (usize, usize, usize),
+        (at, len, step): (usize, usize, usize),
         forward: bool,
     ) -> Result<(), GpuError> {
         let plan = plan.ok_or_else(|| GpuError::Input("no plan for this direction".into()))?;
-        // A plan of one field (layout "single") runs once per field.
-        let step = if in_place_layout() == "single" {
-            field
-        } else {
-            len
-        };
         for from in (at..at + len).step_by(step) {
             let mut view = buf.slice_mut(from..from + step);
             let (ptr, _record) = view.device_ptr_mut(&self.stream);

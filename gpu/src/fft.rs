@@ -42,6 +42,9 @@ enum FftInner {
     Cuda {
         forward: Option<cudarc::cufft::CudaFft>,
         inverse: Option<cudarc::cufft::CudaFft>,
+        /// In place, a plan of one field, run once per field (`MOTILE_CUFFT_IN_PLACE=single`,
+        /// read when the plan was made).
+        per_field: bool,
     },
 }
 
@@ -139,7 +142,7 @@ impl Device {
             ),
             #[cfg(feature = "cuda")]
             Inner::Cuda(c) => {
-                let (forward, inverse) = c.fft3(
+                let (forward, inverse, per_field) = c.fft3(
                     m,
                     batch,
                     (
@@ -150,7 +153,14 @@ impl Device {
                 )?;
                 let work = crate::cuda::work_size(forward.as_ref())?
                     + crate::cuda::work_size(inverse.as_ref())?;
-                (FftInner::Cuda { forward, inverse }, work)
+                (
+                    FftInner::Cuda {
+                        forward,
+                        inverse,
+                        per_field,
+                    },
+                    work,
+                )
             }
         };
         WORK.fetch_add(work, Ordering::Relaxed);
@@ -307,7 +317,8 @@ impl Device {
         let len = plan.padded_len();
         if !plan.in_place || at + len > buf.len || at % 2 != 0 {
             return Err(GpuError::Input(format!(
-                "in-place FFT of {} grids of {}^3 needs an in-place plan and {len} values from                  {at} (even); the buffer holds {}",
+                "in-place FFT of {} grids of {}^3 needs an in-place plan and {len} values from \
+                 {at} (even); the buffer holds {}",
                 plan.batch, plan.m, buf.len
             )));
         }
@@ -347,17 +358,23 @@ impl Device {
                 FftInner::Cuda {
                     forward: f,
                     inverse: i,
+                    per_field,
                 },
                 Data::Cuda(x),
-            ) => match (&self.inner, forward) {
-                (Inner::Cuda(c), true) => {
-                    c.fft_in_place(f.as_ref(), x, (at, len, plan.padded_field_len()), true)
+            ) => {
+                let step = if *per_field {
+                    plan.padded_field_len()
+                } else {
+                    len
+                };
+                match (&self.inner, forward) {
+                    (Inner::Cuda(c), true) => c.fft_in_place(f.as_ref(), x, (at, len, step), true),
+                    (Inner::Cuda(c), false) => {
+                        c.fft_in_place(i.as_ref(), x, (at, len, step), false)
+                    }
+                    _ => Err(GpuError::foreign()),
                 }
-                (Inner::Cuda(c), false) => {
-                    c.fft_in_place(i.as_ref(), x, (at, len, plan.padded_field_len()), false)
-                }
-                _ => Err(GpuError::foreign()),
-            },
+            }
             #[allow(unreachable_patterns)]
             _ => Err(GpuError::foreign()),
         })

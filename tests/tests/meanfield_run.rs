@@ -201,18 +201,19 @@ fn resume_from_a_checkpoint_is_bit_identical() {
 fn a_failed_step_saves_the_state_before_it_and_resume_continues_from_there() {
     let dir = tempfile::tempdir().unwrap();
     // An under-resolved run (8^3): Q loses realizability from t ~ 17 and the Stokes fixed
-    // point needs more iterations as it does (5 from t ~ 19; it breaks down at t ~ 29).
+    // point needs more iterations as it does (from its warm start: 5 from t ~ 28.2, 6 from
+    // t ~ 28.7, 7 at t = 29; it breaks down at t ~ 29.6).
     let good = MeanFieldRunConfig {
         grid: 8,
         mode_max: 2,
         amplitude: 0.05,
-        t_end: 28.5,
+        t_end: 29.0,
         checkpoint_interval: 10.0,
         // Let the unrealizable run go on to the fixed point's breakdown.
         realizability_limit: -1000.0,
         ..Default::default()
     };
-    // The same run with an iteration cap that a step near t = 28 exceeds.
+    // The same run with an iteration cap that a step near t = 28.7 exceeds.
     let capped = MeanFieldRunConfig {
         fixed_point_max_iterations: 5,
         ..good.clone()

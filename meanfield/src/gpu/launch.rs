@@ -74,8 +74,8 @@ fn split(v: &[f64], count: usize, s: usize) -> Vec<Vec<Complex64>> {
 /// |---|---|---|---|---|
 /// | Q to the grid | Q's spectra (transformed) | | | |
 /// | closure | | | S | |
-/// | fixed point | E's spectra, then the stress's | E, then the stress (in place) | S | the next iterate |
-/// | grad u, S:E | E, then S:E (in place) | grad u | S, then E at 0, u at 18 N | one spectrum's derivatives; u's copy |
+/// | fixed point | E's five spectra, then the deviatoric stress's | E's five fields, then the stress's (in place) | S | the next iterate |
+/// | grad u, S:E | S:E | grad u (eight fields) | S, then u at 18 N | one spectrum's derivatives; u's copy |
 /// | explicit terms | S:E, then the terms (in place) | grad u | grad Q at 0, u at 18 N | one spectrum's derivatives |
 /// | IMEX update | the new Q | the terms' spectra | | |
 ///
@@ -424,7 +424,8 @@ impl Buffers {
     fn contract(&mut self, dev: &Device, zeta: f64) -> Result<(), GpuError> {
         // SAFETY: contract(const double* s21, double* e, const double* q, double zeta,
         // long long N): big holds 21 N doubles, q 6 N, wide max(9 N, 12 S) >= 6 N; thread
-        // p < N reads s21[21 p..21 p + 21] and reads and writes index c N + p for c < 6.
+        // p < N reads s21[21 p..21 p + 21] and q[c N + p] for c < 6, and reads and writes
+        // index c N + p of wide for c < 5.
         unsafe {
             dev.launch(
                 self.n_len,

@@ -183,7 +183,8 @@ impl MeanFieldStepper {
         &self,
         rhs: &MeanFieldRhs,
     ) -> Result<(RhsEval, MeanFieldStepReport), MeanFieldError> {
-        let ev = rhs.eval(&self.q_hat, &self.u_hat)?;
+        let guess = warm_start(rhs.grid, &self.q_hat, self.prev.as_ref(), &self.u_hat);
+        let ev = rhs.eval(&self.q_hat, &guess)?;
         let report = state_report(rhs, &ev);
         Ok((ev, report))
     }

@@ -25,7 +25,7 @@
 //! Launching is unsafe: each launch says why every index it touches lies inside its buffers.
 #![allow(unsafe_code)]
 
-use crate::ewald::gpu::launch::Geometry;
+use crate::ewald::gpu::launch::{Geometry, padded_field};
 use crate::ewald::gpu::signatures::{
     BinCount, BinOrder, BinScatter, GatherSorted, SpreadCells, SpreadSorted, SpreadTiles,
 };
@@ -245,8 +245,8 @@ pub(crate) fn sort(
     })
 }
 
-/// Spread `nf` fields (field-major values of the `n` points) onto `nf` grids of `m^3` with the
-/// bins' method.
+/// Spread `nf` fields (field-major values of the `n` points) onto `nf` grids of `m^3` (in the
+/// padded in-place layout) with the bins' method.
 pub(crate) fn spread(
     dev: &Device,
     geo: &Geometry,
@@ -265,7 +265,7 @@ pub(crate) fn spread(
     );
     check("points", pts, 3 * n)?;
     check("values", vals, nf * n)?;
-    check("grid", grid, nf * super::padded_field(m))?;
+    check("grid", grid, nf * padded_field(m))?;
     check("bin order", &bins.perm, n)?;
     check("bin starts", &bins.start, bins.nb.pow(3) + 1)?;
     let (ni, mi, pi) = (int(n, "points")?, int(m, "grid size")?, int(p, "support")?);
@@ -284,8 +284,8 @@ pub(crate) fn spread(
                 // start[k + 1] (nbins + 1 checked) and perm[j] for j between them (< n,
                 // checked), points and values of i = perm[j] < n (3 n and nf n checked); its
                 // tile indices o + q < (b - 1) + p = TILE (b = TILE + 1 - p, p <= 9 asserted),
-                // its grid indices reduced into 0..m per axis, fields f0 + c < nf (nf m^3
-                // checked).
+                // its grid indices reduced into 0..m per axis, fields f0 + c < nf (nf
+                // padded_field(m) checked).
                 unsafe {
                     dev.launch(
                         nbins * THREADS as usize,
@@ -330,8 +330,8 @@ pub(crate) fn spread(
             // nbins + 1 checked) and perm[j] for j between them (< n, checked), the points and
             // values of i = perm[j] < n (3 n and nf n checked; at most CELL_CHUNK staged, its
             // window's p <= 24 = MAX_SUPPORT weights per axis), and writes the grid values of
-            // its cells, each below m per axis (checked), fields c < nf (nf m^3 checked); its
-            // (reach + 1)^3 <= CELL_NEAR = 125 near bins' starts staged in shared arrays of
+            // its cells, each below m per axis (checked), fields c < nf (nf padded_field(m)
+            // checked); its (reach + 1)^3 <= CELL_NEAR = 125 near bins' starts staged in shared arrays of
             // that size (reach <= 4 asserted).
             unsafe {
                 dev.launch(
@@ -400,14 +400,14 @@ pub(crate) fn gather(
     );
     let outputs = if gradient { 12 } else { 3 };
     check("points", pts, 3 * n)?;
-    check("grid", grid, 3 * super::padded_field(m))?;
+    check("grid", grid, 3 * padded_field(m))?;
     check("gathered values", out, outputs * n)?;
     check("bin order", &bins.perm, n)?;
     let (ni, mi, pi) = (int(n, "points")?, int(m, "grid size")?, int(p, "support")?);
     int(12 * n, "12 x points")?;
     let w = &geo.window;
     // SAFETY: thread j < n reads perm[j] < n (checked), then as launch::gather's thread
-    // perm[j]: pts, grid (3 n, 3 m^3 checked) and out[c n + perm[j]] for c < outputs
+    // perm[j]: pts, grid (3 n, 3 padded_field(m) checked) and out[c n + perm[j]] for c < outputs
     // (outputs n checked).
     unsafe {
         dev.launch(

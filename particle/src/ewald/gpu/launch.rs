@@ -10,6 +10,12 @@ use crate::ewald::gpu::signatures::{
 use crate::ewald::window::Window;
 use motile_gpu::{Buffer, Device, Element, GpuError};
 
+/// Values of one field of a sum's grid in the in-place layout: `m m` rows of `2 (m/2 + 1)`
+/// real values (the last `2 (m/2 + 1) - m` unused), or the half spectrum over them.
+pub(crate) fn padded_field(m: usize) -> usize {
+    2 * m * m * (m / 2 + 1)
+}
+
 /// The window and box of one sum.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Geometry {
@@ -60,12 +66,13 @@ pub(super) fn spread(
     );
     check("points", pts, 3 * n)?;
     check("values", vals, nf * n)?;
-    check("grid", grid, nf * super::padded_field(geo.m))?;
+    check("grid", grid, nf * padded_field(geo.m))?;
     let w = &geo.window;
     // SAFETY: thread i < n reads pts[3 i..3 i + 3] (3 n checked) and vals[c n + i] for c < nf
-    // (nf n checked), and adds to grid[c m^3 + idx] with idx < m^3 (every index is reduced into
-    // 0..m per axis; nf m^3 checked: a support p <= m, asserted, wraps at most once);
-    // p <= MAX_SUPPORT = 24 (the window's clamp, asserted) sizes its local arrays.
+    // (nf n checked), and adds to grid[c F + idx] with F = padded_field(m) and idx the padded
+    // index of a cell whose indices are reduced into 0..m per axis (idx < F; nf F checked: a
+    // support p <= m, asserted, wraps at most once); p <= MAX_SUPPORT = 24 (the window's
+    // clamp, asserted) sizes its local arrays.
     unsafe {
         dev.launch(
             n,
@@ -159,13 +166,13 @@ pub(super) fn gather(
     );
     let outputs = if gradient { 12 } else { 3 };
     check("points", pts, 3 * n)?;
-    check("grid", grid, 3 * super::padded_field(geo.m))?;
+    check("grid", grid, 3 * padded_field(geo.m))?;
     check("gathered values", out, outputs * n)?;
     let w = &geo.window;
-    // SAFETY: thread i < n reads pts[3 i..3 i + 3] (3 n checked), grid[c m^3 + idx] for c < 3
-    // and idx < m^3 (indices reduced into 0..m per axis, p <= m asserted; 3 m^3 checked), and
-    // writes out[c n + i] for c < 3, or 12 with gradient (checked); p <= 24 sizes its local
-    // arrays (asserted).
+    // SAFETY: thread i < n reads pts[3 i..3 i + 3] (3 n checked), grid[c F + idx] for c < 3 with
+    // F = padded_field(m) and idx the padded index of a cell reduced into 0..m per axis (p <= m
+    // asserted; 3 F checked), and writes out[c n + i] for c < 3, or 12 with gradient
+    // (checked); it keeps no local arrays.
     unsafe {
         dev.launch(
             n,

@@ -76,12 +76,6 @@ struct Grid {
     inverse3: Fft3,
 }
 
-/// Values of one field of a sum's grid in the in-place layout: `m m` rows of `2 (m/2 + 1)`
-/// real values (the last `2 (m/2 + 1) - m` unused), or the half spectrum over them.
-pub(crate) fn padded_field(m: usize) -> usize {
-    2 * m * m * (m / 2 + 1)
-}
-
 /// `nf` spread fields and their in-place forward plan: each field's real values in cuFFT's
 /// padded layout (`x` rows of `2 (m/2 + 1)` values), its half spectrum over them, so a sum
 /// holds one grid per field (`2 m m (m/2 + 1)` values).
