@@ -330,7 +330,8 @@ impl GpuFourier {
             &mut sorted,
         )?;
         let real = self.permute_rows(&sorted, &cells.members, (n, 13), true)?;
-        drop((sorted, orient, cells));
+        // What only the real-space part needed goes before the Fourier part's bins and gather.
+        drop((sorted, orient, cells, strength));
         // The Fourier part.
         let back = self.fourier(
             generation,
