@@ -75,7 +75,7 @@ use std::time::Instant;
 mod gpu_bench_model;
 mod shared;
 use gpu_bench_model::{counted_table, meanfield_model_table, model_table};
-use shared::{arg, meanfield_state, median, random_points};
+use shared::{arg, list_arg, meanfield_state, median, random_points};
 
 /// One row of the table.
 struct Row {
@@ -550,10 +550,8 @@ fn main() {
         }
     }
     if has("sum") {
-        let sizes = if let Some(list) = arg("--sum-sizes") {
-            list.split(',')
-                .map(|x| x.trim().parse().expect("--sum-sizes"))
-                .collect()
+        let sizes = if let Some(list) = list_arg("--sum-sizes") {
+            list
         } else if small {
             vec![2_000]
         } else {
@@ -566,10 +564,8 @@ fn main() {
         }
     }
     if has("dipole") {
-        let lengths = if let Some(list) = arg("--lengths") {
-            list.split(',')
-                .map(|x| x.trim().parse().expect("--lengths"))
-                .collect()
+        let lengths = if let Some(list) = list_arg("--lengths") {
+            list
         } else if small {
             vec![5.0]
         } else {

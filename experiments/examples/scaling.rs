@@ -34,7 +34,7 @@ use motile_particle::step::stepper::Stepper;
 use std::time::Instant;
 
 mod shared;
-use shared::{arg, meanfield_state, median, random_points};
+use shared::{arg, list_arg, meanfield_state, median, random_points};
 
 /// One timed run: the phases' seconds, in the case's phase order, the total last.
 type Sample = Vec<f64>;
@@ -151,11 +151,7 @@ fn rods(nu: f64, l: f64) -> RodSet {
 }
 
 fn main() {
-    let threads: Vec<usize> = arg("--threads")
-        .unwrap_or_else(|| "1,2".into())
-        .split(',')
-        .map(|t| t.trim().parse().expect("--threads: a list of counts"))
-        .collect();
+    let threads: Vec<usize> = list_arg("--threads").unwrap_or_else(|| vec![1, 2]);
     let reps: usize = arg("--reps").map_or(3, |r| r.parse().expect("--reps"));
     let large = std::env::args().any(|a| a == "--large");
     let only = arg("--only");

@@ -14,6 +14,20 @@ pub fn arg(name: &str) -> Option<String> {
         .cloned()
 }
 
+/// The comma-separated list after `name` on the command line, each value parsed (a value that
+/// does not parse stops the example, naming the option).
+pub fn list_arg<T: std::str::FromStr>(name: &str) -> Option<Vec<T>> {
+    arg(name).map(|list| {
+        list.split(',')
+            .map(|x| {
+                x.trim()
+                    .parse()
+                    .unwrap_or_else(|_| panic!("{name}: {x:?} is not a valid value"))
+            })
+            .collect()
+    })
+}
+
 pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
