@@ -9,7 +9,7 @@ use motile_meanfield::solver::grid::SpectralGrid;
 use motile_meanfield::solver::params::MeanFieldParams;
 use motile_meanfield::solver::rhs::MeanFieldRhs;
 use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
-use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
+use motile_particle::ewald::gpu::{GpuFourier, STRESSLET_FIELDS, SpreadMethod};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
@@ -263,7 +263,7 @@ pub(crate) fn model_table(small: bool) {
             l,
             x,
             (prm.modes, prm.support),
-            (6, true),
+            (STRESSLET_FIELDS, true),
         ));
     }
     let (l, x, p) = rods(100.0);

@@ -399,10 +399,13 @@ extern "C" __global__ void rpy_modes(double* spectra, int m, double l, double xi
     rpy_mode(f, out, s, slen, k, k2, xi, a, l, eta, h);
 }
 
-// The stresslet Fourier multiplication: six spectra of the stresslet components (xx, yy, zz,
-// xy, xz, yz) in; the force density f^_i = -i sum_j S^_ij k_j; three velocity spectra out (a
-// point force's, a = 0), in place of the first three (each thread reads its mode's six inputs
-// before it writes). The gradient comes from the window's derivative in the gather.
+// The stresslet Fourier multiplication: five spectra of the trace-free stresslet components
+// (xx, yy, xy, xz, yz; zz = -(xx + yy)) in; the force density f^_i = -i sum_j S^_ij k_j; three
+// velocity spectra out (a point force's, a = 0), in place of the first three (each thread reads
+// its mode's five inputs before it writes). The trace is left out on purpose: an isotropic
+// stresslet s I has the force density -i s k, which the projection I - k k / k^2 removes, so
+// its grid is not needed (one grid less per sum). The gradient comes from the window's
+// derivative in the gather.
 extern "C" __global__ void stresslet_modes(double* spectra, int m, double l, double xi,
                                            double eta, double h) {
     const double* input = spectra;
@@ -415,20 +418,20 @@ extern "C" __global__ void stresslet_modes(double* spectra, int m, double l, dou
         for (int c = 0; c < 3; ++c) out[2 * (c * slen + s)] = out[2 * (c * slen + s) + 1] = 0.0;
         return;
     }
-    // Component of S_ij in the input: (0,0)->0 (1,1)->1 (2,2)->2 (0,1)->3 (0,2)->4 (1,2)->5.
-    const int comp[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
-    double f[6];
-    for (int i = 0; i < 3; ++i) {
-        double re = 0.0, im = 0.0;
-        for (int j = 0; j < 3; ++j) {
-            long long at = 2 * (comp[i][j] * slen + s);
-            re += input[at] * k[j];
-            im += input[at + 1] * k[j];
-        }
-        // -i (re + i im) = im - i re
-        f[2 * i] = im;
-        f[2 * i + 1] = -re;
-    }
+    const double* xx = input + 2 * s;
+    const double* yy = input + 2 * (slen + s);
+    const double* xy = input + 2 * (2 * slen + s);
+    const double* xz = input + 2 * (3 * slen + s);
+    const double* yz = input + 2 * (4 * slen + s);
+    double zz_re = -(xx[0] + yy[0]), zz_im = -(xx[1] + yy[1]);
+    double re0 = xx[0] * k[0] + xy[0] * k[1] + xz[0] * k[2];
+    double im0 = xx[1] * k[0] + xy[1] * k[1] + xz[1] * k[2];
+    double re1 = xy[0] * k[0] + yy[0] * k[1] + yz[0] * k[2];
+    double im1 = xy[1] * k[0] + yy[1] * k[1] + yz[1] * k[2];
+    double re2 = xz[0] * k[0] + yz[0] * k[1] + zz_re * k[2];
+    double im2 = xz[1] * k[0] + yz[1] * k[1] + zz_im * k[2];
+    // -i (re + i im) = im - i re
+    double f[6] = {im0, -re0, im1, -re1, im2, -re2};
     rpy_mode(f, out, s, slen, k, k2, xi, 0.0, l, eta, h);
 }
 

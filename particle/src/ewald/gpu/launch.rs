@@ -5,7 +5,7 @@
 #![allow(unsafe_code)]
 
 use crate::ewald::gpu::signatures::{
-    Gather, RpyModes, RpyReal, Spread, StressletModes, StressletReal,
+    Gather, RpyModes, RpyReal, Spread, StressletModes, StressletReal, StressletRealPoints,
 };
 use crate::ewald::window::Window;
 use motile_gpu::{Buffer, Device, Element, GpuError};
@@ -98,9 +98,15 @@ pub(super) fn spread(
 pub(super) enum Modes {
     /// RPY velocities of three force spectra (radius `a`).
     Rpy { a: f64 },
-    /// Point-force velocities of the force density of six stresslet spectra.
+    /// Point-force velocities of the force density of [`STRESSLET_FIELDS`] trace-free
+    /// stresslet spectra.
     Stresslet,
 }
+
+/// The fields a stresslet sum spreads: the trace-free components `xx, yy, xy, xz, yz` (`zz` is
+/// `-(xx + yy)`). The trace's flow is zero (its force density `-i s k` is parallel to `k`,
+/// which the Stokes projection removes), so a sum holds five grids, not six.
+pub const STRESSLET_FIELDS: usize = 5;
 
 /// The Fourier-space multiplication in place: the velocity spectra replace the first three
 /// input spectra.
@@ -114,12 +120,12 @@ pub(super) fn modes(
     let slen = geo.m * geo.m * (geo.m / 2 + 1);
     let inputs = match which {
         Modes::Rpy { .. } => 3,
-        Modes::Stresslet => 6,
+        Modes::Stresslet => STRESSLET_FIELDS,
     };
     check("spectra", spectra, 2 * inputs * slen)?;
     let (l, xi, eta, h) = (geo.l, geo.xi, geo.window.eta, geo.window.h);
     // SAFETY: thread s < S = m m (m/2 + 1) reads the pairs 2 (c S + s), +1 for c < 3 (RPY) or
-    // 6 (stresslets) (2 inputs S values checked), then writes them for c < 3: every thread
+    // 5 (stresslets) (2 inputs S values checked), then writes them for c < 3: every thread
     // touches only its own mode s.
     unsafe {
         match which {
@@ -231,21 +237,88 @@ pub(super) enum Real<'a> {
     },
 }
 
-pub(super) fn real_space(
+/// The stresslet sum's real-space outputs in the points' own order: the point `members[t]`
+/// (the `t`-th in cell order) gets its velocity at `u[3 i..3 i + 3]`, its gradient at
+/// `grad[9 i..9 i + 9]` and its weighted strengths at `weighted[i]`.
+pub(super) struct PointOutputs<'a> {
+    pub(super) members: &'a Buffer<i32>,
+    pub(super) u: &'a mut Buffer,
+    pub(super) grad: &'a mut Buffer,
+    pub(super) weighted: &'a mut Buffer,
+}
+
+/// The stresslet real-space sum written straight to the points' order (no copy in cell order
+/// and no permutation after it: 13 values per point fewer at the sum's peak).
+pub(super) fn stresslet_real_points(
     dev: &Device,
     which: Real<'_>,
     r: &RealSpace<'_>,
-    out: &mut Buffer,
+    out: PointOutputs<'_>,
 ) -> Result<(), GpuError> {
+    let Real::Stresslet {
+        orient,
+        sigma,
+        xi,
+        r_direct,
+    } = which
+    else {
+        unreachable!("the RPY sum's real space writes in cell order")
+    };
     let n = r.npts;
-    let (npts, ncell, nt) = (
+    let (npts, ncell, nt) = check_real(which, r, 13)?;
+    check("members", out.members, n)?;
+    check("velocities", out.u, 3 * n)?;
+    check("gradients", out.grad, 9 * n)?;
+    check("weighted strengths", out.weighted, n)?;
+    let (pos, group, start, table) = (r.pos, r.group, r.start, r.table);
+    // SAFETY: as `real_space`'s stresslet sum (the reads checked by check_real), and thread t
+    // then reads members[t] (n checked), a permutation of 0..n (the cells' members: every
+    // point once), and writes its point's u (3), grad (9) and weighted (1) values (3 n, 9 n,
+    // n checked): no two threads write the same place.
+    unsafe {
+        dev.launch(
+            n,
+            StressletRealPoints {
+                pos,
+                orient,
+                sigma,
+                group,
+                start,
+                table,
+                members: out.members,
+                u: out.u,
+                grad: out.grad,
+                weighted: out.weighted,
+                npts,
+                ncell,
+                nt,
+                l: r.l,
+                cutoff: r.cutoff,
+                inv_h: r.inv_h,
+                xi,
+                r_direct,
+                r0sq: r.r0sq,
+            },
+        )
+    }
+}
+
+/// The checks of a real-space sum's inputs (`outputs` values per point): the kernel's point,
+/// cell and node counts.
+fn check_real(
+    which: Real<'_>,
+    r: &RealSpace<'_>,
+    outputs: usize,
+) -> Result<(i32, i32, i32), GpuError> {
+    let n = r.npts;
+    let counts = (
         int(n, "points")?,
         int(r.ncell, "cells")?,
         int(r.nodes, "nodes")?,
     );
-    let (per_node, outputs) = match which {
-        Real::Rpy { .. } => (2, 4),
-        Real::Stresslet { .. } => (5, 13),
+    let per_node = match which {
+        Real::Rpy { .. } => 2,
+        Real::Stresslet { .. } => 5,
     };
     int(outputs * n, "outputs")?;
     assert!(r.nodes >= 3, "a table of 4 nodes or more");
@@ -260,6 +333,21 @@ pub(super) fn real_space(
     check("groups", r.group, n)?;
     check("cell starts", r.start, r.ncell.pow(3) + 1)?;
     check("table", r.table, per_node * (r.nodes + 1))?;
+    Ok(counts)
+}
+
+pub(super) fn real_space(
+    dev: &Device,
+    which: Real<'_>,
+    r: &RealSpace<'_>,
+    out: &mut Buffer,
+) -> Result<(), GpuError> {
+    let n = r.npts;
+    let outputs = match which {
+        Real::Rpy { .. } => 4,
+        Real::Stresslet { .. } => 13,
+    };
+    let (npts, ncell, nt) = check_real(which, r, outputs)?;
     check("real-space sums", out, outputs * n)?;
     let (pos, group, start, table) = (r.pos, r.group, r.start, r.table);
     let (l, cutoff, inv_h, r0sq) = (r.l, r.cutoff, r.inv_h, r.r0sq);

@@ -32,6 +32,7 @@ mod work;
 
 pub use binned::{CELL_BIN, CELL_BIN_MAX, MAX_TILE_SUPPORT, SpreadMethod, TILE, cell_bin};
 pub(crate) use launch::Geometry;
+pub use launch::STRESSLET_FIELDS;
 pub(crate) use scan::prefix_sum;
 pub use work::{PhaseWork, work_model};
 
@@ -68,8 +69,8 @@ struct CellBuffers {
 #[derive(Debug)]
 struct Grid {
     m: usize,
-    /// The spread fields and their spectra: three (RPY forces) and six (stresslets), each
-    /// made when first used.
+    /// The spread fields and their spectra: three (RPY forces) and five (trace-free
+    /// stresslets), each made when first used.
     inputs: [Option<Input>; 2],
     /// The inverse transform of three fields, in place: the first three of an input's spectra
     /// (the multiplication leaves the velocities there) into the first three of its fields.
@@ -140,7 +141,8 @@ impl GpuFourier {
         self.dev.memory()
     }
 
-    /// The plans and buffers for grid size `m`, and the input of `nf` (3 or 6) fields.
+    /// The plans and buffers for grid size `m`, and the input of `nf` (3 or
+    /// [`STRESSLET_FIELDS`]) fields.
     fn grid(&mut self, m: usize, nf: usize) -> Result<&mut Grid, GpuError> {
         let dev = &self.dev;
         if self.grid.as_ref().is_none_or(|g| g.m != m) {
@@ -153,7 +155,7 @@ impl GpuFourier {
             });
         }
         let g = self.grid.as_mut().expect("made above");
-        let slot = &mut g.inputs[usize::from(nf == 6)];
+        let slot = &mut g.inputs[usize::from(nf == STRESSLET_FIELDS)];
         if slot.is_none() {
             let plan = dev.fft3_in_place(m, nf, Direction::Forward)?;
             *slot = Some(Input {
@@ -182,7 +184,7 @@ impl GpuFourier {
         };
         let dev = &self.dev;
         let g = self.grid.as_mut().expect("made by grid()");
-        let input = g.inputs[usize::from(nf == 6)]
+        let input = g.inputs[usize::from(nf == STRESSLET_FIELDS)]
             .as_mut()
             .expect("made by grid()");
         // The output-driven spreader writes every grid value; the others add to zeros.
@@ -237,7 +239,7 @@ impl GpuFourier {
         self.spread(generation, geo, pts, n, (vals, nf))?;
         let method = self.spread_method(geo.window.p);
         let g = self.grid.as_mut().expect("spread made it");
-        let input = g.inputs[usize::from(nf == 6)]
+        let input = g.inputs[usize::from(nf == STRESSLET_FIELDS)]
             .as_mut()
             .expect("spread made it");
         let dev = &self.dev;
@@ -424,7 +426,8 @@ impl GpuFourier {
 
     /// The Fourier part of the stresslet sum: the six stresslet components per point
     /// (`xx, yy, zz, xy, xz, yz`) in, velocity and gradient out as
-    /// `GaussianGrid::gather_gradient` gives them (`3 + 3 i + m` is `du_i/dx_m`).
+    /// `GaussianGrid::gather_gradient` gives them (`3 + 3 i + m` is `du_i/dx_m`). The device
+    /// spreads the [`STRESSLET_FIELDS`] trace-free components (the trace's flow is zero).
     pub(crate) fn stresslet(
         &mut self,
         generation: u64,
@@ -434,13 +437,19 @@ impl GpuFourier {
     ) -> Result<[Vec<f64>; 12], GpuError> {
         let n = points.len();
         let pts = self.points(generation, points)?;
-        let vals: Vec<f64> = s.iter().flat_map(|c| c.iter().copied()).collect();
+        let [xx, yy, zz, xy, xz, yz] = s;
+        let third = |i: usize| (xx[i] + yy[i] + zz[i]) / 3.0;
+        let vals: Vec<f64> = (0..n)
+            .map(|i| xx[i] - third(i))
+            .chain((0..n).map(|i| yy[i] - third(i)))
+            .chain([xy, xz, yz].into_iter().flatten().copied())
+            .collect();
         let vals = self.dev.upload(&vals)?;
         let back = self.fourier(
             generation,
             geo,
             (&pts, n),
-            (&vals, 6),
+            (&vals, STRESSLET_FIELDS),
             (launch::Modes::Stresslet, true),
         )?;
         let out = self.dev.download(&back)?;

@@ -65,34 +65,59 @@ extern "C" __global__ void rod_axes(const double* q, double* p, int n) {
     p[3 * r + 2] = 1.0 - 2.0 * (x * x + y * y);
 }
 
-// The six stresslet components sigma p_i p_j (xx, yy, zz, xy, xz, yz), field-major, and each
-// point's strength.
+// The five trace-free stresslet components sigma (p_i p_j - |p|^2 delta_ij / 3) (xx, yy, xy, xz,
+// yz; zz is -(xx + yy)), field-major, and each point's strength. The trace's flow is zero (see
+// stresslet_modes), so the sum needs no grid for it.
 extern "C" __global__ void stresslet_values(const double* p, double sigma, double* vals,
                                             double* strength, int n) {
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= n) return;
-    const double* pt = p + 3 * t;
-    const int I[6] = {0, 1, 2, 0, 0, 1}, J[6] = {0, 1, 2, 1, 2, 2};
-    for (int c = 0; c < 6; ++c) vals[(long long)c * n + t] = sigma * pt[I[c]] * pt[J[c]];
+    double x = p[3 * t], y = p[3 * t + 1], z = p[3 * t + 2];
+    double third = (x * x + y * y + z * z) / 3.0;
+    vals[t] = sigma * (x * x - third);
+    vals[(long long)n + t] = sigma * (y * y - third);
+    vals[2 * (long long)n + t] = sigma * (x * y);
+    vals[3 * (long long)n + t] = sigma * (x * z);
+    vals[4 * (long long)n + t] = sigma * (y * z);
     strength[t] = sigma;
 }
 
-// The stresslet sum per point t: velocity (real + Fourier) / mu into u (triples), gradient
-// (real + Fourier - the Fourier part's own term own_c (p p - I/3), own_c from sigma) / mu into grad (9 per point,
-// du_i/dx_m at 3 i + m), and the error model's inputs into parts (4 per point: weighted
-// strengths, |u|^2, weighted strengths + sigma^2, |grad u|^2). real: 13 per point in the
-// points' order; back: 12 fields of n values (velocity, then du_i/dx_m at 3 + 3 i + m).
-extern "C" __global__ void stresslet_assemble(const double* real, const double* back,
+// The stresslet real-space sum (stresslet_real's pairs, in cell order t) written at the point's
+// own place i = members[t]: velocity at u[3 i..], gradient at grad[9 i..] (du_i/dx_m at 3 i + m),
+// weighted strengths at weighted[i]. No copy in cell order, no permutation after.
+extern "C" __global__ void stresslet_real_points(const double* pos, const double* orient,
+                                                 const double* sigma, const int* group,
+                                                 const int* start, const double* table,
+                                                 const int* members, double* u, double* grad,
+                                                 double* weighted, int npts, int ncell, int nt,
+                                                 double l, double cutoff, double inv_h, double xi,
+                                                 double r_direct, double r0sq) {
+    int t = blockIdx.x * blockDim.x + threadIdx.x;
+    if (t >= npts) return;
+    StressletPair pair{orient, sigma, table, nt, inv_h, xi, r_direct, r0sq, {}};
+    for_each_neighbour(t, pos, group, start, npts, ncell, l, cutoff, pair);
+    long long i = members[t];
+    for (int k = 0; k < 3; ++k) u[3 * i + k] = pair.acc[k];
+    for (int k = 0; k < 9; ++k) grad[9 * i + k] = pair.acc[3 + k];
+    weighted[i] = pair.acc[12];
+}
+
+// The stresslet sum per point t, in place: velocity (real + Fourier) / mu into u (triples, the
+// real part in), gradient (real + Fourier - the Fourier part's own term own_c (p p - I/3),
+// own_c from sigma) / mu into grad (9 per point, du_i/dx_m at 3 i + m, the real part in), and
+// the error model's inputs into parts (4 per point: weighted strengths, |u|^2, weighted
+// strengths + sigma^2, |grad u|^2). weighted: the real part's weighted strengths; back: 12
+// fields of n values (velocity, then du_i/dx_m at 3 + 3 i + m).
+extern "C" __global__ void stresslet_assemble(const double* weighted, const double* back,
                                               const double* p, double* u, double* grad,
                                               double* parts, int n, double sigma,
                                               double own_c, double mu) {
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= n) return;
-    const double* r = real + 13 * (long long)t;
     const double* pt = p + 3 * t;
     double u2 = 0.0, g2 = 0.0;
     for (int i = 0; i < 3; ++i) {
-        double v = (r[i] + back[(long long)i * n + t]) / mu;
+        double v = (u[3 * t + i] + back[(long long)i * n + t]) / mu;
         u[3 * t + i] = v;
         u2 += v * v;
     }
@@ -100,13 +125,14 @@ extern "C" __global__ void stresslet_assemble(const double* real, const double* 
         double row = 0.0;
         for (int m = 0; m < 3; ++m) {
             double own = own_c * (pt[i] * pt[m] - (i == m ? 1.0 / 3.0 : 0.0));
-            double v = (r[3 + 3 * i + m] + back[(long long)(3 + 3 * i + m) * n + t] - own) / mu;
-            grad[9 * t + 3 * i + m] = v;
+            double* g = grad + 9 * (long long)t + 3 * i + m;
+            double v = (*g + back[(long long)(3 + 3 * i + m) * n + t] - own) / mu;
+            *g = v;
             row += v * v;
         }
         g2 += row;
     }
-    double e2 = r[12];
+    double e2 = weighted[t];
     parts[4 * t] = e2;
     parts[4 * t + 1] = u2;
     parts[4 * t + 2] = e2 + sigma * sigma;

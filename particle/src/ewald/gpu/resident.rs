@@ -10,7 +10,7 @@
 
 use super::GpuFourier;
 use super::launch::check as check_len;
-use super::launch::{self, Geometry};
+use super::launch::{self, Geometry, STRESSLET_FIELDS};
 use super::signatures::{
     BinOrder, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues, PermuteRows,
     PointCell, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble, StressletValues,
@@ -282,10 +282,10 @@ impl GpuFourier {
         int(13 * n, "13 x points")?;
         check_len("points", x, 3 * n)?;
         check_len("axes", p, 3 * n)?;
-        let mut vals = self.dev.zeros::<f64>(6 * n)?;
+        let mut vals = self.dev.zeros::<f64>(STRESSLET_FIELDS * n)?;
         let mut strength = self.dev.zeros::<f64>(n)?;
         // SAFETY: thread t < n reads p[3 t..3 t + 3] (checked) and writes vals[c n + t] for
-        // c < 6 (6 n) and strength[t] (n).
+        // c < 5 (STRESSLET_FIELDS n) and strength[t] (n).
         unsafe {
             self.dev.launch(
                 n,
@@ -304,7 +304,10 @@ impl GpuFourier {
         let table = &inp.table;
         let (inv_h, nodes, xi, r_direct, g) = table.parts();
         let table_buf = self.dev.upload(&g)?;
-        let mut sorted = self.dev.zeros::<f64>(13 * n)?;
+        let dev = &self.dev;
+        let mut u = dev.zeros::<f64>(3 * n)?;
+        let mut grad = dev.zeros::<f64>(9 * n)?;
+        let mut weighted = dev.zeros::<f64>(n)?;
         let real_in = launch::RealSpace {
             pos: &cells.pos,
             group: &cells.group,
@@ -318,8 +321,8 @@ impl GpuFourier {
             inv_h,
             r0sq: inp.r0 * inp.r0,
         };
-        launch::real_space(
-            &self.dev,
+        launch::stresslet_real_points(
+            dev,
             launch::Real::Stresslet {
                 orient: &orient,
                 sigma: &strength,
@@ -327,33 +330,35 @@ impl GpuFourier {
                 r_direct,
             },
             &real_in,
-            &mut sorted,
+            launch::PointOutputs {
+                members: &cells.members,
+                u: &mut u,
+                grad: &mut grad,
+                weighted: &mut weighted,
+            },
         )?;
-        let real = self.permute_rows(&sorted, &cells.members, (n, 13), true)?;
         // What only the real-space part needed goes before the Fourier part's bins and gather.
-        drop((sorted, orient, cells, strength));
+        drop((orient, cells, strength, table_buf));
         // The Fourier part.
         let back = self.fourier(
             generation,
             geo,
             (x, n),
-            (&vals, 6),
+            (&vals, STRESSLET_FIELDS),
             (launch::Modes::Stresslet, true),
         )?;
         drop(vals);
-        // Assembly and the error model.
+        // Assembly (on the real part's velocities and gradients) and the error model.
         let dev = &self.dev;
-        let mut u = dev.zeros::<f64>(3 * n)?;
-        let mut grad = dev.zeros::<f64>(9 * n)?;
         let mut parts = dev.zeros::<f64>(4 * n)?;
-        // SAFETY: thread t < n reads real[13 t..13 t + 13] (13 n, made above), back[c n + t]
-        // for c < 12 (the gather's 12 n), p (3 n checked), and writes u (3 n), grad (9 n) and
-        // parts (4 n) at its point.
+        // SAFETY: thread t < n reads weighted[t] (n, made above), back[c n + t] for c < 12 (the
+        // gather's 12 n), p (3 n checked), and reads and writes u (3 n), grad (9 n) and writes
+        // parts (4 n) at its own point.
         unsafe {
             dev.launch(
                 n,
                 StressletAssemble {
-                    real: &real,
+                    weighted: &weighted,
                     back: &back,
                     p,
                     u: &mut u,

@@ -168,7 +168,7 @@ motile_gpu::kernels! {
         h: f64,
     }
 
-    /// The point-force velocities of the force density of six stresslet spectra.
+    /// The point-force velocities of the force density of five trace-free stresslet spectra.
     pub(crate) struct StressletModes = "stresslet_modes" {
         spectra: &'a mut Buffer<f64>,
         m: i32,
@@ -273,7 +273,7 @@ motile_gpu::kernels! {
         n: i32,
     }
 
-    /// The six stresslet components (field-major) and the strengths.
+    /// The five trace-free stresslet components (field-major) and the strengths.
     pub(crate) struct StressletValues = "stresslet_values" {
         p: &'a Buffer<f64>,
         sigma: f64,
@@ -282,9 +282,33 @@ motile_gpu::kernels! {
         n: i32,
     }
 
-    /// The stresslet sum's velocity, gradient and error-model inputs per point.
+    /// The stresslet real-space sum written at each point's own place (`members`).
+    pub(crate) struct StressletRealPoints = "stresslet_real_points" {
+        pos: &'a Buffer<f64>,
+        orient: &'a Buffer<f64>,
+        sigma: &'a Buffer<f64>,
+        group: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        table: &'a Buffer<f64>,
+        members: &'a Buffer<i32>,
+        u: &'a mut Buffer<f64>,
+        grad: &'a mut Buffer<f64>,
+        weighted: &'a mut Buffer<f64>,
+        npts: i32,
+        ncell: i32,
+        nt: i32,
+        l: f64,
+        cutoff: f64,
+        inv_h: f64,
+        xi: f64,
+        r_direct: f64,
+        r0sq: f64,
+    }
+
+    /// The stresslet sum's velocity, gradient (in place on the real part's) and error-model
+    /// inputs per point.
     pub(crate) struct StressletAssemble = "stresslet_assemble" {
-        real: &'a Buffer<f64>,
+        weighted: &'a Buffer<f64>,
         back: &'a Buffer<f64>,
         p: &'a Buffer<f64>,
         u: &'a mut Buffer<f64>,
