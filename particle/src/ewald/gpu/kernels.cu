@@ -725,9 +725,11 @@ __device__ void stokeslet_real_derivatives(double r, double xi, double* d) {
     d[5] = g * (x2 * x2 + 2.0 * x2 / r2 + 3.0 / r4) + 3.0 * ec / (2.0 * r4 * r);
 }
 
+// The strengths: sigma[j] per point, or one strength for all (sigma null, sigma_all).
 struct StressletPair {
     const double* orient;
     const double* sigma;
+    double sigma_all;
     const double* table;
     int nt;
     double inv_h, xi, r_direct, r0sq;
@@ -754,7 +756,7 @@ struct StressletPair {
             }
         }
         const double* p = orient + 3 * j;
-        double s = sigma[j];
+        double s = sigma ? sigma[j] : sigma_all;
         double a1r = d[1], a2r = d[2], c = d[3], c1r = d[4], c2r = d[5];
         double q = p[0] * x[0] + p[1] * x[1] + p[2] * x[2];
         double inv = 1.0 / r;
@@ -786,7 +788,7 @@ extern "C" __global__ void stresslet_real(const double* pos, const double* orien
                                           double r0sq) {
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= npts) return;
-    StressletPair pair{orient, sigma, table, nt, inv_h, xi, r_direct, r0sq, {}};
+    StressletPair pair{orient, sigma, 0.0, table, nt, inv_h, xi, r_direct, r0sq, {}};
     for_each_neighbour(t, pos, group, start, npts, ncell, l, cutoff, pair);
     for (int k = 0; k < 13; ++k) out[13 * t + k] = pair.acc[k];
 }

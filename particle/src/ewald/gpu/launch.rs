@@ -247,31 +247,26 @@ pub(super) struct PointOutputs<'a> {
     pub(super) weighted: &'a mut Buffer,
 }
 
-/// The stresslet real-space sum written straight to the points' order (no copy in cell order
-/// and no permutation after it: 13 values per point fewer at the sum's peak).
+/// The real-space sum of stresslets of one strength `sigma` with orientations `orient` (cell
+/// order), the splitting `xi` and the direct range `r_direct`, written straight to the points'
+/// order (no copy in cell order, no permutation after it, no strength per point: 14 values per
+/// point fewer at the sum's peak).
 pub(super) fn stresslet_real_points(
     dev: &Device,
-    which: Real<'_>,
+    (orient, sigma, xi, r_direct): (&Buffer, f64, f64, f64),
     r: &RealSpace<'_>,
     out: PointOutputs<'_>,
 ) -> Result<(), GpuError> {
-    let Real::Stresslet {
-        orient,
-        sigma,
-        xi,
-        r_direct,
-    } = which
-    else {
-        unreachable!("the RPY sum's real space writes in cell order")
-    };
     let n = r.npts;
-    let (npts, ncell, nt) = check_real(which, r, 13)?;
+    let (npts, ncell, nt) = check_real(5, r, 13)?;
+    check("orientations", orient, 3 * n)?;
     check("members", out.members, n)?;
     check("velocities", out.u, 3 * n)?;
     check("gradients", out.grad, 9 * n)?;
     check("weighted strengths", out.weighted, n)?;
     let (pos, group, start, table) = (r.pos, r.group, r.start, r.table);
-    // SAFETY: as `real_space`'s stresslet sum (the reads checked by check_real), and thread t
+    // SAFETY: as `real_space`'s stresslet sum (the reads checked above, no strengths read),
+    // and thread t
     // then reads members[t] (n checked), a permutation of 0..n (the cells' members: every
     // point once), and writes its point's u (3), grad (9) and weighted (1) values (3 n, 9 n,
     // n checked): no two threads write the same place.
@@ -303,10 +298,10 @@ pub(super) fn stresslet_real_points(
     }
 }
 
-/// The checks of a real-space sum's inputs (`outputs` values per point): the kernel's point,
-/// cell and node counts.
+/// The checks of a real-space sum's common inputs (a table of `per_node` values per node,
+/// `outputs` values per point): the kernel's point, cell and node counts.
 fn check_real(
-    which: Real<'_>,
+    per_node: usize,
     r: &RealSpace<'_>,
     outputs: usize,
 ) -> Result<(i32, i32, i32), GpuError> {
@@ -316,20 +311,9 @@ fn check_real(
         int(r.ncell, "cells")?,
         int(r.nodes, "nodes")?,
     );
-    let per_node = match which {
-        Real::Rpy { .. } => 2,
-        Real::Stresslet { .. } => 5,
-    };
     int(outputs * n, "outputs")?;
     assert!(r.nodes >= 3, "a table of 4 nodes or more");
     check("positions", r.pos, 3 * n)?;
-    match which {
-        Real::Rpy { force, .. } => check("forces", force, 3 * n)?,
-        Real::Stresslet { orient, sigma, .. } => {
-            check("orientations", orient, 3 * n)?;
-            check("strengths", sigma, n)?;
-        }
-    }
     check("groups", r.group, n)?;
     check("cell starts", r.start, r.ncell.pow(3) + 1)?;
     check("table", r.table, per_node * (r.nodes + 1))?;
@@ -343,11 +327,18 @@ pub(super) fn real_space(
     out: &mut Buffer,
 ) -> Result<(), GpuError> {
     let n = r.npts;
-    let outputs = match which {
-        Real::Rpy { .. } => 4,
-        Real::Stresslet { .. } => 13,
+    let (per_node, outputs) = match which {
+        Real::Rpy { .. } => (2, 4),
+        Real::Stresslet { .. } => (5, 13),
     };
-    let (npts, ncell, nt) = check_real(which, r, outputs)?;
+    let (npts, ncell, nt) = check_real(per_node, r, outputs)?;
+    match which {
+        Real::Rpy { force, .. } => check("forces", force, 3 * n)?,
+        Real::Stresslet { orient, sigma, .. } => {
+            check("orientations", orient, 3 * n)?;
+            check("strengths", sigma, n)?;
+        }
+    }
     check("real-space sums", out, outputs * n)?;
     let (pos, group, start, table) = (r.pos, r.group, r.start, r.table);
     let (l, cutoff, inv_h, r0sq) = (r.l, r.cutoff, r.inv_h, r.r0sq);

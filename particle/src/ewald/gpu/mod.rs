@@ -237,6 +237,19 @@ impl GpuFourier {
         (which, gradient): (launch::Modes, bool),
     ) -> Result<Buffer, GpuError> {
         self.spread(generation, geo, pts, n, (vals, nf))?;
+        self.fourier_spread(geo, (pts, n), nf, (which, gradient))
+    }
+
+    /// [`Self::fourier`] after its spread (the values of the `nf` fields already on the grid,
+    /// so the caller may drop them first): the multiplication, the inverse transforms and the
+    /// gather.
+    fn fourier_spread(
+        &mut self,
+        geo: &Geometry,
+        (pts, n): (&Buffer, usize),
+        nf: usize,
+        (which, gradient): (launch::Modes, bool),
+    ) -> Result<Buffer, GpuError> {
         let method = self.spread_method(geo.window.p);
         let g = self.grid.as_mut().expect("spread made it");
         let input = g.inputs[usize::from(nf == STRESSLET_FIELDS)]

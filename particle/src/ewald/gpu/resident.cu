@@ -66,10 +66,9 @@ extern "C" __global__ void rod_axes(const double* q, double* p, int n) {
 }
 
 // The five trace-free stresslet components sigma (p_i p_j - |p|^2 delta_ij / 3) (xx, yy, xy, xz,
-// yz; zz is -(xx + yy)), field-major, and each point's strength. The trace's flow is zero (see
-// stresslet_modes), so the sum needs no grid for it.
-extern "C" __global__ void stresslet_values(const double* p, double sigma, double* vals,
-                                            double* strength, int n) {
+// yz; zz is -(xx + yy)), field-major. The trace's flow is zero (see stresslet_modes), so the
+// sum needs no grid for it.
+extern "C" __global__ void stresslet_values(const double* p, double sigma, double* vals, int n) {
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= n) return;
     double x = p[3 * t], y = p[3 * t + 1], z = p[3 * t + 2];
@@ -79,14 +78,14 @@ extern "C" __global__ void stresslet_values(const double* p, double sigma, doubl
     vals[2 * (long long)n + t] = sigma * (x * y);
     vals[3 * (long long)n + t] = sigma * (x * z);
     vals[4 * (long long)n + t] = sigma * (y * z);
-    strength[t] = sigma;
 }
 
-// The stresslet real-space sum (stresslet_real's pairs, in cell order t) written at the point's
-// own place i = members[t]: velocity at u[3 i..], gradient at grad[9 i..] (du_i/dx_m at 3 i + m),
-// weighted strengths at weighted[i]. No copy in cell order, no permutation after.
+// The stresslet real-space sum of stresslets of one strength sigma (stresslet_real's pairs, in
+// cell order t) written at the point's own place i = members[t]: velocity at u[3 i..], gradient
+// at grad[9 i..] (du_i/dx_m at 3 i + m), weighted strengths at weighted[i]. No copy in cell
+// order, no permutation after, no strength per point.
 extern "C" __global__ void stresslet_real_points(const double* pos, const double* orient,
-                                                 const double* sigma, const int* group,
+                                                 double sigma, const int* group,
                                                  const int* start, const double* table,
                                                  const int* members, double* u, double* grad,
                                                  double* weighted, int npts, int ncell, int nt,
@@ -94,7 +93,7 @@ extern "C" __global__ void stresslet_real_points(const double* pos, const double
                                                  double r_direct, double r0sq) {
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= npts) return;
-    StressletPair pair{orient, sigma, table, nt, inv_h, xi, r_direct, r0sq, {}};
+    StressletPair pair{orient, nullptr, sigma, table, nt, inv_h, xi, r_direct, r0sq, {}};
     for_each_neighbour(t, pos, group, start, npts, ncell, l, cutoff, pair);
     long long i = members[t];
     for (int k = 0; k < 3; ++k) u[3 * i + k] = pair.acc[k];

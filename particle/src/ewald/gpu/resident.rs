@@ -282,23 +282,7 @@ impl GpuFourier {
         int(13 * n, "13 x points")?;
         check_len("points", x, 3 * n)?;
         check_len("axes", p, 3 * n)?;
-        let mut vals = self.dev.zeros::<f64>(STRESSLET_FIELDS * n)?;
-        let mut strength = self.dev.zeros::<f64>(n)?;
-        // SAFETY: thread t < n reads p[3 t..3 t + 3] (checked) and writes vals[c n + t] for
-        // c < 5 (STRESSLET_FIELDS n) and strength[t] (n).
-        unsafe {
-            self.dev.launch(
-                n,
-                StressletValues {
-                    p,
-                    sigma: inp.sigma,
-                    vals: &mut vals,
-                    strength: &mut strength,
-                    n: ni,
-                },
-            )?;
-        }
-        // The real-space part over the device's cell list, back in the points' order.
+        // The real-space part over the device's cell list, written in the points' order.
         let cells = self.resident_cells(x, n, (geo.l, inp.cutoff), 1)?;
         let orient = self.permute_rows(p, &cells.members, (n, 3), false)?;
         let table = &inp.table;
@@ -323,12 +307,7 @@ impl GpuFourier {
         };
         launch::stresslet_real_points(
             dev,
-            launch::Real::Stresslet {
-                orient: &orient,
-                sigma: &strength,
-                xi,
-                r_direct,
-            },
+            (&orient, inp.sigma, xi, r_direct),
             &real_in,
             launch::PointOutputs {
                 members: &cells.members,
@@ -338,16 +317,30 @@ impl GpuFourier {
             },
         )?;
         // What only the real-space part needed goes before the Fourier part's bins and gather.
-        drop((orient, cells, strength, table_buf));
-        // The Fourier part.
-        let back = self.fourier(
-            generation,
+        drop((orient, cells, table_buf));
+        // The Fourier part: the trace-free components, spread and dropped before the gather.
+        let mut vals = self.dev.zeros::<f64>(STRESSLET_FIELDS * n)?;
+        // SAFETY: thread t < n reads p[3 t..3 t + 3] (checked) and writes vals[c n + t] for
+        // c < 5 (STRESSLET_FIELDS n).
+        unsafe {
+            self.dev.launch(
+                n,
+                StressletValues {
+                    p,
+                    sigma: inp.sigma,
+                    vals: &mut vals,
+                    n: ni,
+                },
+            )?;
+        }
+        self.spread(generation, geo, x, n, (&vals, STRESSLET_FIELDS))?;
+        drop(vals);
+        let back = self.fourier_spread(
             geo,
             (x, n),
-            (&vals, STRESSLET_FIELDS),
+            STRESSLET_FIELDS,
             (launch::Modes::Stresslet, true),
         )?;
-        drop(vals);
         // Assembly (on the real part's velocities and gradients) and the error model.
         let dev = &self.dev;
         let mut parts = dev.zeros::<f64>(4 * n)?;

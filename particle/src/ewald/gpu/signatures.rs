@@ -273,20 +273,20 @@ motile_gpu::kernels! {
         n: i32,
     }
 
-    /// The five trace-free stresslet components (field-major) and the strengths.
+    /// The five trace-free stresslet components (field-major).
     pub(crate) struct StressletValues = "stresslet_values" {
         p: &'a Buffer<f64>,
         sigma: f64,
         vals: &'a mut Buffer<f64>,
-        strength: &'a mut Buffer<f64>,
         n: i32,
     }
 
-    /// The stresslet real-space sum written at each point's own place (`members`).
+    /// The stresslet real-space sum of one strength written at each point's own place
+    /// (`members`).
     pub(crate) struct StressletRealPoints = "stresslet_real_points" {
         pos: &'a Buffer<f64>,
         orient: &'a Buffer<f64>,
-        sigma: &'a Buffer<f64>,
+        sigma: f64,
         group: &'a Buffer<i32>,
         start: &'a Buffer<i32>,
         table: &'a Buffer<f64>,
