@@ -41,6 +41,9 @@ cargo test --release -p motile-meanfield --features gpu --test gpu
 cargo test --release -p motile-particle --features gpu --test gpu_ewald
 cargo test --release -p motile-particle --features gpu --test gpu_step
 cargo test --release -p motile-particle --features gpu --test gpu_resident
+# The resident dipole step's device buffers against issue 29's memory budget (the process's
+# tally: the same bytes on the emulation as on CUDA; a file of one test, as the tally is shared).
+cargo test --release -p motile-particle --features gpu --test gpu_memory
 # The GPU modules' own unit tests (kernel declarations against their sources, the spreaders'
 # reach and work model), which the default build leaves out with the feature.
 cargo test --release -p motile-particle --features gpu --lib gpu
