@@ -22,6 +22,10 @@
 #            the mean-field step, the dipole and explicit steps, the sbt step's profile, the
 #            whole runs and Nsight Compute on the dipole sum's spreader and gather, each phase
 #            under its own limit
+#   memory   issue 29's last open figure, the dipole step's GPU memory per rod (about 4
+#            minutes): the CUDA parity tests of the sums and the resident steps, ptxas (no
+#            stack in the dipole step's kernels), then gpu_bench's dipole steps at L/l = 100
+#            and 175 (the resident rows print steps/s, bytes in use per rod and the breakdown)
 #   meanfield  the paper's mean-field case at 128^3 to t = 128 on the GPU
 #   scaling  the thread-scaling table at 1, 2, 4, 8, 16 threads (SCALING_ARGS passed on)
 #   all      parity, bench (every target case, in two parts), runs and science in one command
@@ -149,6 +153,19 @@ case "${1:-}" in
       --cpu-max 0 --reps 1 >"$OUT/ncu.txt" 2>&1
     grep -E "^  [a-z_]+|Duration|Throughput|Registers Per|Achieved Occupancy|Stall|Issued|Eligible|Local|Shared Memory" "$OUT/ncu.txt" | head -60
     ;;
+  memory)
+    export MOTILE_REQUIRE_GPU=1
+    { echo "== parity (CUDA tests of the sums and the resident steps)"
+      timeout 60 "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1 gpu_sums
+      timeout 60 "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1 cuda
+      timeout 60 "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1 cuda
+    } >"$OUT/parity.txt" 2>&1
+    grep -E "test result|FAILED|panicked|device vs CPU|steps of" "$OUT/parity.txt"
+    timeout 30 bash "$0" ptxas
+    grep -A2 -E "Compiling entry.*(stresslet|gather|spread_cells|solver|step_stats)" "$OUT/ptxas.txt" \
+      | grep -E "entry|stack" | head -40
+    BENCH_ARGS="--cases dipole --cpu-max 0" timeout 90 bash "$0" bench
+    ;;
   meanfield)
     # The paper's case (meanfield_paper_64.toml) on 128^3 to t = 128; the run directory stays
     # in /tmp, only its log and time series come back.
@@ -180,7 +197,7 @@ case "${1:-}" in
     cat "$OUT/all.txt"
     ;;
   *)
-    echo "usage: device_run.sh parity|bench|runs|science|profile|ncu|ptxas|check|meanfield|scaling|all" >&2
+    echo "usage: device_run.sh parity|bench|runs|science|profile|ncu|ptxas|check|memory|meanfield|scaling|all" >&2
     exit 2
     ;;
 esac
