@@ -34,6 +34,12 @@
 #            gpu_bench.md, gpu_bench.log, runs.txt, science.txt, science_timeseries.csv, all.txt)
 set -uo pipefail
 B="$(dirname "$0")"
+# The CUDA parity tests of the particle sums and the resident steps, each under its own limit.
+particle_cuda_parity() {
+  timeout 60 "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1 gpu_sums
+  timeout 60 "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1 cuda
+  timeout 60 "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1 cuda
+}
 OUT="${OUT:-/tmp/motile-out}"
 mkdir -p "$OUT"
 if [ ! -f "$OUT/device.txt" ]; then
@@ -134,9 +140,7 @@ case "${1:-}" in
   check)
     export MOTILE_REQUIRE_GPU=1
     { echo "== parity (CUDA tests only)"
-      timeout 60 "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1 gpu_sums
-      timeout 60 "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1 cuda
-      timeout 60 "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1 cuda
+      particle_cuda_parity
       timeout 40 "$B/test_meanfield_gpu" --include-ignored --nocapture --test-threads 1 --exact gpu_step_matches_the_cpu_step
     } >"$OUT/parity.txt" 2>&1
     grep -E "test result|FAILED|panicked|Cells|device vs CPU|steps of" "$OUT/parity.txt"
@@ -156,9 +160,7 @@ case "${1:-}" in
   memory)
     export MOTILE_REQUIRE_GPU=1
     { echo "== parity (CUDA tests of the sums and the resident steps)"
-      timeout 60 "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1 gpu_sums
-      timeout 60 "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1 cuda
-      timeout 60 "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1 cuda
+      particle_cuda_parity
     } >"$OUT/parity.txt" 2>&1
     grep -E "test result|FAILED|panicked|device vs CPU|steps of" "$OUT/parity.txt"
     timeout 30 bash "$0" ptxas
