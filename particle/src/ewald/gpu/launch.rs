@@ -237,9 +237,9 @@ pub(super) enum Real<'a> {
     },
 }
 
-/// The stresslet sum's real-space outputs in the points' own order: the point `members[t]`
-/// (the `t`-th in cell order) gets its velocity at `u[3 i..3 i + 3]`, its gradient at
-/// `grad[9 i..9 i + 9]` and its weighted strengths at `weighted[i]`.
+/// The stresslet sum's real-space outputs in the points' own order: the point
+/// `i = members[t]` (the `t`-th in cell order) gets its velocity at `u[3 i..3 i + 3]`, its
+/// gradient at `grad[9 i..9 i + 9]` and its weighted strengths at `weighted[i]`.
 pub(super) struct PointOutputs<'a> {
     pub(super) members: &'a Buffer<i32>,
     pub(super) u: &'a mut Buffer,
@@ -249,8 +249,7 @@ pub(super) struct PointOutputs<'a> {
 
 /// The real-space sum of stresslets of one strength `sigma` with orientations `orient` (cell
 /// order), the splitting `xi` and the direct range `r_direct`, written straight to the points'
-/// order (no copy in cell order, no permutation after it, no strength per point: 14 values per
-/// point fewer at the sum's peak).
+/// order (no 13-value copy in cell order and no permutation after it, no strength per point).
 pub(super) fn stresslet_real_points(
     dev: &Device,
     (orient, sigma, xi, r_direct): (&Buffer, f64, f64, f64),
@@ -266,10 +265,9 @@ pub(super) fn stresslet_real_points(
     check("weighted strengths", out.weighted, n)?;
     let (pos, group, start, table) = (r.pos, r.group, r.start, r.table);
     // SAFETY: as `real_space`'s stresslet sum (the reads checked above, no strengths read),
-    // and thread t
-    // then reads members[t] (n checked), a permutation of 0..n (the cells' members: every
-    // point once), and writes its point's u (3), grad (9) and weighted (1) values (3 n, 9 n,
-    // n checked): no two threads write the same place.
+    // and thread t then reads members[t] (n checked), a permutation of 0..n (the cells'
+    // members: every point once), and writes its point's u (3), grad (9) and weighted (1)
+    // values (3 n, 9 n, n checked): no two threads write the same place.
     unsafe {
         dev.launch(
             n,

@@ -450,6 +450,12 @@ impl GpuFourier {
     ) -> Result<[Vec<f64>; 12], GpuError> {
         let n = points.len();
         let pts = self.points(generation, points)?;
+        if let Some(c) = s.iter().position(|c| c.len() != n) {
+            return Err(GpuError::Input(format!(
+                "stresslet component {c} has {} values for {n} points",
+                s[c].len()
+            )));
+        }
         let [xx, yy, zz, xy, xz, yz] = s;
         let third = |i: usize| (xx[i] + yy[i] + zz[i]) / 3.0;
         let vals: Vec<f64> = (0..n)

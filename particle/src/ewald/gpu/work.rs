@@ -40,8 +40,9 @@ fn first_index(y: f64, l: f64, m: usize, p: usize) -> usize {
 }
 
 /// The work of one Fourier part on the device with `method`, counted from the points
-/// themselves: `nf` fields spread (3 for RPY forces, [`super::STRESSLET_FIELDS`] for stresslets), three gathered (with
-/// the window's derivative if `gradient`), on an `m^3` grid with support `p`. The tiles'
+/// themselves: `nf` fields spread (3 for RPY forces, [`super::STRESSLET_FIELDS`] for
+/// stresslets), three gathered (with the window's derivative if `gradient`), on an `m^3` grid
+/// with support `p`. The tiles'
 /// global atomics are their nonzero cells, found per bin from the points' supports. Phases:
 /// values up, the sort (once per generation: the products of a GMRES solve share it), spread,
 /// FFTs and the mode multiplication (each transform counted as two passes over its data, read
