@@ -482,15 +482,27 @@ impl Bench {
         self.profile_end(&format!("{case}, resident"), reps + 1, tr);
         let bytes = self.gpu_bytes();
         // What the step's own buffers and cuFFT's work areas take, counted by the process
-        // (no device needed), beside the device's total in use (context included).
+        // (no device needed), beside the device's total in use (context included). The
+        // device's memory at the step's peak: what is in use after it, less the buffers kept
+        // (the rest is the context, cuFFT and the driver's reservations), plus the buffers'
+        // peak.
         let (peak, work) = (motile_gpu::peak_bytes(), motile_gpu::fft_work_bytes());
+        let kept = motile_gpu::live_bytes();
+        let at_peak = bytes.map_or(String::new(), |b| {
+            format!(
+                "; the device at the step's peak {:.0} bytes per rod (in use after it, less \
+                 the buffers kept, plus their peak)",
+                (b.saturating_sub(kept) + peak) as f64 / n as f64
+            )
+        });
         let note = format!(
             "resident step (flow on the device): sums {sums:.3} s, the rest {:.3} s{}; per rod: \
-             buffers at their peak {:.0} bytes, cuFFT work areas {:.0}, the context and the \
-             driver's pool the rest (in use before any case: {})",
+             buffers at their peak {:.0} bytes, kept after the step {:.0}, cuFFT work areas \
+             {:.0}, the context and the driver's pool the rest (in use before any case: {}){at_peak}",
             tr - sums,
             per_rod(bytes),
             peak as f64 / n as f64,
+            kept as f64 / n as f64,
             work as f64 / n as f64,
             self.base_bytes
                 .map_or("-".into(), |b| format!("{:.2} GB", b as f64 / 1e9))
