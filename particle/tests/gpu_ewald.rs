@@ -13,7 +13,7 @@
 
 mod common;
 
-use common::{errors, matrices, rod_points, rods, vectors};
+use common::{device, emulation, errors, matrices, rod_points, rods, vectors};
 use motile_gpu::Backend;
 use motile_particle::ewald::gpu::GpuFourier;
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
@@ -29,31 +29,6 @@ const TOLERANCES: [f64; 2] = [1e-4, 1e-8];
 /// the order of the spreading's sums and the window's exponentials (direct on the device, a
 /// recurrence on the CPU), a few ulps per term of sums of hundreds of terms.
 const PARITY: f64 = 1e-11;
-
-/// A device, or `None` after saying why it was skipped (`require`: the variable that makes a
-/// skip a failure).
-fn device(which: &str, backend: Backend, require: &str) -> Option<GpuFourier> {
-    match GpuFourier::open(backend) {
-        Ok(d) => {
-            eprintln!("{which}: {}", d.describe());
-            Some(d)
-        }
-        Err(e) if std::env::var(require).is_err() => {
-            eprintln!("{which}: skipped ({e}); set {require}=1 to make this a failure");
-            None
-        }
-        Err(e) => panic!("{which}: {e} (and {require} is set)"),
-    }
-}
-
-/// The host emulation, or `None` after saying why not.
-fn emulation() -> Option<GpuFourier> {
-    device(
-        "host emulation",
-        Backend::HostEmulation,
-        "MOTILE_REQUIRE_CXX",
-    )
-}
 
 /// The RPY sum of swimming rods and the stresslet sum, on the device against the CPU and the
 /// direct sum. Returns the report lines.

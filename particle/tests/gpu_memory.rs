@@ -16,8 +16,10 @@
 //! `MOTILE_REQUIRE_CXX=1`). One test in this file: the tally is the process's, so nothing
 //! else may allocate device buffers while it runs.
 
+mod common;
+
 use motile_gpu::Backend;
-use motile_particle::ewald::gpu::{GpuFourier, STRESSLET_FIELDS};
+use motile_particle::ewald::gpu::STRESSLET_FIELDS;
 use motile_particle::ewald::params::{EwaldParams, STRESSLET_PAIR_COST, SumOutput};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
@@ -46,13 +48,8 @@ fn grid_bytes(n: usize, l: f64) -> (usize, f64) {
 
 #[test]
 fn resident_dipole_step_fits_the_memory_target() {
-    let gpu = match GpuFourier::open(Backend::HostEmulation) {
-        Ok(g) => g,
-        Err(e) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
-            eprintln!("skipped ({e}); set MOTILE_REQUIRE_CXX=1 to make this a failure");
-            return;
-        }
-        Err(e) => panic!("{e} (and MOTILE_REQUIRE_CXX is set)"),
+    let Some(gpu) = common::emulation() else {
+        return;
     };
     let l = 16.0;
     let n = (NU * l * l * l).round() as usize;

@@ -14,6 +14,8 @@
 //! `MOTILE_REQUIRE_CXX=1`); on CUDA in the `#[ignore]`d test that `scripts/device_run.sh
 //! parity` runs.
 
+mod common;
+
 use motile_gpu::Backend;
 use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
@@ -233,13 +235,8 @@ fn cases() -> Vec<RodSet> {
 
 #[test]
 fn resident_flow_matches_the_cpu_on_the_host_emulation() {
-    match GpuFourier::open(Backend::HostEmulation) {
-        Ok(d) => eprintln!("host emulation: {}", d.describe()),
-        Err(e) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
-            eprintln!("skipped ({e}); set MOTILE_REQUIRE_CXX=1 to make this a failure");
-            return;
-        }
-        Err(e) => panic!("{e} (and MOTILE_REQUIRE_CXX is set)"),
+    if common::emulation().is_none() {
+        return;
     }
     let rods = cases();
     let emu = Backend::HostEmulation;

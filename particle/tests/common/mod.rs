@@ -3,6 +3,10 @@
 //! contract's two error metrics.
 #![allow(dead_code)]
 
+#[cfg(feature = "gpu")]
+use motile_gpu::Backend;
+#[cfg(feature = "gpu")]
+use motile_particle::ewald::gpu::GpuFourier;
 use motile_particle::hydro::slender::half_rod_rule;
 use motile_particle::model::geometry::{Vec3, dot, sub};
 use motile_particle::model::units::{DEFAULT_DIAMETER, eta};
@@ -88,4 +92,31 @@ pub fn matrices(g: &[[Vec3; 3]]) -> Vec<Vec<f64>> {
     g.iter()
         .map(|m| m.iter().flatten().copied().collect())
         .collect()
+}
+
+/// A device, or `None` after saying why it was skipped (`require`: the variable that makes a
+/// skip a failure).
+#[cfg(feature = "gpu")]
+pub fn device(which: &str, backend: Backend, require: &str) -> Option<GpuFourier> {
+    match GpuFourier::open(backend) {
+        Ok(d) => {
+            eprintln!("{which}: {}", d.describe());
+            Some(d)
+        }
+        Err(e) if std::env::var(require).is_err() => {
+            eprintln!("{which}: skipped ({e}); set {require}=1 to make this a failure");
+            None
+        }
+        Err(e) => panic!("{which}: {e} (and {require} is set)"),
+    }
+}
+
+/// The host emulation, or `None` after saying why not.
+#[cfg(feature = "gpu")]
+pub fn emulation() -> Option<GpuFourier> {
+    device(
+        "host emulation",
+        Backend::HostEmulation,
+        "MOTILE_REQUIRE_CXX",
+    )
 }

@@ -457,10 +457,12 @@ impl GpuFourier {
             )));
         }
         let [xx, yy, zz, xy, xz, yz] = s;
-        let third = |i: usize| (xx[i] + yy[i] + zz[i]) / 3.0;
-        let vals: Vec<f64> = (0..n)
-            .map(|i| xx[i] - third(i))
-            .chain((0..n).map(|i| yy[i] - third(i)))
+        let third: Vec<f64> = (0..n).map(|i| (xx[i] + yy[i] + zz[i]) / 3.0).collect();
+        let vals: Vec<f64> = xx
+            .iter()
+            .zip(&third)
+            .map(|(v, t)| v - t)
+            .chain(yy.iter().zip(&third).map(|(v, t)| v - t))
             .chain([xy, xz, yz].into_iter().flatten().copied())
             .collect();
         let vals = self.dev.upload(&vals)?;

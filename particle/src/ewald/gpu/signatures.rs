@@ -391,6 +391,6 @@ motile_gpu::kernels! {
 mod tests {
     #[test]
     fn declarations_match_the_source() {
-        super::KERNELS.check().unwrap();
+        assert_eq!(super::KERNELS.check(), Ok(()));
     }
 }
