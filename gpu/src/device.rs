@@ -122,6 +122,16 @@ impl Device {
         }
     }
 
+    /// The backend this device was opened on (to open another set of kernels beside it: CUDA
+    /// opens device 0's primary context for every [`Device`], so their buffers are shared).
+    pub fn backend(&self) -> Backend {
+        match &self.inner {
+            Inner::Host(_) => Backend::HostEmulation,
+            #[cfg(feature = "cuda")]
+            Inner::Cuda(_) => Backend::Cuda,
+        }
+    }
+
     /// What this device is, for logs and reports.
     pub fn describe(&self) -> String {
         match &self.inner {

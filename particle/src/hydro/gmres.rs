@@ -126,28 +126,61 @@ pub fn gmres_shared<O: LinOp>(
     x: &mut [f64],
     params: &GmresParams,
 ) -> Result<GmresInfo, GmresError<O::Error>> {
-    let dot = |a: &[f64], b: &[f64]| dot(comm, a, b);
-    let norm = |a: &[f64]| dot(a, a).sqrt();
     let n = op.dim();
     assert!(b.len() == n && x.len() == n, "GMRES: dimension mismatch");
-    let bnorm = norm(b);
+    let mut space = HostSpace {
+        comm,
+        op,
+        b,
+        x,
+        r: vec![0.0; n],
+        w: vec![0.0; n],
+        basis: Vec::with_capacity(params.restart.max(1) + 1),
+    };
+    gmres_in(&mut space, params)
+}
+
+/// The vectors of one GMRES solve and the operations on them, on the host or on a device:
+/// the right-hand side `b`, the iterate `x` (the warm start on entry), the residual, the
+/// Arnoldi basis `v_j` and the operator `A`. The solver ([`gmres_in`]) keeps the Hessenberg
+/// matrix, the rotations and the least-squares solve on the host; a space on a device returns
+/// only those numbers, its vectors staying there.
+pub trait KrylovSpace {
+    /// Error of an operation (the operator's, or the device's).
+    type Error;
+    /// `||b||`.
+    fn rhs_norm(&mut self) -> Result<f64, Self::Error>;
+    /// `x = 0`.
+    fn clear(&mut self) -> Result<(), Self::Error>;
+    /// The residual `r = b - A x`, kept for [`Self::start`]; returns `||r||`.
+    fn residual(&mut self) -> Result<f64, Self::Error>;
+    /// The basis restarted at `v_0 = r / beta`.
+    fn start(&mut self, beta: f64) -> Result<(), Self::Error>;
+    /// `w = A v_k` orthogonalised by modified Gram-Schmidt against `v_0..=v_k` in basis
+    /// order (`h_j = w . v_j`, then `w -= h_j v_j`); returns the `h_j` and `||w||`.
+    fn arnoldi(&mut self, k: usize) -> Result<(Vec<f64>, f64), Self::Error>;
+    /// The basis's vector `v_k = w / hn`.
+    fn extend(&mut self, k: usize, hn: f64) -> Result<(), Self::Error>;
+    /// `x += sum_j y_j v_j`, the terms added in basis order at every entry.
+    fn update(&mut self, y: &[f64]) -> Result<(), Self::Error>;
+}
+
+/// GMRES in `space` from its iterate (warm start): [`gmres_shared`]'s iteration, whatever
+/// holds the vectors.
+pub fn gmres_in<S: KrylovSpace>(
+    space: &mut S,
+    params: &GmresParams,
+) -> Result<GmresInfo, GmresError<S::Error>> {
+    let bnorm = space.rhs_norm().map_err(GmresError::Operator)?;
     let mut info = GmresInfo::default();
     if bnorm == 0.0 {
-        x.iter_mut().for_each(|c| *c = 0.0);
+        space.clear().map_err(GmresError::Operator)?;
         info.residuals.push(0.0);
         return Ok(info);
     }
     let m = params.restart.max(1);
-    let mut r = vec![0.0; n];
-    let mut w = vec![0.0; n];
-    let mut basis: Vec<Vec<f64>> = Vec::with_capacity(m + 1);
     loop {
-        // r = b - A x
-        op.apply(x, &mut w).map_err(GmresError::Operator)?;
-        r.par_iter_mut()
-            .zip(b.par_iter().zip(&w))
-            .for_each(|(r, (b, w))| *r = b - w);
-        let beta = norm(&r);
+        let beta = space.residual().map_err(GmresError::Operator)?;
         let rel = beta / bnorm;
         if !rel.is_finite() {
             return Err(GmresError::NonFinite {
@@ -168,23 +201,18 @@ pub fn gmres_shared<O: LinOp>(
                 tol: params.tol,
             });
         }
-        basis.clear();
-        basis.push(r.par_iter().map(|c| c / beta).collect());
+        space.start(beta).map_err(GmresError::Operator)?;
         let mut h = vec![vec![0.0; m]; m + 1];
         let (mut cs, mut sn) = (vec![0.0; m], vec![0.0; m]);
         let mut g = vec![0.0; m + 1];
         g[0] = beta;
         let mut k = 0;
         while k < m && info.iterations < params.max_iterations {
-            op.apply(&basis[k], &mut w).map_err(GmresError::Operator)?;
+            let (column, hn) = space.arnoldi(k).map_err(GmresError::Operator)?;
             info.iterations += 1;
-            // Modified Gram-Schmidt: each projection in parallel, in basis order.
-            for (j, v) in basis.iter().enumerate() {
-                let hj = dot(&w, v);
+            for (j, hj) in column.into_iter().enumerate() {
                 h[j][k] = hj;
-                w.par_iter_mut().zip(v).for_each(|(w, v)| *w -= hj * v);
             }
-            let hn = norm(&w);
             h[k + 1][k] = hn;
             for j in 0..k {
                 let t = cs[j] * h[j][k] + sn[j] * h[j + 1][k];
@@ -209,7 +237,7 @@ pub fn gmres_shared<O: LinOp>(
             if est <= params.tol || hn == 0.0 {
                 break;
             }
-            basis.push(w.par_iter().map(|c| c / hn).collect());
+            space.extend(k, hn).map_err(GmresError::Operator)?;
         }
         // Solve the upper-triangular system and update x.
         let mut y = vec![0.0; k];
@@ -217,12 +245,82 @@ pub fn gmres_shared<O: LinOp>(
             let s: f64 = (i + 1..k).map(|j| h[i][j] * y[j]).sum();
             y[i] = (g[i] - s) / h[i][i];
         }
-        // x += sum_j y_j v_j, the terms added in basis order at every entry.
-        x.par_iter_mut().enumerate().for_each(|(i, xi)| {
-            for (yj, v) in y.iter().zip(&basis) {
+        space.update(&y).map_err(GmresError::Operator)?;
+    }
+}
+
+/// The host's space: vectors in memory (split among ranks), operations in parallel, dot
+/// products in fixed chunks.
+struct HostSpace<'a, O> {
+    comm: &'a dyn Comm,
+    op: &'a mut O,
+    b: &'a [f64],
+    x: &'a mut [f64],
+    r: Vec<f64>,
+    w: Vec<f64>,
+    basis: Vec<Vec<f64>>,
+}
+
+impl<O: LinOp> HostSpace<'_, O> {
+    fn norm(&self, a: &[f64]) -> f64 {
+        dot(self.comm, a, a).sqrt()
+    }
+}
+
+impl<O: LinOp> KrylovSpace for HostSpace<'_, O> {
+    type Error = O::Error;
+
+    fn rhs_norm(&mut self) -> Result<f64, O::Error> {
+        Ok(self.norm(self.b))
+    }
+
+    fn clear(&mut self) -> Result<(), O::Error> {
+        self.x.iter_mut().for_each(|c| *c = 0.0);
+        Ok(())
+    }
+
+    fn residual(&mut self) -> Result<f64, O::Error> {
+        self.op.apply(self.x, &mut self.w)?;
+        self.r
+            .par_iter_mut()
+            .zip(self.b.par_iter().zip(&self.w))
+            .for_each(|(r, (b, w))| *r = b - w);
+        Ok(self.norm(&self.r))
+    }
+
+    fn start(&mut self, beta: f64) -> Result<(), O::Error> {
+        self.basis.clear();
+        self.basis
+            .push(self.r.par_iter().map(|c| c / beta).collect());
+        Ok(())
+    }
+
+    fn arnoldi(&mut self, k: usize) -> Result<(Vec<f64>, f64), O::Error> {
+        self.op.apply(&self.basis[k], &mut self.w)?;
+        // Modified Gram-Schmidt: each projection in parallel, in basis order.
+        let mut column = Vec::with_capacity(k + 1);
+        for v in &self.basis[..=k] {
+            let hj = dot(self.comm, &self.w, v);
+            column.push(hj);
+            self.w.par_iter_mut().zip(v).for_each(|(w, v)| *w -= hj * v);
+        }
+        Ok((column, self.norm(&self.w)))
+    }
+
+    fn extend(&mut self, k: usize, hn: f64) -> Result<(), O::Error> {
+        debug_assert_eq!(self.basis.len(), k, "the basis grows one vector at a time");
+        self.basis.push(self.w.par_iter().map(|c| c / hn).collect());
+        Ok(())
+    }
+
+    fn update(&mut self, y: &[f64]) -> Result<(), O::Error> {
+        let basis = &self.basis;
+        self.x.par_iter_mut().enumerate().for_each(|(i, xi)| {
+            for (yj, v) in y.iter().zip(basis) {
                 *xi += yj * v[i];
             }
         });
+        Ok(())
     }
 }
 

@@ -5,5 +5,7 @@
 pub mod dipole;
 pub mod explicit;
 pub mod gmres;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod mobility;
 pub mod slender;

@@ -24,8 +24,6 @@
 
 use crate::ewald::periodic::{PeriodicStokes, RpyGeometry, SumError};
 use crate::ewald::shared::SharedEwald;
-#[cfg(feature = "gpu")]
-use crate::ewald::spectral::resident::resident_sum;
 use crate::hydro::gmres::{GmresInfo, GmresParams, LinOp, gmres_shared};
 use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
@@ -39,6 +37,9 @@ use motile_analysis::params::{InvalidParameter, check_range};
 use motile_analysis::quadrature::gauss_legendre;
 use rayon::prelude::*;
 use std::time::Instant;
+
+#[cfg(feature = "gpu")]
+mod device;
 
 /// Settings of the slender-body model.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -133,6 +134,9 @@ pub struct SlenderBody {
     flow: Vec<(Vec3, Vec3)>,
     /// Whether this step's prediction was an exact free solve.
     predicted_exactly: bool,
+    /// The kernels of (P4) on its sum's device (opened at the first solve there).
+    #[cfg(feature = "gpu")]
+    device: Option<crate::hydro::gpu::SlenderDevice>,
 }
 
 /// Where (P4)'s sums run.
@@ -169,9 +173,6 @@ struct P4<'a> {
     /// The last `(f, u)` computed: GMRES's final true-residual product is at the solution,
     /// so the velocities reuse it instead of summing again.
     cache: Option<(Vec<f64>, Vec<Vec3>)>,
-    /// The nodes on the sum's device (uploaded at the first product).
-    #[cfg(feature = "gpu")]
-    nodes: Option<motile_gpu::Buffer>,
 }
 
 impl P4<'_> {
@@ -206,25 +207,8 @@ impl P4<'_> {
         let (u, report) = match &mut self.sum {
             P4Sum::One(sum) => {
                 let forces = weighted(f);
-                // A sum on a device takes the products through its resident sum (the nodes
-                // uploaded once per solve, one download per product).
-                #[cfg(feature = "gpu")]
-                let on_device = match resident_sum(&mut **sum) {
-                    Some(r) => Some((
-                        r.rpy_via_device(&self.geometry, (self.points, &mut self.nodes), &forces)?,
-                        r.last_report(),
-                    )),
-                    None => None,
-                };
-                #[cfg(not(feature = "gpu"))]
-                let on_device = None;
-                match on_device {
-                    Some(done) => done,
-                    None => {
-                        let u = sum.rpy(&self.geometry, self.points, &forces)?;
-                        (u, sum.last_report())
-                    }
-                }
+                let u = sum.rpy(&self.geometry, self.points, &forces)?;
+                (u, sum.last_report())
             }
             P4Sum::Shared { sum, part, reach } => {
                 let width = 3 * m;
@@ -319,6 +303,8 @@ impl SlenderBody {
             local: LocalDrag::new(params.diameter),
             flow: Vec::new(),
             predicted_exactly: false,
+            #[cfg(feature = "gpu")]
+            device: None,
         }
     }
 
@@ -341,6 +327,12 @@ impl SlenderBody {
         let points = self.node_positions(rods, p);
         if x.len() != rhs.len() {
             *x = rhs.to_vec();
+        }
+        #[cfg(feature = "gpu")]
+        if part.is_none()
+            && let Some(done) = self.solve_resident(rods.box_length, (&points, p), (rhs, x), stage)
+        {
+            return done;
         }
         let (sum, comm, owned): (P4Sum<'_>, &dyn Comm, usize) = match part {
             None => (P4Sum::One(self.sum.as_mut()), &SingleProcess, rods.len()),
@@ -375,14 +367,18 @@ impl SlenderBody {
             seconds: 0.0,
             accuracy: HydroReport::default(),
             cache: None,
-            #[cfg(feature = "gpu")]
-            nodes: None,
         };
         let info = gmres_shared(comm, &mut op, rhs, x, &self.params.gmres)
             .map_err(|source| MobilityError::Gmres { stage, source })?;
         let u = op.flow(x)?;
-        self.report.seconds_sums += op.seconds;
-        let acc = &op.accuracy;
+        let (accuracy, seconds) = (op.accuracy, op.seconds);
+        self.fold_sums(&accuracy, seconds);
+        Ok((info, u))
+    }
+
+    /// A solve's sums (`accuracy`, `seconds`) into the step's report.
+    fn fold_sums(&mut self, acc: &HydroReport, seconds: f64) {
+        self.report.seconds_sums += seconds;
         if acc.sums > 0 {
             self.report.sum_tolerance_met =
                 acc.sum_tolerance_met && (self.report.sums == 0 || self.report.sum_tolerance_met);
@@ -390,7 +386,6 @@ impl SlenderBody {
             self.report.sum_level = acc.sum_level;
         }
         self.report.sums += acc.sums;
-        Ok((info, u))
     }
 
     /// Rigid-body velocities (P2)-(P3) from the flow at the nodes, without the swimming and

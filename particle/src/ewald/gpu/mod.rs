@@ -106,6 +106,11 @@ impl GpuFourier {
         })
     }
 
+    /// The backend of this sum's device (to open other kernels beside it).
+    pub fn backend(&self) -> Backend {
+        self.dev.backend()
+    }
+
     /// Spread with `method` from now on, or (`None`) with [`SpreadMethod::for_support`]'s
     /// choice: for tests and benchmarks that compare the spreaders.
     pub fn set_spread_method(&mut self, method: Option<SpreadMethod>) {
