@@ -24,7 +24,7 @@ use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
 use motile_particle::hydro::mobility::{Mobility, RodVelocities, RodsOnDevice};
 use motile_particle::hydro::slender::SlenderParams;
-use motile_particle::model::geometry::{Vec3, axpy, min_image, norm, sub};
+use motile_particle::model::geometry::{Vec3, axpy, norm, sub};
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::{DEFAULT_DIAMETER, SWIM_SPEED};
@@ -147,7 +147,6 @@ fn check_free(
 fn check_steps(level: &str, backend: Backend, rods: &RodSet) {
     const STEPS: usize = 10;
     let (dt, tol) = (0.02, 1e-8);
-    let l = rods.box_length;
     let params = ContactParams::default();
     let mut cpu = rods.clone();
     let mut stepper = Stepper::new(
@@ -174,13 +173,7 @@ fn check_steps(level: &str, backend: Backend, rods: &RodSet) {
     assert!(active > 20, "{level}: too few active contacts: {active}");
     let mut on_device = rods.clone();
     device.download(&mut on_device).unwrap();
-    let dx = (0..rods.len())
-        .map(|i| norm(min_image(sub(on_device.x[i], cpu.x[i]), l)))
-        .fold(0.0, f64::max);
-    let dq = (0..rods.len())
-        .flat_map(|i| (0..4).map(move |d| (i, d)))
-        .map(|(i, d)| (on_device.q[i][d] - cpu.q[i][d]).abs())
-        .fold(0.0, f64::max);
+    let (dx, dq) = common::rods_difference(&on_device, &cpu);
     let bound = 10.0 * STEPS as f64 * params.tolerance;
     assert!(
         dx <= bound && dq <= bound,

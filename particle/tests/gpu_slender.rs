@@ -11,6 +11,12 @@
 //! - With the resident sum (`SlenderBody` on a `SpectralEwald` with a device): the velocities
 //!   within round-off of the CPU's (the sums differ in the order of their additions), the
 //!   same iterations and the same sums' report.
+//! - Ten steps of the resident stepper at the `sbt` level (`DeviceStepper` with the
+//!   prediction, the contact problem, the final solve with the contact forces, the correction
+//!   and the move all on the device) against the CPU's stepper: the rods within what the
+//!   contact solver's tolerance allows, the same constraints, GMRES iterations and sums each
+//!   step, and the warm state kept on the device (downloaded) the CPU's within the same
+//!   bound.
 //!
 //! On the host emulation (skipped with the reason where no C++ compiler runs, a failure with
 //! `MOTILE_REQUIRE_CXX=1`).
@@ -29,6 +35,9 @@ use motile_particle::model::geometry::{Vec3, norm, sub};
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
+use motile_particle::step::contact::ContactParams;
+use motile_particle::step::gpu::DeviceStepper;
+use motile_particle::step::stepper::Stepper;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -176,7 +185,7 @@ fn the_device_solve_repeats_the_cpu_bits_with_the_same_products() {
             "{stage}: {differ} of {} unknowns differ",
             xh.len()
         );
-        let (flow, vel) = kern
+        let (flow, v, om) = kern
             .velocities(
                 (&axes, &solved.u),
                 ft,
@@ -187,19 +196,17 @@ fn the_device_solve_repeats_the_cpu_bits_with_the_same_products() {
             .unwrap();
         let flow = kern.download(&flow).unwrap();
         assert_eq!(bits_differ(&flow, want_flow), 0, "{stage}: flow velocities");
-        if let Some((v, om)) = vel {
-            let (v, om) = (kern.download(&v).unwrap(), kern.download(&om).unwrap());
-            assert_eq!(
-                bits_differ(&v, want_v.v.as_flattened()),
-                0,
-                "{stage}: velocities"
-            );
-            assert_eq!(
-                bits_differ(&om, want_v.w.as_flattened()),
-                0,
-                "{stage}: angular velocities"
-            );
-        }
+        let (v, om) = (kern.download(&v).unwrap(), kern.download(&om).unwrap());
+        assert_eq!(
+            bits_differ(&v, want_v.v.as_flattened()),
+            0,
+            "{stage}: velocities"
+        );
+        assert_eq!(
+            bits_differ(&om, want_v.w.as_flattened()),
+            0,
+            "{stage}: angular velocities"
+        );
         eprintln!(
             "{stage}: {} iterations (restart {}), residual {:.2e}; {} unknowns, {} flow \
              velocities the CPU's bits",
@@ -280,4 +287,88 @@ fn the_resident_solve_matches_the_cpu() {
             gr.gmres_iterations, gr.sums, gr.gmres_residual, wr.gmres_residual
         );
     }
+}
+
+/// Ten resident `sbt` steps against the CPU's stepper (see the file's head).
+#[test]
+fn resident_slender_body_steps_match_the_cpu() {
+    let Some(mut gpu) = common::emulation() else {
+        return;
+    };
+    const STEPS: usize = 10;
+    gpu.set_spread_method(Some(SpreadMethod::Sorted));
+    let rods = random_nonoverlapping(216, 4.8, DEFAULT_DIAMETER, 12, 1_000_000).unwrap();
+    let dt = 0.02;
+    let params = ContactParams::default();
+    let prm = SlenderParams::for_diameter(DEFAULT_DIAMETER);
+    let mut cpu = rods.clone();
+    let mut stepper = Stepper::new(
+        Box::new(SlenderBody::new(
+            prm,
+            Box::new(SpectralEwald::new(TOL).unwrap()),
+        )),
+        params.clone(),
+    );
+    let mut device =
+        DeviceStepper::new(Backend::HostEmulation, &rods, params.clone(), &Vec::new()).unwrap();
+    let mut flow: Box<dyn Mobility> = Box::new(SlenderBody::new(
+        prm,
+        Box::new(SpectralEwald::with_device(TOL, gpu).unwrap()),
+    ));
+    assert!(flow.flows_on_device() && flow.finishes_on_device());
+    let (mut active, mut corrections) = (0, 0);
+    for k in 0..STEPS {
+        let want = stepper.step(&mut cpu, dt).unwrap();
+        let got = device.step_with_resident_flow(dt, flow.as_mut()).unwrap();
+        let what = format!("step {k}");
+        assert_eq!(
+            got.contact.constraints, want.contact.constraints,
+            "{what}: constraints on the device and the CPU"
+        );
+        assert_eq!(got.projections, want.projections, "{what}: projections");
+        assert_eq!(
+            got.hydro.gmres_iterations, want.hydro.gmres_iterations,
+            "{what}: GMRES iterations"
+        );
+        assert_eq!(got.hydro.sums, want.hydro.sums, "{what}: sums");
+        assert_eq!(
+            got.correction_active, want.correction_active,
+            "{what}: constraints the correction made active"
+        );
+        active += want.contact.active;
+        corrections += want.correction_active;
+    }
+    assert!(active > 20, "too few active contacts: {active}");
+    let mut on_device = rods.clone();
+    device.download(&mut on_device).unwrap();
+    let (dx, dq) = common::rods_difference(&on_device, &cpu);
+    let bound = 10.0 * STEPS as f64 * params.tolerance;
+    assert!(
+        dx <= bound && dq <= bound,
+        "after {STEPS} steps the centres differ by {dx:.1e} l, the quaternions by {dq:.1e} \
+         (bound {bound:.0e})"
+    );
+    assert_eq!(on_device.image, cpu.image, "images crossed");
+    let warm = flow
+        .resident_warm_state()
+        .expect("the warm state on the device")
+        .unwrap();
+    let want = stepper.mobility().warm_state();
+    assert_eq!(warm.len(), want.len(), "warm state's length");
+    let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let dw = warm
+        .iter()
+        .zip(&want)
+        .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()))
+        / scale;
+    assert!(
+        dw <= bound,
+        "the warm state differs by {dw:.1e} of its largest value (bound {bound:.0e})"
+    );
+    eprintln!(
+        "{STEPS} resident sbt steps of {} rods, {active} active contacts, {corrections} made \
+         active by the correction: centres within {dx:.1e} l, quaternions within {dq:.1e}, \
+         warm state within {dw:.1e}",
+        rods.len()
+    );
 }

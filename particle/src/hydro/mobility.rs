@@ -283,6 +283,52 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
         None
     }
+
+    /// [`Self::predicted_velocities`] of the rods resident on a device, on that device (the
+    /// velocities the contact solver plans with); by default
+    /// [`Self::free_velocities_resident`].
+    #[cfg(feature = "gpu")]
+    fn predicted_velocities_resident(
+        &mut self,
+        rods: RodsOnDevice<'_>,
+    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
+        self.free_velocities_resident(rods)
+    }
+
+    /// Whether the step's velocities come from its contact forces through this mobility's
+    /// full hydrodynamics on the device ([`Self::final_velocities_resident`]: `sbt`), not
+    /// from the prediction plus their local drag.
+    #[cfg(feature = "gpu")]
+    fn finishes_on_device(&self) -> bool {
+        false
+    }
+
+    /// [`Self::final_velocities`] on the device, after [`Self::predicted_velocities_resident`]
+    /// of the same rods: from each rod's contact force and torque `ft` (6 values per rod;
+    /// `None` where no constraint is active), the velocities and angular velocities (triples)
+    /// that replace the planned ones, or `None` where the prediction stands.
+    #[cfg(feature = "gpu")]
+    fn final_velocities_resident(
+        &mut self,
+        _rods: RodsOnDevice<'_>,
+        _ft: Option<&motile_gpu::Buffer>,
+    ) -> Result<Option<(motile_gpu::Buffer, motile_gpu::Buffer)>, MobilityError> {
+        Ok(None)
+    }
+
+    /// [`Self::warm_state`] where resident steps keep it on a device (`sbt`'s last solution
+    /// and flow velocities), downloaded; `None` where the host's copy is current.
+    #[cfg(feature = "gpu")]
+    fn resident_warm_state(&self) -> Option<Result<Vec<f64>, MobilityError>> {
+        None
+    }
+
+    /// Bring the host's copies of what resident steps keep on a device (the warm state, the
+    /// force density for outputs) up to date.
+    #[cfg(feature = "gpu")]
+    fn sync_resident(&mut self) -> Result<(), MobilityError> {
+        Ok(())
+    }
 }
 
 /// The shell of [`Mobility::free_velocities_resident`] for a mobility on the sum `sum`: `None`

@@ -134,9 +134,10 @@ pub struct SlenderBody {
     flow: Vec<(Vec3, Vec3)>,
     /// Whether this step's prediction was an exact free solve.
     predicted_exactly: bool,
-    /// The kernels of (P4) on its sum's device (opened at the first solve there).
+    /// (P4) on its sum's device: the kernels (opened at the first solve there) and what
+    /// resident steps keep there.
     #[cfg(feature = "gpu")]
-    device: Option<crate::hydro::gpu::SlenderDevice>,
+    device: device::OnDevice,
 }
 
 /// Where (P4)'s sums run.
@@ -304,7 +305,7 @@ impl SlenderBody {
             flow: Vec::new(),
             predicted_exactly: false,
             #[cfg(feature = "gpu")]
-            device: None,
+            device: device::OnDevice::default(),
         }
     }
 
@@ -462,6 +463,8 @@ impl SlenderBody {
         out: &mut RodVelocities,
         part: Option<Part<'_>>,
     ) -> Result<(), MobilityError> {
+        #[cfg(feature = "gpu")]
+        self.device_to_host()?;
         let owned = part.map_or(rods.len(), |q| q.halo.owned);
         let p_own = &p[..owned];
         let rhs = self.rhs(p_own, ft.map(|f| &f[..owned]));
@@ -555,6 +558,8 @@ impl Mobility for SlenderBody {
         out: &mut RodVelocities,
     ) -> Result<(), MobilityError> {
         self.report = HydroReport::default();
+        #[cfg(feature = "gpu")]
+        self.device_to_host()?;
         if self.flow.len() != rods.len() {
             self.predicted_exactly = true;
             return self.solve_and_move(rods, p, None, out, None);
@@ -667,6 +672,8 @@ impl Mobility for SlenderBody {
 
     /// Also sets the force density ([`Mobility::force_density`]) to the restored solution.
     fn set_warm_state(&mut self, state: Vec<f64>) {
+        #[cfg(feature = "gpu")]
+        self.device.forget();
         // len = n (3 M + 6) for n rods.
         let per_rod = 3 * self.s.len() + 6;
         let n = state.len() / per_rod;
@@ -712,6 +719,45 @@ impl Mobility for SlenderBody {
             .collect();
         state.extend(rows.chunks_exact(width).flat_map(|r| r[split..].to_vec()));
         state
+    }
+
+    #[cfg(feature = "gpu")]
+    fn flows_on_device(&mut self) -> bool {
+        self.shared.is_none()
+            && crate::ewald::spectral::resident::resident_sum(self.sum.as_mut()).is_some()
+    }
+
+    #[cfg(feature = "gpu")]
+    fn predicted_velocities_resident(
+        &mut self,
+        rods: crate::hydro::mobility::RodsOnDevice<'_>,
+    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
+        self.predicted_resident(rods)
+    }
+
+    #[cfg(feature = "gpu")]
+    fn finishes_on_device(&self) -> bool {
+        true
+    }
+
+    #[cfg(feature = "gpu")]
+    fn final_velocities_resident(
+        &mut self,
+        rods: crate::hydro::mobility::RodsOnDevice<'_>,
+        ft: Option<&motile_gpu::Buffer>,
+    ) -> Result<Option<(motile_gpu::Buffer, motile_gpu::Buffer)>, MobilityError> {
+        self.final_resident(rods, ft)
+    }
+
+    #[cfg(feature = "gpu")]
+    fn resident_warm_state(&self) -> Option<Result<Vec<f64>, MobilityError>> {
+        self.resident_state()
+            .map(|r| r.map(|(x, flow)| [x, flow].concat()))
+    }
+
+    #[cfg(feature = "gpu")]
+    fn sync_resident(&mut self) -> Result<(), MobilityError> {
+        self.sync_from_device()
     }
 
     fn force_density(&self) -> Option<ForceDensity<'_>> {

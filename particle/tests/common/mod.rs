@@ -120,3 +120,23 @@ pub fn emulation() -> Option<GpuFourier> {
         "MOTILE_REQUIRE_CXX",
     )
 }
+
+/// The largest difference of two copies of the same rods after steps: of the centres (the
+/// nearest image, rod lengths) and of the quaternions' components.
+pub fn rods_difference(
+    a: &motile_particle::model::rods::RodSet,
+    b: &motile_particle::model::rods::RodSet,
+) -> (f64, f64) {
+    let l = a.box_length;
+    let dx = (0..a.len())
+        .map(|i| {
+            let d = motile_particle::model::geometry::min_image(sub(a.x[i], b.x[i]), l);
+            dot(d, d).sqrt()
+        })
+        .fold(0.0, f64::max);
+    let dq = (0..a.len())
+        .flat_map(|i| (0..4).map(move |d| (i, d)))
+        .map(|(i, d)| (a.q[i][d] - b.q[i][d]).abs())
+        .fold(0.0, f64::max);
+    (dx, dq)
+}

@@ -25,7 +25,7 @@ use crate::parallel::reduce::CHUNK;
 use motile_gpu::{Backend, Buffer, Device, GpuError, kernel_int as int};
 use signatures::{
     KERNELS, KrylovAxpy, KrylovDiv, KrylovDotChunks, KrylovFold, KrylovResidual, KrylovUpdate,
-    SlenderNodes, SlenderP4, SlenderRhs, SlenderVelocities, SlenderWeighted,
+    SlenderNodes, SlenderP4, SlenderPredict, SlenderRhs, SlenderVelocities, SlenderWeighted,
 };
 use std::time::Instant;
 
@@ -60,9 +60,9 @@ pub struct DeviceRule {
     m: usize,
 }
 
-/// The rods' flow velocities (6 values per rod: `v`, then `w`) and, from contact forces, their
-/// final velocities and angular velocities (triples).
-pub type DeviceVelocities = (Buffer, Option<(Buffer, Buffer)>);
+/// The rods' flow velocities (6 values per rod: `v`, then `w`), velocities and angular
+/// velocities (triples).
+pub type DeviceVelocities = (Buffer, Buffer, Buffer);
 
 impl SlenderDevice {
     /// The device `backend` names (where a sum's device is, [`Device::backend`]), with the
@@ -172,9 +172,9 @@ impl SlenderDevice {
         Ok(rhs)
     }
 
-    /// The flow velocities of `n` rods with axes `p` from the flow `u` at their nodes and,
-    /// with contact forces and torques `ft` (6 values per rod), their final velocities:
-    /// swimming at `swim` along `p`, the flow's, and the local drag `(trans, rot)` of `ft`
+    /// The flow velocities of `n` rods with axes `p` from the flow `u` at their nodes, and
+    /// their velocities: swimming at `swim` along `p`, the flow's, and with contact forces and
+    /// torques `ft` (6 values per rod) their local drag `(trans, rot)`
     /// ([`crate::hydro::mobility::LocalDrag::coefficients`]), for rods of length `l`.
     pub fn velocities(
         &self,
@@ -192,11 +192,10 @@ impl SlenderDevice {
         }
         let dev = &self.dev;
         let mut flow = dev.zeros::<f64>(6 * n)?;
-        let out_len = if ft.is_some() { 3 * n } else { 0 };
-        let (mut vel, mut omega) = (dev.zeros::<f64>(out_len)?, dev.zeros::<f64>(out_len)?);
+        let (mut vel, mut omega) = (dev.zeros::<f64>(3 * n)?, dev.zeros::<f64>(3 * n)?);
         // SAFETY: thread r < n reads p at 3 r (3 n checked), u at 3 r m..3 (r + 1) m (checked),
         // s, w (m), with has_ft ft at 6 r..6 r + 6 (checked) and writes flow at 6 r..6 r + 6
-        // (6 n) and with has_ft vel, omega at 3 r..3 r + 3 (3 n).
+        // (6 n) and vel, omega at 3 r..3 r + 3 (3 n).
         unsafe {
             dev.launch(
                 n,
@@ -219,7 +218,49 @@ impl SlenderDevice {
                 },
             )?;
         }
-        Ok((flow, ft.map(|_| (vel, omega))))
+        Ok((flow, vel, omega))
+    }
+
+    /// The velocities the contact solver plans with: swimming at `swim` along the axes `p`
+    /// plus the last flow velocities `flow` (6 per rod), for `n` rods.
+    pub fn predict(
+        &self,
+        (p, flow): (&Buffer, &Buffer),
+        n: usize,
+        swim: f64,
+    ) -> Result<(Buffer, Buffer), GpuError> {
+        check_len("axes", p, 3 * n)?;
+        check_len("flow velocities", flow, 6 * n)?;
+        let dev = &self.dev;
+        let (mut vel, mut omega) = (dev.zeros::<f64>(3 * n)?, dev.zeros::<f64>(3 * n)?);
+        // SAFETY: thread r < n reads p at 3 r..3 r + 3 and flow at 6 r..6 r + 6 (checked) and
+        // writes vel, omega at 3 r..3 r + 3 (3 n).
+        unsafe {
+            dev.launch(
+                n,
+                SlenderPredict {
+                    p,
+                    flow,
+                    vel: &mut vel,
+                    omega: &mut omega,
+                    n: int(n, "rods")?,
+                    swim,
+                },
+            )?;
+        }
+        Ok((vel, omega))
+    }
+
+    /// A copy of `src` on the device.
+    pub fn copy_of(&self, src: &Buffer) -> Result<Buffer, GpuError> {
+        let mut out = self.dev.zeros::<f64>(src.len())?;
+        self.dev.copy((src, 0), (&mut out, 0), src.len())?;
+        Ok(out)
+    }
+
+    /// `len` zeros on the device.
+    pub fn zeros(&self, len: usize) -> Result<Buffer, GpuError> {
+        self.dev.zeros::<f64>(len)
     }
 }
 

@@ -56,7 +56,7 @@ motile_gpu::kernels! {
         l: f64,
     }
 
-    /// The rods' flow velocities and, with `has_ft`, their final velocities.
+    /// The rods' flow velocities and velocities (with `has_ft`, the contacts' local drag).
     pub(crate) struct SlenderVelocities = "slender_velocities" {
         p: &'a Buffer<f64>,
         u: &'a Buffer<f64>,
@@ -73,6 +73,16 @@ motile_gpu::kernels! {
         trans: f64,
         rot: f64,
         has_ft: i32,
+    }
+
+    /// The prediction: swimming plus the last flow velocities.
+    pub(crate) struct SlenderPredict = "slender_predict" {
+        p: &'a Buffer<f64>,
+        flow: &'a Buffer<f64>,
+        vel: &'a mut Buffer<f64>,
+        omega: &'a mut Buffer<f64>,
+        n: i32,
+        swim: f64,
     }
 
     /// Per chunk, the dot product's partial sum in order.

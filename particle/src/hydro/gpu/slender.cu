@@ -100,9 +100,9 @@ extern "C" __global__ void slender_p4(const double* f, long long fo, const doubl
 }
 
 // The rods' flow velocities v = [u]_l / l, w = p x (12 / l^3)(I - pp)[s u]_l (one thread per
-// rod; slender.rs's flow_velocities), and with has_ft their final velocities: swimming at
-// swim, the flow's, and the local drag (trans, rot) of the contact force and torque
-// (LocalDrag::local): flow (6 per rod: v, w) always, vel and omega (triples) with has_ft.
+// rod; slender.rs's flow_velocities; 6 per rod: v, w) and their velocities (triples): swimming
+// at swim, the flow's, and with has_ft the local drag (trans, rot) of the contact force and
+// torque (LocalDrag::local) (SlenderBody::solve_and_move).
 extern "C" __global__ void slender_velocities(const double* p, const double* u, const double* s,
                                               const double* w, const double* ft, double* flow,
                                               double* vel, double* omega, int n, int m,
@@ -124,16 +124,27 @@ extern "C" __global__ void slender_velocities(const double* p, const double* u, 
         flow[6 * r + d] = dv[d];
         flow[6 * r + 3 + d] = dw[d];
     }
-    if (!has_ft) return;
+    // LocalDrag::local: v = trans (I + pp) f, w = rot (I - pp) t; zero without forces.
     const double* f = ft + 6 * r;
     const double* t = f + 3;
-    // LocalDrag::local: v = trans (I + pp) f, w = rot (I - pp) t.
-    double pf = p4_dot(pn, f), pt = p4_dot(pn, t);
+    double pf = has_ft ? p4_dot(pn, f) : 0.0, pt = has_ft ? p4_dot(pn, t) : 0.0;
     for (int d = 0; d < 3; ++d) {
-        double lv = trans * (f[d] + pf * pn[d]);
-        double lw = rot * (t[d] - pt * pn[d]);
+        double lv = has_ft ? trans * (f[d] + pf * pn[d]) : 0.0;
+        double lw = has_ft ? rot * (t[d] - pt * pn[d]) : 0.0;
         vel[3 * r + d] = swim * pn[d] + dv[d] + lv;
         omega[3 * r + d] = dw[d] + lw;
+    }
+}
+
+// The prediction the contact solver plans with: swimming at swim plus the last flow velocities
+// (6 per rod: v, w) (SlenderBody::predict).
+extern "C" __global__ void slender_predict(const double* p, const double* flow, double* vel,
+                                           double* omega, int n, double swim) {
+    int r = blockIdx.x * blockDim.x + threadIdx.x;
+    if (r >= n) return;
+    for (int d = 0; d < 3; ++d) {
+        vel[3 * r + d] = swim * p[3 * r + d] + flow[6 * r + d];
+        omega[3 * r + d] = flow[6 * r + 3 + d];
     }
 }
 

@@ -1,21 +1,170 @@
 //! [`SlenderBody`]'s solves of (P4) on the device of its resident sum (feature `gpu`): GMRES's
 //! vectors and products there ([`crate::hydro::gpu`]), the host reading back per iteration
 //! only the Hessenberg column and the sum's error reductions.
+//!
+//! Two ways in: the CPU's stepper (the rods on the host) uploads the nodes, the right-hand side
+//! and the warm start per solve and downloads the solution and the flow
+//! ([`SlenderBody::solve_resident`]); the resident stepper
+//! ([`crate::step::gpu::DeviceStepper`]) keeps the solution (the next warm start) and the flow
+//! velocities (the next prediction) on the device from step to step, with the rods, the
+//! contact forces and the velocities ([`SlenderBody::predicted_resident`],
+//! [`SlenderBody::final_resident`]); the host's copies are then brought up to date only where
+//! asked ([`SlenderBody::device_to_host`], for outputs, checkpoints and a return to the host's
+//! steps).
 
-use super::SlenderBody;
+use super::{SlenderBody, densities};
 use crate::ewald::periodic::{RpyGeometry, SumError};
+use crate::ewald::spectral::SpectralEwald;
 use crate::ewald::spectral::resident::resident_sum;
 use crate::hydro::gmres::GmresInfo;
-use crate::hydro::gpu::{DeviceP4, P4Sum, SlenderDevice};
-use crate::hydro::mobility::MobilityError;
+use crate::hydro::gpu::{DeviceP4, DeviceRule, P4Sum, SlenderDevice};
+use crate::hydro::mobility::{HydroReport, LocalDrag, MobilityError, RodsOnDevice};
 use crate::model::geometry::Vec3;
-use crate::model::units::{ROD_LENGTH, eta};
+use crate::model::units::{ROD_LENGTH, SWIM_SPEED, eta};
+use motile_gpu::Buffer;
 
 fn device_error(e: motile_gpu::GpuError) -> MobilityError {
     MobilityError::Sum(SumError::Device(e.to_string()))
 }
 
+/// The last solution of (P4) and the flow velocities (6 per rod) on the host.
+type HostState = (Vec<f64>, Vec<f64>);
+
+/// A step's velocities and angular velocities (on the device) and its solve's report.
+type StepSolve = ((Buffer, Buffer), (GmresInfo, HydroReport, f64));
+
+/// What [`SlenderBody`] keeps on its sum's device.
+#[derive(Debug, Default)]
+pub(super) struct OnDevice {
+    /// The kernels and the rule (opened at the first solve there).
+    kern: Option<(SlenderDevice, DeviceRule)>,
+    /// Resident steps' last solution of (P4) and flow velocities (6 per rod), of `n` rods: the
+    /// host's copies are behind while these are here.
+    x: Option<Buffer>,
+    flow: Option<Buffer>,
+    n: usize,
+    /// This step's axes and nodes (from the prediction, for the final solve).
+    step: Option<(Buffer, Buffer)>,
+}
+
+impl OnDevice {
+    /// Drop the resident state (the host's is set anew).
+    pub(super) fn forget(&mut self) {
+        (self.x, self.flow, self.step) = (None, None, None);
+    }
+}
+
+/// The kernels beside `sum`'s device, opened where not yet.
+fn kernels<'a>(
+    slot: &'a mut Option<(SlenderDevice, DeviceRule)>,
+    sum: &SpectralEwald,
+    (s, w): (&[f64], &[f64]),
+) -> Result<&'a (SlenderDevice, DeviceRule), MobilityError> {
+    if slot.is_none() {
+        let backend = sum.device_sum()?.backend();
+        let kern = SlenderDevice::open(backend).map_err(device_error)?;
+        let rule = kern.rule((s, w)).map_err(device_error)?;
+        *slot = Some((kern, rule));
+    }
+    Ok(slot.as_ref().expect("opened above"))
+}
+
+/// One solve of (P4) on the device: GMRES's report and the flow at the nodes for the solution,
+/// the sums folded into `report`.
+struct Solve<'a> {
+    kern: &'a SlenderDevice,
+    rule: &'a DeviceRule,
+    sum: &'a mut SpectralEwald,
+    geometry: RpyGeometry,
+    eta: f64,
+}
+
+impl Solve<'_> {
+    /// From the warm start `x` (the last iterate left there, also on failure).
+    fn run(
+        self,
+        (nodes, p, n): (&Buffer, &Buffer, usize),
+        (b, x): (&Buffer, &mut Buffer),
+        (params, stage): (&crate::hydro::gmres::GmresParams, &'static str),
+    ) -> Result<(GmresInfo, Buffer, HydroReport, f64), MobilityError> {
+        let op = DeviceP4 {
+            sum: P4Sum::Resident(self.sum),
+            geometry: self.geometry,
+            nodes,
+            p,
+            rule: self.rule,
+            n,
+            eta: self.eta,
+            l: ROD_LENGTH,
+        };
+        let solved = self
+            .kern
+            .solve(op, (b, x), params)
+            .map_err(|source| MobilityError::Gmres { stage, source })?;
+        Ok((solved.info, solved.u, solved.accuracy, solved.seconds))
+    }
+}
+
+impl Solve<'_> {
+    /// [`Self::run`] from the last solution in `x` (the right-hand side where there is none,
+    /// as on the host), the last iterate left there.
+    fn warm(
+        self,
+        rods: (&Buffer, &Buffer, usize),
+        (b, x): (&Buffer, &mut Option<Buffer>),
+        how: (&crate::hydro::gmres::GmresParams, &'static str),
+    ) -> Result<(GmresInfo, Buffer, HydroReport, f64), MobilityError> {
+        let mut start = match x.take() {
+            Some(x) => x,
+            None => self.kern.copy_of(b).map_err(device_error)?,
+        };
+        let solved = self.run(rods, (b, &mut start), how);
+        *x = Some(start);
+        solved
+    }
+
+    /// A step's solve of `n` rods with nodes `nodes`, axes `p`, and contact forces `ft` (6 per
+    /// rod) where given: the right-hand side, GMRES from the last solution in `x`, the flow
+    /// velocities into `flow` and the rods' velocities, with the solve's report.
+    fn step(
+        self,
+        (nodes, p, n): (&Buffer, &Buffer, usize),
+        ft: Option<&Buffer>,
+        (x, flow): (&mut Option<Buffer>, &mut Option<Buffer>),
+        (params, stage): (&super::SlenderParams, &'static str),
+    ) -> Result<StepSolve, MobilityError> {
+        let c = SWIM_SPEED / (2.0 * self.eta);
+        let (kern, rule) = (self.kern, self.rule);
+        let b = kern
+            .rhs(p, ft, rule, n, (c, ROD_LENGTH))
+            .map_err(device_error)?;
+        let (info, u, accuracy, seconds) =
+            self.warm((nodes, p, n), (&b, x), (&params.gmres, stage))?;
+        let drag = LocalDrag::new(params.diameter).coefficients();
+        let (f, v, w) = kern
+            .velocities((p, &u), ft, rule, n, (ROD_LENGTH, SWIM_SPEED, drag))
+            .map_err(device_error)?;
+        *flow = Some(f);
+        Ok(((v, w), (info, accuracy, seconds)))
+    }
+}
+
 impl SlenderBody {
+    fn geometry(&self, box_length: f64) -> RpyGeometry {
+        RpyGeometry {
+            box_length,
+            radius: self.params.rpy_radius,
+            group: self.s.len(),
+        }
+    }
+
+    /// A solve's report into the step's.
+    fn fold_solve(&mut self, info: &GmresInfo, (accuracy, seconds): (&HydroReport, f64)) {
+        self.fold_sums(accuracy, seconds);
+        self.report.gmres_iterations = info.iterations;
+        self.report.gmres_residual = info.final_residual;
+    }
+
     /// [`Self::solve`] on one process where the sum keeps its values on a device: the nodes
     /// `points` of the rods with axes `p` in a box of side `box_length`, the right-hand side
     /// and the warm start `x` uploaded, GMRES on the device, the solution and the flow at the
@@ -27,43 +176,197 @@ impl SlenderBody {
         (rhs, x): (&[f64], &mut Vec<f64>),
         stage: &'static str,
     ) -> Option<Result<(GmresInfo, Vec<Vec3>), MobilityError>> {
+        let geometry = self.geometry(box_length);
+        let e = eta(self.params.diameter);
         let sum = resident_sum(self.sum.as_mut())?;
         let mut run = || -> Result<_, MobilityError> {
-            if self.device.is_none() {
-                let backend = sum.device_sum()?.backend();
-                self.device = Some(SlenderDevice::open(backend).map_err(device_error)?);
-            }
-            let kern = self.device.as_ref().expect("opened above");
+            let (kern, rule) = kernels(&mut self.device.kern, sum, (&self.s, &self.w))?;
             let up = |v: &[f64]| kern.upload(v).map_err(device_error);
-            let rule = kern.rule((&self.s, &self.w)).map_err(device_error)?;
             let (nodes, axes, b) = (up(points.as_flattened())?, up(p.as_flattened())?, up(rhs)?);
             let mut xd = up(x)?;
-            let op = DeviceP4 {
-                sum: P4Sum::Resident(sum),
-                geometry: RpyGeometry {
-                    box_length,
-                    radius: self.params.rpy_radius,
-                    group: self.s.len(),
-                },
-                nodes: &nodes,
-                p: &axes,
-                rule: &rule,
-                n: p.len(),
-                eta: eta(self.params.diameter),
-                l: ROD_LENGTH,
+            let solve = Solve {
+                kern,
+                rule,
+                sum,
+                geometry,
+                eta: e,
             };
-            let solved = kern.solve(op, (&b, &mut xd), &self.params.gmres);
+            let solved = solve.run(
+                (&nodes, &axes, p.len()),
+                (&b, &mut xd),
+                (&self.params.gmres, stage),
+            );
             // The last iterate is the next warm start, also after a failure (as on the host).
             *x = kern.download(&xd).map_err(device_error)?;
-            let solved = solved.map_err(|source| MobilityError::Gmres { stage, source })?;
-            let u = kern.download(&solved.u).map_err(device_error)?;
-            let u = u.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-            Ok((solved, u))
+            let (info, u, accuracy, seconds) = solved?;
+            let u = kern.download(&u).map_err(device_error)?;
+            let u: Vec<Vec3> = u.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            Ok((info, u, accuracy, seconds))
         };
         let result = run();
-        Some(result.map(|(solved, u)| {
-            self.fold_sums(&solved.accuracy, solved.seconds);
-            (solved.info, u)
+        Some(result.map(|(info, u, accuracy, seconds)| {
+            self.fold_sums(&accuracy, seconds);
+            (info, u)
         }))
+    }
+
+    /// [`crate::hydro::mobility::Mobility::predicted_velocities_resident`]: swimming plus the
+    /// last flow velocities (kept on the device, or uploaded from the host's after a resume),
+    /// or on the first step an exact free solve. `None` where the sum is shared or has no
+    /// device.
+    pub(super) fn predicted_resident(
+        &mut self,
+        rods: RodsOnDevice<'_>,
+    ) -> Option<Result<(Buffer, Buffer), MobilityError>> {
+        if self.shared.is_some() {
+            return None;
+        }
+        self.report = HydroReport::default();
+        let n = rods.len;
+        let m = self.s.len();
+        let geometry = self.geometry(rods.box_length);
+        let e = eta(self.params.diameter);
+        let sum = resident_sum(self.sum.as_mut())?;
+        let dev = &mut self.device;
+        let mut run = || -> Result<_, MobilityError> {
+            let (kern, rule) = kernels(&mut dev.kern, sum, (&self.s, &self.w))?;
+            let up = |v: &[f64]| kern.upload(v).map_err(device_error);
+            if dev.n != n {
+                (dev.x, dev.flow) = (None, None);
+            }
+            dev.n = n;
+            // After a resume (or the host's steps), the host's state is the device's start.
+            if dev.x.is_none() && self.warm_free.len() == 3 * m * n {
+                dev.x = Some(up(&self.warm_free)?);
+            }
+            if dev.flow.is_none() && self.flow.len() == n {
+                let flat: Vec<f64> = self
+                    .flow
+                    .iter()
+                    .flat_map(|(v, w)| v.iter().chain(w))
+                    .copied()
+                    .collect();
+                dev.flow = Some(up(&flat)?);
+            }
+            let p = sum
+                .device_sum()?
+                .rod_axes(rods.q, n)
+                .map_err(device_error)?;
+            let nodes = kern.nodes((rods.x, &p), rule, n).map_err(device_error)?;
+            let out = if let Some(flow) = &dev.flow {
+                let v = kern
+                    .predict((&p, flow), n, SWIM_SPEED)
+                    .map_err(device_error)?;
+                (v, None)
+            } else {
+                let solve = Solve {
+                    kern,
+                    rule,
+                    sum,
+                    geometry,
+                    eta: e,
+                };
+                let (v, solved) = solve.step(
+                    (&nodes, &p, n),
+                    None,
+                    (&mut dev.x, &mut dev.flow),
+                    (&self.params, "free"),
+                )?;
+                (v, Some(solved))
+            };
+            dev.step = Some((p, nodes));
+            Ok(out)
+        };
+        let result = run();
+        Some(result.map(|(v, solved)| {
+            self.predicted_exactly = solved.is_some();
+            if let Some((info, accuracy, seconds)) = solved {
+                self.fold_solve(&info, (&accuracy, seconds));
+            }
+            v
+        }))
+    }
+
+    /// [`crate::hydro::mobility::Mobility::final_velocities_resident`]: one solve of (P4) with
+    /// swimming and the contact forces `ft` together (zero forces where `None`), warm-started
+    /// from the last solution, unless the prediction was already the exact free solution and
+    /// there are no contact forces.
+    pub(super) fn final_resident(
+        &mut self,
+        rods: RodsOnDevice<'_>,
+        ft: Option<&Buffer>,
+    ) -> Result<Option<(Buffer, Buffer)>, MobilityError> {
+        if self.predicted_exactly && ft.is_none() {
+            return Ok(None);
+        }
+        let n = rods.len;
+        let geometry = self.geometry(rods.box_length);
+        let e = eta(self.params.diameter);
+        let not_resident = || SumError::Device("the final solve of a sum without a device".into());
+        let sum = resident_sum(self.sum.as_mut()).ok_or_else(not_resident)?;
+        let dev = &mut self.device;
+        let (Some((kern, rule)), Some((p, nodes))) = (&dev.kern, dev.step.take()) else {
+            return Err(MobilityError::Sum(SumError::Device(
+                "the final solve on the device before its prediction".into(),
+            )));
+        };
+        let zeros;
+        let ft = match ft {
+            Some(ft) => ft,
+            None => {
+                zeros = kern.zeros(6 * n).map_err(device_error)?;
+                &zeros
+            }
+        };
+        let solve = Solve {
+            kern,
+            rule,
+            sum,
+            geometry,
+            eta: e,
+        };
+        let (v, (info, accuracy, seconds)) = solve.step(
+            (&nodes, &p, n),
+            Some(ft),
+            (&mut dev.x, &mut dev.flow),
+            (&self.params, "swimming + contact"),
+        )?;
+        self.fold_solve(&info, (&accuracy, seconds));
+        Ok(Some(v))
+    }
+
+    /// The resident state on the host: the last solution and flow velocities, or `None` where
+    /// the host's copies are current.
+    pub(super) fn resident_state(&self) -> Option<Result<HostState, MobilityError>> {
+        let dev = &self.device;
+        let ((kern, _), x, flow) = (dev.kern.as_ref()?, dev.x.as_ref()?, dev.flow.as_ref()?);
+        Some(
+            kern.download(x)
+                .and_then(|x| Ok((x, kern.download(flow)?)))
+                .map_err(device_error),
+        )
+    }
+
+    /// The host's copies of the solution, the flow velocities and the force density brought
+    /// up to the device's, which stays current.
+    pub(super) fn sync_from_device(&mut self) -> Result<(), MobilityError> {
+        if let Some(state) = self.resident_state() {
+            let (x, flow) = state?;
+            self.warm_free = x;
+            self.flow = flow
+                .chunks_exact(6)
+                .map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]]))
+                .collect();
+            self.density = densities(&self.warm_free);
+        }
+        Ok(())
+    }
+
+    /// [`Self::sync_from_device`], then the device's state dropped: the host's steps go on
+    /// from here.
+    pub(super) fn device_to_host(&mut self) -> Result<(), MobilityError> {
+        self.sync_from_device()?;
+        self.device.forget();
+        Ok(())
     }
 }

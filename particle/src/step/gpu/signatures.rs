@@ -265,6 +265,13 @@ motile_gpu::kernels! {
         n: i32,
     }
 
+    /// `dst += src` (a correction's contact forces onto the step's).
+    pub(crate) struct AddRows = "add_rows" {
+        src: &'a Buffer<f64>,
+        dst: &'a mut Buffer<f64>,
+        len: i32,
+    }
+
     /// Each constraint's starting multiplier from the last step's.
     pub(crate) struct WarmGather = "warm_gather" {
         ci: &'a Buffer<i32>,

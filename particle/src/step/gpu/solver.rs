@@ -37,6 +37,10 @@ pub enum DeviceContactError {
     /// The solver did not converge or produced a non-finite value.
     #[error(transparent)]
     Contact(#[from] ContactError),
+    /// The mobility's final velocities failed (a level whose contact forces act through its
+    /// hydrodynamics: `sbt`).
+    #[error(transparent)]
+    Hydrodynamics(#[from] crate::hydro::mobility::MobilityError),
 }
 
 /// One contact problem on the device (the twin of [`crate::step::contact::ContactProblem`]):

@@ -25,6 +25,13 @@ extern "C" __global__ void add_velocities(const double* vel, double* v, double* 
     }
 }
 
+// dst += 1.0 src over len values (the stepper's axpy: a correction's forces onto the step's).
+extern "C" __global__ void add_rows(const double* src, double* dst, int len) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= len) return;
+    dst[k] = dst[k] + 1.0 * src[k];
+}
+
 // Each constraint's starting multiplier: the last step's of the same pair (0 where that step
 // had none), found by a binary search of its (ci, cj) among the last step's (oi, oj), both
 // sorted by (i, j): the stepper's warm start.

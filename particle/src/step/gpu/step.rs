@@ -5,11 +5,13 @@
 use super::cells::DevicePairs;
 use super::contacts::DeviceConstraints;
 use super::device::{GpuStep, int};
-use super::signatures::{AddVelocities, PairOverlap, ProjectionMove, SwimVelocities, WarmGather};
+use super::signatures::{
+    AddRows, AddVelocities, PairOverlap, ProjectionMove, SwimVelocities, WarmGather,
+};
 use super::solver::DeviceContactError;
 use super::solver::{DeviceContactProblem, Solved, Start};
 use super::update::DeviceRods;
-use crate::hydro::mobility::LocalDrag;
+use crate::hydro::mobility::{LocalDrag, MobilityError, RodsOnDevice};
 use crate::model::geometry::Vec3;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED};
 use crate::step::contact::{ContactParams, ContactReport};
@@ -29,6 +31,9 @@ pub struct DeviceStepReport {
     pub worst: (u32, u32),
     /// Rounds of the overlap projection.
     pub projections: usize,
+    /// Constraints the correction after a level's final velocities made active (see
+    /// [`crate::step::report::StepReport::correction_active`]).
+    pub correction_active: usize,
 }
 
 /// A step's multipliers by pair, its warm start for the next: the constraints' pairs
@@ -50,6 +55,15 @@ pub(super) enum Free<'a> {
     /// The same, already on the device (triples; a resident flow's).
     Device(Buffer, Buffer),
 }
+
+/// A level's final velocities from the step's contact forces (`sbt`: one solve with the
+/// contact forces through its full hydrodynamics): given each rod's contact force and torque
+/// (6 values; `None` where no constraint is active), the velocities and angular velocities
+/// (triples) that replace the planned ones, or `None` to keep those.
+pub(super) type Finish<'a> = &'a mut dyn FnMut(
+    RodsOnDevice<'_>,
+    Option<&Buffer>,
+) -> Result<Option<(Buffer, Buffer)>, MobilityError>;
 
 /// A step's report with its velocities and contact forces left on the device.
 pub(super) struct StepOutput {
@@ -77,7 +91,7 @@ impl GpuStep {
         params: &ContactParams,
     ) -> Result<DeviceStepReport, DeviceContactError> {
         Ok(self
-            .step_output(rods, dt, params, Free::Swimming, None)?
+            .step_output(rods, dt, params, (Free::Swimming, None), None)?
             .report)
     }
 
@@ -85,13 +99,16 @@ impl GpuStep {
     /// from the free velocities `free` (velocities and angular velocities per rod, computed
     /// elsewhere: a hydrodynamic level's flow) where given, else from swimming alone; the
     /// contact problem starts from the multipliers of `warm`'s pairs where given (the
-    /// stepper's warm start), else from zero.
+    /// stepper's warm start), else from zero. With `finish`, the level's final velocities
+    /// replace the planned ones before the move, and a second contact problem from zero with
+    /// them (the CPU stepper's correction) adds the impulses that restore the constraints they
+    /// break.
     pub(super) fn step_output(
         &self,
         rods: &mut DeviceRods,
         dt: f64,
         params: &ContactParams,
-        free: Free<'_>,
+        (free, finish): (Free<'_>, Option<Finish<'_>>),
         warm: Option<&Warm>,
     ) -> Result<StepOutput, DeviceContactError> {
         let n = rods.len;
@@ -195,6 +212,28 @@ impl GpuStep {
             }
             ft = Some(f);
         }
+        if let Some(finish) = finish {
+            let active = report.contact.active > 0;
+            let at = RodsOnDevice {
+                x: &rods.x,
+                q: &rods.q,
+                len: n,
+                box_length: rods.box_length,
+            };
+            if let Some(done) = finish(at, ft.as_ref().filter(|_| active))? {
+                (v, w) = done;
+                if v.len() < 3 * n || w.len() < 3 * n {
+                    return Err(GpuError::Input(format!(
+                        "final velocities: {} and {} values for {n} rods",
+                        v.len(),
+                        w.len()
+                    ))
+                    .into());
+                }
+                report.correction_active =
+                    self.correct(rods, &cons, (&mut v, &mut w, &mut ft), dt, params)?;
+            }
+        }
         self.update(rods, &v, &w, dt)?;
         (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
         // The projection of overlaps above half the tolerance (the stepper's): the constraints
@@ -263,6 +302,69 @@ impl GpuStep {
             ft,
             warm,
         })
+    }
+
+    /// The correction after a level's final velocities `(v, w)` (the CPU stepper's): the
+    /// contact problem of `cons` from zero with them as the free velocities; where it makes
+    /// constraints active, their local-drag velocities added to `(v, w)` and their forces to
+    /// `ft`. Returns the active constraints.
+    fn correct(
+        &self,
+        rods: &DeviceRods,
+        cons: &DeviceConstraints,
+        (v, w, ft): (&mut Buffer, &mut Buffer, &mut Option<Buffer>),
+        dt: f64,
+        params: &ContactParams,
+    ) -> Result<usize, DeviceContactError> {
+        let n = rods.len;
+        let problem = DeviceContactProblem {
+            rods,
+            cons,
+            free_v: v,
+            free_w: w,
+            drag: LocalDrag::new(rods.diameter).coefficients(),
+            dt,
+        };
+        let Some(solved) = self.solve_on_device(problem, params, Start::Host(&[]))? else {
+            return Ok(0);
+        };
+        let active = self.report(&solved)?.1.active;
+        if active == 0 {
+            return Ok(0);
+        }
+        let (_, vel, f) = solved.into_forces();
+        let dev = &self.dev;
+        let ni = int(n, "rods")?;
+        // SAFETY: thread r < n reads vel[6 r..6 r + 6] (6 n) and updates v, w at 3 r..3 r + 3
+        // (3 n, checked by the caller).
+        unsafe {
+            dev.launch(
+                n,
+                AddVelocities {
+                    vel: &vel,
+                    v,
+                    w,
+                    n: ni,
+                },
+            )?;
+        }
+        match ft {
+            Some(ft) => {
+                // SAFETY: thread k < 6 n reads f[k] and updates ft[k] (6 n each).
+                unsafe {
+                    dev.launch(
+                        6 * n,
+                        AddRows {
+                            src: &f,
+                            dst: ft,
+                            len: int(6 * n, "6 x rods")?,
+                        },
+                    )?;
+                }
+            }
+            None => *ft = Some(f),
+        }
+        Ok(active)
     }
 
     /// The starting multiplier of each of `cons` from `warm`'s of the same pair (0 where

@@ -9,7 +9,7 @@ use super::signatures::StepStats;
 use super::solver::DeviceContactError;
 use super::step::{Free, StepOutput, Warm};
 use super::update::DeviceRods;
-use crate::hydro::mobility::{Mobility, RodVelocities};
+use crate::hydro::mobility::{Mobility, RodVelocities, RodsOnDevice};
 use crate::model::geometry::Vec3;
 use crate::model::rods::RodSet;
 use crate::step::contact::{ContactParams, WarmStart};
@@ -158,6 +158,16 @@ impl DeviceStepper {
 
     /// One step of `dt` from the free velocities `free`.
     fn step_with(&mut self, dt: f64, free: Free<'_>) -> Result<StepReport, StepError> {
+        self.step_finished(dt, (free, None))
+    }
+
+    /// One step of `dt` from the free velocities `free`, with a level's final velocities from
+    /// the contact forces where `finish` gives them ([`GpuStep::step_output`]).
+    fn step_finished(
+        &mut self,
+        dt: f64,
+        (free, finish): (Free<'_>, Option<super::step::Finish<'_>>),
+    ) -> Result<StepReport, StepError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(StepError::InvalidTimeStep(dt));
         }
@@ -180,10 +190,17 @@ impl DeviceStepper {
             warm,
         } = self
             .gpu
-            .step_output(&mut self.rods, dt, &self.contact, free, self.warm.as_ref())
+            .step_output(
+                &mut self.rods,
+                dt,
+                &self.contact,
+                (free, finish),
+                self.warm.as_ref(),
+            )
             .map_err(|e| match e {
                 DeviceContactError::Contact(c) => StepError::Contact(c),
                 DeviceContactError::Gpu(g) => device_error(g),
+                DeviceContactError::Hydrodynamics(h) => StepError::Hydrodynamics(h),
             })?;
         let nchunks = n.div_ceil(CHUNK);
         let mut partial = dev
@@ -229,6 +246,7 @@ impl DeviceStepper {
             contact: report.contact,
             max_overlap: report.max_overlap,
             projections: report.projections,
+            correction_active: report.correction_active,
             mean_speed: sum(0) / total,
             max_speed: max(4),
             max_rotation_rate: max(5),
@@ -272,20 +290,25 @@ impl DeviceStepper {
         dt: f64,
         mobility: &mut dyn Mobility,
     ) -> Result<StepReport, StepError> {
-        let rods = crate::hydro::mobility::RodsOnDevice {
+        let rods = RodsOnDevice {
             x: &self.rods.x,
             q: &self.rods.q,
             len: self.rods.len,
             box_length: self.rods.box_length,
         };
-        let Some(free) = mobility.free_velocities_resident(rods) else {
+        let Some(free) = mobility.predicted_velocities_resident(rods) else {
             return Err(StepError::Device(format!(
                 "the {} mobility has no flow on the device",
                 mobility.name()
             )));
         };
         let (v, w) = free?;
-        let mut report = self.step_with(dt, Free::Device(v, w))?;
+        let finishes = mobility.finishes_on_device();
+        let mut finish =
+            |at: RodsOnDevice<'_>, ft: Option<&Buffer>| mobility.final_velocities_resident(at, ft);
+        let hook: Option<super::step::Finish<'_>> = if finishes { Some(&mut finish) } else { None };
+        let done = self.step_finished(dt, (Free::Device(v, w), hook));
+        let mut report = done?;
         report.hydro = mobility.report();
         Ok(report)
     }
