@@ -8,14 +8,11 @@
 //!   tolerance of 1e-8, so the two may stop an iteration apart);
 //! - the golden mean-field run's mid-run checkpoint, written by the CPU, resumes on the
 //!   emulated GPU and ends where the CPU run ends;
-//! - a particle run at the `sbt` level with `--device gpu` (its sums' Fourier part on the
-//!   device, the rest on the CPU) writes the CPU run's time series (every column but the
-//!   wall-clock rate within 1e-9 relative);
-//! - particle runs without hydrodynamics and at the `dipole` and `sbt-explicit` levels with
-//!   `--device gpu`, whose step runs on the device (the flow summed on the host with its
-//!   Fourier part on the device), write the CPU run's time series within the contact solver's
-//!   tolerance, flow norms included, and their mid-run checkpoints (downloaded from the
-//!   device) resume on the CPU to the same end;
+//! - particle runs without hydrodynamics and at the `dipole`, `sbt-explicit` and `sbt` levels
+//!   with `--device gpu`, whose whole step runs on the device (the flow's sum and, at `sbt`,
+//!   GMRES included), write the CPU run's time series within the contact solver's tolerance,
+//!   flow norms included, and their mid-run checkpoints (downloaded from the device, the
+//!   slender-body solution with them) resume on the CPU to the same end;
 //! - a resident step that fails stops the run with the reason and the state before it, which
 //!   resumes on the CPU to the CPU run's end.
 //!
@@ -271,36 +268,11 @@ fn dipole_and_explicit_slender_runs_step_on_the_emulated_gpu_and_resume_on_the_c
     }
 }
 
-/// A slender-body run of 16 rods in a box of 4 to `t_end` (dt 0.01), written into `dir`.
-fn sbt_config(dir: &Path, t_end: f64) -> PathBuf {
-    let cfg = dir.join("sbt.toml");
-    let text = format!(
-        "box_length = 4\nrods = 16\nhydrodynamics = \"sbt\"\ndt = 0.01\nt_end = {t_end}\n\
-         diagnostic_interval = 0.02\nsnapshot_interval = 0.1\ncheckpoint_interval = 0.1\n\
-         vtk = false\n"
-    );
-    std::fs::write(&cfg, text).unwrap();
-    cfg
-}
-
-/// `sbt` steps on the CPU with its sums' Fourier part on the device: the CPU run's time
-/// series (every column but the wall-clock rate within 1e-9 relative: the sums agree to
-/// round-off, and GMRES stops at the same iterations).
 #[test]
-fn a_slender_body_run_with_its_sums_on_the_emulated_gpu_matches_the_cpu() {
-    if !emulation_available() {
-        return;
+fn slender_body_runs_step_on_the_emulated_gpu_and_resume_on_the_cpu() {
+    if emulation_available() {
+        resident_run("sbt", "the flow's sum included");
     }
-    let tmp = tempfile::tempdir().unwrap();
-    let cfg = sbt_config(tmp.path(), 0.1);
-    let (cpu, gpu) = cpu_and_gpu("particle", &cfg, tmp.path());
-    let log = std::fs::read_to_string(gpu.join("run.log")).unwrap();
-    assert!(
-        log.contains("the Fourier part of the hydrodynamic sums runs on the GPU"),
-        "the run says where it ran:\n{log}"
-    );
-    let worst = compare(&cpu, &gpu, &["steps_per_second"], 1e-9, 1e-12);
-    eprintln!("sbt run, sums on the emulated GPU against CPU: largest difference {worst:.1e}");
 }
 
 /// A resident step that fails (the contact solver capped at 16 iterations, which one step of
@@ -374,6 +346,18 @@ fn a_failed_resident_step_saves_the_state_before_it_and_resumes_on_the_cpu() {
         "failed on the emulated GPU at step {failed_at}, resumed on the CPU from the saved \
          state: largest difference from the CPU's run {worst:.1e}"
     );
+}
+
+/// A slender-body run of 16 rods in a box of 4 to `t_end` (dt 0.01), written into `dir`.
+fn sbt_config(dir: &Path, t_end: f64) -> PathBuf {
+    let cfg = dir.join("sbt.toml");
+    let text = format!(
+        "box_length = 4\nrods = 16\nhydrodynamics = \"sbt\"\ndt = 0.01\nt_end = {t_end}\n\
+         diagnostic_interval = 0.02\nsnapshot_interval = 0.1\ncheckpoint_interval = 0.1\n\
+         vtk = false\n"
+    );
+    std::fs::write(&cfg, text).unwrap();
+    cfg
 }
 
 /// `MOTILE_GPU_SPREAD` with a value it does not know stops the run, naming the allowed ones.

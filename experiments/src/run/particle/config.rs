@@ -377,11 +377,10 @@ impl ParticleRunConfig {
         Ok(())
     }
 
-    /// Whether the step runs resident on the GPU: `device = "gpu"` at the levels whose
-    /// contacts act through the local drag (`none`, `dipole`, `sbt-explicit`; the flow of the
-    /// last two summed on the host with its Fourier part on the GPU). `sbt` steps on the CPU.
+    /// Whether the step runs resident on the GPU: `device = "gpu"`, at every level (the flow
+    /// summed on the GPU where the mobility can, [`Self::resident`]'s callers ask it).
     pub(crate) fn resident(&self) -> bool {
-        self.device == crate::run::Device::Gpu && self.hydrodynamics != Hydrodynamics::Sbt
+        self.device == crate::run::Device::Gpu
     }
 
     /// Steps between events of an interval.

@@ -1,5 +1,5 @@
-//! The particle step resident on a GPU for runs with `device = "gpu"` at the `none`, `dipole`
-//! and `sbt-explicit` levels ([`motile_particle::step::gpu::DeviceStepper`], feature `gpu`);
+//! The particle step resident on a GPU for runs with `device = "gpu"` at the `none`, `dipole`,
+//! `sbt-explicit` and `sbt` levels ([`motile_particle::step::gpu::DeviceStepper`], feature `gpu`);
 //! without the feature, such a run is refused with how to build it.
 
 use motile_particle::model::rods::RodSet;
@@ -87,4 +87,30 @@ pub(crate) fn flows_on_device(
         let _ = mobility;
         false
     }
+}
+
+/// Bring the host's copies of what resident steps keep on the device (the slender-body
+/// solution: the outputs' force density) up to date
+/// ([`motile_particle::hydro::mobility::Mobility::sync_resident`]); nothing without the `gpu`
+/// feature.
+pub(crate) fn sync_resident(
+    mobility: &mut dyn motile_particle::hydro::mobility::Mobility,
+) -> anyhow::Result<()> {
+    #[cfg(feature = "gpu")]
+    mobility.sync_resident()?;
+    #[cfg(not(feature = "gpu"))]
+    let _ = mobility;
+    Ok(())
+}
+
+/// The mobility's warm state for a checkpoint, downloaded where resident steps keep it on the
+/// device ([`motile_particle::hydro::mobility::Mobility::resident_warm_state`]).
+pub(crate) fn warm_state(
+    mobility: &dyn motile_particle::hydro::mobility::Mobility,
+) -> anyhow::Result<Vec<f64>> {
+    #[cfg(feature = "gpu")]
+    if let Some(state) = mobility.resident_warm_state() {
+        return Ok(state?);
+    }
+    Ok(mobility.warm_state())
 }

@@ -220,6 +220,7 @@ impl ParticleModel {
             let t = self.step as f64 * self.cfg.dt;
             let mut c = ParticleCheckpoint::of(&rods, &self.stepper, self.step, t);
             c.contact_warm_start = d.warm_start()?;
+            c.gmres_warm_start = device::warm_state(self.stepper.mobility())?;
             c.write(path)?;
             return Ok(());
         }
@@ -529,7 +530,7 @@ impl ParticleModel {
     /// A step resident on the GPU ([`ParticleRunConfig::resident`]): the rods stay on the
     /// device; they are downloaded for snapshots and checkpoints, and the state before a
     /// failed step from the device's copy of it. At the levels with flow the flow is summed
-    /// on the device where the mobility can (`dipole`, `sbt-explicit`: [`Self::resident_flow`]; the rods are
+    /// on the device where the mobility can (`dipole`, `sbt-explicit`, `sbt`: [`Self::resident_flow`]; the rods are
     /// then downloaded only before the steps whose outputs need them), else on the host from
     /// the rods before the step (their copy in `rods`, downloaded after every step); the time
     /// series' flow norms, the lowest modes and the snapshots' point forces are the CPU's, of
@@ -570,6 +571,7 @@ impl ParticleModel {
                     ParticleCheckpoint::of(&rods, &self.stepper, self.step, self.step as f64 * dt);
                 // The multipliers of the step before the failed one (a failed step keeps them).
                 before.contact_warm_start = d.warm_start()?;
+                before.gmres_warm_start = device::warm_state(self.stepper.mobility())?;
                 self.before = Some(before);
                 return Err(run::StepFailure::Step {
                     kind: (&e).into(),
@@ -582,6 +584,10 @@ impl ParticleModel {
         self.step = step;
         self.window.1 += 1;
         let t = step as f64 * dt;
+        if resident_flow && (step.is_multiple_of(diag) || step.is_multiple_of(snap)) {
+            // The step's solution (sbt), kept on the device: the outputs' force density.
+            device::sync_resident(self.stepper.mobility_mut())?;
+        }
         self.warn_accuracy(io, step, &report)?;
         // What the outputs need of the state before the step, then the state after it.
         let norms = if flow && step.is_multiple_of(diag) {
