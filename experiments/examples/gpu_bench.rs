@@ -459,9 +459,6 @@ impl Bench {
         if let Some(last) = self.rows.last_mut() {
             last.gpu_bytes = gpu_bytes;
         }
-        if level == "sbt" {
-            return;
-        }
         // The step resident on the device (`device = "gpu"` runs at this level): the flow
         // summed on the device from the rods there (no round trip), contacts, the move and the
         // projection on the device.

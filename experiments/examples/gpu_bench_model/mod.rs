@@ -14,7 +14,7 @@ use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
 use motile_particle::hydro::mobility::Mobility;
-use motile_particle::hydro::slender::SlenderParams;
+use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::units::DEFAULT_DIAMETER;
 use motile_particle::step::contact::ContactParams;
@@ -171,13 +171,14 @@ pub(crate) fn counted_table() {
     }
     // The same levels with the flow summed on the device (what runs use): the stepper's and
     // the sum's device together.
-    for level in ["dipole", "sbt-explicit"] {
+    for level in ["dipole", "sbt-explicit", "sbt"] {
         let sum = || {
             let gpu = GpuFourier::open(Backend::HostEmulation).expect("host emulation");
             SpectralEwald::with_device(1e-4, gpu).expect("tolerance")
         };
         let mut mobility: Box<dyn Mobility> = match level {
             "dipole" => Box::new(Dipole::new(Box::new(sum()), DEFAULT_DIAMETER)),
+            "sbt" => Box::new(SlenderBody::new(SlenderParams::default(), Box::new(sum()))),
             _ => Box::new(ExplicitSlender::new(
                 SlenderParams::default(),
                 Box::new(sum()),
@@ -203,8 +204,13 @@ pub(crate) fn counted_table() {
                 .step_with_resident_flow(0.02, mobility.as_mut())
                 .expect("device step");
             let c = counted(&d, mobility.as_mut()).since(&before);
+            let gmres = if level == "sbt" {
+                format!(", {} GMRES", r.hydro.gmres_iterations)
+            } else {
+                String::new()
+            };
             println!(
-                "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections) | {} | {} + {} | {} ({}) | {} ({}) |",
+                "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections{gmres}) | {} | {} + {} | {} ({}) | {} ({}) |",
                 k + 1,
                 r.contact.iterations,
                 r.projections,

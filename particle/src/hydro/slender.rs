@@ -741,6 +741,11 @@ impl Mobility for SlenderBody {
     }
 
     #[cfg(feature = "gpu")]
+    fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
+        self.device_counters()
+    }
+
+    #[cfg(feature = "gpu")]
     fn final_velocities_resident(
         &mut self,
         rods: crate::hydro::mobility::RodsOnDevice<'_>,

@@ -330,13 +330,12 @@ impl SlenderDevice {
             int(dim, "unknowns")?;
             let slots = params.restart.max(1).min(params.max_iterations.max(1)) + 1;
             Ok((
-                self.dev.zeros::<f64>(slots * dim)?,
                 self.dev.zeros::<f64>(dim)?,
                 self.dev.zeros::<f64>(slots + 1)?,
                 self.dev.zeros::<f64>(dim.div_ceil(CHUNK).max(1))?,
             ))
         };
-        let (basis, w, h, partial) = setup()
+        let (w, h, partial) = setup()
             .map_err(device_error)
             .map_err(GmresError::Operator)?;
         let mut space = Space {
@@ -344,7 +343,7 @@ impl SlenderDevice {
             op,
             b,
             x,
-            basis,
+            basis: Vec::new(),
             w,
             h,
             partial,
@@ -385,8 +384,8 @@ struct Space<'a, 'b> {
     op: DeviceP4<'b>,
     b: &'a Buffer,
     x: &'a mut Buffer,
-    /// The basis, vector `j` at `j dim`.
-    basis: Buffer,
+    /// The basis, each vector made when GMRES first reaches it (kept over restarts).
+    basis: Vec<Buffer>,
     /// The product being orthogonalised, or the residual.
     w: Buffer,
     /// The Hessenberg column (and single norms at slot 0).
@@ -401,12 +400,12 @@ struct Space<'a, 'b> {
     seconds: f64,
 }
 
-/// `out = A f`, `f` at `fo` of `src`: the weighted forces, the sum, the operator per rod;
-/// returns the flow at the nodes.
+/// `out = A f`: the weighted forces, the sum, the operator per rod; returns the flow at the
+/// nodes.
 fn product(
     kern: &SlenderDevice,
     op: &mut DeviceP4<'_>,
-    (src, fo): (&Buffer, usize),
+    src: &Buffer,
     out: &mut Buffer,
     (accuracy, seconds): (&mut HydroReport, &mut f64),
 ) -> Result<Buffer, SumError> {
@@ -416,15 +415,13 @@ fn product(
     let launch = || -> Result<(Buffer, Buffer), GpuError> {
         let mut force = dev.zeros::<f64>(3 * npts)?;
         let mut fields = dev.zeros::<f64>(3 * npts)?;
-        // SAFETY: thread k < n m reads src at fo + 3 k..+3 (fo + 3 n m <= len, checked by the
-        // caller's layout), w[k % m] (m) and writes force at 3 k..+3 and fields at d n m + k
-        // (3 n m each).
+        // SAFETY: thread k < n m reads src at 3 k..+3 (3 n m checked), w[k % m] (m) and
+        // writes force at 3 k..+3 and fields at d n m + k (3 n m each).
         unsafe {
             dev.launch(
                 npts,
                 SlenderWeighted {
                     f: src,
-                    fo: fo as i64,
                     w: &op.rule.w,
                     force: &mut force,
                     fields: &mut fields,
@@ -435,7 +432,7 @@ fn product(
         }
         Ok((force, fields))
     };
-    check_len("density", src, fo + 3 * npts).map_err(device_error)?;
+    check_len("density", src, 3 * npts).map_err(device_error)?;
     let (force, fields) = launch().map_err(device_error)?;
     let t = Instant::now();
     let (u, report) = match &mut op.sum {
@@ -457,7 +454,7 @@ fn product(
     };
     *seconds += t.elapsed().as_secs_f64();
     accuracy.add_sum(report);
-    // SAFETY: thread r < n reads src at fo + 3 r m..+3 m (checked above), u, out at
+    // SAFETY: thread r < n reads src at 3 r m..+3 m (checked above), u, out at
     // 3 r m..3 (r + 1) m (3 n m: the sum's result and the caller's vector), p at 3 r (3 n),
     // s, w (m), and writes out there.
     unsafe {
@@ -465,7 +462,6 @@ fn product(
             op.n,
             SlenderP4 {
                 f: src,
-                fo: fo as i64,
                 u: &u,
                 p: op.p,
                 s: &op.rule.s,
@@ -491,7 +487,7 @@ impl Space<'_, '_> {
         };
         dot_into(
             &self.kern.dev,
-            ((a, 0), (a, 0), self.dim),
+            (a, a, self.dim),
             (&mut self.partial, &mut self.h),
             slot,
             true,
@@ -504,7 +500,7 @@ impl Space<'_, '_> {
         let u = product(
             self.kern,
             &mut self.op,
-            (self.x, 0),
+            self.x,
             &mut self.w,
             (&mut self.accuracy, &mut self.seconds),
         )?;
@@ -525,26 +521,24 @@ impl Space<'_, '_> {
 /// `h[slot] = a . b` over `n` entries (its square root with `root`), through `partial`.
 fn dot_into(
     dev: &Device,
-    ((a, ao), (b, bo), n): ((&Buffer, usize), (&Buffer, usize), usize),
+    (a, b, n): (&Buffer, &Buffer, usize),
     (partial, h): (&mut Buffer, &mut Buffer),
     slot: usize,
     root: bool,
 ) -> Result<(), GpuError> {
-    check_len("dot operand", a, ao + n)?;
-    check_len("dot operand", b, bo + n)?;
+    check_len("dot operand", a, n)?;
+    check_len("dot operand", b, n)?;
     let nchunks = n.div_ceil(CHUNK).max(1);
     check_len("partial sums", partial, nchunks)?;
     check_len("column", h, slot + 1)?;
-    // SAFETY: block c < ceil(n / CHUNK) reads a at ao + c CHUNK..(ao + min((c + 1) CHUNK, n))
-    // and b likewise (checked) and writes partial[c] (checked).
+    // SAFETY: block c < ceil(n / CHUNK) reads a, b at c CHUNK..min((c + 1) CHUNK, n) (checked)
+    // and writes partial[c] (checked).
     unsafe {
         dev.launch(
             nchunks * motile_gpu::THREADS as usize,
             KrylovDotChunks {
                 a,
-                ao: ao as i64,
                 b,
-                bo: bo as i64,
                 partial,
                 n: int(n, "unknowns")?,
                 chunk: CHUNK as i32,
@@ -611,7 +605,7 @@ impl KrylovSpace for Space<'_, '_> {
         let u = product(
             self.kern,
             &mut self.op,
-            (&self.basis, k * dim),
+            &self.basis[k],
             &mut self.w,
             (&mut self.accuracy, &mut self.seconds),
         )?;
@@ -622,21 +616,20 @@ impl KrylovSpace for Space<'_, '_> {
         for j in 0..=k {
             dot_into(
                 dev,
-                ((&self.w, 0), (&self.basis, j * dim), dim),
+                (&self.w, &self.basis[j], dim),
                 (&mut self.partial, &mut self.h),
                 j,
                 false,
             )
             .map_err(device_error)?;
-            // SAFETY: thread i < dim updates w[i] (dim) from basis[j dim + i] (slots x dim,
-            // j <= k < slots) and h[j] (slots + 1).
+            // SAFETY: thread i < dim updates w[i] from basis[j][i] (dim each) and h[j] (j <= k <
+            // slots, slots + 1 values).
             unsafe {
                 dev.launch(
                     dim,
                     KrylovAxpy {
                         w: &mut self.w,
-                        v: &self.basis,
-                        vo: (j * dim) as i64,
+                        v: &self.basis[j],
                         h: &self.h,
                         slot: j as i32,
                         n,
@@ -661,23 +654,23 @@ impl KrylovSpace for Space<'_, '_> {
         }
         let dev = &self.kern.dev;
         let yb = dev.upload(y).map_err(device_error)?;
-        let dim = self.dim;
-        check_len("basis", &self.basis, y.len() * dim).map_err(device_error)?;
-        // SAFETY: thread i < dim updates x[i] (dim) from basis[j dim + i] for j < k (checked)
-        // and y[0..k] (k uploaded).
-        unsafe {
-            dev.launch(
-                dim,
-                KrylovUpdate {
-                    x: self.x,
-                    basis: &self.basis,
-                    y: &yb,
-                    k: int(y.len(), "basis vectors").map_err(device_error)?,
-                    stride: dim as i64,
-                    n: int(dim, "unknowns").map_err(device_error)?,
-                },
-            )
-            .map_err(device_error)?;
+        let n = int(self.dim, "unknowns").map_err(device_error)?;
+        for (j, v) in self.basis.iter().take(y.len()).enumerate() {
+            // SAFETY: thread i < dim updates x[i] from v[i] (dim each) and y[j] (j < k
+            // uploaded).
+            unsafe {
+                dev.launch(
+                    self.dim,
+                    KrylovUpdate {
+                        x: self.x,
+                        v,
+                        y: &yb,
+                        j: j as i32,
+                        n,
+                    },
+                )
+                .map_err(device_error)?;
+            }
         }
         self.u_at_x = false;
         Ok(())
@@ -685,11 +678,20 @@ impl KrylovSpace for Space<'_, '_> {
 }
 
 impl Space<'_, '_> {
-    /// Basis vector `k` = `w / d`.
+    /// Basis vector `k` = `w / d` (made where GMRES reaches it first).
     fn divide_into(&mut self, k: usize, d: f64) -> Result<(), SumError> {
         let dim = self.dim;
-        check_len("basis", &self.basis, (k + 1) * dim).map_err(device_error)?;
-        // SAFETY: thread i < dim reads w[i] (dim) and writes basis[k dim + i] (checked).
+        if k > self.basis.len() {
+            return Err(SumError::Device(format!(
+                "basis vector {k} before vector {}",
+                self.basis.len()
+            )));
+        }
+        if k == self.basis.len() {
+            let v = self.kern.dev.zeros::<f64>(dim).map_err(device_error)?;
+            self.basis.push(v);
+        }
+        // SAFETY: thread i < dim reads w[i] and writes basis[k][i] (dim each).
         unsafe {
             self.kern
                 .dev
@@ -697,8 +699,7 @@ impl Space<'_, '_> {
                     dim,
                     KrylovDiv {
                         src: &self.w,
-                        dst: &mut self.basis,
-                        dso: (k * dim) as i64,
+                        dst: &mut self.basis[k],
                         d,
                         n: int(dim, "unknowns").map_err(device_error)?,
                     },

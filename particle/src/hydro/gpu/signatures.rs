@@ -30,10 +30,9 @@ motile_gpu::kernels! {
         has_ft: i32,
     }
 
-    /// The RPY sum's forces (triples and field-major) from a density at an offset.
+    /// The RPY sum's forces (triples and field-major) from a density.
     pub(crate) struct SlenderWeighted = "slender_weighted" {
         f: &'a Buffer<f64>,
-        fo: i64,
         w: &'a Buffer<f64>,
         force: &'a mut Buffer<f64>,
         fields: &'a mut Buffer<f64>,
@@ -44,7 +43,6 @@ motile_gpu::kernels! {
     /// The operator of (P4) per rod, from the density and the flow it induces.
     pub(crate) struct SlenderP4 = "slender_p4" {
         f: &'a Buffer<f64>,
-        fo: i64,
         u: &'a Buffer<f64>,
         p: &'a Buffer<f64>,
         s: &'a Buffer<f64>,
@@ -88,9 +86,7 @@ motile_gpu::kernels! {
     /// Per chunk, the dot product's partial sum in order.
     pub(crate) struct KrylovDotChunks = "krylov_dot_chunks" {
         a: &'a Buffer<f64>,
-        ao: i64,
         b: &'a Buffer<f64>,
-        bo: i64,
         partial: &'a mut Buffer<f64>,
         n: i32,
         chunk: i32,
@@ -109,7 +105,6 @@ motile_gpu::kernels! {
     pub(crate) struct KrylovAxpy = "krylov_axpy" {
         w: &'a mut Buffer<f64>,
         v: &'a Buffer<f64>,
-        vo: i64,
         h: &'a Buffer<f64>,
         slot: i32,
         n: i32,
@@ -119,7 +114,6 @@ motile_gpu::kernels! {
     pub(crate) struct KrylovDiv = "krylov_div" {
         src: &'a Buffer<f64>,
         dst: &'a mut Buffer<f64>,
-        dso: i64,
         d: f64,
         n: i32,
     }
@@ -131,13 +125,12 @@ motile_gpu::kernels! {
         n: i32,
     }
 
-    /// `x += sum_j y_j v_j` in basis order.
+    /// `x += y_j v_j`.
     pub(crate) struct KrylovUpdate = "krylov_update" {
         x: &'a mut Buffer<f64>,
-        basis: &'a Buffer<f64>,
+        v: &'a Buffer<f64>,
         y: &'a Buffer<f64>,
-        k: i32,
-        stride: i64,
+        j: i32,
         n: i32,
     }
 }

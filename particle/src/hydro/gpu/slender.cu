@@ -3,8 +3,8 @@
 // CPU's order (hydro/slender.rs, hydro/gmres.rs; NVRTC compiles without contraction into fused
 // multiply-adds), so with the same products the device's iterates are the CPU's bits.
 //
-// Layouts: a density or residual vector is 3 m n values ([rod][node][xyz]); the Arnoldi basis is
-// one buffer of such vectors one after another (vector j at j * stride).
+// Layout: a density or residual vector is 3 m n values ([rod][node][xyz]); the Arnoldi basis is
+// a buffer per vector, made as GMRES reaches it.
 
 // Node k = r m + j of rod r at x_r + s_j p_r (slender.rs's node_positions).
 extern "C" __global__ void slender_nodes(const double* x, const double* p, const double* s,
@@ -36,15 +36,15 @@ extern "C" __global__ void slender_rhs(const double* p, const double* ft, const 
     rhs[k] = swim + f[d] / l + 12.0 * s[j] / (l * l * l) * txp[d];
 }
 
-// The RPY sum's inputs from the density at f + fo: node k's force f_k w_(k mod m) as triples and
+// The RPY sum's inputs from the density f: node k's force f_k w_(k mod m) as triples and
 // field-major (P4::flow's weighted forces).
-extern "C" __global__ void slender_weighted(const double* f, long long fo, const double* w,
-                                            double* force, double* fields, int npts, int m) {
+extern "C" __global__ void slender_weighted(const double* f, const double* w, double* force,
+                                            double* fields, int npts, int m) {
     int k = blockIdx.x * blockDim.x + threadIdx.x;
     if (k >= npts) return;
     double wk = w[k % m];
     for (int d = 0; d < 3; ++d) {
-        double v = f[fo + 3LL * k + d] * wk;
+        double v = f[3LL * k + d] * wk;
         force[3 * k + d] = v;
         fields[(long long)d * npts + k] = v;
     }
@@ -68,16 +68,16 @@ __device__ void rod_moments(const double* u, const double* s, const double* w, i
 }
 
 // The operator of (P4) on rod r (one thread each): out = f + (I - pp/2) u_j / e
-// - (I - pp/2)[u]_l / (e l) - 12 s_j / (e l^3) (I - pp)[s u]_l, from the density at f + fo and
-// the flow u it induces at the nodes (P4::apply).
-extern "C" __global__ void slender_p4(const double* f, long long fo, const double* u,
-                                      const double* p, const double* s, const double* w,
-                                      double* out, int n, int m, double e, double l) {
+// - (I - pp/2)[u]_l / (e l) - 12 s_j / (e l^3) (I - pp)[s u]_l, from the density f and the
+// flow u it induces at the nodes (P4::apply).
+extern "C" __global__ void slender_p4(const double* f, const double* u, const double* p,
+                                      const double* s, const double* w, double* out, int n,
+                                      int m, double e, double l) {
     int r = blockIdx.x * blockDim.x + threadIdx.x;
     if (r >= n) return;
     long long base = 3LL * r * m;
     const double* ur = u + base;
-    const double* fr = f + fo + base;
+    const double* fr = f + base;
     double* o = out + base;
     double pn[3] = {p[3 * r], p[3 * r + 1], p[3 * r + 2]};
     double a[3], b[3];
@@ -148,12 +148,12 @@ extern "C" __global__ void slender_predict(const double* p, const double* flow, 
     }
 }
 
-// Per chunk c (one block each): the sum of a[ao + i] b[bo + i] over its entries in order from
-// -0.0 (det_sum's partial), the products staged in shared memory by the block's threads and
-// folded by its first.
+// Per chunk c (one block each): the sum of a[i] b[i] over its entries in order from -0.0
+// (det_sum's partial), the products staged in shared memory by the block's threads and folded
+// by its first.
 #define KRYLOV_THREADS 256
-extern "C" __global__ void krylov_dot_chunks(const double* a, long long ao, const double* b,
-                                             long long bo, double* partial, int n, int chunk) {
+extern "C" __global__ void krylov_dot_chunks(const double* a, const double* b, double* partial,
+                                             int n, int chunk) {
     __shared__ double sh[KRYLOV_THREADS];
     int c = blockIdx.x, t = threadIdx.x;
     if ((long long)c * chunk >= n) return; // the whole block
@@ -161,7 +161,7 @@ extern "C" __global__ void krylov_dot_chunks(const double* a, long long ao, cons
     double acc = -0.0;
     for (int k0 = c * chunk; k0 < hi; k0 += KRYLOV_THREADS) {
         int k = k0 + t;
-        if (k < hi) sh[t] = a[ao + k] * b[bo + k];
+        if (k < hi) sh[t] = a[k] * b[k];
         __syncthreads();
         if (t == 0) {
             int len = hi - k0 < KRYLOV_THREADS ? hi - k0 : KRYLOV_THREADS;
@@ -182,20 +182,19 @@ extern "C" __global__ void krylov_fold(const double* partial, double* out, int n
     out[slot] = root ? sqrt(acc) : acc;
 }
 
-// w -= h[slot] v, v at vo (a step of modified Gram-Schmidt).
-extern "C" __global__ void krylov_axpy(double* w, const double* v, long long vo, const double* h,
-                                       int slot, int n) {
+// w -= h[slot] v (a step of modified Gram-Schmidt).
+extern "C" __global__ void krylov_axpy(double* w, const double* v, const double* h, int slot,
+                                       int n) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
-    w[i] -= h[slot] * v[vo + i];
+    w[i] -= h[slot] * v[i];
 }
 
-// dst at dso = src / d.
-extern "C" __global__ void krylov_div(const double* src, double* dst, long long dso, double d,
-                                      int n) {
+// dst = src / d.
+extern "C" __global__ void krylov_div(const double* src, double* dst, double d, int n) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
-    dst[dso + i] = src[i] / d;
+    dst[i] = src[i] / d;
 }
 
 // w = b - w (the residual from the product A x in w).
@@ -205,12 +204,11 @@ extern "C" __global__ void krylov_residual(const double* b, double* w, int n) {
     w[i] = b[i] - w[i];
 }
 
-// x += y_j v_j for j < k, v_j at j stride, the terms added in basis order.
-extern "C" __global__ void krylov_update(double* x, const double* basis, const double* y, int k,
-                                         long long stride, int n) {
+// x += y[j] v: one term of the update x += sum_j y_j v_j, launched in basis order (each entry
+// then takes the terms in the CPU's order).
+extern "C" __global__ void krylov_update(double* x, const double* v, const double* y, int j,
+                                         int n) {
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
-    double xi = x[i];
-    for (int j = 0; j < k; ++j) xi += y[j] * basis[j * stride + i];
-    x[i] = xi;
+    x[i] += y[j] * v[i];
 }

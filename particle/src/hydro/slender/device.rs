@@ -347,6 +347,16 @@ impl SlenderBody {
         )
     }
 
+    /// What the sum's device and the kernels' have been asked to do so far (`None` without a
+    /// sum on a device).
+    pub(super) fn device_counters(&mut self) -> Option<motile_gpu::Counters> {
+        let mut c = resident_sum(self.sum.as_mut())?.device_counters()?;
+        if let Some((kern, _)) = &self.device.kern {
+            c.add(&kern.counters());
+        }
+        Some(c)
+    }
+
     /// The host's copies of the solution, the flow velocities and the force density brought
     /// up to the device's, which stays current.
     pub(super) fn sync_from_device(&mut self) -> Result<(), MobilityError> {

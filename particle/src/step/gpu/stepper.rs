@@ -273,6 +273,13 @@ impl DeviceStepper {
         if mobility.flows_on_device() {
             return self.step_with_resident_flow(dt, mobility);
         }
+        if mobility.finishes_on_device() {
+            // Its contact forces act through its full hydrodynamics: not a local-drag step.
+            return Err(StepError::Device(format!(
+                "the {} mobility steps on the device only with its sum there",
+                mobility.name()
+            )));
+        }
         let mut free = RodVelocities::zeros(at.len());
         mobility.free_velocities(at, &at.orientations(), &mut free)?;
         let mut report = self.step_from(dt, Some((&free.v, &free.w)))?;
