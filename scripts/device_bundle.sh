@@ -32,6 +32,7 @@ cp "$(exe motile-meanfield gpu)" device-bin/test_meanfield_gpu
 cp "$(exe motile-particle gpu_ewald)" device-bin/test_particle_gpu_ewald
 cp "$(exe motile-particle gpu_step)" device-bin/test_particle_gpu_step
 cp "$(exe motile-particle gpu_resident)" device-bin/test_particle_gpu_resident
+cp "$(exe motile-particle gpu_slender)" device-bin/test_particle_gpu_slender
 strip device-bin/*
 cp scripts/device_run.sh scripts/device_compare.py experiments/configs/meanfield_paper_64.toml device-bin/
 # The kernel sets' sources, for the compiler's resource report on the device (device_run.sh ptxas).

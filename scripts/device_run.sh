@@ -6,7 +6,7 @@
 #            kernels and steps) with MOTILE_REQUIRE_GPU=1
 #   bench    gpu_bench: GPU against the 16-thread CPU, side by side (BENCH_ARGS passed on,
 #            e.g. "--cases mf" to split it); rows appended to gpu_bench.md and gpu_bench.log
-#   runs     whole particle runs through the binary (none, dipole, sbt-explicit; 1 024 rods at
+#   runs     whole particle runs through the binary (none, dipole, sbt-explicit, sbt; 1 024 rods at
 #            nu = 2, 100 steps): resident on the GPU against the CPU, and a second GPU run
 #            against the first (run-to-run difference, bit for bit or not)
 #   science  the paper-dilute scene's L/l = 100 member (625 000 rods, sbt-explicit) resident on
@@ -22,10 +22,10 @@
 #            the mean-field step, the dipole and explicit steps, the sbt step's profile, the
 #            whole runs and Nsight Compute on the dipole sum's spreader and gather, each phase
 #            under its own limit
-#   memory   issue 29's last open figure, the dipole step's GPU memory per rod (about 4
-#            minutes): the CUDA parity tests of the sums and the resident steps, ptxas (no
-#            stack in the dipole step's kernels), then gpu_bench's dipole steps at L/l = 100
-#            and 175 (the resident rows print steps/s, bytes in use per rod and the breakdown)
+#   memory   issue 29's open figures (about 5 minutes): the CUDA parity tests of the sums and
+#            the resident steps (sbt's among them), ptxas (no stack in the dipole step's
+#            kernels), then gpu_bench's dipole steps at L/l = 100 and 175 and the sbt step at
+#            L/l = 50 (the resident rows print steps/s, bytes in use per rod and the breakdown)
 #   meanfield  the paper's mean-field case at 128^3 to t = 128 on the GPU
 #   scaling  the thread-scaling table at 1, 2, 4, 8, 16 threads (SCALING_ARGS passed on)
 #   all      parity, bench (every target case, in two parts), runs and science in one command
@@ -39,6 +39,7 @@ particle_cuda_parity() {
   timeout 60 "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1 gpu_sums
   timeout 60 "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1 cuda
   timeout 60 "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1 cuda
+  timeout 60 "$B/test_particle_gpu_slender" --include-ignored --nocapture --test-threads 1 cuda
 }
 OUT="${OUT:-/tmp/motile-out}"
 mkdir -p "$OUT"
@@ -53,7 +54,8 @@ case "${1:-}" in
     { "$B/test_meanfield_gpu" --include-ignored --nocapture --test-threads 1
       "$B/test_particle_gpu_ewald" --include-ignored --nocapture --test-threads 1
       "$B/test_particle_gpu_step" --include-ignored --nocapture --test-threads 1
-      "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1; } \
+      "$B/test_particle_gpu_resident" --include-ignored --nocapture --test-threads 1
+      "$B/test_particle_gpu_slender" --include-ignored --nocapture --test-threads 1; } \
       >"$OUT/parity.txt" 2>&1
     echo "parity exit $?" >>"$OUT/parity.txt"
     tail -40 "$OUT/parity.txt"
@@ -74,7 +76,7 @@ case "${1:-}" in
     R=/tmp/motile-runs
     rm -rf "$R"
     mkdir -p "$R"
-    for level in none dipole sbt-explicit; do
+    for level in none dipole sbt-explicit sbt; do
       printf '%s\n' "box_length = 8" "volume_fraction = 2" "hydrodynamics = \"$level\"" \
         "dt = 0.02" "t_end = ${RUNS_T_END:-2.0}" "diagnostic_interval = 0.1" "snapshot_interval = 2.0" \
         "checkpoint_interval = 1.0" "vtk = false" >"$R/$level.toml"
@@ -167,6 +169,8 @@ case "${1:-}" in
     echo "== kernels with a stack (the driver reserves it for every thread the device holds)"
     grep -B1 -E "^[[:space:]]*[1-9][0-9]* bytes stack frame" "$OUT/ptxas.txt" | grep -E "entry|stack"
     BENCH_ARGS="--cases dipole --cpu-max 0" timeout 90 bash "$0" bench
+    # The sbt step resident on the device at L/l = 50 (its GMRES there too): steps/s, memory.
+    BENCH_ARGS="--cases sbt --cpu-max 0" timeout 60 bash "$0" bench
     ;;
   meanfield)
     # The paper's case (meanfield_paper_64.toml) on 128^3 to t = 128; the run directory stays
@@ -185,7 +189,7 @@ case "${1:-}" in
     tail -5 "$OUT/meanfield.txt"
     ;;
   all)
-    # Limits in seconds (sum 470 s, under 8 minutes); the CPU sides of the largest cases left
+    # Limits in seconds (sum 480 s, 8 minutes); the CPU sides of the largest cases left
     # out (their 16-thread figures are in BENCHMARKS.md).
     { echo "== parity (limit 90 s)"; timeout 90 bash "$0" parity; echo "rc $?"
       echo "== bench: mean-field, sums (limit 120 s)"
@@ -193,7 +197,7 @@ case "${1:-}" in
       echo "== bench: particle steps (limit 150 s)"
       BENCH_ARGS="--cases dipole,explicit100,sbt,explicit --cpu-max 1000000" \
         timeout 150 bash "$0" bench; echo "rc $?"
-      echo "== runs (limit 50 s)"; timeout 50 bash "$0" runs; echo "rc $?"
+      echo "== runs (limit 60 s)"; timeout 60 bash "$0" runs; echo "rc $?"
       echo "== science (limit 60 s)"; timeout 60 bash "$0" science; echo "rc $?"; } \
       >"$OUT/all.txt" 2>&1
     cat "$OUT/all.txt"

@@ -24,7 +24,7 @@
 mod common;
 
 use motile_gpu::Backend;
-use motile_particle::ewald::gpu::SpreadMethod;
+use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::periodic::RpyGeometry;
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::gmres::GmresParams;
@@ -95,11 +95,7 @@ fn bits_differ(a: &[f64], b: &[f64]) -> usize {
 }
 
 /// The device's solve with the CPU's products against `SlenderBody` on the CPU: the same bits.
-#[test]
-fn the_device_solve_repeats_the_cpu_bits_with_the_same_products() {
-    if common::emulation().is_none() {
-        return;
-    }
+fn check_same_products(backend: Backend) {
     let rods = rods();
     let n = rods.len();
     let p = rods.orientations();
@@ -119,7 +115,7 @@ fn the_device_solve_repeats_the_cpu_bits_with_the_same_products() {
         "the test needs restarts: {free_iterations} and {contact_iterations} iterations"
     );
 
-    let kern = SlenderDevice::open(Backend::HostEmulation).unwrap();
+    let kern = SlenderDevice::open(backend).unwrap();
     let (s, w) = half_rod_rule(prm.quadrature_points, ROD_LENGTH);
     let rule = kern.rule((&s, &w)).unwrap();
     let up = |v: &[f64]| kern.upload(v).unwrap();
@@ -224,12 +220,7 @@ fn the_device_solve_repeats_the_cpu_bits_with_the_same_products() {
 /// contact solve's velocities within 1e-12 of the largest flow speed and rotation rate (the
 /// sums' round-off, about 1e-15 of the flow per product, through a solve to 1e-5), the same
 /// iterations and sums.
-#[test]
-fn the_resident_solve_matches_the_cpu() {
-    let Some(mut gpu) = common::emulation() else {
-        return;
-    };
-    gpu.set_spread_method(Some(SpreadMethod::Sorted));
+fn check_resident_solve(gpu: GpuFourier) {
     let rods = rods();
     let n = rods.len();
     let p = rods.orientations();
@@ -290,13 +281,8 @@ fn the_resident_solve_matches_the_cpu() {
 }
 
 /// Ten resident `sbt` steps against the CPU's stepper (see the file's head).
-#[test]
-fn resident_slender_body_steps_match_the_cpu() {
-    let Some(mut gpu) = common::emulation() else {
-        return;
-    };
+fn check_steps(backend: Backend, gpu: GpuFourier) {
     const STEPS: usize = 10;
-    gpu.set_spread_method(Some(SpreadMethod::Sorted));
     let rods = random_nonoverlapping(216, 4.8, DEFAULT_DIAMETER, 12, 1_000_000).unwrap();
     let dt = 0.02;
     let params = ContactParams::default();
@@ -309,8 +295,7 @@ fn resident_slender_body_steps_match_the_cpu() {
         )),
         params.clone(),
     );
-    let mut device =
-        DeviceStepper::new(Backend::HostEmulation, &rods, params.clone(), &Vec::new()).unwrap();
+    let mut device = DeviceStepper::new(backend, &rods, params.clone(), &Vec::new()).unwrap();
     let mut flow: Box<dyn Mobility> = Box::new(SlenderBody::new(
         prm,
         Box::new(SpectralEwald::with_device(TOL, gpu).unwrap()),
@@ -371,4 +356,34 @@ fn resident_slender_body_steps_match_the_cpu() {
          warm state within {dw:.1e}",
         rods.len()
     );
+}
+
+#[test]
+fn the_slender_body_solve_and_step_on_the_host_emulation_match_the_cpu() {
+    let emu = Backend::HostEmulation;
+    let sorted = || {
+        common::emulation().map(|mut g| {
+            // The output-driven spreader's many small blocks are slow on the emulation.
+            g.set_spread_method(Some(SpreadMethod::Sorted));
+            g
+        })
+    };
+    let Some(gpu) = sorted() else {
+        return;
+    };
+    check_same_products(emu);
+    check_resident_solve(gpu);
+    check_steps(emu, sorted().expect("opened above"));
+}
+
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/device_run.sh parity runs it)"]
+fn the_slender_body_solve_and_step_on_cuda_match_the_cpu() {
+    let cuda = || common::device("CUDA", Backend::Cuda, "MOTILE_REQUIRE_GPU");
+    let Some(gpu) = cuda() else {
+        return;
+    };
+    check_same_products(Backend::Cuda);
+    check_resident_solve(gpu);
+    check_steps(Backend::Cuda, cuda().expect("opened above"));
 }
