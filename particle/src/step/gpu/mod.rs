@@ -36,9 +36,11 @@
 //!   device), which then downloads the rods (7 values each) and uploads the free velocities
 //!   (6) every step.
 //!
-//! Runs with `device = "gpu"` step with [`DeviceStepper`] at the `none`, `dipole` and
-//! `sbt-explicit` levels; `sbt` (GMRES, contact forces through the full mobility) still runs
-//! on the CPU, its sums' Fourier part on the device.
+//! Runs with `device = "gpu"` step with [`DeviceStepper`] at every level; at `sbt` (GMRES,
+//! contact forces through the full mobility) the step's final velocities come from the
+//! mobility's solve with the contact forces on the device, followed by the CPU stepper's
+//! correction (a second contact problem from zero), before the move
+//! ([`crate::hydro::mobility::Mobility::final_velocities_resident`]).
 //! The device itself and the prefix sum the rooms share are in `device.rs`.
 
 mod cells;

@@ -288,10 +288,13 @@ impl DeviceStepper {
     }
 
     /// One step of `dt` at a level whose flow is summed on this device
-    /// ([`Mobility::flows_on_device`]): the free velocities of the rods here from `mobility`
-    /// ([`Mobility::free_velocities_resident`]), then the step from them, the rods never
-    /// leaving the device; the report carries the mobility's. A failure of the flow's sum
-    /// ([`StepError::Hydrodynamics`]) leaves the rods untouched.
+    /// ([`Mobility::flows_on_device`]): the velocities the contact solver plans with from
+    /// `mobility` ([`Mobility::predicted_velocities_resident`]), then the step from them, the
+    /// rods never leaving the device; at a level whose contact forces act through its
+    /// hydrodynamics ([`Mobility::finishes_on_device`]: `sbt`) the step's velocities are the
+    /// mobility's from the contact forces, then corrected as the CPU's stepper does. The report
+    /// carries the mobility's. A failure of the flow's sum or solve
+    /// ([`StepError::Hydrodynamics`]) leaves the rods untouched (the state before the step).
     pub fn step_with_resident_flow(
         &mut self,
         dt: f64,
