@@ -137,7 +137,7 @@ pub struct SlenderBody {
     /// (P4) on its sum's device: the kernels (opened at the first solve there) and what
     /// resident steps keep there.
     #[cfg(feature = "gpu")]
-    device: device::OnDevice,
+    device: crate::hydro::gpu::SlenderState,
 }
 
 /// Where (P4)'s sums run.
@@ -305,7 +305,7 @@ impl SlenderBody {
             flow: Vec::new(),
             predicted_exactly: false,
             #[cfg(feature = "gpu")]
-            device: device::OnDevice::default(),
+            device: crate::hydro::gpu::SlenderState::default(),
         }
     }
 

@@ -264,6 +264,26 @@ impl SlenderDevice {
     }
 }
 
+/// What the slender-body mobility keeps on its sum's device: the kernels and the rule (opened
+/// at the first solve there), and between resident steps the last solution of (P4) and the
+/// flow velocities (6 per rod) of `n` rods, with which the host's copies are behind, and the
+/// step's axes and nodes (from the prediction, for the final solve).
+#[derive(Debug, Default)]
+pub struct SlenderState {
+    pub(crate) kern: Option<(SlenderDevice, DeviceRule)>,
+    pub(crate) x: Option<Buffer>,
+    pub(crate) flow: Option<Buffer>,
+    pub(crate) n: usize,
+    pub(crate) step: Option<(Buffer, Buffer)>,
+}
+
+impl SlenderState {
+    /// Drop the resident state (the host's is set anew).
+    pub fn forget(&mut self) {
+        (self.x, self.flow, self.step) = (None, None, None);
+    }
+}
+
 /// Where the products' RPY sums run.
 #[derive(Debug)]
 pub enum P4Sum<'a> {

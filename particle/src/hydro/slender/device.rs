@@ -33,27 +33,6 @@ type HostState = (Vec<f64>, Vec<f64>);
 /// A step's velocities and angular velocities (on the device) and its solve's report.
 type StepSolve = ((Buffer, Buffer), (GmresInfo, HydroReport, f64));
 
-/// What [`SlenderBody`] keeps on its sum's device.
-#[derive(Debug, Default)]
-pub(super) struct OnDevice {
-    /// The kernels and the rule (opened at the first solve there).
-    kern: Option<(SlenderDevice, DeviceRule)>,
-    /// Resident steps' last solution of (P4) and flow velocities (6 per rod), of `n` rods: the
-    /// host's copies are behind while these are here.
-    x: Option<Buffer>,
-    flow: Option<Buffer>,
-    n: usize,
-    /// This step's axes and nodes (from the prediction, for the final solve).
-    step: Option<(Buffer, Buffer)>,
-}
-
-impl OnDevice {
-    /// Drop the resident state (the host's is set anew).
-    pub(super) fn forget(&mut self) {
-        (self.x, self.flow, self.step) = (None, None, None);
-    }
-}
-
 /// The kernels beside `sum`'s device, opened where not yet.
 fn kernels<'a>(
     slot: &'a mut Option<(SlenderDevice, DeviceRule)>,
