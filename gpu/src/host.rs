@@ -271,7 +271,18 @@ impl Host {
         std::fs::write(&src, text)
             .map_err(|e| GpuError::Compile(format!("writing {}: {e}", src.display())))?;
         let out = Command::new(&compiler)
-            .args(["-std=c++17", "-O2", "-fPIC", "-shared", "-pthread", "-o"])
+            // No fused multiply-adds (NVRTC compiles with `fmad` off too): the kernels' results
+            // are then the CPU's bits where they do the CPU's arithmetic in its order, on hosts
+            // whose compilers would fuse by default (aarch64).
+            .args([
+                "-std=c++17",
+                "-O2",
+                "-ffp-contract=off",
+                "-fPIC",
+                "-shared",
+                "-pthread",
+                "-o",
+            ])
             .arg(&lib)
             .arg(&src)
             .output()

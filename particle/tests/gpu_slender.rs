@@ -37,6 +37,7 @@ use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
 use motile_particle::step::contact::ContactParams;
 use motile_particle::step::gpu::DeviceStepper;
+use motile_particle::step::report::StepError;
 use motile_particle::step::stepper::Stepper;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -280,8 +281,12 @@ fn check_resident_solve(gpu: GpuFourier) {
     }
 }
 
-/// Ten resident `sbt` steps against the CPU's stepper (see the file's head).
-fn check_steps(backend: Backend, gpu: GpuFourier) {
+/// Ten resident `sbt` steps against the CPU's stepper (see the file's head), resumed on a fresh
+/// device stepper and mobility after five (from the rods, the contact multipliers, the warm
+/// and the sum's state downloaded, as a checkpoint holds them), then a step that fails after its
+/// final solve (no overlap allowed): the warm state on the device is then the one before it,
+/// bit for bit. `open` opens the sums' devices.
+fn check_steps(backend: Backend, open: impl Fn() -> GpuFourier) {
     const STEPS: usize = 10;
     let rods = random_nonoverlapping(216, 4.8, DEFAULT_DIAMETER, 12, 1_000_000).unwrap();
     let dt = 0.02;
@@ -296,13 +301,33 @@ fn check_steps(backend: Backend, gpu: GpuFourier) {
         params.clone(),
     );
     let mut device = DeviceStepper::new(backend, &rods, params.clone(), &Vec::new()).unwrap();
-    let mut flow: Box<dyn Mobility> = Box::new(SlenderBody::new(
-        prm,
-        Box::new(SpectralEwald::with_device(TOL, gpu).unwrap()),
-    ));
+    let mobility = || -> Box<dyn Mobility> {
+        Box::new(SlenderBody::new(
+            prm,
+            Box::new(SpectralEwald::with_device(TOL, open()).unwrap()),
+        ))
+    };
+    let mut flow = mobility();
     assert!(flow.flows_on_device() && flow.finishes_on_device());
     let (mut active, mut corrections) = (0, 0);
     for k in 0..STEPS {
+        if k == STEPS / 2 {
+            // A resume on the device: what a checkpoint holds, into a fresh stepper and mobility.
+            let warm = flow.resident_warm_state().expect("on the device").unwrap();
+            assert_ne!(
+                warm,
+                flow.warm_state(),
+                "the host's copy is behind the device's between outputs"
+            );
+            let mut at = rods.clone();
+            device.download(&mut at).unwrap();
+            let contact = device.warm_start().unwrap();
+            let mut fresh = mobility();
+            fresh.set_sum_state(&flow.sum_state());
+            fresh.set_warm_state(warm);
+            device = DeviceStepper::new(backend, &at, params.clone(), &contact).unwrap();
+            flow = fresh;
+        }
         let want = stepper.step(&mut cpu, dt).unwrap();
         let got = device.step_with_resident_flow(dt, flow.as_mut()).unwrap();
         let what = format!("step {k}");
@@ -350,11 +375,34 @@ fn check_steps(backend: Backend, gpu: GpuFourier) {
         dw <= bound,
         "the warm state differs by {dw:.1e} of its largest value (bound {bound:.0e})"
     );
+    // A failed step leaves the warm state as it was (the rods too: the stepper's own test).
+    let mut at = rods.clone();
+    device.download(&mut at).unwrap();
+    // No overlap allowed: the step fails after its final solve (which moved the state kept on
+    // the device), on the overlaps the move leaves.
+    let strict = ContactParams {
+        overlap_tolerance: 1e-15,
+        ..params.clone()
+    };
+    let contact = device.warm_start().unwrap();
+    let mut failing = DeviceStepper::new(backend, &at, strict, &contact).unwrap();
+    let failed = failing.step_with_resident_flow(dt, flow.as_mut());
+    assert!(
+        matches!(failed, Err(StepError::Overlap { .. })),
+        "a step allowing no overlap: {failed:?}"
+    );
+    let after = flow.resident_warm_state().expect("on the device").unwrap();
+    assert!(
+        after == warm,
+        "the warm state after a failed step is not the one before it"
+    );
     eprintln!(
-        "{STEPS} resident sbt steps of {} rods, {active} active contacts, {corrections} made \
-         active by the correction: centres within {dx:.1e} l, quaternions within {dq:.1e}, \
-         warm state within {dw:.1e}",
-        rods.len()
+        "{STEPS} resident sbt steps of {} rods (resumed on a fresh stepper after {}), {active} \
+         active contacts, {corrections} made active by the correction: centres within {dx:.1e} \
+         l, quaternions within {dq:.1e}, warm state within {dw:.1e}; a failed step keeps the \
+         warm state",
+        rods.len(),
+        STEPS / 2
     );
 }
 
@@ -373,7 +421,7 @@ fn the_slender_body_solve_and_step_on_the_host_emulation_match_the_cpu() {
     };
     check_same_products(emu);
     check_resident_solve(gpu);
-    check_steps(emu, sorted().expect("opened above"));
+    check_steps(emu, || sorted().expect("opened above"));
 }
 
 #[test]
@@ -385,5 +433,5 @@ fn the_slender_body_solve_and_step_on_cuda_match_the_cpu() {
     };
     check_same_products(Backend::Cuda);
     check_resident_solve(gpu);
-    check_steps(Backend::Cuda, cuda().expect("opened above"));
+    check_steps(Backend::Cuda, || cuda().expect("opened above"));
 }

@@ -329,6 +329,11 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     fn sync_resident(&mut self) -> Result<(), MobilityError> {
         Ok(())
     }
+
+    /// After a failed resident step: what this mobility keeps on the device restored to its
+    /// state before the step (as the rods are), so that the state saved is the last good one.
+    #[cfg(feature = "gpu")]
+    fn rollback_resident(&mut self) {}
 }
 
 /// The shell of [`Mobility::free_velocities_resident`] for a mobility on the sum `sum`: `None`

@@ -765,6 +765,11 @@ impl Mobility for SlenderBody {
         self.sync_from_device()
     }
 
+    #[cfg(feature = "gpu")]
+    fn rollback_resident(&mut self) {
+        self.device.rollback();
+    }
+
     fn force_density(&self) -> Option<ForceDensity<'_>> {
         Some(ForceDensity {
             s: &self.s,

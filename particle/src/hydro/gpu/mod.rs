@@ -150,6 +150,7 @@ impl SlenderDevice {
             check_len("contact forces", ft, 6 * n)?;
         }
         let len = 3 * n * m;
+        int(len, "3 x nodes")?;
         let mut rhs = self.dev.zeros::<f64>(len)?;
         // SAFETY: thread k < 3 n m reads p (3 n checked), ft at 6 (k / 3 m)..+6 (6 n checked,
         // only with has_ft), s (m) and writes rhs[k] (3 n m).
@@ -190,6 +191,7 @@ impl SlenderDevice {
         if let Some(ft) = ft {
             check_len("contact forces", ft, 6 * n)?;
         }
+        int(6 * n, "6 x rods")?;
         let dev = &self.dev;
         let mut flow = dev.zeros::<f64>(6 * n)?;
         let (mut vel, mut omega) = (dev.zeros::<f64>(3 * n)?, dev.zeros::<f64>(3 * n)?);
@@ -231,6 +233,7 @@ impl SlenderDevice {
     ) -> Result<(Buffer, Buffer), GpuError> {
         check_len("axes", p, 3 * n)?;
         check_len("flow velocities", flow, 6 * n)?;
+        int(6 * n, "6 x rods")?;
         let dev = &self.dev;
         let (mut vel, mut omega) = (dev.zeros::<f64>(3 * n)?, dev.zeros::<f64>(3 * n)?);
         // SAFETY: thread r < n reads p at 3 r..3 r + 3 and flow at 6 r..6 r + 6 (checked) and
@@ -266,21 +269,32 @@ impl SlenderDevice {
 
 /// What the slender-body mobility keeps on its sum's device: the kernels and the rule (opened
 /// at the first solve there), and between resident steps the last solution of (P4) and the
-/// flow velocities (6 per rod) of `n` rods, with which the host's copies are behind, and the
-/// step's axes and nodes (from the prediction, for the final solve).
+/// flow velocities (6 per rod) of `n` rods (`host_behind`: the host's copies are older), copies
+/// of both from before the step (restored where the step fails), and the step's axes and
+/// nodes (from the prediction, for the final solve).
 #[derive(Debug, Default)]
 pub struct SlenderState {
     pub(crate) kern: Option<(SlenderDevice, DeviceRule)>,
     pub(crate) x: Option<Buffer>,
     pub(crate) flow: Option<Buffer>,
     pub(crate) n: usize,
+    pub(crate) host_behind: bool,
+    pub(crate) before: (Option<Buffer>, Option<Buffer>),
     pub(crate) step: Option<(Buffer, Buffer)>,
 }
 
 impl SlenderState {
-    /// Drop the resident state (the host's is set anew).
+    /// Drop the resident state (the host's is set anew, or brought up to it).
     pub fn forget(&mut self) {
         (self.x, self.flow, self.step) = (None, None, None);
+        self.before = (None, None);
+        self.host_behind = false;
+    }
+
+    /// The state before the step restored (after a failed step).
+    pub fn rollback(&mut self) {
+        (self.x, self.flow) = std::mem::take(&mut self.before);
+        self.step = None;
     }
 }
 
@@ -347,7 +361,8 @@ impl SlenderDevice {
             check_len("iterate", x, dim)?;
             check_len("nodes", op.nodes, dim)?;
             check_len("axes", op.p, 3 * op.n)?;
-            int(dim, "unknowns")?;
+            // The dot products' chunk loop runs to dim + CHUNK in int.
+            int(dim + CHUNK, "unknowns")?;
             let slots = params.restart.max(1).min(params.max_iterations.max(1)) + 1;
             Ok((
                 self.dev.zeros::<f64>(dim)?,

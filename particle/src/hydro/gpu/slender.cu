@@ -125,14 +125,19 @@ extern "C" __global__ void slender_velocities(const double* p, const double* u, 
         flow[6 * r + 3 + d] = dw[d];
     }
     // LocalDrag::local: v = trans (I + pp) f, w = rot (I - pp) t; zero without forces.
-    const double* f = ft + 6 * r;
-    const double* t = f + 3;
-    double pf = has_ft ? p4_dot(pn, f) : 0.0, pt = has_ft ? p4_dot(pn, t) : 0.0;
+    double lv[3] = {0.0, 0.0, 0.0}, lw[3] = {0.0, 0.0, 0.0};
+    if (has_ft) {
+        const double* f = ft + 6 * r;
+        const double* t = f + 3;
+        double pf = p4_dot(pn, f), pt = p4_dot(pn, t);
+        for (int d = 0; d < 3; ++d) {
+            lv[d] = trans * (f[d] + pf * pn[d]);
+            lw[d] = rot * (t[d] - pt * pn[d]);
+        }
+    }
     for (int d = 0; d < 3; ++d) {
-        double lv = has_ft ? trans * (f[d] + pf * pn[d]) : 0.0;
-        double lw = has_ft ? rot * (t[d] - pt * pn[d]) : 0.0;
-        vel[3 * r + d] = swim * pn[d] + dv[d] + lv;
-        omega[3 * r + d] = dw[d] + lw;
+        vel[3 * r + d] = swim * pn[d] + dv[d] + lv[d];
+        omega[3 * r + d] = dw[d] + lw[d];
     }
 }
 

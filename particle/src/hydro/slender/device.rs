@@ -214,11 +214,13 @@ impl SlenderBody {
                 (dev.x, dev.flow) = (None, None);
             }
             dev.n = n;
-            // After a resume (or the host's steps), the host's state is the device's start.
-            if dev.x.is_none() && self.warm_free.len() == 3 * m * n {
+            // After a resume (or the host's steps), the host's state is the device's start
+            // (not where the host's copies are older than what the device had).
+            let host = !dev.host_behind;
+            if host && dev.x.is_none() && self.warm_free.len() == 3 * m * n {
                 dev.x = Some(up(&self.warm_free)?);
             }
-            if dev.flow.is_none() && self.flow.len() == n {
+            if host && dev.flow.is_none() && self.flow.len() == n {
                 let flat: Vec<f64> = self
                     .flow
                     .iter()
@@ -227,6 +229,12 @@ impl SlenderBody {
                     .collect();
                 dev.flow = Some(up(&flat)?);
             }
+            // The state before the step, restored if the step fails.
+            let copy = |b: &Option<Buffer>| b.as_ref().map(|b| kern.copy_of(b)).transpose();
+            dev.before = (
+                copy(&dev.x).map_err(device_error)?,
+                copy(&dev.flow).map_err(device_error)?,
+            );
             let p = sum
                 .device_sum()?
                 .rod_axes(rods.q, n)
@@ -251,6 +259,7 @@ impl SlenderBody {
                     (&mut dev.x, &mut dev.flow),
                     (&self.params, "free"),
                 )?;
+                dev.host_behind = true;
                 (v, Some(solved))
             };
             dev.step = Some((p, nodes));
@@ -310,20 +319,24 @@ impl SlenderBody {
             (&mut dev.x, &mut dev.flow),
             (&self.params, "swimming + contact"),
         )?;
+        dev.host_behind = true;
         self.fold_solve(&info, (&accuracy, seconds));
         Ok(Some(v))
     }
 
-    /// The resident state on the host: the last solution and flow velocities, or `None` where
-    /// the host's copies are current.
+    /// The resident state on the host: the last solution and the flow velocities (none
+    /// where a first step's solve failed), or `None` where the device has no solution.
     pub(super) fn resident_state(&self) -> Option<Result<HostState, MobilityError>> {
         let dev = &self.device;
-        let ((kern, _), x, flow) = (dev.kern.as_ref()?, dev.x.as_ref()?, dev.flow.as_ref()?);
-        Some(
-            kern.download(x)
-                .and_then(|x| Ok((x, kern.download(flow)?)))
-                .map_err(device_error),
-        )
+        let ((kern, _), x) = (dev.kern.as_ref()?, dev.x.as_ref()?);
+        let get = || -> Result<HostState, motile_gpu::GpuError> {
+            let flow = match &dev.flow {
+                Some(f) => kern.download(f)?,
+                None => Vec::new(),
+            };
+            Ok((kern.download(x)?, flow))
+        };
+        Some(get().map_err(device_error))
     }
 
     /// What the sum's device and the kernels' have been asked to do so far (`None` without a
@@ -348,6 +361,7 @@ impl SlenderBody {
                 .collect();
             self.density = densities(&self.warm_free);
         }
+        self.device.host_behind = false;
         Ok(())
     }
 

@@ -230,9 +230,11 @@ impl GpuStep {
                     ))
                     .into());
                 }
-                report.correction_active =
-                    self.correct(rods, &cons, (&mut v, &mut w, &mut ft), dt, params)?;
             }
+            // As the CPU's stepper: whenever there are constraints, also where the prediction
+            // stood.
+            report.correction_active =
+                self.correct(rods, &cons, (&mut v, &mut w, &mut ft), dt, params)?;
         }
         self.update(rods, &v, &w, dt)?;
         (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;

@@ -318,6 +318,10 @@ impl DeviceStepper {
             |at: RodsOnDevice<'_>, ft: Option<&Buffer>| mobility.final_velocities_resident(at, ft);
         let hook: Option<super::step::Finish<'_>> = if finishes { Some(&mut finish) } else { None };
         let done = self.step_finished(dt, (Free::Device(v, w), hook));
+        if done.is_err() {
+            // The rods stay as before the step; so does what the mobility keeps.
+            mobility.rollback_resident();
+        }
         let mut report = done?;
         report.hydro = mobility.report();
         Ok(report)
