@@ -40,4 +40,5 @@ cp meanfield/src/gpu/kernels.cu device-bin/kernels_meanfield.cu
 cat particle/src/ewald/gpu/{kernels,resident,scan}.cu >device-bin/kernels_particle_sums.cu
 cat particle/src/step/gpu/{cells,update,contacts,step}.cu particle/src/ewald/gpu/scan.cu \
   >device-bin/kernels_particle_step.cu
+cp particle/src/hydro/gpu/slender.cu device-bin/kernels_particle_slender.cu
 du -sh device-bin

@@ -131,7 +131,7 @@ case "${1:-}" in
   ptxas)
     NVCC="$(command -v nvcc || ls /usr/local/cuda*/bin/nvcc 2>/dev/null | head -1)"
     {
-      for set in meanfield particle_sums particle_step; do
+      for set in meanfield particle_sums particle_step particle_slender; do
         echo "== $set"
         "$NVCC" -arch=sm_90 -cubin -Xptxas -v -o /tmp/$set.cubin "$B/kernels_$set.cu" 2>&1 \
           | grep -E "Compiling entry|registers|stack frame|spill" | sed 's/ptxas info *: //'
