@@ -88,6 +88,12 @@ impl SlenderDevice {
         self.dev.counters()
     }
 
+    /// On the host emulation, run the blocks of every later launch in a random order (`seed`
+    /// nonzero; 0: in order): [`Device::shuffle_blocks`].
+    pub fn shuffle_blocks(&self, seed: u64) -> bool {
+        self.dev.shuffle_blocks(seed)
+    }
+
     /// The rule `(s, w)` on the device.
     pub fn rule(&self, (s, w): (&[f64], &[f64])) -> Result<DeviceRule, GpuError> {
         if s.len() != w.len() || s.is_empty() {
@@ -270,8 +276,8 @@ impl SlenderDevice {
 /// What the slender-body mobility keeps on its sum's device: the kernels and the rule (opened
 /// at the first solve there), and between resident steps the last solution of (P4) and the
 /// flow velocities (6 per rod) of `n` rods (`host_behind`: the host's copies are older), copies
-/// of both from before the step (restored where the step fails), and the step's axes and
-/// nodes (from the prediction, for the final solve).
+/// of both from before the step (restored where the step fails), the step's axes and nodes
+/// (from the prediction, for the final solve), and the emulation's block order.
 #[derive(Debug, Default)]
 pub struct SlenderState {
     pub(crate) kern: Option<(SlenderDevice, DeviceRule)>,
@@ -280,6 +286,8 @@ pub struct SlenderState {
     pub(crate) n: usize,
     pub(crate) host_behind: bool,
     pub(crate) before: (Option<Buffer>, Option<Buffer>),
+    /// The kernels' block order on the host emulation ([`SlenderDevice::shuffle_blocks`]).
+    pub(crate) shuffle: u64,
     pub(crate) step: Option<(Buffer, Buffer)>,
 }
 

@@ -35,13 +35,16 @@ type StepSolve = ((Buffer, Buffer), (GmresInfo, HydroReport, f64));
 
 /// The kernels beside `sum`'s device, opened where not yet.
 fn kernels<'a>(
-    slot: &'a mut Option<(SlenderDevice, DeviceRule)>,
+    (slot, shuffle): (&'a mut Option<(SlenderDevice, DeviceRule)>, u64),
     sum: &SpectralEwald,
     (s, w): (&[f64], &[f64]),
 ) -> Result<&'a (SlenderDevice, DeviceRule), MobilityError> {
     if slot.is_none() {
         let backend = sum.device_sum()?.backend();
         let kern = SlenderDevice::open(backend).map_err(device_error)?;
+        if shuffle != 0 {
+            kern.shuffle_blocks(shuffle);
+        }
         let rule = kern.rule((s, w)).map_err(device_error)?;
         *slot = Some((kern, rule));
     }
@@ -129,6 +132,16 @@ impl Solve<'_> {
 }
 
 impl SlenderBody {
+    /// On the host emulation, run the blocks of this mobility's own kernels (not its sum's:
+    /// [`crate::ewald::gpu::GpuFourier::shuffle_blocks`]) in a random order from now on
+    /// (`seed` nonzero; 0: in order), to expose races between blocks.
+    pub fn shuffle_device_blocks(&mut self, seed: u64) {
+        self.device.shuffle = seed;
+        if let Some((kern, _)) = &self.device.kern {
+            kern.shuffle_blocks(seed);
+        }
+    }
+
     fn geometry(&self, box_length: f64) -> RpyGeometry {
         RpyGeometry {
             box_length,
@@ -159,7 +172,11 @@ impl SlenderBody {
         let e = eta(self.params.diameter);
         let sum = resident_sum(self.sum.as_mut())?;
         let mut run = || -> Result<_, MobilityError> {
-            let (kern, rule) = kernels(&mut self.device.kern, sum, (&self.s, &self.w))?;
+            let (kern, rule) = kernels(
+                (&mut self.device.kern, self.device.shuffle),
+                sum,
+                (&self.s, &self.w),
+            )?;
             let up = |v: &[f64]| kern.upload(v).map_err(device_error);
             let (nodes, axes, b) = (up(points.as_flattened())?, up(p.as_flattened())?, up(rhs)?);
             let mut xd = up(x)?;
@@ -208,7 +225,7 @@ impl SlenderBody {
         let sum = resident_sum(self.sum.as_mut())?;
         let dev = &mut self.device;
         let mut run = || -> Result<_, MobilityError> {
-            let (kern, rule) = kernels(&mut dev.kern, sum, (&self.s, &self.w))?;
+            let (kern, rule) = kernels((&mut dev.kern, dev.shuffle), sum, (&self.s, &self.w))?;
             let up = |v: &[f64]| kern.upload(v).map_err(device_error);
             if dev.n != n {
                 (dev.x, dev.flow) = (None, None);
