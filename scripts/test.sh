@@ -18,6 +18,10 @@ if ! command -v c++ >/dev/null 2>&1 && ! command -v g++ >/dev/null 2>&1 \
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq g++ >/dev/null
 fi
 export MOTILE_REQUIRE_CXX=1
+# The emulation's compiled kernel sets, kept for the processes the tests start (each would
+# otherwise compile the same sets again); emptied first, so that every set is compiled anew.
+export MOTILE_EMULATION_CACHE="$PWD/target/emulation-cache"
+rm -rf "$MOTILE_EMULATION_CACHE"
 cargo test --release --workspace
 # The Python module (python/, outside the cargo workspace): built by maturin through pip, in
 # this target folder (it reuses the crates just compiled), then its tests, which also run the

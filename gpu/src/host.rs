@@ -252,12 +252,136 @@ fn compiler() -> Result<String, GpuError> {
         })
 }
 
+/// The libraries compiled so far in this process, by compiler and text: another device with
+/// the same kernels loads a copy of the same bytes (a file of its own, so that it has its own
+/// globals: the dynamic loader would share one library between two loads of one file) instead
+/// of compiling again, which takes seconds per kernel set.
+static COMPILED: std::sync::Mutex<Vec<Compiled>> = std::sync::Mutex::new(Vec::new());
+
+/// A compiled library: the compiler, the text and the library's bytes.
+type Compiled = (String, String, std::sync::Arc<Vec<u8>>);
+
+/// The shared library of `text` compiled by `compiler`, from [`COMPILED`] or compiled now.
+fn library_bytes(
+    compiler: &str,
+    text: &str,
+    dir: &std::path::Path,
+) -> Result<std::sync::Arc<Vec<u8>>, GpuError> {
+    let cached = |c: &[Compiled]| {
+        c.iter()
+            .find(|(cc, t, _)| cc == compiler && t == text)
+            .map(|(_, _, b)| b.clone())
+    };
+    let lock = || {
+        COMPILED
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    };
+    if let Some(bytes) = cached(&lock()) {
+        return Ok(bytes);
+    }
+    let on_disk = DiskCache::from_env(compiler, text);
+    if let Some(bytes) = on_disk.as_ref().and_then(DiskCache::read) {
+        let bytes = std::sync::Arc::new(bytes);
+        lock().push((compiler.to_string(), text.to_string(), bytes.clone()));
+        return Ok(bytes);
+    }
+    let src = dir.join("kernels.cpp");
+    let lib = dir.join("compiled.so");
+    std::fs::write(&src, text)
+        .map_err(|e| GpuError::Compile(format!("writing {}: {e}", src.display())))?;
+    let out = Command::new(compiler)
+        // No fused multiply-adds (NVRTC compiles with `fmad` off too): the kernels' results
+        // are then the CPU's bits where they do the CPU's arithmetic in its order, on hosts
+        // whose compilers would fuse by default (aarch64).
+        .args([
+            "-std=c++17",
+            "-O2",
+            "-ffp-contract=off",
+            "-fPIC",
+            "-shared",
+            "-pthread",
+            "-o",
+        ])
+        .arg(&lib)
+        .arg(&src)
+        .output()
+        .map_err(|e| GpuError::Compile(format!("running {compiler}: {e}")))?;
+    if !out.status.success() {
+        return Err(GpuError::Compile(format!(
+            "{compiler} failed:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        )));
+    }
+    let bytes = std::fs::read(&lib)
+        .map_err(|e| GpuError::Compile(format!("reading {}: {e}", lib.display())))?;
+    if let Some(disk) = &on_disk {
+        disk.write(&bytes);
+    }
+    let bytes = std::sync::Arc::new(bytes);
+    let mut compiled = lock();
+    // Another thread may have compiled the same text meanwhile: either copy will do.
+    if cached(&compiled).is_none() {
+        compiled.push((compiler.to_string(), text.to_string(), bytes.clone()));
+    }
+    Ok(bytes)
+}
+
+/// Compiled libraries kept between processes, in the folder `MOTILE_EMULATION_CACHE` names
+/// (unset: none; the test script sets it, as the runs it checks start many processes): a
+/// library is `<key>.so` beside `<key>.key`, the compiler's name and the whole text, which must
+/// match for the library to be used (the key is only a hash). Written atomically; a cache that
+/// cannot be read or written is passed over (the kernels are then compiled).
+struct DiskCache {
+    so: std::path::PathBuf,
+    key_file: std::path::PathBuf,
+    key: String,
+}
+
+impl DiskCache {
+    fn from_env(compiler: &str, text: &str) -> Option<Self> {
+        let dir = std::path::PathBuf::from(std::env::var_os("MOTILE_EMULATION_CACHE")?);
+        (!dir.as_os_str().is_empty()).then(|| Self::new(&dir, compiler, text))
+    }
+
+    fn new(dir: &std::path::Path, compiler: &str, text: &str) -> Self {
+        use std::hash::{Hash, Hasher};
+        let key = format!("{compiler}\n{text}");
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        key.hash(&mut h);
+        let name = format!("{:016x}", h.finish());
+        Self {
+            so: dir.join(format!("{name}.so")),
+            key_file: dir.join(format!("{name}.key")),
+            key,
+        }
+    }
+
+    fn read(&self) -> Option<Vec<u8>> {
+        // The key is written after the library: where it matches, the library is whole.
+        let key = std::fs::read_to_string(&self.key_file).ok()?;
+        (key == self.key).then(|| std::fs::read(&self.so).ok())?
+    }
+
+    fn write(&self, bytes: &[u8]) {
+        let atomic = |path: &std::path::Path, data: &[u8]| -> std::io::Result<()> {
+            let dir = path.parent().unwrap_or(std::path::Path::new("."));
+            std::fs::create_dir_all(dir)?;
+            let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+            std::io::Write::write_all(&mut tmp, data)?;
+            tmp.persist(path).map_err(|e| e.error)?;
+            Ok(())
+        };
+        // Best effort: a failure leaves at most a library without its key (unused).
+        let _ = atomic(&self.so, bytes).and_then(|()| atomic(&self.key_file, self.key.as_bytes()));
+    }
+}
+
 impl Host {
     pub(crate) fn compile(source: &str, kernels: &[&str]) -> Result<Self, GpuError> {
         let compiler = compiler()?;
         let dir = tempfile::tempdir()
             .map_err(|e| GpuError::Compile(format!("a scratch directory: {e}")))?;
-        let src = dir.path().join("kernels.cpp");
         let lib = dir.path().join("libkernels.so");
         let mut text = String::from(PRELUDE);
         text.push_str("#line 1 \"kernels.cu\"\n");
@@ -268,31 +392,9 @@ impl Host {
             let threaded = is_threaded(source, k);
             text.push_str(&format!("MOTILE_ENTRY({k}, {threaded})\n"));
         }
-        std::fs::write(&src, text)
-            .map_err(|e| GpuError::Compile(format!("writing {}: {e}", src.display())))?;
-        let out = Command::new(&compiler)
-            // No fused multiply-adds (NVRTC compiles with `fmad` off too): the kernels' results
-            // are then the CPU's bits where they do the CPU's arithmetic in its order, on hosts
-            // whose compilers would fuse by default (aarch64).
-            .args([
-                "-std=c++17",
-                "-O2",
-                "-ffp-contract=off",
-                "-fPIC",
-                "-shared",
-                "-pthread",
-                "-o",
-            ])
-            .arg(&lib)
-            .arg(&src)
-            .output()
-            .map_err(|e| GpuError::Compile(format!("running {compiler}: {e}")))?;
-        if !out.status.success() {
-            return Err(GpuError::Compile(format!(
-                "{compiler} failed:\n{}",
-                String::from_utf8_lossy(&out.stderr)
-            )));
-        }
+        let bytes = library_bytes(&compiler, &text, dir.path())?;
+        std::fs::write(&lib, bytes.as_slice())
+            .map_err(|e| GpuError::Compile(format!("writing {}: {e}", lib.display())))?;
         // SAFETY: the library was just built from the prelude and the kernel source; loading
         // it runs only the C++ runtime's static initialisers (the kernels have none).
         let library = unsafe { libloading::Library::new(&lib) }
@@ -447,5 +549,28 @@ extern "C" __global__ void synced(double* x) { __syncthreads(); }
         assert!(is_threaded(src, "synced"));
         assert!(kernel_body(src, "tiled").ends_with("x[0] = t[0];\n}"));
         assert_eq!(kernel_body(src, "missing"), "");
+    }
+
+    /// The disk cache gives back what was written for the same compiler and text, and nothing
+    /// for another text, even one whose files have the same name (a hash collision), nor
+    /// where the key was never written.
+    #[test]
+    fn the_disk_cache_returns_a_library_only_for_its_own_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = DiskCache::new(dir.path(), "c++", "text a");
+        assert!(a.read().is_none(), "an empty cache");
+        a.write(b"library a");
+        assert_eq!(a.read().as_deref(), Some(&b"library a"[..]));
+        let again = DiskCache::new(dir.path(), "c++", "text a");
+        assert_eq!(again.read().as_deref(), Some(&b"library a"[..]));
+        assert!(DiskCache::new(dir.path(), "g++", "text a").read().is_none());
+        assert!(DiskCache::new(dir.path(), "c++", "text b").read().is_none());
+        // A collision: another text under the same file names.
+        let mut other = DiskCache::new(dir.path(), "c++", "text b");
+        (other.so, other.key_file) = (a.so.clone(), a.key_file.clone());
+        assert!(other.read().is_none(), "a library for another text");
+        // A library whose key was not written (interrupted between the two files).
+        std::fs::remove_file(&a.key_file).unwrap();
+        assert!(a.read().is_none(), "a library without its key");
     }
 }

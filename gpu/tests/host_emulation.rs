@@ -389,24 +389,27 @@ fn integer_atomics_return_the_old_value() {
     assert_eq!(count.iter().sum::<i32>(), n as i32);
 }
 
+/// The block that wrote last in a launch of `blocks` blocks of `last_block`.
+fn last_block(dev: &Device, blocks: usize) -> i32 {
+    let mut ob = dev.zeros::<i32>(1).unwrap();
+    // SAFETY: last_block writes out[0] only (one value).
+    unsafe {
+        dev.launch(
+            blocks * motile_gpu::THREADS as usize,
+            LastBlock { out: &mut ob },
+        )
+    }
+    .unwrap();
+    dev.download(&ob).unwrap()[0]
+}
+
 /// Blocks run in turn (the last block writes last), or in a new order at every launch once
 /// shuffled: a race between blocks then shows as results that vary between launches.
 #[test]
 fn shuffled_blocks_expose_a_race_between_blocks() {
     let Some(dev) = open(&ATOMICS) else { return };
     let blocks = 40usize;
-    let mut ob = dev.zeros::<i32>(1).unwrap();
-    let mut run = |dev: &Device| {
-        // SAFETY: last_block writes out[0] only (one value).
-        unsafe {
-            dev.launch(
-                blocks * motile_gpu::THREADS as usize,
-                LastBlock { out: &mut ob },
-            )
-        }
-        .unwrap();
-        dev.download(&ob).unwrap()[0]
-    };
+    let run = |dev: &Device| last_block(dev, blocks);
     let in_turn: Vec<i32> = (0..5).map(|_| run(&dev)).collect();
     assert_eq!(in_turn, vec![blocks as i32 - 1; 5]);
     assert!(dev.shuffle_blocks(7));
@@ -417,4 +420,25 @@ fn shuffled_blocks_expose_a_race_between_blocks() {
     );
     dev.shuffle_blocks(0);
     assert_eq!(run(&dev), blocks as i32 - 1);
+}
+
+/// Two devices with the same kernels (the second loads the library the first compiled, from
+/// the process's cache) keep their own globals: shuffling one's blocks leaves the other's in
+/// turn. (Were the two loads one library, the second would run shuffled too.)
+#[test]
+fn devices_with_the_same_kernels_keep_their_own_globals() {
+    let (Some(a), Some(b)) = (open(&ATOMICS), open(&ATOMICS)) else {
+        return;
+    };
+    let blocks = 40usize;
+    let last = |dev: &Device| last_block(dev, blocks);
+    assert!(a.shuffle_blocks(11));
+    let shuffled: std::collections::BTreeSet<i32> = (0..10).map(|_| last(&a)).collect();
+    assert!(shuffled.len() > 1, "the shuffled device ran in turn");
+    let in_turn: Vec<i32> = (0..10).map(|_| last(&b)).collect();
+    assert_eq!(
+        in_turn,
+        vec![blocks as i32 - 1; 10],
+        "the other device's blocks ran shuffled"
+    );
 }
