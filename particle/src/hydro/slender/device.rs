@@ -61,7 +61,23 @@ struct Solve<'a> {
     eta: f64,
 }
 
-impl Solve<'_> {
+impl<'a> Solve<'a> {
+    fn new(
+        kern: &'a SlenderDevice,
+        rule: &'a DeviceRule,
+        sum: &'a mut SpectralEwald,
+        geometry: RpyGeometry,
+        eta: f64,
+    ) -> Self {
+        Self {
+            kern,
+            rule,
+            sum,
+            geometry,
+            eta,
+        }
+    }
+
     /// From the warm start `x` (the last iterate left there, also on failure).
     fn run(
         self,
@@ -180,13 +196,7 @@ impl SlenderBody {
             let up = |v: &[f64]| kern.upload(v).map_err(device_error);
             let (nodes, axes, b) = (up(points.as_flattened())?, up(p.as_flattened())?, up(rhs)?);
             let mut xd = up(x)?;
-            let solve = Solve {
-                kern,
-                rule,
-                sum,
-                geometry,
-                eta: e,
-            };
+            let solve = Solve::new(kern, rule, sum, geometry, e);
             let solved = solve.run(
                 (&nodes, &axes, p.len()),
                 (&b, &mut xd),
@@ -263,13 +273,7 @@ impl SlenderBody {
                     .map_err(device_error)?;
                 (v, None)
             } else {
-                let solve = Solve {
-                    kern,
-                    rule,
-                    sum,
-                    geometry,
-                    eta: e,
-                };
+                let solve = Solve::new(kern, rule, sum, geometry, e);
                 let (v, solved) = solve.step(
                     (&nodes, &p, n),
                     None,
@@ -323,13 +327,7 @@ impl SlenderBody {
                 &zeros
             }
         };
-        let solve = Solve {
-            kern,
-            rule,
-            sum,
-            geometry,
-            eta: e,
-        };
+        let solve = Solve::new(kern, rule, sum, geometry, e);
         let (v, (info, accuracy, seconds)) = solve.step(
             (&nodes, &p, n),
             Some(ft),
