@@ -171,16 +171,7 @@ fn check_steps(level: &str, backend: Backend, rods: &RodSet) {
         active += want.contact.active;
     }
     assert!(active > 20, "{level}: too few active contacts: {active}");
-    let mut on_device = rods.clone();
-    device.download(&mut on_device).unwrap();
-    let (dx, dq) = common::rods_difference(&on_device, &cpu);
-    let bound = 10.0 * STEPS as f64 * params.tolerance;
-    assert!(
-        dx <= bound && dq <= bound,
-        "{level}: after {STEPS} steps the centres differ by {dx:.1e} l, the quaternions by \
-         {dq:.1e} (bound {bound:.0e})"
-    );
-    assert_eq!(on_device.image, cpu.image, "{level}: images crossed");
+    let (dx, dq) = common::assert_device_rods_near(&device, &cpu, (STEPS, params.tolerance), level);
     eprintln!(
         "{STEPS} resident {level} steps of {} rods, {active} active contacts: centres within \
          {dx:.1e} l, quaternions within {dq:.1e}",

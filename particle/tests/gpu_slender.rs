@@ -349,16 +349,8 @@ fn check_steps(backend: Backend, open: impl Fn() -> GpuFourier) {
         corrections += want.correction_active;
     }
     assert!(active > 20, "too few active contacts: {active}");
-    let mut on_device = rods.clone();
-    device.download(&mut on_device).unwrap();
-    let (dx, dq) = common::rods_difference(&on_device, &cpu);
+    let (dx, dq) = common::assert_device_rods_near(&device, &cpu, (STEPS, params.tolerance), "sbt");
     let bound = 10.0 * STEPS as f64 * params.tolerance;
-    assert!(
-        dx <= bound && dq <= bound,
-        "after {STEPS} steps the centres differ by {dx:.1e} l, the quaternions by {dq:.1e} \
-         (bound {bound:.0e})"
-    );
-    assert_eq!(on_device.image, cpu.image, "images crossed");
     let warm = flow
         .resident_warm_state()
         .expect("the warm state on the device")

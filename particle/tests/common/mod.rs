@@ -121,6 +121,30 @@ pub fn emulation() -> Option<GpuFourier> {
     )
 }
 
+/// The rods of a resident stepper after `steps` steps against the CPU stepper's `cpu`: the
+/// centres and quaternions within 10 times the contact solver's tolerance per step (the device
+/// orders its constraints by pair, the CPU by cell) and the same periodic images; returns the
+/// largest differences (centres, quaternions). `what` names the case in the messages.
+#[cfg(feature = "gpu")]
+pub fn assert_device_rods_near(
+    device: &motile_particle::step::gpu::DeviceStepper,
+    cpu: &motile_particle::model::rods::RodSet,
+    (steps, tolerance): (usize, f64),
+    what: &str,
+) -> (f64, f64) {
+    let mut on_device = cpu.clone();
+    device.download(&mut on_device).unwrap();
+    let (dx, dq) = rods_difference(&on_device, cpu);
+    let bound = 10.0 * steps as f64 * tolerance;
+    assert!(
+        dx <= bound && dq <= bound,
+        "{what}: after {steps} steps the centres differ by {dx:.1e} l, the quaternions by \
+         {dq:.1e} (bound {bound:.0e})"
+    );
+    assert_eq!(on_device.image, cpu.image, "{what}: images crossed");
+    (dx, dq)
+}
+
 /// The largest difference of two copies of the same rods after steps: of the centres (the
 /// nearest image, rod lengths) and of the quaternions' components.
 pub fn rods_difference(
