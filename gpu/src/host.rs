@@ -229,21 +229,27 @@ impl std::fmt::Debug for Host {
     }
 }
 
+/// A C++ compiler: the command and what its `--version` says.
+struct Compiler {
+    command: String,
+    version: String,
+}
+
 /// The C++ compiler: `$CXX`, else the first of `c++`, `g++`, `clang++` that runs.
-fn compiler() -> Result<String, GpuError> {
+fn compiler() -> Result<Compiler, GpuError> {
     let candidates: Vec<String> = match std::env::var("CXX") {
         Ok(c) if !c.is_empty() => vec![c],
         _ => ["c++", "g++", "clang++"].map(String::from).to_vec(),
     };
     candidates
         .iter()
-        .find(|c| {
-            Command::new(c)
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
+        .find_map(|c| {
+            let out = Command::new(c).arg("--version").output().ok()?;
+            out.status.success().then(|| Compiler {
+                command: c.clone(),
+                version: String::from_utf8_lossy(&out.stdout).trim().to_string(),
+            })
         })
-        .cloned()
         .ok_or_else(|| {
             GpuError::NoDevice(format!(
                 "the host emulation needs a C++ compiler and none of {} runs",
@@ -252,86 +258,118 @@ fn compiler() -> Result<String, GpuError> {
         })
 }
 
-/// The libraries compiled so far in this process, by compiler and text: another device with
-/// the same kernels loads a copy of the same bytes (a file of its own, so that it has its own
+/// The compiler's flags. No fused multiply-adds (NVRTC compiles with `fmad` off too): the
+/// kernels' results are then the CPU's bits where they do the CPU's arithmetic in its order,
+/// on hosts whose compilers would fuse by default (aarch64).
+const FLAGS: [&str; 6] = [
+    "-std=c++17",
+    "-O2",
+    "-ffp-contract=off",
+    "-fPIC",
+    "-shared",
+    "-pthread",
+];
+
+/// What identifies a compiled library: the compiler (command and version), the flags, the
+/// machine and the whole text.
+fn library_key(compiler: &Compiler, text: &str) -> String {
+    format!(
+        "{}\n{}\n{}\n{}-{}\n{text}",
+        compiler.command,
+        compiler.version,
+        FLAGS.join(" "),
+        std::env::consts::ARCH,
+        std::env::consts::OS
+    )
+}
+
+/// A library's place in [`COMPILED`]: empty until the first device that needs it has it.
+type Slot = std::sync::Arc<std::sync::Mutex<Option<std::sync::Arc<Vec<u8>>>>>;
+
+/// The libraries compiled so far in this process, by [`library_key`]: another device with the
+/// same kernels loads a copy of the same bytes (a file of its own, so that it has its own
 /// globals: the dynamic loader would share one library between two loads of one file) instead
-/// of compiling again, which takes seconds per kernel set.
-static COMPILED: std::sync::Mutex<Vec<Compiled>> = std::sync::Mutex::new(Vec::new());
+/// of compiling again, which takes seconds per kernel set. Devices opened together with the
+/// same kernels wait for one compilation (the slot's lock); different kernels compile side by
+/// side.
+static COMPILED: std::sync::Mutex<Vec<(String, Slot)>> = std::sync::Mutex::new(Vec::new());
 
-/// A compiled library: the compiler, the text and the library's bytes.
-type Compiled = (String, String, std::sync::Arc<Vec<u8>>);
-
-/// The shared library of `text` compiled by `compiler`, from [`COMPILED`] or compiled now.
+/// The shared library of `text` compiled by `compiler`: from [`COMPILED`], else from the disk
+/// cache, else compiled now in `dir`.
 fn library_bytes(
-    compiler: &str,
+    compiler: &Compiler,
     text: &str,
     dir: &std::path::Path,
 ) -> Result<std::sync::Arc<Vec<u8>>, GpuError> {
-    let cached = |c: &[Compiled]| {
-        c.iter()
-            .find(|(cc, t, _)| cc == compiler && t == text)
-            .map(|(_, _, b)| b.clone())
-    };
-    let lock = || {
-        COMPILED
+    let key = library_key(compiler, text);
+    let slot = {
+        let mut all = COMPILED
             .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        match all.iter().find(|(k, _)| *k == key) {
+            Some((_, s)) => s.clone(),
+            None => {
+                let s = Slot::default();
+                all.push((key.clone(), s.clone()));
+                s
+            }
+        }
     };
-    if let Some(bytes) = cached(&lock()) {
-        return Ok(bytes);
+    let mut held = slot
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if let Some(bytes) = held.as_ref() {
+        return Ok(bytes.clone());
     }
-    let on_disk = DiskCache::from_env(compiler, text);
-    if let Some(bytes) = on_disk.as_ref().and_then(DiskCache::read) {
-        let bytes = std::sync::Arc::new(bytes);
-        lock().push((compiler.to_string(), text.to_string(), bytes.clone()));
-        return Ok(bytes);
-    }
+    let on_disk = DiskCache::from_env(&key);
+    let bytes = match on_disk.as_ref().and_then(DiskCache::read) {
+        Some(bytes) => bytes,
+        None => {
+            let bytes = compile_library(compiler, text, dir)?;
+            if let Some(disk) = &on_disk {
+                disk.write(&bytes);
+            }
+            bytes
+        }
+    };
+    let bytes = std::sync::Arc::new(bytes);
+    *held = Some(bytes.clone());
+    Ok(bytes)
+}
+
+/// `text` compiled by `compiler` into a shared library, in the folder `dir`: its bytes.
+fn compile_library(
+    compiler: &Compiler,
+    text: &str,
+    dir: &std::path::Path,
+) -> Result<Vec<u8>, GpuError> {
     let src = dir.join("kernels.cpp");
     let lib = dir.join("compiled.so");
     std::fs::write(&src, text)
         .map_err(|e| GpuError::Compile(format!("writing {}: {e}", src.display())))?;
-    let out = Command::new(compiler)
-        // No fused multiply-adds (NVRTC compiles with `fmad` off too): the kernels' results
-        // are then the CPU's bits where they do the CPU's arithmetic in its order, on hosts
-        // whose compilers would fuse by default (aarch64).
-        .args([
-            "-std=c++17",
-            "-O2",
-            "-ffp-contract=off",
-            "-fPIC",
-            "-shared",
-            "-pthread",
-            "-o",
-        ])
+    let command = &compiler.command;
+    let out = Command::new(command)
+        .args(FLAGS)
+        .arg("-o")
         .arg(&lib)
         .arg(&src)
         .output()
-        .map_err(|e| GpuError::Compile(format!("running {compiler}: {e}")))?;
+        .map_err(|e| GpuError::Compile(format!("running {command}: {e}")))?;
     if !out.status.success() {
         return Err(GpuError::Compile(format!(
-            "{compiler} failed:\n{}",
+            "{command} failed:\n{}",
             String::from_utf8_lossy(&out.stderr)
         )));
     }
-    let bytes = std::fs::read(&lib)
-        .map_err(|e| GpuError::Compile(format!("reading {}: {e}", lib.display())))?;
-    if let Some(disk) = &on_disk {
-        disk.write(&bytes);
-    }
-    let bytes = std::sync::Arc::new(bytes);
-    let mut compiled = lock();
-    // Another thread may have compiled the same text meanwhile: either copy will do.
-    if cached(&compiled).is_none() {
-        compiled.push((compiler.to_string(), text.to_string(), bytes.clone()));
-    }
-    Ok(bytes)
+    std::fs::read(&lib).map_err(|e| GpuError::Compile(format!("reading {}: {e}", lib.display())))
 }
 
 /// Compiled libraries kept between processes, in the folder `MOTILE_EMULATION_CACHE` names
 /// (unset: none; the test script sets it, as the runs it checks start many processes): a
-/// library is `<key>.so` beside `<key>.key`, the compiler's name and the whole text, which must
-/// match for the library to be used (the key is only a hash). Written atomically; a cache that
-/// cannot be read or written is passed over (the kernels are then compiled).
+/// library is `<hash>.so` beside `<hash>.key`, its whole [`library_key`] (compiler, version,
+/// flags, machine, text), which must match for the library to be used (the hash only names
+/// the files). Written atomically, the key last and each file synced before its rename; a
+/// cache that cannot be read or written is passed over (the kernels are then compiled).
 struct DiskCache {
     so: std::path::PathBuf,
     key_file: std::path::PathBuf,
@@ -339,14 +377,14 @@ struct DiskCache {
 }
 
 impl DiskCache {
-    fn from_env(compiler: &str, text: &str) -> Option<Self> {
+    fn from_env(key: &str) -> Option<Self> {
         let dir = std::path::PathBuf::from(std::env::var_os("MOTILE_EMULATION_CACHE")?);
-        (!dir.as_os_str().is_empty()).then(|| Self::new(&dir, compiler, text))
+        (!dir.as_os_str().is_empty()).then(|| Self::new(&dir, key))
     }
 
-    fn new(dir: &std::path::Path, compiler: &str, text: &str) -> Self {
+    fn new(dir: &std::path::Path, key: &str) -> Self {
         use std::hash::{Hash, Hasher};
-        let key = format!("{compiler}\n{text}");
+        let key = key.to_string();
         let mut h = std::collections::hash_map::DefaultHasher::new();
         key.hash(&mut h);
         let name = format!("{:016x}", h.finish());
@@ -369,6 +407,7 @@ impl DiskCache {
             std::fs::create_dir_all(dir)?;
             let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
             std::io::Write::write_all(&mut tmp, data)?;
+            tmp.as_file().sync_all()?;
             tmp.persist(path).map_err(|e| e.error)?;
             Ok(())
         };
@@ -395,7 +434,8 @@ impl Host {
         let bytes = library_bytes(&compiler, &text, dir.path())?;
         std::fs::write(&lib, bytes.as_slice())
             .map_err(|e| GpuError::Compile(format!("writing {}: {e}", lib.display())))?;
-        // SAFETY: the library was just built from the prelude and the kernel source; loading
+        // SAFETY: the library was built from the prelude and the kernel source (now, or by
+        // this compiler with these flags from this text earlier: `library_bytes`); loading
         // it runs only the C++ runtime's static initialisers (the kernels have none).
         let library = unsafe { libloading::Library::new(&lib) }
             .map_err(|e| GpuError::Compile(format!("loading the emulated kernels: {e}")))?;
@@ -426,7 +466,7 @@ impl Host {
         };
         Ok(Self {
             running: std::sync::Mutex::new(()),
-            compiler,
+            compiler: compiler.command,
             kernels: map,
             shuffle,
             _lib: library,
@@ -551,24 +591,39 @@ extern "C" __global__ void synced(double* x) { __syncthreads(); }
         assert_eq!(kernel_body(src, "missing"), "");
     }
 
-    /// The disk cache gives back what was written for the same compiler and text, and nothing
-    /// for another text, even one whose files have the same name (a hash collision), nor
-    /// where the key was never written.
+    /// The disk cache gives back what was written for the same key (compiler, version, flags,
+    /// machine, text), and nothing for another key, even one whose files have the same name (a
+    /// hash collision), nor where the key was never written.
     #[test]
-    fn the_disk_cache_returns_a_library_only_for_its_own_text() {
+    fn the_disk_cache_returns_a_library_only_for_its_own_key() {
         let dir = tempfile::tempdir().unwrap();
-        let a = DiskCache::new(dir.path(), "c++", "text a");
+        let gcc = |version: &str| Compiler {
+            command: "c++".into(),
+            version: version.into(),
+        };
+        let key = |c: &Compiler, text: &str| library_key(c, text);
+        let a = DiskCache::new(dir.path(), &key(&gcc("12.2"), "text a"));
         assert!(a.read().is_none(), "an empty cache");
         a.write(b"library a");
         assert_eq!(a.read().as_deref(), Some(&b"library a"[..]));
-        let again = DiskCache::new(dir.path(), "c++", "text a");
+        let again = DiskCache::new(dir.path(), &key(&gcc("12.2"), "text a"));
         assert_eq!(again.read().as_deref(), Some(&b"library a"[..]));
-        assert!(DiskCache::new(dir.path(), "g++", "text a").read().is_none());
-        assert!(DiskCache::new(dir.path(), "c++", "text b").read().is_none());
-        // A collision: another text under the same file names.
-        let mut other = DiskCache::new(dir.path(), "c++", "text b");
-        (other.so, other.key_file) = (a.so.clone(), a.key_file.clone());
-        assert!(other.read().is_none(), "a library for another text");
+        let clang = Compiler {
+            command: "clang++".into(),
+            version: "12.2".into(),
+        };
+        for (what, other) in [
+            ("another compiler", key(&clang, "text a")),
+            ("another version", key(&gcc("13.1"), "text a")),
+            ("another text", key(&gcc("12.2"), "text b")),
+        ] {
+            let c = DiskCache::new(dir.path(), &other);
+            assert!(c.read().is_none(), "{what}: a library found");
+            // A collision: the other key under the same file names.
+            let mut c = c;
+            (c.so, c.key_file) = (a.so.clone(), a.key_file.clone());
+            assert!(c.read().is_none(), "{what} under a colliding name: a library found");
+        }
         // A library whose key was not written (interrupted between the two files).
         std::fs::remove_file(&a.key_file).unwrap();
         assert!(a.read().is_none(), "a library without its key");
