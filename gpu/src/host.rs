@@ -622,7 +622,10 @@ extern "C" __global__ void synced(double* x) { __syncthreads(); }
             // A collision: the other key under the same file names.
             let mut c = c;
             (c.so, c.key_file) = (a.so.clone(), a.key_file.clone());
-            assert!(c.read().is_none(), "{what} under a colliding name: a library found");
+            assert!(
+                c.read().is_none(),
+                "{what} under a colliding name: a library found"
+            );
         }
         // A library whose key was not written (interrupted between the two files).
         std::fs::remove_file(&a.key_file).unwrap();
