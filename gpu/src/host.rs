@@ -366,13 +366,12 @@ fn compile_library(
 
 /// Compiled libraries kept between processes, in the folder `MOTILE_EMULATION_CACHE` names
 /// (unset: none; the test script sets it, as the runs it checks start many processes): a
-/// library is `<hash>.so` beside `<hash>.key`, its whole [`library_key`] (compiler, version,
-/// flags, machine, text), which must match for the library to be used (the hash only names
-/// the files). Written atomically, the key last and each file synced before its rename; a
-/// cache that cannot be read or written is passed over (the kernels are then compiled).
+/// library is one file `<hash>.lib`, its whole [`library_key`] (compiler, version, flags,
+/// machine, text) and its length, then the library's bytes; it is used only where the key
+/// matches (the hash only names the file). Written atomically (synced, then renamed); a cache
+/// that cannot be read or written is passed over (the kernels are then compiled).
 struct DiskCache {
-    so: std::path::PathBuf,
-    key_file: std::path::PathBuf,
+    path: std::path::PathBuf,
     key: String,
 }
 
@@ -384,35 +383,36 @@ impl DiskCache {
 
     fn new(dir: &std::path::Path, key: &str) -> Self {
         use std::hash::{Hash, Hasher};
-        let key = key.to_string();
         let mut h = std::collections::hash_map::DefaultHasher::new();
         key.hash(&mut h);
-        let name = format!("{:016x}", h.finish());
         Self {
-            so: dir.join(format!("{name}.so")),
-            key_file: dir.join(format!("{name}.key")),
-            key,
+            path: dir.join(format!("{:016x}.lib", h.finish())),
+            key: key.to_string(),
         }
     }
 
     fn read(&self) -> Option<Vec<u8>> {
-        // The key is written after the library: where it matches, the library is whole.
-        let key = std::fs::read_to_string(&self.key_file).ok()?;
-        (key == self.key).then(|| std::fs::read(&self.so).ok())?
+        let file = std::fs::read(&self.path).ok()?;
+        let (len, rest) = file.split_first_chunk::<8>()?;
+        let len = usize::try_from(u64::from_le_bytes(*len)).ok()?;
+        (rest.get(..len)? == self.key.as_bytes()).then(|| rest[len..].to_vec())
     }
 
     fn write(&self, bytes: &[u8]) {
-        let atomic = |path: &std::path::Path, data: &[u8]| -> std::io::Result<()> {
-            let dir = path.parent().unwrap_or(std::path::Path::new("."));
+        let write = || -> std::io::Result<()> {
+            let dir = self.path.parent().unwrap_or(std::path::Path::new("."));
             std::fs::create_dir_all(dir)?;
             let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
-            std::io::Write::write_all(&mut tmp, data)?;
+            let key = self.key.as_bytes();
+            for part in [&(key.len() as u64).to_le_bytes()[..], key, bytes] {
+                std::io::Write::write_all(&mut tmp, part)?;
+            }
             tmp.as_file().sync_all()?;
-            tmp.persist(path).map_err(|e| e.error)?;
+            tmp.persist(&self.path).map_err(|e| e.error)?;
             Ok(())
         };
-        // Best effort: a failure leaves at most a library without its key (unused).
-        let _ = atomic(&self.so, bytes).and_then(|()| atomic(&self.key_file, self.key.as_bytes()));
+        // Best effort: the kernels are compiled again where the file is missing.
+        let _ = write();
     }
 }
 
@@ -592,8 +592,8 @@ extern "C" __global__ void synced(double* x) { __syncthreads(); }
     }
 
     /// The disk cache gives back what was written for the same key (compiler, version, flags,
-    /// machine, text), and nothing for another key, even one whose files have the same name (a
-    /// hash collision), nor where the key was never written.
+    /// machine, text), and nothing for another key, even one whose file has the same name (a
+    /// hash collision), nor from a file cut short.
     #[test]
     fn the_disk_cache_returns_a_library_only_for_its_own_key() {
         let dir = tempfile::tempdir().unwrap();
@@ -619,16 +619,17 @@ extern "C" __global__ void synced(double* x) { __syncthreads(); }
         ] {
             let c = DiskCache::new(dir.path(), &other);
             assert!(c.read().is_none(), "{what}: a library found");
-            // A collision: the other key under the same file names.
+            // A collision: the other key under the same file name.
             let mut c = c;
-            (c.so, c.key_file) = (a.so.clone(), a.key_file.clone());
+            c.path = a.path.clone();
             assert!(
                 c.read().is_none(),
                 "{what} under a colliding name: a library found"
             );
         }
-        // A library whose key was not written (interrupted between the two files).
-        std::fs::remove_file(&a.key_file).unwrap();
-        assert!(a.read().is_none(), "a library without its key");
+        // A file cut short (its key not whole): no library.
+        let file = std::fs::read(&a.path).unwrap();
+        std::fs::write(&a.path, &file[..20]).unwrap();
+        assert!(a.read().is_none(), "a file cut short");
     }
 }
