@@ -24,6 +24,10 @@ pub struct Counters {
     pub downloads: u64,
     /// Bytes downloaded.
     pub download_bytes: u64,
+    /// Copies from one buffer to another on the device (no host round trip).
+    pub copies: u64,
+    /// Bytes copied on the device (each read once and written once).
+    pub copy_bytes: u64,
 }
 
 impl Counters {
@@ -40,6 +44,8 @@ impl Counters {
         self.upload_bytes += other.upload_bytes;
         self.downloads += other.downloads;
         self.download_bytes += other.download_bytes;
+        self.copies += other.copies;
+        self.copy_bytes += other.copy_bytes;
     }
 
     /// What was done after `before` (an earlier reading of the same device's counters).
@@ -59,6 +65,8 @@ impl Counters {
             upload_bytes: self.upload_bytes - before.upload_bytes,
             downloads: self.downloads - before.downloads,
             download_bytes: self.download_bytes - before.download_bytes,
+            copies: self.copies - before.copies,
+            copy_bytes: self.copy_bytes - before.copy_bytes,
         }
     }
 }

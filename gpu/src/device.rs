@@ -294,6 +294,10 @@ impl Device {
                 src.len, dst.len
             )));
         }
+        self.count(|c| {
+            c.copies += 1;
+            c.copy_bytes += (len * std::mem::size_of::<T>()) as u64;
+        });
         self.timed(
             || "copy".into(),
             || match (&self.inner, &src.data, &mut dst.data) {

@@ -104,15 +104,15 @@ pub(crate) fn counted_table() {
          the same on CUDA):\n"
     );
     println!(
-        "| step | fixed-point / solver iterations | launches | transforms (forward + inverse) | downloads (bytes) | uploads (bytes) |"
+        "| step | fixed-point / solver iterations | launches | transforms (forward + inverse) | downloads (bytes) | uploads (bytes) | copies on the device (bytes) |"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     for k in 0..3 {
         let before = gpu.counters();
         let r = gpu.step(0.01, false).expect("mean-field step");
         let c = gpu.counters().since(&before);
         println!(
-            "| mean-field {n}^3, step {} | {} | {} | {} + {} | {} ({}) | {} ({}) |",
+            "| mean-field {n}^3, step {} | {} | {} | {} + {} | {} ({}) | {} ({}) | {} ({}) |",
             k + 1,
             r.rhs.iterations,
             c.launches,
@@ -121,7 +121,9 @@ pub(crate) fn counted_table() {
             c.downloads,
             c.download_bytes,
             c.uploads,
-            c.upload_bytes
+            c.upload_bytes,
+            c.copies,
+            c.copy_bytes
         );
     }
     let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).expect("rods");
@@ -157,7 +159,7 @@ pub(crate) fn counted_table() {
             .expect("device step");
             let c = d.counters().since(&before);
             println!(
-                "| particle `{level}`, 432 rods, step {} | {} ({} projections) | {} | - | {} ({}) | {} ({}) |",
+                "| particle `{level}`, 432 rods, step {} | {} ({} projections) | {} | - | {} ({}) | {} ({}) | {} ({}) |",
                 k + 1,
                 r.contact.iterations,
                 r.projections,
@@ -165,7 +167,9 @@ pub(crate) fn counted_table() {
                 c.downloads,
                 c.download_bytes,
                 c.uploads,
-                c.upload_bytes
+                c.upload_bytes,
+                c.copies,
+                c.copy_bytes
             );
         }
     }
@@ -210,7 +214,7 @@ pub(crate) fn counted_table() {
                 String::new()
             };
             println!(
-                "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections{gmres}) | {} | {} + {} | {} ({}) | {} ({}) |",
+                "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections{gmres}) | {} | {} + {} | {} ({}) | {} ({}) | {} ({}) |",
                 k + 1,
                 r.contact.iterations,
                 r.projections,
@@ -220,7 +224,9 @@ pub(crate) fn counted_table() {
                 c.downloads,
                 c.download_bytes,
                 c.uploads,
-                c.upload_bytes
+                c.upload_bytes,
+                c.copies,
+                c.copy_bytes
             );
         }
     }
