@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The README's test command: installs what a fresh machine lacks (Python h5py + numpy for the
-# HDF5 interoperability tests and the Python module's) and a C++ compiler, runs the whole test
+# HDF5 interoperability tests and the Python module's), a C++ compiler and clang, runs the whole test
 # suite in release mode, then builds the Python module and runs its tests (pytest).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,6 +18,16 @@ if ! command -v c++ >/dev/null 2>&1 && ! command -v g++ >/dev/null 2>&1 \
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq g++ >/dev/null
 fi
 export MOTILE_REQUIRE_CXX=1
+# The kernels are also compiled as CUDA device code, without a GPU or a CUDA toolkit, by
+# clang's CUDA front end (motile_gpu::frontend: every kernel compiles, and the step's kernels
+# keep no stack): clang is installed when missing (Debian package), its absence a failure here.
+if ! command -v clang >/dev/null 2>&1 && [ -z "${MOTILE_CUDA_CLANG:-}" ]; then
+  SUDO=""
+  if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq clang >/dev/null
+fi
+export MOTILE_REQUIRE_CUDA_CLANG=1
 # The emulation's compiled kernel sets, kept for the processes the tests start (each would
 # otherwise compile the same sets again); emptied first, so that every set is compiled anew.
 export MOTILE_EMULATION_CACHE="$PWD/target/emulation-cache"
@@ -50,8 +60,9 @@ cargo test --release -p motile-particle --features gpu --test gpu_slender
 # step's against its design (the process's tally: the same bytes on the emulation as on CUDA;
 # a file of one test, as the tally is shared).
 cargo test --release -p motile-particle --features gpu --test gpu_memory
-# The GPU modules' own unit tests (kernel declarations against their sources, the spreaders'
-# reach and work model), which the default build leaves out with the feature.
+# The GPU modules' own unit tests (kernel declarations against their sources, the kernels
+# compiled as CUDA device code, the spreaders' reach and work model), which the default build
+# leaves out with the feature.
 cargo test --release -p motile-particle --features gpu --lib gpu
 cargo test --release -p motile-meanfield --features gpu --lib gpu
 cargo test --release -p motile-experiments --features gpu --test gpu_runs

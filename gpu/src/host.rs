@@ -343,25 +343,43 @@ fn compile_library(
     text: &str,
     dir: &std::path::Path,
 ) -> Result<Vec<u8>, GpuError> {
-    let src = dir.join("kernels.cpp");
     let lib = dir.join("compiled.so");
-    std::fs::write(&src, text)
+    compile_file(
+        &compiler.command,
+        &FLAGS,
+        text,
+        &dir.join("kernels.cpp"),
+        &lib,
+    )?;
+    std::fs::read(&lib).map_err(|e| GpuError::Compile(format!("reading {}: {e}", lib.display())))
+}
+
+/// `text` written to `src` and compiled by `command` with `flags` into `out`; the compiler's
+/// messages in the error where it fails.
+pub(crate) fn compile_file(
+    command: &str,
+    flags: &[&str],
+    text: &str,
+    src: &std::path::Path,
+    out: &std::path::Path,
+) -> Result<(), GpuError> {
+    std::fs::write(src, text)
         .map_err(|e| GpuError::Compile(format!("writing {}: {e}", src.display())))?;
-    let command = &compiler.command;
-    let out = Command::new(command)
-        .args(FLAGS)
+    let run = Command::new(command)
+        .args(flags)
         .arg("-o")
-        .arg(&lib)
-        .arg(&src)
+        .arg(out)
+        .arg(src)
         .output()
         .map_err(|e| GpuError::Compile(format!("running {command}: {e}")))?;
-    if !out.status.success() {
+    if !run.status.success() {
         return Err(GpuError::Compile(format!(
-            "{command} failed:\n{}",
-            String::from_utf8_lossy(&out.stderr)
+            "{command} {} failed:\n{}",
+            flags.join(" "),
+            String::from_utf8_lossy(&run.stderr)
         )));
     }
-    std::fs::read(&lib).map_err(|e| GpuError::Compile(format!("reading {}: {e}", lib.display())))
+    Ok(())
 }
 
 /// Compiled libraries kept between processes, in the folder `MOTILE_EMULATION_CACHE` names

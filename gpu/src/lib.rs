@@ -16,6 +16,10 @@
 //!   uses `__syncthreads` (block reductions in shared memory) runs each block's threads as OS
 //!   threads with a barrier, one block at a time.
 //!
+//! - **A CUDA compile check without a GPU** ([`frontend`]): a kernel set compiled as CUDA
+//!   device code by clang, which refuses what only a C++ compiler takes, and each kernel's
+//!   stack read off the PTX.
+//!
 //! Layouts: a real field of an `M^3` grid is `M^3` values, x fastest (`(z M + y) M + x`); its
 //! half spectrum `M M (M/2 + 1)` complex values as interleaved `(re, im)` pairs, the x mode
 //! fastest (`((kz M + ky)(M/2 + 1) + kx)`); a batch stores its fields one after another.
@@ -36,6 +40,7 @@ mod cuda;
 mod device;
 mod error;
 mod fft;
+pub mod frontend;
 mod host;
 mod kernel;
 mod launch;

@@ -251,14 +251,17 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
     int cell[CPT][3];
     bool inside[CPT];
     double acc[CPT][NF];
+#pragma unroll
     for (int cc = 0; cc < CPT; ++cc) {
         int ci = threadIdx.x + cc * blockDim.x;
         int local[3] = {ci % b, (ci / b) % b, ci / (b * b)};
         inside[cc] = ci < b * b * b;
+#pragma unroll
         for (int d = 0; d < 3; ++d) {
             cell[cc][d] = bin[d] * b + local[d];
             inside[cc] = inside[cc] && cell[cc][d] < m;
         }
+#pragma unroll
         for (int c = 0; c < NF; ++c) acc[cc][c] = 0.0;
     }
     __syncthreads();
@@ -270,19 +273,23 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
             int g = base + j, t = 0;
             while (st->at[t + 1] <= g) ++t;
             int i = perm[st->lo[t] + g - st->at[t]];
+#pragma unroll
             for (int d = 0; d < 3; ++d) {
                 double d0;
                 window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &st->first[j][d], &d0,
                             st->w[j][d]);
             }
+#pragma unroll
             for (int c = 0; c < NF; ++c) st->v[j][c] = vals[(long long)c * n + i];
         }
         __syncthreads();
+#pragma unroll
         for (int cc = 0; cc < CPT; ++cc) {
             if (!inside[cc]) continue;
             for (int j = 0; j < cnt; ++j) {
                 int q[3];
                 bool hit = true;
+#pragma unroll
                 for (int d = 0; d < 3; ++d) {
                     int e = cell[cc][d] - st->first[j][d];
                     if (e < 0) e += m;
@@ -291,14 +298,17 @@ __device__ void spread_cells_bin(const double* pts, const double* vals, const in
                 }
                 if (!hit) continue;
                 double wt = st->w[j][2][q[2]] * st->w[j][1][q[1]] * st->w[j][0][q[0]];
+#pragma unroll
                 for (int c = 0; c < NF; ++c) acc[cc][c] += wt * st->v[j][c];
             }
         }
     }
     long long m3 = grid_field(m), r = grid_row(m);
+#pragma unroll
     for (int cc = 0; cc < CPT; ++cc) {
         if (!inside[cc]) continue;
         long long g = ((long long)cell[cc][2] * m + cell[cc][1]) * r + cell[cc][0];
+#pragma unroll
         for (int c = 0; c < NF; ++c) grid[c * m3 + g] = acc[cc][c];
     }
 }
@@ -440,10 +450,12 @@ extern "C" __global__ void stresslet_modes(double* spectra, int m, double l, dou
 // g'(y - x_q) = 2 alpha (d0 + q h) g (as gather_gradient_point). With a compile-time support
 // P > 0 the x axis's weights are computed once into registers (the inner loop unrolled); with
 // P = 0 (the support p_rt at run time) each weight is computed where it is used. The y and z
-// axes' weights are computed per row. No local arrays: the kernels that call this need no
-// stack, so the driver reserves no local memory for them (a stack of window weights, 1 248
-// bytes per thread, reserved that many bytes for every thread the device can hold: 0.34 GB on
-// an H100). The weights are window_weight's values, the sums' operations in the same order.
+// axes' weights are computed per row. No local memory: every index into the arrays here is
+// known once the loops over them are unrolled (the outputs' loop too), so they live in
+// registers and the kernels that call this need no stack; the driver reserves a kernel's
+// stack for every thread the device can hold (a stack of window weights, 1 248 bytes per
+// thread, took 0.34 GB on an H100). The weights are window_weight's values, the sums'
+// operations in the same order.
 template <int P>
 __device__ void gather_point(const double* pts, const double* grid, double* out, int i, int n,
                              int gradient, int m, int p_rt, double l, double h, double alpha,
@@ -504,8 +516,12 @@ __device__ void gather_point(const double* pts, const double* grid, double* out,
         }
     }
     double h3 = h * h * h;
-    int outputs = gradient ? 12 : 3;
-    for (int c = 0; c < outputs; ++c) out[(long long)c * n + i] = h3 * acc[c];
+#pragma unroll
+    for (int c = 0; c < 3; ++c) out[(long long)c * n + i] = h3 * acc[c];
+    if (gradient) {
+#pragma unroll
+        for (int c = 3; c < 12; ++c) out[(long long)c * n + i] = h3 * acc[c];
+    }
 }
 
 // gather_point for point i with the support compiled in for the supports the sums use (4-20:
@@ -623,9 +639,10 @@ __device__ void rpy_pair(const double* r, const double* f, double f2, const doub
 
 // Every source j of another group within the cutoff of target t (cell order): pair(j, r)
 // with r the minimum-image offset target minus source. Few cells (fewer than five per axis):
-// every point; else the 5^3 stencil of cells around the target's.
+// every point; else the 5^3 stencil of cells around the target's. Inlined, so that the pair's
+// accumulators stay in registers (a pair passed to a call lives in local memory: a stack).
 template <typename Pair>
-__device__ void for_each_neighbour(int t, const double* pos, const int* group,
+__device__ __forceinline__ void for_each_neighbour(int t, const double* pos, const int* group,
                                    const int* start, int npts, int ncell, double l,
                                    double cutoff, Pair& pair) {
     double yt[3] = {pos[3 * t], pos[3 * t + 1], pos[3 * t + 2]};
@@ -683,7 +700,7 @@ struct RpyPair {
     int nt;
     double inv_h, c, ca, cb, a, r0sq;
     double acc[4];
-    __device__ void operator()(int j, const double* r, double) {
+    __device__ __forceinline__ void operator()(int j, const double* r, double) {
         const double* f = force + 3 * j;
         rpy_pair(r, f, f[0] * f[0] + f[1] * f[1] + f[2] * f[2], table, nt, inv_h, c, ca, cb, a,
                  r0sq, acc);
@@ -725,7 +742,10 @@ __device__ void stokeslet_real_derivatives(double r, double xi, double* d) {
     d[5] = g * (x2 * x2 + 2.0 * x2 / r2 + 3.0 / r4) + 3.0 * ec / (2.0 * r4 * r);
 }
 
-// The strengths: sigma[j] per point, or one strength for all (sigma null, sigma_all).
+// The strengths: sigma[j] per point (PER_POINT), or one strength for all (sigma_all). A
+// choice at compile time: one made at run time (`sigma ? sigma[j] : sigma_all`) becomes a load
+// through a pointer to either, which keeps sigma_all in local memory (a stack).
+template <bool PER_POINT>
 struct StressletPair {
     const double* orient;
     const double* sigma;
@@ -734,7 +754,7 @@ struct StressletPair {
     int nt;
     double inv_h, xi, r_direct, r0sq;
     double acc[13];
-    __device__ void operator()(int j, const double* x, double r2) {
+    __device__ __forceinline__ void operator()(int j, const double* x, double r2) {
         double r = sqrt(r2);
         double d[6];
         if (r < r_direct) {
@@ -756,7 +776,7 @@ struct StressletPair {
             }
         }
         const double* p = orient + 3 * j;
-        double s = sigma ? sigma[j] : sigma_all;
+        double s = PER_POINT ? sigma[j] : sigma_all;
         double a1r = d[1], a2r = d[2], c = d[3], c1r = d[4], c2r = d[5];
         double q = p[0] * x[0] + p[1] * x[1] + p[2] * x[2];
         double inv = 1.0 / r;
@@ -764,10 +784,13 @@ struct StressletPair {
         double a1p = (a2r - a1) * inv, c1p = (c2r - c1) * inv;
         double vp = (a1 + c) * q;
         double vx = c1 * q * q + c;
+#pragma unroll
         for (int i = 0; i < 3; ++i) acc[i] += -s * (vp * p[i] + vx * x[i]);
         double ap = (a1p + c1r) * q * inv;
         double bx = (c1p * q * q + c1r) * inv;
+#pragma unroll
         for (int i = 0; i < 3; ++i)
+#pragma unroll
             for (int m = 0; m < 3; ++m) {
                 double v = p[i] * (ap * x[m] + (a1 + c) * p[m]) +
                            x[i] * (bx * x[m] + 2.0 * c1 * q * p[m]) + (i == m ? vx : 0.0);
@@ -788,7 +811,7 @@ extern "C" __global__ void stresslet_real(const double* pos, const double* orien
                                           double r0sq) {
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= npts) return;
-    StressletPair pair{orient, sigma, 0.0, table, nt, inv_h, xi, r_direct, r0sq, {}};
+    StressletPair<true> pair{orient, sigma, 0.0, table, nt, inv_h, xi, r_direct, r0sq, {}};
     for_each_neighbour(t, pos, group, start, npts, ncell, l, cutoff, pair);
     for (int k = 0; k < 13; ++k) out[13 * t + k] = pair.acc[k];
 }

@@ -93,7 +93,7 @@ extern "C" __global__ void stresslet_real_points(const double* pos, const double
                                                  double r_direct, double r0sq) {
     int t = blockIdx.x * blockDim.x + threadIdx.x;
     if (t >= npts) return;
-    StressletPair pair{orient, nullptr, sigma, table, nt, inv_h, xi, r_direct, r0sq, {}};
+    StressletPair<false> pair{orient, nullptr, sigma, table, nt, inv_h, xi, r_direct, r0sq, {}};
     for_each_neighbour(t, pos, group, start, npts, ncell, l, cutoff, pair);
     long long i = members[t];
     for (int k = 0; k < 3; ++k) u[3 * i + k] = pair.acc[k];

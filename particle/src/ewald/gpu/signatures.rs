@@ -393,4 +393,19 @@ mod tests {
     fn declarations_match_the_source() {
         assert_eq!(super::KERNELS.check(), Ok(()));
     }
+
+    /// Every kernel compiles as CUDA device code (clang's CUDA front end, no GPU needed) and
+    /// keeps no stack (`motile_gpu::frontend`), those named apart.
+    ///
+    /// The spreaders that keep a point's window weights in an array of the support's length
+    /// (known at run time) have a stack: the atomic one (the slow twin) and the two a run takes
+    /// only when asked (`MOTILE_GPU_SPREAD=tiles|sorted`); the default, `spread_cells`, has none.
+    #[test]
+    fn the_kernels_compile_for_a_device_without_a_stack() {
+        let said = motile_gpu::frontend::check_set_in_test(
+            &super::KERNELS,
+            &["spread", "spread_tiles", "spread_sorted"],
+        );
+        eprintln!("{}", said.unwrap_or_else(|e| panic!("{e}")));
+    }
 }

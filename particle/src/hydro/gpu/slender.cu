@@ -31,9 +31,11 @@ extern "C" __global__ void slender_rhs(const double* p, const double* ft, const 
     const double* f = ft + 6 * r;
     const double* t = f + 3;
     const double* pr = p + 3 * r;
-    double txp[3] = {t[1] * pr[2] - t[2] * pr[1], t[2] * pr[0] - t[0] * pr[2],
-                     t[0] * pr[1] - t[1] * pr[0]};
-    rhs[k] = swim + f[d] / l + 12.0 * s[j] / (l * l * l) * txp[d];
+    // Component d of t x p (no array indexed by d: it would keep a stack, see kernels.cu's
+    // gather_point).
+    int d1 = d == 2 ? 0 : d + 1, d2 = d == 0 ? 2 : d - 1;
+    double txp = t[d1] * pr[d2] - t[d2] * pr[d1];
+    rhs[k] = swim + f[d] / l + 12.0 * s[j] / (l * l * l) * txp;
 }
 
 // The RPY sum's inputs from the density f: node k's force f_k w_(k mod m) as triples and

@@ -29,8 +29,8 @@ __device__ void quat_axis(const double* q, double* p) {
 
 // Pair k's constraint if the centerlines are closer than b + margin: writes ri, rj, n, phi to
 // row (10 doubles) and returns 1, else returns 0 (row untouched; it may be null).
-__device__ int pair_constraint(const double* x, const double* q, int i, int j, double l,
-                               double b, double margin, double* row) {
+__device__ __forceinline__ int pair_constraint(const double* x, const double* q, int i, int j,
+                                               double l, double b, double margin, double* row) {
     double pi[3], pj[3], d[3], xi[3], xj[3];
     quat_axis(q + 4 * i, pi);
     quat_axis(q + 4 * j, pj);

@@ -328,4 +328,12 @@ mod tests {
     fn declarations_match_the_source() {
         super::KERNELS.check().unwrap();
     }
+
+    /// Every kernel compiles as CUDA device code (clang's CUDA front end, no GPU needed) and
+    /// keeps no stack (`motile_gpu::frontend`), those named apart.
+    #[test]
+    fn the_kernels_compile_for_a_device_without_a_stack() {
+        let said = motile_gpu::frontend::check_set_in_test(&super::KERNELS, &[]);
+        eprintln!("{}", said.unwrap_or_else(|e| panic!("{e}")));
+    }
 }
