@@ -2,7 +2,8 @@
 //! for a device (`sm_80`, device code only) by clang's CUDA front end and its NVPTX back end,
 //! with a prelude that declares what NVRTC gives a source without includes (qualifiers,
 //! `double2`, the atomics, the math functions the kernels call), and each kernel's local
-//! memory (its stack, callees included) read off the PTX.
+//! memory (its stack, callees included) and static shared memory (at most
+//! [`STATIC_SHARED_LIMIT`] per block, or it does not load) read off the PTX.
 //!
 //! Why: the kernels run on the host emulation in CI, compiled as C++, which accepts code that
 //! no CUDA compiler does (a helper without `__device__`, a host-only call), and a kernel whose
@@ -91,7 +92,14 @@ pub struct DeviceCompile {
     /// Each kernel's local memory per thread in bytes (its own and its deepest callee's),
     /// by name: every `__global__` function of the source.
     pub stacks: BTreeMap<String, u64>,
+    /// Each kernel's static shared memory per block in bytes (the `__shared__` arrays it or
+    /// its callees use), by name.
+    pub shared: BTreeMap<String, u64>,
 }
+
+/// The static shared memory a block may declare (48 KB on every device since `sm_20`; more
+/// needs dynamic shared memory and an opt-in): a kernel over it does not load.
+pub const STATIC_SHARED_LIMIT: u64 = 48 * 1024;
 
 impl DeviceCompile {
     /// The kernels that keep a stack, with its bytes, other than those in `allowed`.
@@ -155,6 +163,7 @@ pub fn compile_for_device(set: &KernelSet, clang: &str) -> Result<DeviceCompile,
     Ok(DeviceCompile {
         compiler: format!("{clang}: {version}"),
         stacks: kernel_stacks(&text),
+        shared: kernel_shared(&text),
     })
 }
 
@@ -186,6 +195,18 @@ pub fn check_set(set: &KernelSet, allowed: &[&str]) -> Result<DeviceCompile, Che
             c.compiler
         )));
     }
+    let over: Vec<_> = c
+        .shared
+        .iter()
+        .filter(|(_, b)| **b > STATIC_SHARED_LIMIT)
+        .collect();
+    if !over.is_empty() {
+        return Err(CheckError::Failed(format!(
+            "{}: kernels over {STATIC_SHARED_LIMIT} bytes of static shared memory per block \
+             {over:?}: they would not load on a device",
+            c.compiler
+        )));
+    }
     let with_stack = c.with_stack(allowed);
     if !with_stack.is_empty() {
         return Err(CheckError::Failed(format!(
@@ -204,9 +225,11 @@ pub fn check_set(set: &KernelSet, allowed: &[&str]) -> Result<DeviceCompile, Che
 pub fn check_set_in_test(set: &KernelSet, allowed: &[&str]) -> Result<String, String> {
     match check_set(set, allowed) {
         Ok(c) => Ok(format!(
-            "{}: {} kernels compiled for sm_80, a stack only in {allowed:?}",
+            "{}: {} kernels compiled for sm_80, a stack only in {allowed:?}, static shared \
+             memory at most {} bytes per block",
             c.compiler,
-            c.stacks.len()
+            c.stacks.len(),
+            c.shared.values().max().unwrap_or(&0)
         )),
         Err(CheckError::NoCompiler(why)) if std::env::var("MOTILE_REQUIRE_CUDA_CLANG").is_err() => {
             Ok(format!("not run: {why}"))
@@ -222,6 +245,8 @@ struct PtxFunction {
     entry: bool,
     local: u64,
     calls: Vec<String>,
+    /// Every identifier its body names (for the shared arrays it uses).
+    names: std::collections::BTreeSet<String>,
 }
 
 /// Each kernel (`.entry`) of `ptx` with its stack: its own local memory plus the deepest chain
@@ -237,6 +262,54 @@ fn kernel_stacks(ptx: &str) -> BTreeMap<String, u64> {
         }
     }
     out
+}
+
+/// Each kernel of `ptx` with its static shared memory: the module's `.shared` arrays named in
+/// its body or in a callee's (clang declares a kernel's `__shared__` arrays at module scope).
+fn kernel_shared(ptx: &str) -> BTreeMap<String, u64> {
+    let arrays: Vec<(String, u64)> = ptx.lines().filter_map(shared_array).collect();
+    let funcs = ptx_functions(ptx);
+    let mut out = BTreeMap::new();
+    for (name, f) in &funcs {
+        if !f.entry {
+            continue;
+        }
+        let mut reached = vec![name.clone()];
+        let mut k = 0;
+        while k < reached.len() {
+            if let Some(g) = funcs.get(&reached[k]) {
+                for c in &g.calls {
+                    if !reached.contains(c) {
+                        reached.push(c.clone());
+                    }
+                }
+            }
+            k += 1;
+        }
+        let bytes = arrays
+            .iter()
+            .filter(|(a, _)| {
+                reached
+                    .iter()
+                    .any(|r| funcs.get(r).is_some_and(|g| g.names.contains(a)))
+            })
+            .map(|(_, b)| b)
+            .sum();
+        out.insert(name.clone(), bytes);
+    }
+    out
+}
+
+/// `(name, bytes)` of `.shared .align A .b8 NAME[SIZE];`.
+fn shared_array(line: &str) -> Option<(String, u64)> {
+    let t = line.trim().strip_prefix(".shared")?;
+    let decl = t.split_whitespace().last()?;
+    let open = decl.find('[')?;
+    let close = decl.find(']')?;
+    Some((
+        decl[..open].to_string(),
+        decl[open + 1..close].parse().ok()?,
+    ))
 }
 
 /// Local memory of `name` and its deepest callee chain (a recursive call counted once).
@@ -282,12 +355,19 @@ fn ptx_functions(ptx: &str) -> BTreeMap<String, PtxFunction> {
             .filter(|(_, l)| l.trim_start().starts_with("call"))
             .filter_map(|(i, _)| called_name(&body[i..]))
             .collect();
+        let names = body
+            .iter()
+            .flat_map(|l| l.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '$')))
+            .filter(|w| !w.is_empty())
+            .map(str::to_string)
+            .collect();
         funcs.insert(
             name.clone(),
             PtxFunction {
                 entry: *entry,
                 local: if used { depot } else { 0 },
                 calls,
+                names,
             },
         );
     }
@@ -449,6 +529,51 @@ mod tests {
         let c = compile_for_device(&set(indexed), &clang).unwrap();
         assert_eq!(c.with_stack(&[]), vec![("k".to_string(), 64)], "{c:?}");
         assert_eq!(c.stacks.get("plain"), Some(&0));
+        let big = "extern \"C\" __global__ void k(double* v) {\n\
+            __shared__ double s[6200];\n\
+            s[threadIdx.x] = v[threadIdx.x];\n\
+            v[threadIdx.x] = s[255 - threadIdx.x];\n\
+            }";
+        let c = compile_for_device(&set(big), &clang).unwrap();
+        assert_eq!(c.shared.get("k"), Some(&(6200 * 8)), "{c:?}");
+        assert!(
+            check_set(&set(big), &[]).is_err_and(|e| e.to_string().contains("shared memory")),
+            "a kernel over 48 KB of static shared memory passes"
+        );
+    }
+
+    /// A kernel's shared arrays: its own and its callees', each once.
+    #[test]
+    fn shared_memory_counts_the_arrays_a_kernel_and_its_callees_name() {
+        let helper = ".func _Z4helpv(";
+        let ptx = [
+            ".shared .align 8 .b8 _ZZ1aE2st[1024];\n".to_string(),
+            ".shared .align 4 .b8 _ZZ4helpvE1t[256];\n".to_string(),
+            function(
+                ".visible .entry a(",
+                0,
+                &[
+                    "mov.u64 \t%rd1, _ZZ1aE2st;",
+                    "call.uni ",
+                    "_Z4helpv, ",
+                    "(",
+                    ");",
+                ],
+            ),
+            function(helper, 0, &["mov.u64 \t%rd2, _ZZ4helpvE1t;"]),
+            function(".visible .entry b(", 0, &["mov.u64 \t%rd3, _ZZ4helpvE1t;"]),
+            function(".visible .entry c(", 0, &[]),
+        ]
+        .concat();
+        let s = kernel_shared(&ptx);
+        assert_eq!(
+            s.into_iter().collect::<Vec<_>>(),
+            vec![
+                ("a".to_string(), 1024 + 256),
+                ("b".to_string(), 256),
+                ("c".to_string(), 0)
+            ]
+        );
     }
 
     #[test]
