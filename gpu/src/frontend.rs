@@ -11,8 +11,12 @@
 //! reserves a kernel's stack for every thread the device can hold (on an H100, 132 x 2 048
 //! threads: 1 KB per thread is 0.28 GB), so a stack costs device memory as well as time. This
 //! is clang's compiler, not NVRTC's: the device's own `ptxas` is the final word on stacks
-//! (`scripts/device_run.sh ptxas`); an array that clang's optimiser keeps in local memory has
-//! an index it could not resolve, which is what the kernels must avoid.
+//! (`scripts/device_run.sh ptxas`). Clang inlines and unrolls less than NVRTC, so it keeps
+//! arrays in local memory that NVRTC may not (every stack ptxas reported on the H100, clang
+//! finds too); a kernel that passes here has every index known once its loops are unrolled,
+//! which neither compiler needs a stack for. What it cannot see: the math library's own local
+//! memory (its functions stay calls here; CUDA's double `sin` and `cos` keep a small array for
+//! their slow path).
 
 use crate::error::GpuError;
 use crate::kernel::KernelSet;
@@ -173,13 +177,15 @@ pub enum CheckError {
     /// No clang runs here.
     #[error("{0}")]
     NoCompiler(String),
-    /// The set did not compile, or a kernel keeps a stack, or a declaration names no kernel.
+    /// The set did not compile, or a kernel keeps a stack, or one named as keeping one keeps
+    /// none, or a declaration names no kernel.
     #[error("{0}")]
     Failed(String),
 }
 
 /// The kernel sets' check: `set` compiles for a device, every kernel it declares is a kernel of
-/// the compiled module, every name in `allowed` too, and no kernel but those keeps a stack.
+/// the compiled module, every name in `allowed` too, those keep a stack (the list is not
+/// stale) and no other kernel does.
 pub fn check_set(set: &KernelSet, allowed: &[&str]) -> Result<DeviceCompile, CheckError> {
     let clang = device_compiler().map_err(CheckError::NoCompiler)?;
     let c = compile_for_device(set, &clang).map_err(|e| CheckError::Failed(e.to_string()))?;
@@ -204,6 +210,13 @@ pub fn check_set(set: &KernelSet, allowed: &[&str]) -> Result<DeviceCompile, Che
         return Err(CheckError::Failed(format!(
             "{}: kernels over {STATIC_SHARED_LIMIT} bytes of static shared memory per block \
              {over:?}: they would not load on a device",
+            c.compiler
+        )));
+    }
+    let stale: Vec<&&str> = allowed.iter().filter(|k| c.stacks[**k] == 0).collect();
+    if !stale.is_empty() {
+        return Err(CheckError::Failed(format!(
+            "{}: {stale:?} named as keeping a stack keep none: take them off the list",
             c.compiler
         )));
     }
@@ -265,7 +278,8 @@ fn kernel_stacks(ptx: &str) -> BTreeMap<String, u64> {
 }
 
 /// Each kernel of `ptx` with its static shared memory: the module's `.shared` arrays named in
-/// its body or in a callee's (clang declares a kernel's `__shared__` arrays at module scope).
+/// its body or in a callee's (clang declares an array that one function uses in that function's
+/// body, marked "demoted variable", and others at module scope).
 fn kernel_shared(ptx: &str) -> BTreeMap<String, u64> {
     let arrays: Vec<(String, u64)> = ptx.lines().filter_map(shared_array).collect();
     let funcs = ptx_functions(ptx);
@@ -300,9 +314,14 @@ fn kernel_shared(ptx: &str) -> BTreeMap<String, u64> {
     out
 }
 
-/// `(name, bytes)` of `.shared .align A .b8 NAME[SIZE];`.
+/// `(name, bytes)` of `.shared .align A .b8 NAME[SIZE];`, also after `.visible` (a file-scope
+/// array) or `.weak` (one in an inline function that several kernels call).
 fn shared_array(line: &str) -> Option<(String, u64)> {
-    let t = line.trim().strip_prefix(".shared")?;
+    let mut t = line.trim();
+    for prefix in [".visible", ".weak"] {
+        t = t.strip_prefix(prefix).map_or(t, str::trim_start);
+    }
+    let t = t.strip_prefix(".shared")?;
     let decl = t.split_whitespace().last()?;
     let open = decl.find('[')?;
     let close = decl.find(']')?;
@@ -547,12 +566,14 @@ mod tests {
     fn shared_memory_counts_the_arrays_a_kernel_and_its_callees_name() {
         let helper = ".func _Z4helpv(";
         let ptx = [
-            ".shared .align 8 .b8 _ZZ1aE2st[1024];\n".to_string(),
-            ".shared .align 4 .b8 _ZZ4helpvE1t[256];\n".to_string(),
+            ".weak .shared .align 4 .b8 _ZZ4helpvE1t[256];\n".to_string(),
+            ".visible .shared .align 8 .b8 file_scope[64];\n".to_string(),
             function(
                 ".visible .entry a(",
                 0,
                 &[
+                    "// demoted variable",
+                    ".shared .align 8 .b8 _ZZ1aE2st[1024];",
                     "mov.u64 \t%rd1, _ZZ1aE2st;",
                     "call.uni ",
                     "_Z4helpv, ",
@@ -562,7 +583,7 @@ mod tests {
             ),
             function(helper, 0, &["mov.u64 \t%rd2, _ZZ4helpvE1t;"]),
             function(".visible .entry b(", 0, &["mov.u64 \t%rd3, _ZZ4helpvE1t;"]),
-            function(".visible .entry c(", 0, &[]),
+            function(".visible .entry c(", 0, &["mov.u64 \t%rd4, file_scope;"]),
         ]
         .concat();
         let s = kernel_shared(&ptx);
@@ -571,7 +592,7 @@ mod tests {
             vec![
                 ("a".to_string(), 1024 + 256),
                 ("b".to_string(), 256),
-                ("c".to_string(), 0)
+                ("c".to_string(), 64)
             ]
         );
     }
