@@ -19,9 +19,9 @@
 //! their slow path).
 
 use crate::error::GpuError;
+use crate::host::first_that_runs;
 use crate::kernel::KernelSet;
 use std::collections::BTreeMap;
-use std::process::Command;
 
 /// What a source without includes sees under NVRTC, declared for clang's CUDA mode (which,
 /// with `-nocudainc`, has only its own built-in variables). A function a kernel calls that is
@@ -126,15 +126,8 @@ pub fn device_compiler() -> Result<String, String> {
             .chain((14..=19).rev().map(|v| format!("clang-{v}")))
             .collect(),
     };
-    candidates
-        .iter()
-        .find(|c| {
-            Command::new(c.as_str())
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success())
-        })
-        .cloned()
+    first_that_runs(&candidates)
+        .map(|c| c.command)
         .ok_or_else(|| {
             format!(
                 "the CUDA compile check needs clang (CUDA device code) and none of {} runs",
@@ -153,16 +146,8 @@ pub fn compile_for_device(set: &KernelSet, clang: &str) -> Result<DeviceCompile,
     crate::host::compile_file(clang, &flags, &text, &src, &ptx)?;
     let text = std::fs::read_to_string(&ptx)
         .map_err(|e| GpuError::Compile(format!("reading {}: {e}", ptx.display())))?;
-    let version = Command::new(clang)
-        .arg("--version")
-        .output()
-        .map(|o| {
-            String::from_utf8_lossy(&o.stdout)
-                .lines()
-                .next()
-                .unwrap_or("")
-                .to_string()
-        })
+    let version = first_that_runs(&[clang.to_string()])
+        .and_then(|c| c.version.lines().next().map(str::to_string))
         .unwrap_or_default();
     Ok(DeviceCompile {
         compiler: format!("{clang}: {version}"),
@@ -317,11 +302,7 @@ fn kernel_shared(ptx: &str) -> BTreeMap<String, u64> {
 /// `(name, bytes)` of `.shared .align A .b8 NAME[SIZE];`, also after `.visible` (a file-scope
 /// array) or `.weak` (one in an inline function that several kernels call).
 fn shared_array(line: &str) -> Option<(String, u64)> {
-    let mut t = line.trim();
-    for prefix in [".visible", ".weak"] {
-        t = t.strip_prefix(prefix).map_or(t, str::trim_start);
-    }
-    let t = t.strip_prefix(".shared")?;
+    let t = without_linkage(line).strip_prefix(".shared")?;
     let decl = t.split_whitespace().last()?;
     let open = decl.find('[')?;
     let close = decl.find(']')?;
@@ -396,10 +377,7 @@ fn ptx_functions(ptx: &str) -> BTreeMap<String, PtxFunction> {
 /// `(is a kernel, name)` where `line` starts a function: `.visible .entry name(`, `.func name(`,
 /// `.weak .func (.param ...) name(`.
 fn function_head(line: &str) -> Option<(bool, String)> {
-    let mut t = line.trim_start();
-    for prefix in [".visible", ".weak", ".extern"] {
-        t = t.strip_prefix(prefix).map_or(t, str::trim_start);
-    }
+    let t = without_linkage(line);
     let (entry, rest) = if let Some(r) = t.strip_prefix(".entry") {
         (true, r)
     } else if let Some(r) = t.strip_prefix(".func") {
@@ -417,6 +395,15 @@ fn function_head(line: &str) -> Option<(bool, String)> {
         .take_while(|c| c.is_ascii_alphanumeric() || *c == '_' || *c == '$')
         .collect();
     (!name.is_empty()).then_some((entry, name))
+}
+
+/// `line` without its leading space and linkage (`.visible`, `.weak`, `.extern`).
+fn without_linkage(line: &str) -> &str {
+    let mut t = line.trim();
+    for prefix in [".visible", ".weak", ".extern"] {
+        t = t.strip_prefix(prefix).map_or(t, str::trim_start);
+    }
+    t
 }
 
 /// The bytes of `.local .align A .b8 __local_depotN[SIZE];`.

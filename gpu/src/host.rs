@@ -230,9 +230,20 @@ impl std::fmt::Debug for Host {
 }
 
 /// A C++ compiler: the command and what its `--version` says.
-struct Compiler {
-    command: String,
-    version: String,
+pub(crate) struct Compiler {
+    pub(crate) command: String,
+    pub(crate) version: String,
+}
+
+/// The first of `candidates` whose `--version` runs, with what it printed.
+pub(crate) fn first_that_runs(candidates: &[String]) -> Option<Compiler> {
+    candidates.iter().find_map(|c| {
+        let out = Command::new(c).arg("--version").output().ok()?;
+        out.status.success().then(|| Compiler {
+            command: c.clone(),
+            version: String::from_utf8_lossy(&out.stdout).trim().to_string(),
+        })
+    })
 }
 
 /// The C++ compiler: `$CXX`, else the first of `c++`, `g++`, `clang++` that runs.
@@ -241,21 +252,12 @@ fn compiler() -> Result<Compiler, GpuError> {
         Ok(c) if !c.is_empty() => vec![c],
         _ => ["c++", "g++", "clang++"].map(String::from).to_vec(),
     };
-    candidates
-        .iter()
-        .find_map(|c| {
-            let out = Command::new(c).arg("--version").output().ok()?;
-            out.status.success().then(|| Compiler {
-                command: c.clone(),
-                version: String::from_utf8_lossy(&out.stdout).trim().to_string(),
-            })
-        })
-        .ok_or_else(|| {
-            GpuError::NoDevice(format!(
-                "the host emulation needs a C++ compiler and none of {} runs",
-                candidates.join(", ")
-            ))
-        })
+    first_that_runs(&candidates).ok_or_else(|| {
+        GpuError::NoDevice(format!(
+            "the host emulation needs a C++ compiler and none of {} runs",
+            candidates.join(", ")
+        ))
+    })
 }
 
 /// The compiler's flags. No fused multiply-adds (NVRTC compiles with `fmad` off too): the
