@@ -4,7 +4,7 @@
 //! problem; a dense suspension (nu = 5) never overlaps beyond tolerance and its contact forces
 //! sum to zero; trajectories are bit-identical for 1 and 2 threads.
 
-use motile_particle::hydro::mobility::{LocalDrag, Mobility};
+use motile_particle::hydro::mobility::{LocalDrag, Mobility, MobilityState};
 use motile_particle::model::geometry::{Vec3, dot, quat_from_axis, segment_distance, sub};
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::rods::RodSet;
@@ -442,6 +442,8 @@ struct Turning {
     omega: f64,
     drag: LocalDrag,
 }
+
+impl MobilityState for Turning {}
 
 impl Mobility for Turning {
     fn name(&self) -> &'static str {

@@ -28,6 +28,7 @@ use motile_particle::ewald::gpu::STRESSLET_FIELDS;
 use motile_particle::ewald::params::{EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
+use motile_particle::hydro::gpu::ResidentMobility;
 use motile_particle::hydro::mobility::Mobility;
 use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
 use motile_particle::model::init::random_nonoverlapping;

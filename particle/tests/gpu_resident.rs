@@ -22,7 +22,8 @@ use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
-use motile_particle::hydro::mobility::{Mobility, RodVelocities, RodsOnDevice};
+use motile_particle::hydro::gpu::{DeviceVelocities, RodsOnDevice};
+use motile_particle::hydro::mobility::{Mobility, RodVelocities};
 use motile_particle::hydro::slender::SlenderParams;
 use motile_particle::model::geometry::{Vec3, axpy, norm, sub};
 use motile_particle::model::init::random_nonoverlapping;
@@ -81,8 +82,12 @@ fn check_free(
     let step = GpuStep::open(backend).unwrap();
     let resident = step.upload_rods(rods).unwrap();
     let mut dev = on_device(level, backend, tol, method);
-    assert!(dev.flows_on_device(), "{level} on a device sum flows there");
-    let (v, w) = dev
+    let path = dev.resident().expect("a device path");
+    assert!(
+        path.flows_on_device(),
+        "{level} on a device sum flows there"
+    );
+    let DeviceVelocities { v, w } = path
         .free_velocities_resident(RodsOnDevice {
             x: &resident.x,
             q: &resident.q,
@@ -96,7 +101,10 @@ fn check_free(
         triples(&step.download(&w).unwrap()),
     );
     let mut cpu = mobility(level, SpectralEwald::new(tol).unwrap());
-    assert!(!cpu.flows_on_device(), "{level} on the CPU's sum does not");
+    assert!(
+        !cpu.resident().is_some_and(|r| r.flows_on_device()),
+        "{level} on the CPU's sum does not"
+    );
     let p = rods.orientations();
     let mut want = RodVelocities::zeros(rods.len());
     cpu.free_velocities(rods, &p, &mut want).unwrap();

@@ -28,8 +28,8 @@ use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::periodic::RpyGeometry;
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::gmres::GmresParams;
-use motile_particle::hydro::gpu::{DeviceP4, P4Sum, SlenderDevice};
-use motile_particle::hydro::mobility::{LocalDrag, Mobility, RodVelocities};
+use motile_particle::hydro::gpu::{DeviceP4, DeviceVelocities, P4Sum, SlenderDevice, SlenderFlow};
+use motile_particle::hydro::mobility::{LocalDrag, Mobility, MobilityState, RodVelocities};
 use motile_particle::hydro::slender::{SlenderBody, SlenderParams, half_rod_rule};
 use motile_particle::model::geometry::{Vec3, norm, sub};
 use motile_particle::model::init::random_nonoverlapping;
@@ -182,7 +182,10 @@ fn check_same_products(backend: Backend) {
             "{stage}: {differ} of {} unknowns differ",
             xh.len()
         );
-        let (flow, v, om) = kern
+        let SlenderFlow {
+            flow,
+            rods: DeviceVelocities { v, w: om },
+        } = kern
             .velocities(
                 (&axes, &solved.u),
                 ft,
@@ -308,12 +311,18 @@ fn check_steps(backend: Backend, open: impl Fn() -> GpuFourier) {
         ))
     };
     let mut flow = mobility();
-    assert!(flow.flows_on_device() && flow.finishes_on_device());
+    let path = flow.resident().expect("a device path");
+    assert!(path.flows_on_device() && path.finishes_on_device());
     let (mut active, mut corrections) = (0, 0);
     for k in 0..STEPS {
         if k == STEPS / 2 {
             // A resume on the device: what a checkpoint holds, into a fresh stepper and mobility.
-            let warm = flow.resident_warm_state().expect("on the device").unwrap();
+            let warm = flow
+                .resident()
+                .expect("a device path")
+                .resident_warm_state()
+                .expect("on the device")
+                .unwrap();
             assert_ne!(
                 warm,
                 flow.warm_state(),
@@ -352,6 +361,8 @@ fn check_steps(backend: Backend, open: impl Fn() -> GpuFourier) {
     let (dx, dq) = common::assert_device_rods_near(&device, &cpu, (STEPS, params.tolerance), "sbt");
     let bound = 10.0 * STEPS as f64 * params.tolerance;
     let warm = flow
+        .resident()
+        .expect("a device path")
         .resident_warm_state()
         .expect("the warm state on the device")
         .unwrap();
@@ -383,7 +394,12 @@ fn check_steps(backend: Backend, open: impl Fn() -> GpuFourier) {
         matches!(failed, Err(StepError::Overlap { .. })),
         "a step allowing no overlap: {failed:?}"
     );
-    let after = flow.resident_warm_state().expect("on the device").unwrap();
+    let after = flow
+        .resident()
+        .expect("a device path")
+        .resident_warm_state()
+        .expect("on the device")
+        .unwrap();
     assert!(
         after == warm,
         "the warm state after a failed step is not the one before it"
@@ -434,7 +450,11 @@ fn check_block_order(open: impl Fn() -> GpuFourier) {
         device.download(&mut at).unwrap();
         (
             at,
-            flow.resident_warm_state().expect("on the device").unwrap(),
+            flow.resident()
+                .expect("a device path")
+                .resident_warm_state()
+                .expect("on the device")
+                .unwrap(),
         )
     };
     let (a, wa) = run(0);

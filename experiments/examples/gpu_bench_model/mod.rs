@@ -197,7 +197,7 @@ pub(crate) fn counted_table() {
         .expect("device stepper");
         let counted = |d: &DeviceStepper, m: &mut dyn Mobility| {
             let mut c = d.counters();
-            if let Some(s) = m.sum_counters() {
+            if let Some(s) = m.resident().and_then(|r| r.sum_counters()) {
                 c.add(&s);
             }
             c

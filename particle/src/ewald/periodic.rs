@@ -124,15 +124,6 @@ pub trait PeriodicStokes: Send + Sync + std::fmt::Debug {
 
     /// Restore what [`Self::adaptive_state`] returned (ignored if it does not fit).
     fn set_adaptive_state(&mut self, _state: &[u32]) {}
-
-    /// This sum as `Any` where its points, values and results can stay on a device (a
-    /// `SpectralEwald` with a device: its `*_resident` sums), `None` for sums on the CPU;
-    /// `ewald::spectral::resident::resident_sum` turns it into the sum (this module stays below the
-    /// spectral one).
-    #[cfg(feature = "gpu")]
-    fn resident_any(&mut self) -> Option<&mut dyn std::any::Any> {
-        None
-    }
 }
 
 /// Shape checks shared by the implementations.

@@ -11,13 +11,13 @@
 //! themselves (force pairs, far field of order `lambda b / r^2`) are not carried in this model,
 //! unlike the slender-body one. Measured consequences belong to the model comparison.
 
-use crate::ewald::periodic::{PeriodicStokes, StressletField};
+use crate::ewald::periodic::StressletField;
 use crate::ewald::shared::SharedEwald;
-#[cfg(feature = "gpu")]
-use crate::ewald::spectral::resident::resident_sum;
 use crate::hydro::mobility::{
-    ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
+    ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, MobilityState, ResidentMobility,
+    RodVelocities, SharedMobility,
 };
+use crate::hydro::sum::FlowSum;
 use crate::model::geometry::{Vec3, cross, dot};
 use crate::model::rods::RodSet;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED, eta};
@@ -32,20 +32,20 @@ pub fn stresslet_strength(diameter: f64) -> f64 {
 /// The dipole mobility; owns the periodic sum.
 #[derive(Debug)]
 pub struct Dipole {
-    sum: Box<dyn PeriodicStokes>,
+    pub(crate) sum: Box<dyn FlowSum>,
     /// The sum shared among ranks, when this mobility runs on one rank's part of a box.
-    shared: Option<SharedEwald>,
-    diameter: f64,
+    pub(crate) shared: Option<SharedEwald>,
+    pub(crate) diameter: f64,
     local: LocalDrag,
-    report: HydroReport,
-    s: Vec<f64>,
-    w: Vec<f64>,
+    pub(crate) report: HydroReport,
+    pub(crate) s: Vec<f64>,
+    pub(crate) w: Vec<f64>,
     density: Vec<Vec3>,
 }
 
 impl Dipole {
     /// A dipole mobility for rods of diameter `b` on the given periodic sum.
-    pub fn new(sum: Box<dyn PeriodicStokes>, diameter: f64) -> Self {
+    pub fn new(sum: Box<dyn FlowSum>, diameter: f64) -> Self {
         let (s, w) = crate::hydro::slender::half_rod_rule(4, ROD_LENGTH);
         Self {
             sum,
@@ -88,49 +88,27 @@ impl Dipole {
     }
 }
 
-impl Mobility for Dipole {
-    fn name(&self) -> &'static str {
-        "dipole"
+impl MobilityState for Dipole {
+    fn sum_state(&self) -> Vec<u32> {
+        match &self.shared {
+            Some(s) => s.adaptive_state(),
+            None => self.sum.adaptive_state(),
+        }
     }
 
-    fn diameter(&self) -> f64 {
-        self.diameter
+    fn set_sum_state(&mut self, state: &[u32]) {
+        match &mut self.shared {
+            Some(s) => s.set_adaptive_state(state),
+            None => self.sum.set_adaptive_state(state),
+        }
     }
+}
 
-    fn free_velocities(
-        &mut self,
-        rods: &RodSet,
-        p: &[Vec3],
-        out: &mut RodVelocities,
-    ) -> Result<(), MobilityError> {
-        let sigma = vec![stresslet_strength(self.diameter); rods.len()];
-        let t = Instant::now();
-        let field = self.sum.stresslets(rods.box_length, &rods.x, p, &sigma)?;
-        self.report = HydroReport {
-            seconds_sums: t.elapsed().as_secs_f64(),
-            ..HydroReport::default()
-        };
-        self.report.add_sum(self.sum.last_report());
-        self.apply_field(p, &field, out);
-        Ok(())
-    }
-
-    fn shares(&self) -> bool {
-        self.shared.is_some()
-    }
-
+impl SharedMobility for Dipole {
     fn shared_reach(&self, total: usize, box_length: f64) -> f64 {
         self.shared
             .as_ref()
             .map_or(0.0, |s| s.preferred_reach(total, box_length))
-    }
-
-    fn density_for(&mut self, p: &[Vec3]) {
-        let c = SWIM_SPEED / (2.0 * eta(self.diameter));
-        self.density = p
-            .iter()
-            .flat_map(|pn| self.s.iter().map(move |sj| pn.map(|v| c * sj.signum() * v)))
-            .collect();
     }
 
     fn predicted_velocities_shared(
@@ -162,6 +140,54 @@ impl Mobility for Dipole {
         self.apply_field(p, &field, out);
         Ok(())
     }
+}
+
+impl Mobility for Dipole {
+    fn name(&self) -> &'static str {
+        "dipole"
+    }
+
+    fn diameter(&self) -> f64 {
+        self.diameter
+    }
+
+    fn on_ranks(&mut self) -> Option<&mut dyn SharedMobility> {
+        if self.shared.is_some() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    fn resident(&mut self) -> Option<&mut dyn ResidentMobility> {
+        Some(self)
+    }
+
+    fn free_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        let sigma = vec![stresslet_strength(self.diameter); rods.len()];
+        let t = Instant::now();
+        let field = self.sum.stresslets(rods.box_length, &rods.x, p, &sigma)?;
+        self.report = HydroReport {
+            seconds_sums: t.elapsed().as_secs_f64(),
+            ..HydroReport::default()
+        };
+        self.report.add_sum(self.sum.last_report());
+        self.apply_field(p, &field, out);
+        Ok(())
+    }
+
+    fn density_for(&mut self, p: &[Vec3]) {
+        let c = SWIM_SPEED / (2.0 * eta(self.diameter));
+        self.density = p
+            .iter()
+            .flat_map(|pn| self.s.iter().map(move |sj| pn.map(|v| c * sj.signum() * v)))
+            .collect();
+    }
 
     fn local(&self, p: Vec3, f: Vec3, t: Vec3) -> (Vec3, Vec3) {
         self.local.local(p, f, t)
@@ -171,61 +197,11 @@ impl Mobility for Dipole {
         self.report.clone()
     }
 
-    fn sum_state(&self) -> Vec<u32> {
-        match &self.shared {
-            Some(s) => s.adaptive_state(),
-            None => self.sum.adaptive_state(),
-        }
-    }
-
-    fn set_sum_state(&mut self, state: &[u32]) {
-        match &mut self.shared {
-            Some(s) => s.set_adaptive_state(state),
-            None => self.sum.set_adaptive_state(state),
-        }
-    }
-
     fn force_density(&self) -> Option<ForceDensity<'_>> {
         Some(ForceDensity {
             s: &self.s,
             w: &self.w,
             f: &self.density,
         })
-    }
-
-    #[cfg(feature = "gpu")]
-    fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
-        resident_sum(self.sum.as_mut()).and_then(|s| s.device_counters())
-    }
-
-    #[cfg(feature = "gpu")]
-    fn flows_on_device(&mut self) -> bool {
-        self.shared.is_none() && resident_sum(self.sum.as_mut()).is_some()
-    }
-
-    #[cfg(feature = "gpu")]
-    fn free_velocities_resident(
-        &mut self,
-        rods: crate::hydro::mobility::RodsOnDevice<'_>,
-    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
-        use crate::hydro::mobility::device_error;
-        let sigma = stresslet_strength(self.diameter);
-        let shared = self.shared.is_some();
-        crate::hydro::mobility::on_resident_sum(
-            self.sum.as_mut(),
-            shared,
-            &mut self.report,
-            |sum| {
-                let n = rods.len;
-                let p = sum
-                    .device_sum()?
-                    .rod_axes(rods.q, n)
-                    .map_err(device_error)?;
-                let field = sum.stresslets_resident(rods.box_length, (rods.x, &p), sigma, n)?;
-                let gpu = sum.device_sum()?;
-                gpu.jeffery_velocities((&p, &field.u, &field.grad), n, SWIM_SPEED)
-                    .map_err(device_error)
-            },
-        )
     }
 }

@@ -10,16 +10,16 @@
 //! others (of relative order `u/U`), and the flows of contact forces: contacts act through the
 //! local mobility, as at the dipole level.
 
-use crate::ewald::periodic::{PeriodicStokes, RpyGeometry};
+use crate::ewald::periodic::RpyGeometry;
 use crate::ewald::shared::SharedEwald;
-#[cfg(feature = "gpu")]
-use crate::ewald::spectral::resident::resident_sum;
 use crate::hydro::mobility::{
-    ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
+    ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, MobilityState, ResidentMobility,
+    RodVelocities, SharedMobility,
 };
 use crate::hydro::slender::{
     SlenderParams, default_rpy_radius, flow_velocities, half_rod_rule, node_positions,
 };
+use crate::hydro::sum::FlowSum;
 use crate::model::geometry::Vec3;
 use crate::model::rods::RodSet;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED, eta};
@@ -30,16 +30,16 @@ use std::time::Instant;
 /// The explicit slender-body mobility; owns the periodic sum and the quadrature.
 #[derive(Debug)]
 pub struct ExplicitSlender {
-    diameter: f64,
+    pub(crate) diameter: f64,
     /// RPY radius of the nodes.
     radius: f64,
-    sum: Box<dyn PeriodicStokes>,
+    pub(crate) sum: Box<dyn FlowSum>,
     /// The sum shared among ranks, when this mobility runs on one rank's part of a box.
-    shared: Option<SharedEwald>,
-    s: Vec<f64>,
-    w: Vec<f64>,
+    pub(crate) shared: Option<SharedEwald>,
+    pub(crate) s: Vec<f64>,
+    pub(crate) w: Vec<f64>,
     local: LocalDrag,
-    report: HydroReport,
+    pub(crate) report: HydroReport,
     density: Vec<Vec3>,
 }
 
@@ -47,7 +47,7 @@ impl ExplicitSlender {
     /// The explicit level for rods of `params.diameter`, with `params.quadrature_points` nodes
     /// per rod and RPY radius `params.rpy_radius` (the slender-body level's settings; GMRES's
     /// are unused), on the given periodic sum.
-    pub fn new(params: SlenderParams, sum: Box<dyn PeriodicStokes>) -> Self {
+    pub fn new(params: SlenderParams, sum: Box<dyn FlowSum>) -> Self {
         let (s, w) = half_rod_rule(params.quadrature_points, ROD_LENGTH);
         Self {
             diameter: params.diameter,
@@ -63,7 +63,7 @@ impl ExplicitSlender {
     }
 
     /// The default settings for rods of diameter `b` (4 nodes, the default RPY radius).
-    pub fn for_diameter(diameter: f64, sum: Box<dyn PeriodicStokes>) -> Self {
+    pub fn for_diameter(diameter: f64, sum: Box<dyn FlowSum>) -> Self {
         let params = SlenderParams {
             rpy_radius: default_rpy_radius(diameter),
             ..SlenderParams::for_diameter(diameter)
@@ -106,7 +106,7 @@ impl ExplicitSlender {
             });
     }
 
-    fn geometry(&self, box_length: f64) -> RpyGeometry {
+    pub(crate) fn geometry(&self, box_length: f64) -> RpyGeometry {
         RpyGeometry {
             box_length,
             radius: self.radius,
@@ -125,43 +125,23 @@ impl ExplicitSlender {
     }
 }
 
-impl Mobility for ExplicitSlender {
-    fn name(&self) -> &'static str {
-        "sbt-explicit"
+impl MobilityState for ExplicitSlender {
+    fn sum_state(&self) -> Vec<u32> {
+        match &self.shared {
+            Some(s) => s.adaptive_state(),
+            None => self.sum.adaptive_state(),
+        }
     }
 
-    fn diameter(&self) -> f64 {
-        self.diameter
+    fn set_sum_state(&mut self, state: &[u32]) {
+        match &mut self.shared {
+            Some(s) => s.set_adaptive_state(state),
+            None => self.sum.set_adaptive_state(state),
+        }
     }
+}
 
-    fn free_velocities(
-        &mut self,
-        rods: &RodSet,
-        p: &[Vec3],
-        out: &mut RodVelocities,
-    ) -> Result<(), MobilityError> {
-        let density = self.densities(p);
-        let points = node_positions(&rods.x, p, &self.s);
-        let t = Instant::now();
-        let u = self.sum.rpy(
-            &self.geometry(rods.box_length),
-            &points,
-            &self.weighted(&density),
-        )?;
-        self.report = HydroReport {
-            seconds_sums: t.elapsed().as_secs_f64(),
-            ..HydroReport::default()
-        };
-        self.report.add_sum(self.sum.last_report());
-        self.apply_flow(p, &u, out);
-        self.density = density;
-        Ok(())
-    }
-
-    fn shares(&self) -> bool {
-        self.shared.is_some()
-    }
-
+impl SharedMobility for ExplicitSlender {
     fn shared_reach(&self, total: usize, box_length: f64) -> f64 {
         // Node pairs within the cutoff; nodes lie within half a rod of their centres.
         self.shared.as_ref().map_or(0.0, |s| {
@@ -199,6 +179,52 @@ impl Mobility for ExplicitSlender {
         self.density = density;
         Ok(())
     }
+}
+
+impl Mobility for ExplicitSlender {
+    fn name(&self) -> &'static str {
+        "sbt-explicit"
+    }
+
+    fn diameter(&self) -> f64 {
+        self.diameter
+    }
+
+    fn on_ranks(&mut self) -> Option<&mut dyn SharedMobility> {
+        if self.shared.is_some() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    fn resident(&mut self) -> Option<&mut dyn ResidentMobility> {
+        Some(self)
+    }
+
+    fn free_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        let density = self.densities(p);
+        let points = node_positions(&rods.x, p, &self.s);
+        let t = Instant::now();
+        let u = self.sum.rpy(
+            &self.geometry(rods.box_length),
+            &points,
+            &self.weighted(&density),
+        )?;
+        self.report = HydroReport {
+            seconds_sums: t.elapsed().as_secs_f64(),
+            ..HydroReport::default()
+        };
+        self.report.add_sum(self.sum.last_report());
+        self.apply_flow(p, &u, out);
+        self.density = density;
+        Ok(())
+    }
 
     fn density_for(&mut self, p: &[Vec3]) {
         self.density = self.densities(p);
@@ -212,65 +238,11 @@ impl Mobility for ExplicitSlender {
         self.report.clone()
     }
 
-    fn sum_state(&self) -> Vec<u32> {
-        match &self.shared {
-            Some(s) => s.adaptive_state(),
-            None => self.sum.adaptive_state(),
-        }
-    }
-
-    fn set_sum_state(&mut self, state: &[u32]) {
-        match &mut self.shared {
-            Some(s) => s.set_adaptive_state(state),
-            None => self.sum.set_adaptive_state(state),
-        }
-    }
-
     fn force_density(&self) -> Option<ForceDensity<'_>> {
         Some(ForceDensity {
             s: &self.s,
             w: &self.w,
             f: &self.density,
         })
-    }
-
-    #[cfg(feature = "gpu")]
-    fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
-        resident_sum(self.sum.as_mut()).and_then(|s| s.device_counters())
-    }
-
-    #[cfg(feature = "gpu")]
-    fn flows_on_device(&mut self) -> bool {
-        self.shared.is_none() && resident_sum(self.sum.as_mut()).is_some()
-    }
-
-    #[cfg(feature = "gpu")]
-    fn free_velocities_resident(
-        &mut self,
-        rods: crate::hydro::mobility::RodsOnDevice<'_>,
-    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
-        use crate::hydro::mobility::device_error;
-        let geometry = self.geometry(rods.box_length);
-        let c = SWIM_SPEED / (2.0 * eta(self.diameter));
-        let (s, w) = (&self.s, &self.w);
-        let shared = self.shared.is_some();
-        crate::hydro::mobility::on_resident_sum(
-            self.sum.as_mut(),
-            shared,
-            &mut self.report,
-            |sum| {
-                let n = rods.len;
-                let gpu = sum.device_sum()?;
-                let p = gpu.rod_axes(rods.q, n).map_err(device_error)?;
-                let (nodes, force, fields) = gpu
-                    .node_values((rods.x, &p), (s, w), n, c)
-                    .map_err(device_error)?;
-                let u = sum.rpy_resident(&geometry, (&nodes, &force, &fields), n * s.len())?;
-                drop((nodes, force, fields));
-                sum.device_sum()?
-                    .rod_flow_velocities((&p, &u), (s, w), n, (SWIM_SPEED, ROD_LENGTH))
-                    .map_err(device_error)
-            },
-        )
     }
 }

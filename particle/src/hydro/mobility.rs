@@ -12,6 +12,7 @@
 //! slender body and moves no point of the centerline, so it is set to zero (a torque's axial
 //! part does nothing).
 
+pub use crate::hydro::gpu::ResidentMobility;
 use crate::model::geometry::{Vec3, axpy, dot, scale, sub};
 use crate::model::rods::RodSet;
 use crate::model::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, eta};
@@ -120,9 +121,12 @@ pub enum MobilityError {
     NotShared(&'static str),
 }
 
-/// The pluggable mobility of the particle step.
-pub trait Mobility: Send + Sync + std::fmt::Debug {
-    /// Name as in the config (`"none"`, `"dipole"`, `"sbt"`).
+/// The pluggable mobility of the particle step: its physics. What a checkpoint keeps of it is
+/// [`MobilityState`] (a supertrait), its path on one rank's part of a box shared by several
+/// [`SharedMobility`] (reached through [`Self::shared`]), its path on a device
+/// [`ResidentMobility`] (reached through [`Self::resident`]).
+pub trait Mobility: MobilityState + Send + Sync + std::fmt::Debug {
+    /// Name as in the config (`"none"`, `"dipole"`, `"sbt-explicit"`, `"sbt"`).
     fn name(&self) -> &'static str;
     /// The rod diameter `b` its drag coefficients (`eta`) were built for: the stepper refuses
     /// rods of another diameter.
@@ -148,46 +152,24 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     ) -> Result<(), MobilityError> {
         self.free_velocities(rods, p, out)
     }
-    /// Whether the mobility can run on one rank's part of a box shared by several
-    /// ([`Self::predicted_velocities_shared`]).
-    fn shares(&self) -> bool {
-        false
-    }
-    /// How far beyond its slab a rank should hold copies for this mobility's shared sums
-    /// (`total` rods in a box of side `box_length`); zero for mobilities that act rod by rod.
-    fn shared_reach(&self, _total: usize, _box_length: f64) -> f64 {
-        0.0
-    }
-    /// [`Self::predicted_velocities`] on one rank's part of a box shared by several
-    /// (collective; see [`crate::parallel::comm`]): `rods` are the rank's own rods, then copies;
-    /// correct for the own rods (the step copies the owners' values to the copies). The
-    /// default is the single-process prediction, right for mobilities that act rod by rod.
-    fn predicted_velocities_shared(
-        &mut self,
-        rods: &RodSet,
-        p: &[Vec3],
-        out: &mut RodVelocities,
-        _part: crate::parallel::part::Part<'_>,
-    ) -> Result<(), MobilityError> {
-        self.predicted_velocities(rods, p, out)
-    }
     /// Set the force density ([`Self::force_density`]) for rods with axes `p` where it
     /// depends on nothing else (the dipole level), without a step: a shared run's rank 0 writes
     /// its outputs from a gathered state this way. Others keep their last step's.
     fn density_for(&mut self, _p: &[Vec3]) {}
-    /// The step's velocities given the contact forces and torques `ft` (caller's numbering);
-    /// `out` holds the prediction on entry. The default adds the local response to `ft`.
+    /// The step's velocities given the contact forces and torques `contact` (caller's
+    /// numbering); `out` holds the prediction on entry. The default adds the local response to
+    /// `contact`.
     fn final_velocities(
         &mut self,
         _rods: &RodSet,
         p: &[Vec3],
-        ft: &[(Vec3, Vec3)],
+        contact: &[(Vec3, Vec3)],
         out: &mut RodVelocities,
     ) -> Result<(), MobilityError> {
         out.v
             .par_iter_mut()
             .zip(out.w.par_iter_mut())
-            .zip(ft)
+            .zip(contact)
             .zip(p)
             .for_each(|(((v, w), (f, t)), p)| {
                 let (dv, dw) = self.local(*p, *f, *t);
@@ -195,20 +177,6 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
                 *w = axpy(*w, 1.0, dw);
             });
         Ok(())
-    }
-    /// [`Self::final_velocities`] on one rank's part of a box shared by several (collective;
-    /// the caller then copies the owners' velocities to the copies): correct for the own rods,
-    /// whose `ft` are their owners' totals. The default is the single-process method, right
-    /// for mobilities whose final step acts rod by rod.
-    fn final_velocities_shared(
-        &mut self,
-        rods: &RodSet,
-        p: &[Vec3],
-        ft: &[(Vec3, Vec3)],
-        out: &mut RodVelocities,
-        _part: crate::parallel::part::Part<'_>,
-    ) -> Result<(), MobilityError> {
-        self.final_velocities(rods, p, ft, out)
     }
     /// What the last step's hydrodynamics did.
     fn report(&self) -> HydroReport {
@@ -218,13 +186,34 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
     fn force_density(&self) -> Option<ForceDensity<'_>> {
         None
     }
-    /// State that the next step starts from (the GMRES warm start), for checkpoints: a run
-    /// resumed with it continues bit for bit. Empty for models without such state.
+    /// This mobility on one rank's part of a box shared by several, where it was built for
+    /// one; `None` where it cannot run there.
+    fn on_ranks(&mut self) -> Option<&mut dyn SharedMobility> {
+        None
+    }
+    /// This mobility's path on a device (its flow summed where the rods are); `None` where it
+    /// has none. Without the `gpu` feature the path's methods say that nothing is on a device.
+    fn resident(&mut self) -> Option<&mut dyn ResidentMobility> {
+        None
+    }
+}
+
+/// What a checkpoint saves of a mobility: state that the next step starts from (the GMRES warm
+/// start, the periodic sum's refinement level), so that a run resumed with it continues bit
+/// for bit. The defaults are a mobility without state.
+pub trait MobilityState {
+    /// The warm state, in the single-process layout. Empty for models without such state.
     fn warm_state(&self) -> Vec<f64> {
         Vec::new()
     }
     /// Restore what [`Self::warm_state`] returned.
     fn set_warm_state(&mut self, _state: Vec<f64>) {}
+
+    /// [`Self::warm_state`] wherever it is kept: downloaded where resident steps keep it on a
+    /// device ([`ResidentMobility::resident_warm_state`]), else the host's.
+    fn current_warm_state(&self) -> Result<Vec<f64>, MobilityError> {
+        Ok(self.warm_state())
+    }
 
     /// Values per rod in [`Self::rod_state`]; zero for mobilities without per-rod state.
     fn rod_state_width(&self) -> usize {
@@ -257,129 +246,40 @@ pub trait Mobility: Send + Sync + std::fmt::Debug {
 
     /// Restore what [`Self::sum_state`] returned.
     fn set_sum_state(&mut self, _state: &[u32]) {}
-
-    /// What the device of this mobility's sum has been asked to do so far (`None` without a
-    /// sum on a device): for counting a resident step's work with its flow.
-    #[cfg(feature = "gpu")]
-    fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
-        None
-    }
-
-    /// Whether [`Self::free_velocities_resident`] can run: the flow summed on the device the
-    /// rods are on, without their round trip through the host.
-    #[cfg(feature = "gpu")]
-    fn flows_on_device(&mut self) -> bool {
-        false
-    }
-
-    /// [`Self::free_velocities`] of the rods resident on a device, on that device: velocities
-    /// and angular velocities (triples per rod) left there; the report as the host's. The
-    /// force density for outputs is not set ([`Self::density_for`] sets it from the rods
-    /// downloaded). `None` where this mobility has no such path ([`Self::flows_on_device`]).
-    #[cfg(feature = "gpu")]
-    fn free_velocities_resident(
-        &mut self,
-        _rods: RodsOnDevice<'_>,
-    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
-        None
-    }
-
-    /// [`Self::predicted_velocities`] of the rods resident on a device, on that device (the
-    /// velocities the contact solver plans with); by default
-    /// [`Self::free_velocities_resident`].
-    #[cfg(feature = "gpu")]
-    fn predicted_velocities_resident(
-        &mut self,
-        rods: RodsOnDevice<'_>,
-    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
-        self.free_velocities_resident(rods)
-    }
-
-    /// Whether the step's velocities come from its contact forces through this mobility's
-    /// full hydrodynamics on the device ([`Self::final_velocities_resident`]: `sbt`), not
-    /// from the prediction plus their local drag.
-    #[cfg(feature = "gpu")]
-    fn finishes_on_device(&self) -> bool {
-        false
-    }
-
-    /// [`Self::final_velocities`] on the device, after [`Self::predicted_velocities_resident`]
-    /// of the same rods: from each rod's contact force and torque `ft` (6 values per rod;
-    /// `None` where no constraint is active), the velocities and angular velocities (triples)
-    /// that replace the planned ones, or `None` where the prediction stands.
-    #[cfg(feature = "gpu")]
-    fn final_velocities_resident(
-        &mut self,
-        _rods: RodsOnDevice<'_>,
-        _ft: Option<&motile_gpu::Buffer>,
-    ) -> Result<Option<(motile_gpu::Buffer, motile_gpu::Buffer)>, MobilityError> {
-        Ok(None)
-    }
-
-    /// [`Self::warm_state`] where resident steps keep it on a device (`sbt`'s last solution
-    /// and flow velocities), downloaded; `None` where the host's copy is current.
-    #[cfg(feature = "gpu")]
-    fn resident_warm_state(&self) -> Option<Result<Vec<f64>, MobilityError>> {
-        None
-    }
-
-    /// Bring the host's copies of what resident steps keep on a device (the warm state, the
-    /// force density for outputs) up to date.
-    #[cfg(feature = "gpu")]
-    fn sync_resident(&mut self) -> Result<(), MobilityError> {
-        Ok(())
-    }
-
-    /// After a failed resident step: what this mobility keeps on the device restored to its
-    /// state before the step (as the rods are), so that the state saved is the last good one.
-    #[cfg(feature = "gpu")]
-    fn rollback_resident(&mut self) {}
 }
 
-/// The shell of [`Mobility::free_velocities_resident`] for a mobility on the sum `sum`: `None`
-/// where the sum is shared among ranks or not on a device, else `run` on the resident sum,
-/// timed into a fresh `report` with the sum's accuracy report.
-#[cfg(feature = "gpu")]
-pub(crate) fn on_resident_sum<T>(
-    sum: &mut dyn crate::ewald::periodic::PeriodicStokes,
-    shared: bool,
-    report: &mut HydroReport,
-    run: impl FnOnce(&mut crate::ewald::spectral::SpectralEwald) -> Result<T, MobilityError>,
-) -> Option<Result<T, MobilityError>> {
-    if shared {
-        return None;
+/// A mobility on one rank's part of a box shared by several (collective; see
+/// [`crate::parallel::comm`]): `rods` are the rank's own rods, then copies. The defaults are the
+/// single-process methods, right for mobilities that act rod by rod.
+pub trait SharedMobility: Mobility {
+    /// How far beyond its slab a rank should hold copies for this mobility's shared sums
+    /// (`total` rods in a box of side `box_length`); zero for mobilities that act rod by rod.
+    fn shared_reach(&self, _total: usize, _box_length: f64) -> f64 {
+        0.0
     }
-    let resident = crate::ewald::spectral::resident::resident_sum(sum)?;
-    let t = std::time::Instant::now();
-    let out = run(resident);
-    *report = HydroReport {
-        seconds_sums: t.elapsed().as_secs_f64(),
-        ..HydroReport::default()
-    };
-    report.add_sum(sum.last_report());
-    Some(out)
-}
-
-/// A device's failure as the mobility's (its sum's device).
-#[cfg(feature = "gpu")]
-pub(crate) fn device_error(e: motile_gpu::GpuError) -> MobilityError {
-    MobilityError::Sum(crate::ewald::periodic::SumError::Device(e.to_string()))
-}
-
-/// Rods resident on a device, as a mobility's flow on that device reads them: centres
-/// (triples, in `[0, L)^3`) and unit quaternions (`w, x, y, z`) of `len` rods in a box of side
-/// `box_length`.
-#[cfg(feature = "gpu")]
-#[derive(Clone, Copy, Debug)]
-pub struct RodsOnDevice<'a> {
-    /// Centres.
-    pub x: &'a motile_gpu::Buffer,
-    /// Quaternions.
-    pub q: &'a motile_gpu::Buffer,
-    /// How many rods.
-    pub len: usize,
-    /// The box side.
-    pub box_length: f64,
+    /// [`Mobility::predicted_velocities`], correct for the own rods (the step copies the
+    /// owners' values to the copies).
+    fn predicted_velocities_shared(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+        _part: crate::parallel::part::Part<'_>,
+    ) -> Result<(), MobilityError> {
+        self.predicted_velocities(rods, p, out)
+    }
+    /// [`Mobility::final_velocities`] (the caller then copies the owners' velocities to the
+    /// copies): correct for the own rods, whose `contact` are their owners' totals.
+    fn final_velocities_shared(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        contact: &[(Vec3, Vec3)],
+        out: &mut RodVelocities,
+        _part: crate::parallel::part::Part<'_>,
+    ) -> Result<(), MobilityError> {
+        self.final_velocities(rods, p, contact, out)
+    }
 }
 
 /// Free swimming with local slender-body drag (`hydrodynamics = "none"`).
@@ -415,13 +315,17 @@ impl Default for LocalDrag {
     }
 }
 
+impl MobilityState for LocalDrag {}
+
+impl SharedMobility for LocalDrag {}
+
 impl Mobility for LocalDrag {
     fn name(&self) -> &'static str {
         "none"
     }
 
-    fn shares(&self) -> bool {
-        true
+    fn on_ranks(&mut self) -> Option<&mut dyn SharedMobility> {
+        Some(self)
     }
 
     fn diameter(&self) -> f64 {

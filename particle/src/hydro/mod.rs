@@ -5,7 +5,10 @@
 pub mod dipole;
 pub mod explicit;
 pub mod gmres;
-#[cfg(feature = "gpu")]
+// Without the `gpu` feature, `gpu/off.rs`: the device path's traits, saying that nothing runs
+// on a device, so that the CPU code names them without `cfg`.
+#[cfg_attr(not(feature = "gpu"), path = "gpu/off.rs")]
 pub mod gpu;
 pub mod mobility;
 pub mod slender;
+pub mod sum;

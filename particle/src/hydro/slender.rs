@@ -26,8 +26,10 @@ use crate::ewald::periodic::{PeriodicStokes, RpyGeometry, SumError};
 use crate::ewald::shared::SharedEwald;
 use crate::hydro::gmres::{GmresInfo, GmresParams, LinOp, gmres_shared};
 use crate::hydro::mobility::{
-    ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, RodVelocities,
+    ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, MobilityState, ResidentMobility,
+    RodVelocities, SharedMobility,
 };
+use crate::hydro::sum::FlowSum;
 use crate::model::geometry::{Vec3, cross, dot};
 use crate::model::rods::RodSet;
 use crate::model::units::{DEFAULT_DIAMETER, ROD_LENGTH, SWIM_SPEED, check_diameter, eta};
@@ -38,7 +40,8 @@ use motile_analysis::quadrature::gauss_legendre;
 use rayon::prelude::*;
 use std::time::Instant;
 
-#[cfg(feature = "gpu")]
+// Without the `gpu` feature, `slender/device_off.rs`: no solve on a device, nothing kept there.
+#[cfg_attr(not(feature = "gpu"), path = "slender/device_off.rs")]
 mod device;
 
 /// Settings of the slender-body model.
@@ -119,7 +122,7 @@ pub fn half_rod_rule(m: usize, l: f64) -> (Vec<f64>, Vec<f64>) {
 pub struct SlenderBody {
     /// Settings.
     pub params: SlenderParams,
-    sum: Box<dyn PeriodicStokes>,
+    sum: Box<dyn FlowSum>,
     /// The sum shared among ranks, when this mobility runs on one rank's part of a box.
     shared: Option<SharedEwald>,
     s: Vec<f64>,
@@ -136,7 +139,6 @@ pub struct SlenderBody {
     predicted_exactly: bool,
     /// (P4) on its sum's device: the kernels (opened at the first solve there) and what
     /// resident steps keep there.
-    #[cfg(feature = "gpu")]
     device: crate::hydro::gpu::SlenderState,
 }
 
@@ -290,7 +292,7 @@ impl LinOp for P4<'_> {
 
 impl SlenderBody {
     /// A slender-body mobility on the given periodic sum.
-    pub fn new(params: SlenderParams, sum: Box<dyn PeriodicStokes>) -> Self {
+    pub fn new(params: SlenderParams, sum: Box<dyn FlowSum>) -> Self {
         let (s, w) = half_rod_rule(params.quadrature_points, ROD_LENGTH);
         Self {
             params,
@@ -304,7 +306,6 @@ impl SlenderBody {
             local: LocalDrag::new(params.diameter),
             flow: Vec::new(),
             predicted_exactly: false,
-            #[cfg(feature = "gpu")]
             device: crate::hydro::gpu::SlenderState::default(),
         }
     }
@@ -329,7 +330,6 @@ impl SlenderBody {
         if x.len() != rhs.len() {
             *x = rhs.to_vec();
         }
-        #[cfg(feature = "gpu")]
         if part.is_none()
             && let Some(done) = self.solve_resident(rods.box_length, (&points, p), (rhs, x), stage)
         {
@@ -463,7 +463,6 @@ impl SlenderBody {
         out: &mut RodVelocities,
         part: Option<Part<'_>>,
     ) -> Result<(), MobilityError> {
-        #[cfg(feature = "gpu")]
         self.device_to_host()?;
         let owned = part.map_or(rods.len(), |q| q.halo.owned);
         let p_own = &p[..owned];
@@ -530,49 +529,91 @@ fn densities(x: &[f64]) -> Vec<Vec3> {
     x.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
 }
 
-impl Mobility for SlenderBody {
-    fn name(&self) -> &'static str {
-        "sbt"
-    }
-
-    fn diameter(&self) -> f64 {
-        self.params.diameter
-    }
-
-    fn free_velocities(
-        &mut self,
-        rods: &RodSet,
-        p: &[Vec3],
-        out: &mut RodVelocities,
-    ) -> Result<(), MobilityError> {
-        self.report = HydroReport::default();
-        self.solve_and_move(rods, p, None, out, None)
-    }
-
-    /// The previous step's flow velocities plus swimming (no solve), or an exact free solve on
-    /// the first step.
-    fn predicted_velocities(
-        &mut self,
-        rods: &RodSet,
-        p: &[Vec3],
-        out: &mut RodVelocities,
-    ) -> Result<(), MobilityError> {
-        self.report = HydroReport::default();
-        #[cfg(feature = "gpu")]
-        self.device_to_host()?;
-        if self.flow.len() != rods.len() {
-            self.predicted_exactly = true;
-            return self.solve_and_move(rods, p, None, out, None);
+impl MobilityState for SlenderBody {
+    fn current_warm_state(&self) -> Result<Vec<f64>, MobilityError> {
+        match self.resident_warm_state() {
+            Some(state) => state,
+            None => Ok(self.warm_state()),
         }
-        self.predicted_exactly = false;
-        self.predict(p, out);
-        Ok(())
     }
 
-    fn shares(&self) -> bool {
-        self.shared.is_some()
+    fn sum_state(&self) -> Vec<u32> {
+        match &self.shared {
+            Some(s) => s.adaptive_state(),
+            None => self.sum.adaptive_state(),
+        }
     }
 
+    fn set_sum_state(&mut self, state: &[u32]) {
+        match &mut self.shared {
+            Some(s) => s.set_adaptive_state(state),
+            None => self.sum.set_adaptive_state(state),
+        }
+    }
+
+    /// The last solution of (P4) followed by the last flow velocities (v, w per rod): both
+    /// shape the next step (warm start and prediction).
+    fn warm_state(&self) -> Vec<f64> {
+        let mut s = self.warm_free.clone();
+        for (v, w) in &self.flow {
+            s.extend_from_slice(v);
+            s.extend_from_slice(w);
+        }
+        s
+    }
+
+    /// Also sets the force density ([`Mobility::force_density`]) to the restored solution.
+    fn set_warm_state(&mut self, state: Vec<f64>) {
+        self.device.forget();
+        // len = n (3 M + 6) for n rods.
+        let per_rod = 3 * self.s.len() + 6;
+        let n = state.len() / per_rod;
+        let split = 3 * self.s.len() * n;
+        self.flow = state[split..]
+            .chunks_exact(6)
+            .map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]]))
+            .collect();
+        self.warm_free = state[..split].to_vec();
+        self.density = densities(&self.warm_free);
+    }
+
+    /// The solution of (P4) (`3 M` values), then the flow velocities `v, w`.
+    fn rod_state_width(&self) -> usize {
+        3 * self.s.len() + 6
+    }
+
+    fn rod_state(&self) -> Option<Vec<f64>> {
+        let width = 3 * self.s.len();
+        if self.warm_free.len() != width * self.flow.len() {
+            return None;
+        }
+        let rows = self
+            .warm_free
+            .chunks_exact(width)
+            .zip(&self.flow)
+            .flat_map(|(f, (v, w))| f.iter().chain(v).chain(w).copied())
+            .collect();
+        Some(rows)
+    }
+
+    fn set_rod_state(&mut self, rows: Vec<f64>) {
+        let state = self.warm_state_of(&rows);
+        self.set_warm_state(state);
+    }
+
+    fn warm_state_of(&self, rows: &[f64]) -> Vec<f64> {
+        let width = self.rod_state_width();
+        let split = width - 6;
+        let mut state: Vec<f64> = rows
+            .chunks_exact(width)
+            .flat_map(|r| r[..split].iter().copied())
+            .collect();
+        state.extend(rows.chunks_exact(width).flat_map(|r| r[split..].to_vec()));
+        state
+    }
+}
+
+impl SharedMobility for SlenderBody {
     fn shared_reach(&self, total: usize, box_length: f64) -> f64 {
         // Node pairs within the cutoff; nodes lie within half a rod of their centres.
         self.shared.as_ref().map_or(0.0, |s| {
@@ -621,6 +662,57 @@ impl Mobility for SlenderBody {
         }
         self.solve_and_move(rods, p, Some(ft), out, Some(part))
     }
+}
+
+impl Mobility for SlenderBody {
+    fn name(&self) -> &'static str {
+        "sbt"
+    }
+
+    fn diameter(&self) -> f64 {
+        self.params.diameter
+    }
+
+    fn on_ranks(&mut self) -> Option<&mut dyn SharedMobility> {
+        if self.shared.is_some() {
+            Some(self)
+        } else {
+            None
+        }
+    }
+
+    fn resident(&mut self) -> Option<&mut dyn ResidentMobility> {
+        Some(self)
+    }
+
+    fn free_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        self.report = HydroReport::default();
+        self.solve_and_move(rods, p, None, out, None)
+    }
+
+    /// The previous step's flow velocities plus swimming (no solve), or an exact free solve on
+    /// the first step.
+    fn predicted_velocities(
+        &mut self,
+        rods: &RodSet,
+        p: &[Vec3],
+        out: &mut RodVelocities,
+    ) -> Result<(), MobilityError> {
+        self.report = HydroReport::default();
+        self.device_to_host()?;
+        if self.flow.len() != rods.len() {
+            self.predicted_exactly = true;
+            return self.solve_and_move(rods, p, None, out, None);
+        }
+        self.predicted_exactly = false;
+        self.predict(p, out);
+        Ok(())
+    }
 
     /// One solve of (P4) with swimming and contact terms together, unless the prediction was
     /// already the exact free solution and there are no contact forces.
@@ -643,131 +735,6 @@ impl Mobility for SlenderBody {
 
     fn report(&self) -> HydroReport {
         self.report.clone()
-    }
-
-    fn sum_state(&self) -> Vec<u32> {
-        match &self.shared {
-            Some(s) => s.adaptive_state(),
-            None => self.sum.adaptive_state(),
-        }
-    }
-
-    fn set_sum_state(&mut self, state: &[u32]) {
-        match &mut self.shared {
-            Some(s) => s.set_adaptive_state(state),
-            None => self.sum.set_adaptive_state(state),
-        }
-    }
-
-    /// The last solution of (P4) followed by the last flow velocities (v, w per rod): both
-    /// shape the next step (warm start and prediction).
-    fn warm_state(&self) -> Vec<f64> {
-        let mut s = self.warm_free.clone();
-        for (v, w) in &self.flow {
-            s.extend_from_slice(v);
-            s.extend_from_slice(w);
-        }
-        s
-    }
-
-    /// Also sets the force density ([`Mobility::force_density`]) to the restored solution.
-    fn set_warm_state(&mut self, state: Vec<f64>) {
-        #[cfg(feature = "gpu")]
-        self.device.forget();
-        // len = n (3 M + 6) for n rods.
-        let per_rod = 3 * self.s.len() + 6;
-        let n = state.len() / per_rod;
-        let split = 3 * self.s.len() * n;
-        self.flow = state[split..]
-            .chunks_exact(6)
-            .map(|c| ([c[0], c[1], c[2]], [c[3], c[4], c[5]]))
-            .collect();
-        self.warm_free = state[..split].to_vec();
-        self.density = densities(&self.warm_free);
-    }
-
-    /// The solution of (P4) (`3 M` values), then the flow velocities `v, w`.
-    fn rod_state_width(&self) -> usize {
-        3 * self.s.len() + 6
-    }
-
-    fn rod_state(&self) -> Option<Vec<f64>> {
-        let width = 3 * self.s.len();
-        if self.warm_free.len() != width * self.flow.len() {
-            return None;
-        }
-        let rows = self
-            .warm_free
-            .chunks_exact(width)
-            .zip(&self.flow)
-            .flat_map(|(f, (v, w))| f.iter().chain(v).chain(w).copied())
-            .collect();
-        Some(rows)
-    }
-
-    fn set_rod_state(&mut self, rows: Vec<f64>) {
-        let state = self.warm_state_of(&rows);
-        self.set_warm_state(state);
-    }
-
-    fn warm_state_of(&self, rows: &[f64]) -> Vec<f64> {
-        let width = self.rod_state_width();
-        let split = width - 6;
-        let mut state: Vec<f64> = rows
-            .chunks_exact(width)
-            .flat_map(|r| r[..split].iter().copied())
-            .collect();
-        state.extend(rows.chunks_exact(width).flat_map(|r| r[split..].to_vec()));
-        state
-    }
-
-    #[cfg(feature = "gpu")]
-    fn flows_on_device(&mut self) -> bool {
-        self.shared.is_none()
-            && crate::ewald::spectral::resident::resident_sum(self.sum.as_mut()).is_some()
-    }
-
-    #[cfg(feature = "gpu")]
-    fn predicted_velocities_resident(
-        &mut self,
-        rods: crate::hydro::mobility::RodsOnDevice<'_>,
-    ) -> Option<Result<(motile_gpu::Buffer, motile_gpu::Buffer), MobilityError>> {
-        self.predicted_resident(rods)
-    }
-
-    #[cfg(feature = "gpu")]
-    fn finishes_on_device(&self) -> bool {
-        true
-    }
-
-    #[cfg(feature = "gpu")]
-    fn sum_counters(&mut self) -> Option<motile_gpu::Counters> {
-        self.device_counters()
-    }
-
-    #[cfg(feature = "gpu")]
-    fn final_velocities_resident(
-        &mut self,
-        rods: crate::hydro::mobility::RodsOnDevice<'_>,
-        ft: Option<&motile_gpu::Buffer>,
-    ) -> Result<Option<(motile_gpu::Buffer, motile_gpu::Buffer)>, MobilityError> {
-        self.final_resident(rods, ft)
-    }
-
-    #[cfg(feature = "gpu")]
-    fn resident_warm_state(&self) -> Option<Result<Vec<f64>, MobilityError>> {
-        self.resident_state()
-            .map(|r| r.map(|(x, flow)| [x, flow].concat()))
-    }
-
-    #[cfg(feature = "gpu")]
-    fn sync_resident(&mut self) -> Result<(), MobilityError> {
-        self.sync_from_device()
-    }
-
-    #[cfg(feature = "gpu")]
-    fn rollback_resident(&mut self) {
-        self.device.rollback();
     }
 
     fn force_density(&self) -> Option<ForceDensity<'_>> {

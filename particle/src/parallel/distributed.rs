@@ -374,10 +374,12 @@ impl<C: Comm> Distributed<C> {
         // The contact reach, or the shared sums' if farther; a sliver beyond, so that
         // round-off at the slab bounds cannot drop a copy the cell list would pair.
         let contact = ROD_LENGTH + self.rods.diameter + self.stepper.contact.margin;
+        let (total, box_length) = (self.total, self.rods.box_length);
         let sums = self
             .stepper
-            .mobility()
-            .shared_reach(self.total, self.rods.box_length);
+            .mobility_mut()
+            .on_ranks()
+            .map_or(0.0, |m| m.shared_reach(total, box_length));
         let reach = contact.max(sums) * (1.0 + 1e-9);
         let (mut local, ids, halo) = self.with_copies(reach);
         self.last_halo = local.len() - halo.owned;

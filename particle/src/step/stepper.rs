@@ -12,7 +12,7 @@
 //!    mobility that restore them (a second complementarity solve, usually with nothing to do);
 //! 6. the true (nonlinear) largest overlap among the constrained pairs after the move.
 
-use crate::hydro::mobility::{Mobility, RodVelocities};
+use crate::hydro::mobility::{Mobility, MobilityError, MobilityState, RodVelocities};
 use crate::model::geometry::{Vec3, axpy, min_image, norm, quat_exp, quat_mul, scale, sub};
 use crate::model::rods::RodSet;
 use crate::model::units::ROD_LENGTH;
@@ -44,6 +44,8 @@ pub struct Stepper {
 /// The local mobility without rotation: the projection moves rods by translation only.
 #[derive(Debug)]
 struct TranslationOnly<'a>(&'a dyn Mobility);
+
+impl MobilityState for TranslationOnly<'_> {}
 
 impl Mobility for TranslationOnly<'_> {
     fn name(&self) -> &'static str {
@@ -178,7 +180,8 @@ impl Stepper {
                 mobility_name: self.mobility.name(),
             });
         }
-        if shared && !self.mobility.shares() {
+        let name = self.mobility.name();
+        if shared && self.mobility.on_ranks().is_none() {
             return Err(StepError::NotShared {
                 mobility_name: self.mobility.name(),
                 ranks: comm.size(),
@@ -228,6 +231,8 @@ impl Stepper {
         }
         if shared {
             self.mobility
+                .on_ranks()
+                .ok_or(MobilityError::NotShared(name))?
                 .predicted_velocities_shared(rods, &p, &mut self.velocities, part)?;
             self.refresh_velocities(part);
         } else {
@@ -279,6 +284,8 @@ impl Stepper {
         let mut ft = self.rod_forces(&cons, &lambda, order, part);
         if shared {
             self.mobility
+                .on_ranks()
+                .ok_or(MobilityError::NotShared(name))?
                 .final_velocities_shared(rods, &p, &ft, &mut self.velocities, part)?;
             self.refresh_velocities(part);
         } else {

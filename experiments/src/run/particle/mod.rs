@@ -6,6 +6,9 @@
 //! the solvers' warm starts, so resuming continues the trajectory bit for bit.
 
 pub(crate) mod config;
+// Without the `gpu` feature, `device_off.rs`: no device stepper, and a run that asks for one
+// is refused with how to build it.
+#[cfg_attr(not(feature = "gpu"), path = "device_off.rs")]
 mod device;
 mod outputs;
 mod ranked;
@@ -131,7 +134,7 @@ impl ParticleModel {
         let resident = cfg.resident();
         let resident_flow = resident
             && cfg.hydrodynamics.has_flow()
-            && device::flows_on_device(stepper.mobility_mut());
+            && (stepper.mobility_mut().resident()).is_some_and(|r| r.flows_on_device());
         let device = if resident {
             Some(device::open(
                 &rods,
@@ -220,7 +223,7 @@ impl ParticleModel {
             let t = self.step as f64 * self.cfg.dt;
             let mut c = ParticleCheckpoint::of(&rods, &self.stepper, self.step, t);
             c.contact_warm_start = d.warm_start()?;
-            c.gmres_warm_start = device::warm_state(self.stepper.mobility())?;
+            c.gmres_warm_start = self.stepper.mobility().current_warm_state()?;
             c.write(path)?;
             return Ok(());
         }
@@ -571,7 +574,7 @@ impl ParticleModel {
                     ParticleCheckpoint::of(&rods, &self.stepper, self.step, self.step as f64 * dt);
                 // The multipliers of the step before the failed one (a failed step keeps them).
                 before.contact_warm_start = d.warm_start()?;
-                before.gmres_warm_start = device::warm_state(self.stepper.mobility())?;
+                before.gmres_warm_start = self.stepper.mobility().current_warm_state()?;
                 self.before = Some(before);
                 return Err(run::StepFailure::Step {
                     kind: (&e).into(),
@@ -586,7 +589,9 @@ impl ParticleModel {
         let t = step as f64 * dt;
         if resident_flow && (step.is_multiple_of(diag) || step.is_multiple_of(snap)) {
             // The step's solution (sbt), kept on the device: the outputs' force density.
-            device::sync_resident(self.stepper.mobility_mut())?;
+            if let Some(resident) = self.stepper.mobility_mut().resident() {
+                resident.sync_resident()?;
+            }
         }
         self.warn_accuracy(io, step, &report)?;
         // What the outputs need of the state before the step, then the state after it.

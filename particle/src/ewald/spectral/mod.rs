@@ -40,23 +40,22 @@
 //! gridding is thread-count independent, so results, estimates and refinement decisions are
 //! bit-identical for any rayon pool size.
 
+pub(crate) mod device;
 pub(crate) mod estimates;
 pub(crate) mod real_space;
 pub(crate) mod refinement;
 #[cfg(feature = "gpu")]
 pub mod resident;
 
+use crate::ewald::gpu::GpuFourier;
 use crate::ewald::grid::{GaussianGrid, GridPoints};
-#[cfg(feature = "gpu")]
-use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use crate::ewald::kernels::{rpy_fourier_mode_screened, stresslet_fourier_self_gradient};
-#[cfg(feature = "gpu")]
-use crate::ewald::params::ERROR_MODEL_RANGE;
 use crate::ewald::params::{EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput};
 use crate::ewald::periodic::{
     ErrorEstimate, PeriodicStokes, RpyGeometry, StressletField, SumError, SumReport, check_rpy,
 };
 use crate::ewald::point_cells::PointCells;
+use crate::ewald::spectral::device::{Attempt, FourierDevice};
 use crate::ewald::spectral::estimates::{estimate, report_of, stresslet_estimates};
 use crate::ewald::spectral::real_space::{rpy_assemble, rpy_real, stresslet_real};
 use crate::ewald::spectral::refinement::{Refinement, check_tolerance};
@@ -84,12 +83,11 @@ pub struct SpectralEwald {
     timing: SumTiming,
     refine: Refinement,
     report: Option<SumReport>,
-    /// The device that does the Fourier part, if not the CPU.
-    #[cfg(feature = "gpu")]
-    gpu: Option<crate::ewald::gpu::GpuFourier>,
+    /// The device that does the real-space pairs and the Fourier part, if not the CPU (none
+    /// can exist in a build without the `gpu` feature).
+    gpu: Option<GpuFourier>,
     /// Counts the preparations of new points (a device keeps the points it was given, and the
     /// cell list, while this stays the same: the products of one GMRES solve).
-    #[cfg(feature = "gpu")]
     generation: u64,
 }
 
@@ -125,9 +123,7 @@ impl SpectralEwald {
             timing: SumTiming::default(),
             refine: Refinement::default(),
             report: None,
-            #[cfg(feature = "gpu")]
             gpu: None,
-            #[cfg(feature = "gpu")]
             generation: 0,
         })
     }
@@ -135,8 +131,7 @@ impl SpectralEwald {
     /// A sum whose Fourier part (spreading, FFTs, the multiplication, the gather) and
     /// real-space pairs run on `device` ([`crate::ewald::gpu`]); everything else, and so the accuracy
     /// contract, as [`Self::new`].
-    #[cfg(feature = "gpu")]
-    pub fn with_device(tol: f64, device: crate::ewald::gpu::GpuFourier) -> Result<Self, SumError> {
+    pub fn with_device(tol: f64, device: GpuFourier) -> Result<Self, SumError> {
         let mut s = Self::new(tol)?;
         s.gpu = Some(device);
         Ok(s)
@@ -144,34 +139,24 @@ impl SpectralEwald {
 
     /// Where the Fourier part runs: `"CPU"`, or the device's description.
     pub fn device(&self) -> String {
-        #[cfg(feature = "gpu")]
-        if let Some(g) = &self.gpu {
-            return g.describe();
+        match &self.gpu {
+            Some(g) => g.describe(),
+            None => "CPU".into(),
         }
-        "CPU".into()
     }
 
     /// Whether the Fourier part runs on a device (the CPU grid's sorted points are then not
     /// needed).
-    fn on_device(&self) -> bool {
-        #[cfg(feature = "gpu")]
-        {
-            self.gpu.is_some()
-        }
-        #[cfg(not(feature = "gpu"))]
-        {
-            false
-        }
+    pub(crate) fn on_device(&self) -> bool {
+        self.gpu.is_some()
     }
 
-    /// The device's view of the sum with parameters `p` in a box of side `l`.
-    #[cfg(feature = "gpu")]
-    fn device_geometry(p: &EwaldParams, l: f64) -> crate::ewald::gpu::Geometry {
-        crate::ewald::gpu::Geometry {
-            window: crate::ewald::window::Window::new(l, p.xi, p.modes, p.support, p.shape),
-            m: p.modes,
-            l,
-            xi: p.xi,
+    /// What a device sees of an attempt with parameters `params` in a box of side `box_length`.
+    fn attempt<'a>(&self, params: &'a EwaldParams, box_length: f64) -> Attempt<'a> {
+        Attempt {
+            generation: self.generation,
+            params,
+            box_length,
         }
     }
 
@@ -223,10 +208,7 @@ impl SpectralEwald {
         {
             return Ok(prep);
         }
-        #[cfg(feature = "gpu")]
-        {
-            self.generation += 1;
-        }
+        self.generation += 1;
         if let Some(i) = points
             .par_iter()
             .position_first(|y| !y.iter().all(|c| c.is_finite()))
@@ -274,38 +256,15 @@ impl SpectralEwald {
         let (pts, cells) = (&prep.grid_points, &prep.cells);
         let xi = p.xi;
         let t1 = Instant::now();
-        #[cfg(feature = "gpu")]
+        let attempt = self.attempt(&p, l);
         let real = match self.gpu.as_mut() {
-            Some(gpu) => {
-                let table = RealSpaceTable::new(p.cutoff, p.xi, a);
-                let r0 = ERROR_MODEL_RANGE * p.spacing(l);
-                gpu.rpy_real(self.generation, cells, &table, (p.cutoff, a, r0), forces)
-                    .map_err(|e| SumError::Device(e.to_string()))?
-            }
+            Some(gpu) => gpu.rpy_real_part(attempt, cells, a, forces)?,
             None => rpy_real(cells, &p, a, l, forces),
         };
-        #[cfg(not(feature = "gpu"))]
-        let real = rpy_real(cells, &p, a, l, forces);
         // Fourier space.
         let t2 = Instant::now();
-        #[cfg(feature = "gpu")]
-        let on_device = match self.gpu.as_mut() {
-            Some(gpu) => Some(
-                gpu.rpy(
-                    self.generation,
-                    &Self::device_geometry(&p, l),
-                    a,
-                    points,
-                    forces,
-                )
-                .map_err(|e| SumError::Device(e.to_string()))?,
-            ),
-            None => None,
-        };
-        #[cfg(not(feature = "gpu"))]
-        let on_device: Option<[Vec<f64>; 3]> = None;
-        let uf: [Vec<f64>; 3] = match on_device {
-            Some(uf) => uf,
+        let uf: [Vec<f64>; 3] = match self.gpu.as_mut() {
+            Some(gpu) => gpu.rpy_fourier_part(attempt, a, points, forces)?,
             None => {
                 let grid = self.grid.as_mut().expect("prepared");
                 let f: Vec<Vec<f64>> = (0..3)
@@ -352,24 +311,18 @@ impl SpectralEwald {
         let (pts, cells) = (&prep.grid_points, &prep.cells);
         let xi = prm.xi;
         let t1 = Instant::now();
-        #[cfg(feature = "gpu")]
+        let attempt = self.attempt(&prm, l);
         let real = match self.gpu.as_mut() {
-            Some(gpu) => {
-                let table = StressletTable::new(prm.cutoff, prm.xi);
-                let r0 = ERROR_MODEL_RANGE * prm.spacing(l);
-                gpu.stresslet_real(self.generation, cells, &table, (prm.cutoff, r0), (p, sigma))
-                    .map_err(|e| SumError::Device(e.to_string()))?
-                    .into_iter()
-                    .map(|v| {
-                        let g = std::array::from_fn(|i| std::array::from_fn(|m| v[3 + 3 * i + m]));
-                        ([v[0], v[1], v[2]], g, v[12])
-                    })
-                    .collect()
-            }
+            Some(gpu) => gpu
+                .stresslet_real_part(attempt, cells, p, sigma)?
+                .into_iter()
+                .map(|v| {
+                    let g = std::array::from_fn(|i| std::array::from_fn(|m| v[3 + 3 * i + m]));
+                    ([v[0], v[1], v[2]], g, v[12])
+                })
+                .collect(),
             None => stresslet_real(cells, &prm, l, p, sigma),
         };
-        #[cfg(not(feature = "gpu"))]
-        let real = stresslet_real(cells, &prm, l, p, sigma);
         let t2 = Instant::now();
         let comp = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
         let s: Vec<Vec<f64>> = comp
@@ -382,23 +335,8 @@ impl SpectralEwald {
             })
             .collect();
         let components = std::array::from_fn::<_, 6, _>(|c| s[c].as_slice());
-        #[cfg(feature = "gpu")]
-        let on_device = match self.gpu.as_mut() {
-            Some(gpu) => Some(
-                gpu.stresslet(
-                    self.generation,
-                    &Self::device_geometry(&prm, l),
-                    x,
-                    components,
-                )
-                .map_err(|e| SumError::Device(e.to_string()))?,
-            ),
-            None => None,
-        };
-        #[cfg(not(feature = "gpu"))]
-        let on_device: Option<[Vec<f64>; 12]> = None;
-        let back = match on_device {
-            Some(back) => back,
+        let back = match self.gpu.as_mut() {
+            Some(gpu) => gpu.stresslet_fourier_part(attempt, x, components)?,
             None => {
                 let grid = self.grid.as_mut().expect("prepared");
                 let spread = grid.spread(pts, components);
@@ -583,10 +521,5 @@ impl PeriodicStokes for SpectralEwald {
 
     fn set_adaptive_state(&mut self, state: &[u32]) {
         self.refine.set_state(self.tol, state);
-    }
-
-    #[cfg(feature = "gpu")]
-    fn resident_any(&mut self) -> Option<&mut dyn std::any::Any> {
-        if self.gpu.is_some() { Some(self) } else { None }
     }
 }

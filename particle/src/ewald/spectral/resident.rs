@@ -87,7 +87,7 @@ impl SpectralEwald {
                 weights: outputs.map(|o| estimate_weights(o, (scale(o), internal))),
                 chunk: ESTIMATE_CHUNK,
             };
-            let geo = Self::device_geometry(&prm, l);
+            let geo = crate::ewald::gpu::device_geometry(&prm, l);
             let generation = self.generation;
             let gpu = self.gpu.as_mut().ok_or_else(|| {
                 SumError::Device("a resident sum on a sum without a device".into())
@@ -161,7 +161,7 @@ impl SpectralEwald {
                 weights: estimate_weights(output, (scale, internal)),
                 chunk: ESTIMATE_CHUNK,
             };
-            let geo = Self::device_geometry(&prm, l);
+            let geo = crate::ewald::gpu::device_geometry(&prm, l);
             let generation = self.generation;
             let gpu = self.gpu.as_mut().ok_or_else(|| {
                 SumError::Device("a resident sum on a sum without a device".into())
@@ -234,12 +234,4 @@ impl SpectralEwald {
     pub fn device_counters(&self) -> Option<motile_gpu::Counters> {
         self.gpu.as_ref().map(|g| g.counters())
     }
-}
-
-/// The sum behind `sum` where it can keep its points, values and results on a device (a
-/// [`SpectralEwald`] with a device), else `None`.
-pub fn resident_sum(
-    sum: &mut dyn crate::ewald::periodic::PeriodicStokes,
-) -> Option<&mut SpectralEwald> {
-    sum.resident_any()?.downcast_mut::<SpectralEwald>()
 }

@@ -14,7 +14,11 @@
 //! of `k + 2` numbers.
 #![allow(unsafe_code)]
 
+mod levels;
+mod resident;
 mod signatures;
+
+pub use resident::{DeviceVelocities, ResidentMobility, RodsOnDevice};
 
 use crate::ewald::periodic::{PeriodicStokes, RpyGeometry, SumError};
 use crate::ewald::spectral::SpectralEwald;
@@ -60,9 +64,15 @@ pub struct DeviceRule {
     m: usize,
 }
 
-/// The rods' flow velocities (6 values per rod: `v`, then `w`), velocities and angular
-/// velocities (triples).
-pub type DeviceVelocities = (Buffer, Buffer, Buffer);
+/// What the slender-body kernels give of the rods' flow: the flow velocities (6 values per
+/// rod: `v`, then `w`) and the rods' velocities.
+#[derive(Debug)]
+pub struct SlenderFlow {
+    /// The flow velocities.
+    pub flow: Buffer,
+    /// The rods' velocities and angular velocities.
+    pub rods: DeviceVelocities,
+}
 
 impl SlenderDevice {
     /// The device `backend` names (where a sum's device is, [`Device::backend`]), with the
@@ -190,7 +200,7 @@ impl SlenderDevice {
         rule: &DeviceRule,
         n: usize,
         (l, swim, drag): (f64, f64, (f64, f64)),
-    ) -> Result<DeviceVelocities, GpuError> {
+    ) -> Result<SlenderFlow, GpuError> {
         let m = rule.m;
         check_len("axes", p, 3 * n)?;
         check_len("flow at the nodes", u, 3 * n * m)?;
@@ -226,7 +236,10 @@ impl SlenderDevice {
                 },
             )?;
         }
-        Ok((flow, vel, omega))
+        Ok(SlenderFlow {
+            flow,
+            rods: DeviceVelocities { v: vel, w: omega },
+        })
     }
 
     /// The velocities the contact solver plans with: swimming at `swim` along the axes `p`

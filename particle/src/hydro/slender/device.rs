@@ -15,13 +15,13 @@
 use super::{SlenderBody, densities};
 use crate::ewald::periodic::{RpyGeometry, SumError};
 use crate::ewald::spectral::SpectralEwald;
-use crate::ewald::spectral::resident::resident_sum;
 use crate::hydro::gmres::GmresInfo;
-use crate::hydro::gpu::{DeviceP4, DeviceRule, P4Sum, SlenderDevice};
-use crate::hydro::mobility::{HydroReport, LocalDrag, MobilityError, RodsOnDevice};
+use crate::hydro::gpu::{DeviceP4, DeviceRule, P4Sum, SlenderDevice, SlenderFlow};
+use crate::hydro::gpu::{DeviceVelocities, ResidentMobility, RodsOnDevice};
+use crate::hydro::mobility::{HydroReport, LocalDrag, MobilityError};
 use crate::model::geometry::Vec3;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED, eta};
-use motile_gpu::Buffer;
+use motile_gpu::{Buffer, Counters};
 
 fn device_error(e: motile_gpu::GpuError) -> MobilityError {
     MobilityError::Sum(SumError::Device(e.to_string()))
@@ -139,7 +139,10 @@ impl Solve<'_> {
         let (info, u, accuracy, seconds) =
             self.warm((nodes, p, n), (&b, x), (&params.gmres, stage))?;
         let drag = LocalDrag::new(params.diameter).coefficients();
-        let (f, v, w) = kern
+        let SlenderFlow {
+            flow: f,
+            rods: DeviceVelocities { v, w },
+        } = kern
             .velocities((p, &u), ft, rule, n, (ROD_LENGTH, SWIM_SPEED, drag))
             .map_err(device_error)?;
         *flow = Some(f);
@@ -186,7 +189,7 @@ impl SlenderBody {
     ) -> Option<Result<(GmresInfo, Vec<Vec3>), MobilityError>> {
         let geometry = self.geometry(box_length);
         let e = eta(self.params.diameter);
-        let sum = resident_sum(self.sum.as_mut())?;
+        let sum = self.sum.resident()?;
         let mut run = || -> Result<_, MobilityError> {
             let (kern, rule) = kernels(
                 (&mut self.device.kern, self.device.shuffle),
@@ -232,7 +235,7 @@ impl SlenderBody {
         let m = self.s.len();
         let geometry = self.geometry(rods.box_length);
         let e = eta(self.params.diameter);
-        let sum = resident_sum(self.sum.as_mut())?;
+        let sum = self.sum.resident()?;
         let dev = &mut self.device;
         let mut run = || -> Result<_, MobilityError> {
             let (kern, rule) = kernels((&mut dev.kern, dev.shuffle), sum, (&self.s, &self.w))?;
@@ -312,7 +315,7 @@ impl SlenderBody {
         let geometry = self.geometry(rods.box_length);
         let e = eta(self.params.diameter);
         let not_resident = || SumError::Device("the final solve of a sum without a device".into());
-        let sum = resident_sum(self.sum.as_mut()).ok_or_else(not_resident)?;
+        let sum = self.sum.resident().ok_or_else(not_resident)?;
         let dev = &mut self.device;
         let (Some((kern, rule)), Some((p, nodes))) = (&dev.kern, dev.step.take()) else {
             return Err(MobilityError::Sum(SumError::Device(
@@ -357,7 +360,7 @@ impl SlenderBody {
     /// What the sum's device and the kernels' have been asked to do so far (`None` without a
     /// sum on a device).
     pub(super) fn device_counters(&mut self) -> Option<motile_gpu::Counters> {
-        let mut c = resident_sum(self.sum.as_mut())?.device_counters()?;
+        let mut c = self.sum.resident()?.device_counters()?;
         if let Some((kern, _)) = &self.device.kern {
             c.add(&kern.counters());
         }
@@ -386,5 +389,49 @@ impl SlenderBody {
         self.sync_from_device()?;
         self.device.forget();
         Ok(())
+    }
+}
+
+impl ResidentMobility for SlenderBody {
+    fn flows_on_device(&mut self) -> bool {
+        self.shared.is_none() && self.sum.resident().is_some()
+    }
+
+    fn predicted_velocities_resident(
+        &mut self,
+        rods: RodsOnDevice<'_>,
+    ) -> Option<Result<DeviceVelocities, MobilityError>> {
+        self.predicted_resident(rods)
+            .map(|done| done.map(DeviceVelocities::from))
+    }
+
+    fn finishes_on_device(&self) -> bool {
+        true
+    }
+
+    fn sum_counters(&mut self) -> Option<Counters> {
+        self.device_counters()
+    }
+
+    fn final_velocities_resident(
+        &mut self,
+        rods: RodsOnDevice<'_>,
+        contact: Option<&Buffer>,
+    ) -> Result<Option<DeviceVelocities>, MobilityError> {
+        self.final_resident(rods, contact)
+            .map(|done| done.map(DeviceVelocities::from))
+    }
+
+    fn resident_warm_state(&self) -> Option<Result<Vec<f64>, MobilityError>> {
+        self.resident_state()
+            .map(|r| r.map(|(x, flow)| [x, flow].concat()))
+    }
+
+    fn sync_resident(&mut self) -> Result<(), MobilityError> {
+        self.sync_from_device()
+    }
+
+    fn rollback_resident(&mut self) {
+        self.device.rollback();
     }
 }

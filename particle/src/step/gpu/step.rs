@@ -11,7 +11,8 @@ use super::signatures::{
 use super::solver::DeviceContactError;
 use super::solver::{DeviceContactProblem, Solved, Start};
 use super::update::DeviceRods;
-use crate::hydro::mobility::{LocalDrag, MobilityError, RodsOnDevice};
+use crate::hydro::gpu::RodsOnDevice;
+use crate::hydro::mobility::{LocalDrag, MobilityError};
 use crate::model::geometry::Vec3;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED};
 use crate::step::contact::{ContactParams, ContactReport};

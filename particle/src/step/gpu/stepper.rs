@@ -9,7 +9,8 @@ use super::signatures::StepStats;
 use super::solver::DeviceContactError;
 use super::step::{Free, StepOutput, Warm};
 use super::update::DeviceRods;
-use crate::hydro::mobility::{Mobility, RodVelocities, RodsOnDevice};
+use crate::hydro::gpu::{DeviceVelocities, RodsOnDevice};
+use crate::hydro::mobility::{Mobility, RodVelocities};
 use crate::model::geometry::Vec3;
 use crate::model::rods::RodSet;
 use crate::step::contact::{ContactParams, WarmStart};
@@ -270,10 +271,13 @@ impl DeviceStepper {
         mobility: &mut dyn Mobility,
         at: &RodSet,
     ) -> Result<StepReport, StepError> {
-        if mobility.flows_on_device() {
+        let (flows, finishes) = mobility.resident().map_or((false, false), |r| {
+            (r.flows_on_device(), r.finishes_on_device())
+        });
+        if flows {
             return self.step_with_resident_flow(dt, mobility);
         }
-        if mobility.finishes_on_device() {
+        if finishes {
             // Its contact forces act through its full hydrodynamics: not a local-drag step.
             return Err(StepError::Device(format!(
                 "the {} mobility steps on the device only with its sum there",
@@ -306,21 +310,23 @@ impl DeviceStepper {
             len: self.rods.len,
             box_length: self.rods.box_length,
         };
-        let Some(free) = mobility.predicted_velocities_resident(rods) else {
-            return Err(StepError::Device(format!(
-                "the {} mobility has no flow on the device",
-                mobility.name()
-            )));
+        let name = mobility.name();
+        let no_flow =
+            || StepError::Device(format!("the {name} mobility has no flow on the device"));
+        let resident = mobility.resident().ok_or_else(no_flow)?;
+        let DeviceVelocities { v, w } = resident
+            .predicted_velocities_resident(rods)
+            .ok_or_else(no_flow)??;
+        let finishes = resident.finishes_on_device();
+        let mut finish = |at: RodsOnDevice<'_>, contact: Option<&Buffer>| {
+            let done = resident.final_velocities_resident(at, contact)?;
+            Ok(done.map(|DeviceVelocities { v, w }| (v, w)))
         };
-        let (v, w) = free?;
-        let finishes = mobility.finishes_on_device();
-        let mut finish =
-            |at: RodsOnDevice<'_>, ft: Option<&Buffer>| mobility.final_velocities_resident(at, ft);
         let hook: Option<super::step::Finish<'_>> = if finishes { Some(&mut finish) } else { None };
         let done = self.step_finished(dt, (Free::Device(v, w), hook));
         if done.is_err() {
             // The rods stay as before the step; so does what the mobility keeps.
-            mobility.rollback_resident();
+            resident.rollback_resident();
         }
         let mut report = done?;
         report.hydro = mobility.report();

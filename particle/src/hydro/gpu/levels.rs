@@ -1,0 +1,76 @@
+//! The point-stresslet and explicit slender-body levels' paths on a device
+//! ([`ResidentMobility`]): one resident sum per step, the rods' axes, node values and
+//! velocities from kernels beside it.
+
+use super::resident::{
+    DeviceVelocities, ResidentMobility, RodsOnDevice, device_error, on_resident_sum,
+};
+use crate::hydro::dipole::{Dipole, stresslet_strength};
+use crate::hydro::explicit::ExplicitSlender;
+use crate::hydro::mobility::MobilityError;
+use crate::model::units::{ROD_LENGTH, SWIM_SPEED, eta};
+use motile_gpu::Counters;
+
+impl ResidentMobility for Dipole {
+    fn sum_counters(&mut self) -> Option<Counters> {
+        self.sum.resident().and_then(|s| s.device_counters())
+    }
+
+    fn flows_on_device(&mut self) -> bool {
+        self.shared.is_none() && self.sum.resident().is_some()
+    }
+
+    fn free_velocities_resident(
+        &mut self,
+        rods: RodsOnDevice<'_>,
+    ) -> Option<Result<DeviceVelocities, MobilityError>> {
+        let sigma = stresslet_strength(self.diameter);
+        let shared = self.shared.is_some();
+        on_resident_sum(self.sum.as_mut(), shared, &mut self.report, |sum| {
+            let n = rods.len;
+            let p = sum
+                .device_sum()?
+                .rod_axes(rods.q, n)
+                .map_err(device_error)?;
+            let field = sum.stresslets_resident(rods.box_length, (rods.x, &p), sigma, n)?;
+            let gpu = sum.device_sum()?;
+            gpu.jeffery_velocities((&p, &field.u, &field.grad), n, SWIM_SPEED)
+                .map_err(device_error)
+        })
+        .map(|done| done.map(DeviceVelocities::from))
+    }
+}
+
+impl ResidentMobility for ExplicitSlender {
+    fn sum_counters(&mut self) -> Option<Counters> {
+        self.sum.resident().and_then(|s| s.device_counters())
+    }
+
+    fn flows_on_device(&mut self) -> bool {
+        self.shared.is_none() && self.sum.resident().is_some()
+    }
+
+    fn free_velocities_resident(
+        &mut self,
+        rods: RodsOnDevice<'_>,
+    ) -> Option<Result<DeviceVelocities, MobilityError>> {
+        let geometry = self.geometry(rods.box_length);
+        let c = SWIM_SPEED / (2.0 * eta(self.diameter));
+        let (s, w) = (&self.s, &self.w);
+        let shared = self.shared.is_some();
+        on_resident_sum(self.sum.as_mut(), shared, &mut self.report, |sum| {
+            let n = rods.len;
+            let gpu = sum.device_sum()?;
+            let p = gpu.rod_axes(rods.q, n).map_err(device_error)?;
+            let (nodes, force, fields) = gpu
+                .node_values((rods.x, &p), (s, w), n, c)
+                .map_err(device_error)?;
+            let u = sum.rpy_resident(&geometry, (&nodes, &force, &fields), n * s.len())?;
+            drop((nodes, force, fields));
+            sum.device_sum()?
+                .rod_flow_velocities((&p, &u), (s, w), n, (SWIM_SPEED, ROD_LENGTH))
+                .map_err(device_error)
+        })
+        .map(|done| done.map(DeviceVelocities::from))
+    }
+}

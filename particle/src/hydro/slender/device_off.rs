@@ -1,0 +1,25 @@
+//! The slender-body level's device path in a build without the `gpu` feature: (P4) is never
+//! solved on a device, and nothing is kept there to bring back.
+
+use super::SlenderBody;
+use crate::hydro::gmres::GmresInfo;
+use crate::hydro::mobility::MobilityError;
+use crate::model::geometry::Vec3;
+
+impl SlenderBody {
+    /// (P4) on a device: never here.
+    pub(super) fn solve_resident(
+        &mut self,
+        _box_length: f64,
+        _nodes_and_axes: (&[Vec3], &[Vec3]),
+        _rhs_and_start: (&[f64], &mut Vec<f64>),
+        _stage: &'static str,
+    ) -> Option<Result<(GmresInfo, Vec<Vec3>), MobilityError>> {
+        None
+    }
+
+    /// The device's state brought to the host: there is none.
+    pub(super) fn device_to_host(&mut self) -> Result<(), MobilityError> {
+        Ok(())
+    }
+}
