@@ -170,9 +170,11 @@ pub struct DemoSummary {
 impl DemoSummary {
     /// Read the summary of a finished demo scene in `out`.
     pub fn read(out: &Path) -> anyhow::Result<Self> {
-        use crate::report::curves::{growth_fit, norm_curve};
-        let p = norm_curve(&out.join("particle"))?;
-        let m = norm_curve(&out.join("meanfield"))?;
+        use crate::report::curves::{growth_fit, norm_curve_of};
+        use crate::report::opened_run::{OpenedModel, OpenedRun};
+        let p = norm_curve_of(&OpenedRun::open(&out.join("particle"))?)?;
+        let meanfield = OpenedRun::open(&out.join("meanfield"))?;
+        let m = norm_curve_of(&meanfield)?;
         let last_fifth = |t: &[f64], u: &[f64]| {
             let t1 = t.last().copied().unwrap_or(0.0);
             let t0 = 0.8 * t1;
@@ -182,10 +184,9 @@ impl DemoSummary {
         };
         let (ps, pg) = last_fifth(&p.t, &p.u);
         let (ms, mg) = last_fifth(&m.t, &m.u);
-        let cfg: crate::run::meanfield::MeanFieldRunConfig = crate::io::rundir::read_run_config(
-            &out.join("meanfield"),
-            crate::run::meanfield::MeanFieldRunConfig::validate,
-        )?;
+        let OpenedModel::MeanField(cfg) = &meanfield.model else {
+            anyhow::bail!("{}: not a mean-field run", meanfield.path().display());
+        };
         let csv = std::fs::read_to_string(out.join("compare").join("velocity_correlation.csv"))?;
         // Rows `"label",r/L,value` (the label may hold commas): the fewest radii in (0, 1/2]
         // over the runs.

@@ -4,15 +4,21 @@
 //! particle velocity (reported normalised by `beta L`) `u_mf = (u_p / (beta L)) 8 eta mu / nu`;
 //! mean-field runs are already in those units.
 
-use crate::io::rundir::{RunDir, TimeSeries, read_run_config};
 use crate::io::snapshot::Snapshot;
-use crate::report::analyze::{AnalyzeOptions, analyze};
+use crate::report::analyze::{AnalysisReport, AnalyzeOptions, analyze};
+use crate::report::opened_run::{OpenedModel, OpenedRun, ParticleUnits};
 use crate::run::meanfield::MeanFieldRunConfig;
 use crate::run::particle::ParticleRunConfig;
-use anyhow::{Context, bail};
+use anyhow::bail;
 use motile_analysis::correlation::velocity_spectrum;
-use motile_analysis::stats::{GrowthFit, correlation_length, growth_phase};
-use motile_particle::model::units::{DEFAULT_DIAMETER, VISCOSITY, continuum_growth_rate};
+use motile_analysis::stats::{
+    GrowthFit, WindowAverage, correlation_length, growth_phase, window_average,
+};
+use motile_particle::model::linear_theory::{growth_rate, lowest_mode};
+use motile_particle::model::units::{
+    DEFAULT_DIAMETER, VISCOSITY, continuum_growth_rate, meanfield_time_unit, particle_to_meanfield,
+    zeta,
+};
 use std::path::{Path, PathBuf};
 
 /// One run's velocity norm in mean-field units.
@@ -60,125 +66,108 @@ pub struct ParticleInfo {
     pub box_theory_dr: Option<num_complex::Complex64>,
 }
 
-use motile_particle::model::units::particle_to_meanfield;
-
-fn column(ts: &TimeSeries, prefix: &str, path: &Path) -> anyhow::Result<Vec<f64>> {
-    let c = ts
-        .columns
-        .iter()
-        .position(|c| c.starts_with(prefix))
-        .with_context(|| format!("{}: no column `{prefix}`", path.display()))?;
-    Ok(ts.rows.iter().map(|r| r[c]).collect())
-}
-
 /// Read one run's velocity norm, converted to mean-field units.
 pub fn norm_curve(run: &Path) -> anyhow::Result<NormCurve> {
-    let dir = RunDir::open(run)?;
-    let model = dir.header()?.model;
-    let ts_path = run.join("timeseries.csv");
-    let ts = TimeSeries::read(&ts_path)?;
-    match model.as_str() {
-        "particle" => {
-            let cfg: ParticleRunConfig = read_run_config(run, ParticleRunConfig::validate)?;
-            if !cfg.hydrodynamics.has_flow() {
-                bail!(
-                    "{}: a particle run without hydrodynamics has no flow to compare (hydrodynamics = \"none\")",
-                    run.display()
-                );
-            }
-            let l = cfg.box_length;
-            let n = cfg
-                .rods
-                .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
-            let nu = n as f64 / (l * l * l);
-            let t = column(&ts, "t [", &ts_path)?;
-            // The box-scale modes (every |m_i| <= 1) where the instability begins and where the
-            // continuum's grid and the rods' sampling noise do not differ; runs written before
-            // that column existed fall back to all analysis modes.
-            let box_scale = ts
-                .columns
-                .iter()
-                .any(|c| c.starts_with("velocity_norm_box"));
-            let u = if box_scale {
-                column(&ts, "velocity_norm_box", &ts_path)?
-            } else {
-                column(&ts, "velocity_norm", &ts_path)?
-            };
-            let t_end_own = t.last().copied().unwrap_or(0.0);
-            let (t, u) = t
-                .iter()
-                .zip(&u)
-                .map(|(t, u)| particle_to_meanfield(*t, *u, nu, cfg.diameter))
-                .unzip();
-            let zeta = motile_particle::model::units::zeta(nu, cfg.diameter);
-            let time_unit = motile_particle::model::units::meanfield_time_unit(nu, cfg.diameter);
-            let box_theory = motile_particle::model::linear_theory::growth_rate(
-                nu,
-                cfg.diameter,
-                motile_particle::model::linear_theory::lowest_mode(l),
-                0.0,
-            )
-            .map(|g| g.sigma * time_unit);
-            // Near-field encounters and contacts turn rods as a rotational diffusion would:
-            // measured from <p(t).p(0)> over the first half of the run (before a saturated
-            // flow adds its own turning), and the theory with it.
-            let rotational_diffusion = rotational_diffusion(run, 0.5 * t_end_own)?;
-            let box_theory_dr = rotational_diffusion.and_then(|d| {
-                motile_particle::model::linear_theory::growth_rate(
-                    nu,
-                    cfg.diameter,
-                    motile_particle::model::linear_theory::lowest_mode(l),
-                    d,
-                )
-                .map(|g| g.sigma * time_unit)
-            });
-            Ok(NormCurve {
-                label: format!("particle L/l = {l}, nu = {nu:.3} ({})", cfg.hydrodynamics),
-                run: run.into(),
-                t,
-                u,
-                t_end_own,
-                theory_rate: continuum_growth_rate(zeta),
-                particle: Some(ParticleInfo {
-                    box_length: l,
-                    rods: n,
-                    nu,
-                    level: cfg.hydrodynamics.to_string(),
-                    box_theory,
-                    time_unit,
-                    rotational_diffusion,
-                    box_theory_dr,
-                }),
-            })
-        }
-        "meanfield" => {
-            let cfg: MeanFieldRunConfig = read_run_config(run, MeanFieldRunConfig::validate)?;
-            let t = column(&ts, "t [", &ts_path)?;
-            let m = if cfg.initial == "plane_wave" {
-                cfg.wavevector
-                    .iter()
-                    .map(|v| (v * v) as f64)
-                    .sum::<f64>()
-                    .sqrt()
-            } else {
-                cfg.mode_min as f64
-            };
-            let k = 2.0 * std::f64::consts::PI * m;
-            Ok(NormCurve {
-                label: format!(
-                    "mean field {}^3, zeta = {}, D = {}",
-                    cfg.grid, cfg.zeta, cfg.diffusion
-                ),
-                run: run.into(),
-                t_end_own: t.last().copied().unwrap_or(0.0),
-                t,
-                u: column(&ts, "u_l2", &ts_path)?,
-                theory_rate: continuum_growth_rate(cfg.zeta) - cfg.diffusion * k * k,
-                particle: None,
-            })
-        }
-        other => bail!("{}: cannot compare a run of kind `{other}`", run.display()),
+    norm_curve_of(&OpenedRun::open(run)?)
+}
+
+/// An opened run's velocity norm, converted to mean-field units, with its linear theory.
+pub fn norm_curve_of(run: &OpenedRun) -> anyhow::Result<NormCurve> {
+    match &run.model {
+        OpenedModel::Particle { config, units } => particle_curve(run, config, units),
+        OpenedModel::MeanField(config) => meanfield_curve(run, config),
     }
+}
+
+/// A particle run's box-scale velocity norm in mean-field units, its box theory without and
+/// with the rotational diffusion measured in it.
+fn particle_curve(
+    run: &OpenedRun,
+    config: &ParticleRunConfig,
+    units: &ParticleUnits,
+) -> anyhow::Result<NormCurve> {
+    if !config.hydrodynamics.has_flow() {
+        bail!(
+            "{}: a particle run without hydrodynamics has no flow to compare (hydrodynamics = \"none\")",
+            run.path().display()
+        );
+    }
+    let t = run.column("t [")?;
+    // The box-scale modes (every |m_i| <= 1) where the instability begins and where the
+    // continuum's grid and the rods' sampling noise do not differ; runs written before that
+    // column existed fall back to all analysis modes.
+    let u = if run.has_column("velocity_norm_box") {
+        run.column("velocity_norm_box")?
+    } else {
+        run.column("velocity_norm")?
+    };
+    let t_end_own = t.last().copied().unwrap_or(0.0);
+    let (t, u) = t
+        .iter()
+        .zip(&u)
+        .map(|(t, u)| units.to_meanfield(*t, *u))
+        .unzip();
+    // Near-field encounters and contacts turn rods as a rotational diffusion would: measured
+    // from <p(t).p(0)> over the first half of the run (before a saturated flow adds its own
+    // turning), and the theory with it.
+    let rotational_diffusion = rotational_diffusion_of(&run.snapshot_paths, 0.5 * t_end_own)?;
+    Ok(NormCurve {
+        label: format!(
+            "particle L/l = {}, nu = {:.3} ({})",
+            units.box_length, units.nu, config.hydrodynamics
+        ),
+        run: run.path().into(),
+        t,
+        u,
+        t_end_own,
+        theory_rate: continuum_growth_rate(zeta(units.nu, units.diameter)),
+        particle: Some(ParticleInfo {
+            box_length: units.box_length,
+            rods: units.rods,
+            nu: units.nu,
+            level: config.hydrodynamics.to_string(),
+            box_theory: box_theory(units, 0.0),
+            time_unit: units.time_unit,
+            rotational_diffusion,
+            box_theory_dr: rotational_diffusion.and_then(|d| box_theory(units, d)),
+        }),
+    })
+}
+
+/// The lowest box mode's rate in the box's linear theory with rotational diffusion `d_r`
+/// (docs/MODEL.md §5b), mean-field units; `None` where it is damped.
+fn box_theory(units: &ParticleUnits, d_r: f64) -> Option<num_complex::Complex64> {
+    growth_rate(units.nu, units.diameter, lowest_mode(units.box_length), d_r)
+        .map(|g| g.sigma * units.time_unit)
+}
+
+/// A mean-field run's velocity norm and its continuum theory (M3) at its smallest perturbed
+/// wavenumber.
+fn meanfield_curve(run: &OpenedRun, config: &MeanFieldRunConfig) -> anyhow::Result<NormCurve> {
+    let t = run.column("t [")?;
+    let m = if config.initial == "plane_wave" {
+        config
+            .wavevector
+            .iter()
+            .map(|v| (v * v) as f64)
+            .sum::<f64>()
+            .sqrt()
+    } else {
+        config.mode_min as f64
+    };
+    let k = 2.0 * std::f64::consts::PI * m;
+    Ok(NormCurve {
+        label: format!(
+            "mean field {}^3, zeta = {}, D = {}",
+            config.grid, config.zeta, config.diffusion
+        ),
+        run: run.path().into(),
+        t_end_own: t.last().copied().unwrap_or(0.0),
+        t,
+        u: run.column("u_l2")?,
+        theory_rate: continuum_growth_rate(config.zeta) - config.diffusion * k * k,
+        particle: None,
+    })
 }
 
 /// Mean squared displacement and orientation autocorrelation of a particle run against time
@@ -206,84 +195,172 @@ pub struct CorrCurve {
     pub value: Vec<f64>,
 }
 
+/// The velocity magnitude on the plane z = 0 of one snapshot, mean-field units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VelocitySlice {
+    /// Points per side.
+    pub n: usize,
+    /// `|u|` at `values[y n + x]`.
+    pub values: Vec<f64>,
+    /// The snapshot's time, mean-field units.
+    pub time: f64,
+}
+
+/// An order parameter's time-averaged correlation normalised by its value at 0.
+pub(crate) struct OrderCorrelation {
+    /// The field: `c`, `n` or `Q`.
+    pub(crate) field: String,
+    /// `(r / L, Corr(r) / Corr(0))`.
+    pub(crate) points: Vec<(f64, f64)>,
+}
+
+/// A field's correlation length: the first zero of its time-averaged correlation.
+pub(crate) struct CorrelationLength {
+    /// The field.
+    pub(crate) field: String,
+    /// `r / L`; NaN without a zero.
+    pub(crate) length: f64,
+}
+
 /// What the in-memory analysis of one run gives the comparison.
 pub(crate) struct RunAnalysis {
     /// `Corr[u](r)` averaged over the snapshots with `t >= t_start`, mean-field units; `None`
     /// if the snapshots carry no flow.
     pub(crate) corr_u: Option<CorrCurve>,
-    /// The velocity slice of the last snapshot (see [`velocity_slice`]).
-    pub(crate) slice: Option<(usize, Vec<f64>, f64)>,
+    /// The velocity slice of the chosen snapshot (see [`velocity_slice`]).
+    pub(crate) slice: Option<VelocitySlice>,
     pub(crate) traj: Option<TrajectoryCurve>,
     /// `Corr[c], Corr[n], Corr[Q]` normalised by their value at 0, against `r / L`.
-    pub(crate) order: Vec<(String, Vec<(f64, f64)>)>,
+    pub(crate) order: Vec<OrderCorrelation>,
     /// Snapshots in the averaging window.
     pub(crate) window_count: usize,
-    /// Particle runs: `(L/l, nu)`.
-    pub(crate) particle: Option<(f64, f64)>,
+    /// Particle runs: their size and units.
+    pub(crate) particle: Option<ParticleUnits>,
     /// Correlation lengths (first zero of each time-averaged correlation), `r / L`, by field.
-    pub(crate) lengths: Vec<(String, f64)>,
+    pub(crate) lengths: Vec<CorrelationLength>,
     /// Fields whose L2 norm is at most [`ZERO_FIELD_NORM`] (identically zero by construction).
     pub(crate) zero_fields: Vec<String>,
 }
 
+/// What to analyse of one run: its label, where its averaging window starts and the time of
+/// its velocity slice, both in the run's own unit.
+pub(crate) struct AnalysisWindow<'a> {
+    /// Legend label.
+    pub(crate) label: &'a str,
+    /// Start of the averaging window.
+    pub(crate) t_start: f64,
+    /// The time whose nearest snapshot gives the slice (the last snapshot without one).
+    pub(crate) slice_at: Option<f64>,
+}
+
 /// One run's snapshots, read once: its Corr[u] and order-parameter correlations averaged over
-/// the snapshots from `t_start`, the velocity slice of the snapshot nearest `slice_at` (the
-/// last without one), and, for particle runs, trajectory statistics. Times in
-/// the run's own unit.
-pub(crate) fn analyse(
-    run: &Path,
-    label: &str,
-    t_start: f64,
-    slice_at: Option<f64>,
-) -> anyhow::Result<RunAnalysis> {
-    let dir = RunDir::open(run)?;
-    let snaps = dir.snapshots()?;
-    // Concentrated particle runs keep their structure at the rod scale: resolve r ~ l/2 there
-    // (2 L/l modes, at most 64) instead of the default L/(2l).
-    let pcfg: Option<ParticleRunConfig> = if dir.header()?.model == "particle" {
-        Some(read_run_config(run, ParticleRunConfig::validate)?)
+/// the snapshots from `window.t_start`, the velocity slice of the snapshot nearest
+/// `window.slice_at`, and, for particle runs, trajectory statistics.
+pub(crate) fn analyse(run: &OpenedRun, window: &AnalysisWindow) -> anyhow::Result<RunAnalysis> {
+    let snaps = run.snapshots()?;
+    let report = averaged_correlations(run, &snaps, window.t_start)?;
+    let slice = nearest_slice(run, &snaps, window.slice_at)?;
+    let traj = (report.kind == "particle").then(|| trajectory_curve(&report, window.label));
+    let units = run.particle().map(|(_, units)| *units);
+    // Particle runs: r in rod lengths and velocities in beta L, to mean-field units.
+    let (r_scale, v_scale) = units.map_or((1.0, 1.0), |u| {
+        (1.0 / u.box_length, u.time_unit * u.time_unit)
+    });
+    // Fields identically zero by construction (the mean-field c = tr Q - 1 while tr Q = 1) have
+    // no correlation to normalise: left out of the charts and named in the table instead.
+    let zero_fields: Vec<String> = report
+        .mean
+        .iter()
+        .filter(|(_, c)| c.at_zero().abs().sqrt() <= ZERO_FIELD_NORM)
+        .map(|(n, _)| n.clone())
+        .collect();
+    let unit = if units.is_some() {
+        "1/beta"
     } else {
-        None
+        "mu/|sigma_a|"
     };
-    let modes = pcfg
-        .as_ref()
-        .filter(|c| c.volume_fraction > 1.0)
-        .map(|c| ((2.0 * c.box_length).ceil() as usize).clamp(4, 64));
+    let corr_u = report
+        .mean
+        .iter()
+        .find(|(n, _)| n == "u")
+        .map(|(_, c)| CorrCurve {
+            label: format!(
+                "{}, {} snapshot(s) from t = {:.3} [{unit}]",
+                window.label, report.window_count, window.t_start
+            ),
+            r: c.r.iter().map(|r| r * r_scale).collect(),
+            value: c.value.iter().map(|v| v * v_scale).collect(),
+        });
+    Ok(RunAnalysis {
+        corr_u,
+        slice,
+        traj,
+        order: order_correlations(&report, &zero_fields, r_scale),
+        window_count: report.window_count,
+        particle: units,
+        lengths: correlation_lengths(&report, &zero_fields, r_scale),
+        zero_fields,
+    })
+}
+
+/// The time-averaged correlations of a run's snapshots from `t_start`. Concentrated particle
+/// runs keep their structure at the rod scale: resolved to r ~ l/2 (2 L/l modes, at most 64)
+/// instead of the default L/(2l). In dilute particle runs c and n decay within a rod length,
+/// so their correlations come from 2 L/l modes (at most 128), the flow's and Q's from the
+/// default modes.
+fn averaged_correlations(
+    run: &OpenedRun,
+    snaps: &[Snapshot],
+    t_start: f64,
+) -> anyhow::Result<AnalysisReport> {
+    let config = run.particle().map(|(config, _)| config);
+    let rod_modes =
+        |c: &ParticleRunConfig, most: usize| ((2.0 * c.box_length).ceil() as usize).clamp(4, most);
     let opts = AnalyzeOptions {
         t_start,
-        modes,
+        modes: config
+            .filter(|c| c.volume_fraction > 1.0)
+            .map(|c| rod_modes(c, 64)),
         ..AnalyzeOptions::default()
     };
     let mut report =
-        analyze(&snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?;
-    // Dilute particle runs: c and n decay within a rod length, so their correlations come from
-    // 2 L/l modes (at most 128; r ~ l/2 resolved), the flow's and Q's from the default modes.
-    if let Some(c) = pcfg.as_ref().filter(|c| c.volume_fraction <= 1.0) {
-        let fine = ((2.0 * c.box_length).ceil() as usize).clamp(4, 128);
-        for (name, corr) in rod_scale_correlations(&snaps, t_start, fine)? {
+        analyze(snaps, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", run.path().display()))?;
+    if let Some(c) = config.filter(|c| c.volume_fraction <= 1.0) {
+        for (name, corr) in rod_scale_correlations(snaps, t_start, rod_modes(c, 128))? {
             if let Some(slot) = report.mean.iter_mut().find(|(n, _)| *n == name) {
                 slot.1 = corr;
             }
         }
     }
-    let time_of = |s: &Snapshot| match s {
-        Snapshot::Particle(p) => p.time,
-        Snapshot::Field(f) => f.time,
-    };
-    // The snapshot nearest the asked time (runs of both models end at nearly, not exactly,
-    // the same time in the common unit).
+    Ok(report)
+}
+
+/// The velocity slice of the snapshot nearest `slice_at` (runs of both models end at nearly,
+/// not exactly, the same time in the common unit), or of the last snapshot.
+fn nearest_slice(
+    run: &OpenedRun,
+    snaps: &[Snapshot],
+    slice_at: Option<f64>,
+) -> anyhow::Result<Option<VelocitySlice>> {
     let chosen = match slice_at {
         Some(t) => snaps
             .iter()
-            .min_by(|a, b| (time_of(a) - t).abs().total_cmp(&(time_of(b) - t).abs())),
+            .min_by(|a, b| (a.time() - t).abs().total_cmp(&(b.time() - t).abs())),
         None => snaps.last(),
     };
-    let slice = match chosen {
-        Some(last) => velocity_slice(last, pcfg.as_ref().map_or(DEFAULT_DIAMETER, |c| c.diameter))
-            .map_err(|e| anyhow::anyhow!("{}: {e}", run.display()))?,
-        None => None,
-    };
-    let traj = (report.kind == "particle").then(|| TrajectoryCurve {
+    let diameter = run
+        .particle()
+        .map_or(DEFAULT_DIAMETER, |(config, _)| config.diameter);
+    match chosen {
+        Some(snap) => velocity_slice(snap, diameter)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", run.path().display())),
+        None => Ok(None),
+    }
+}
+
+/// A particle run's mean squared displacement and orientation autocorrelation per snapshot.
+fn trajectory_curve(report: &AnalysisReport, label: &str) -> TrajectoryCurve {
+    TrajectoryCurve {
         label: label.into(),
         t: report.snapshots.iter().map(|s| s.time).collect(),
         msd: report
@@ -296,81 +373,50 @@ pub(crate) fn analyse(
             .iter()
             .map(|s| s.orientation.unwrap_or(f64::NAN))
             .collect(),
-    });
-    let unit = if pcfg.is_some() {
-        "1/beta"
-    } else {
-        "mu/|sigma_a|"
-    };
-    let mut particle = None;
-    let (r_scale, v_scale) = if let Some(cfg) = &pcfg {
-        let l = cfg.box_length;
-        let n = cfg
-            .rods
-            .unwrap_or((cfg.volume_fraction * l * l * l).round() as usize);
-        let nu = n as f64 / (l * l * l);
-        particle = Some((l, nu));
-        let s = motile_particle::model::units::meanfield_time_unit(nu, cfg.diameter);
-        (1.0 / l, s * s)
-    } else {
-        (1.0, 1.0)
-    };
-    // Fields identically zero by construction (the mean-field c = tr Q - 1 while tr Q = 1) have
-    // no correlation to normalise: left out of the charts and named in the table instead.
-    let zero_fields: Vec<String> = report
-        .mean
-        .iter()
-        .filter(|(_, c)| c.at_zero().abs().sqrt() <= ZERO_FIELD_NORM)
-        .map(|(n, _)| n.clone())
-        .collect();
-    let lengths = report
+    }
+}
+
+/// Each non-zero field's correlation length, `r` scaled by `r_scale`.
+fn correlation_lengths(
+    report: &AnalysisReport,
+    zero_fields: &[String],
+    r_scale: f64,
+) -> Vec<CorrelationLength> {
+    report
         .mean
         .iter()
         .filter(|(n, _)| !zero_fields.contains(n))
-        .map(|(n, c)| {
-            (
-                n.clone(),
-                correlation_length(&c.r, &c.value).map_or(f64::NAN, |z| z * r_scale),
-            )
+        .map(|(n, c)| CorrelationLength {
+            field: n.clone(),
+            length: correlation_length(&c.r, &c.value).map_or(f64::NAN, |z| z * r_scale),
         })
-        .collect();
-    let order = report
+        .collect()
+}
+
+/// The order parameters' correlations (every field but `u`, positive at 0 and not zero),
+/// normalised at 0, `r` scaled by `r_scale`.
+fn order_correlations(
+    report: &AnalysisReport,
+    zero_fields: &[String],
+    r_scale: f64,
+) -> Vec<OrderCorrelation> {
+    report
         .mean
         .iter()
         .filter(|(n, c)| n != "u" && c.at_zero() > 0.0 && !zero_fields.contains(n))
         .map(|(n, c)| {
             let c0 = c.at_zero();
-            (
-                n.clone(),
-                c.r.iter()
+            OrderCorrelation {
+                field: n.clone(),
+                points: c
+                    .r
+                    .iter()
                     .zip(&c.value)
                     .map(|(r, v)| (r * r_scale, v / c0))
                     .collect(),
-            )
+            }
         })
-        .collect();
-    let corr_u = report
-        .mean
-        .iter()
-        .find(|(n, _)| n == "u")
-        .map(|(_, c)| CorrCurve {
-            label: format!(
-                "{label}, {} snapshot(s) from t = {t_start:.3} [{unit}]",
-                report.window_count
-            ),
-            r: c.r.iter().map(|r| r * r_scale).collect(),
-            value: c.value.iter().map(|v| v * v_scale).collect(),
-        });
-    Ok(RunAnalysis {
-        corr_u,
-        slice,
-        traj,
-        order,
-        window_count: report.window_count,
-        particle,
-        lengths,
-        zero_fields,
-    })
+        .collect()
 }
 
 /// `Corr[c]` and `Corr[n]` of the particle snapshots from `t_start`, averaged, on `modes`
@@ -418,15 +464,15 @@ fn rod_scale_correlations(
     Ok(out)
 }
 
-/// The velocity magnitude on the plane z = 0 of a snapshot, in mean-field units:
-/// `(n, values)` with `values[y n + x]`. Particle runs: the velocity field of the snapshot's
-/// force density on `min(2 L/l, 64)` modes per side (docs/MODEL.md §6, doublet neglected); mean-field
-/// runs: the snapshot's grid. `None` if the snapshot has no flow.
-/// `diameter`: the particle run's rod diameter, which sets the time unit of the conversion.
+/// The velocity magnitude on the plane z = 0 of a snapshot, in mean-field units. Particle runs:
+/// the velocity field of the snapshot's force density on `min(2 L/l, 64)` modes per side
+/// (docs/MODEL.md §6, doublet neglected); mean-field runs: the snapshot's grid. `None` if the
+/// snapshot has no flow. `diameter`: the particle run's rod diameter, which sets the time unit
+/// of the conversion.
 pub fn velocity_slice(
     snap: &Snapshot,
     diameter: f64,
-) -> Result<Option<(usize, Vec<f64>, f64)>, motile_analysis::nufft::NufftError> {
+) -> Result<Option<VelocitySlice>, motile_analysis::nufft::NufftError> {
     let (n, grid, time): (usize, [Vec<f64>; 3], f64) = match snap {
         Snapshot::Particle(p) => {
             let Some(f) = &p.forces else {
@@ -437,16 +483,16 @@ pub fn velocity_slice(
             let modes = ((2.0 * l) as usize).clamp(8, 64) & !1;
             let spec = velocity_spectrum(&f.points, &f.forces, l, VISCOSITY, modes, 1e-6)?;
             // u / (beta L) to mean-field units.
-            let s = motile_particle::model::units::meanfield_time_unit(nu, diameter) / l;
+            let s = meanfield_time_unit(nu, diameter) / l;
             let g = [0, 1, 2].map(|c| spec.to_grid(c).into_iter().map(|v| v * s).collect());
             (modes, g, particle_to_meanfield(p.time, 0.0, nu, diameter).0)
         }
         Snapshot::Field(f) => (f.grid, f.u.clone(), f.time),
     };
-    let slice = (0..n * n)
+    let values = (0..n * n)
         .map(|k| (0..3).map(|c| grid[c][k].powi(2)).sum::<f64>().sqrt())
         .collect();
-    Ok(Some((n, slice, time)))
+    Ok(Some(VelocitySlice { n, values, time }))
 }
 
 /// A field whose time-averaged `||Phi||_2` is at most this is identically zero (round-off), not
@@ -468,6 +514,63 @@ pub fn growth_fit(c: &NormCurve) -> Option<(GrowthFit, bool)> {
     growth_phase(&c.t, &c.u, MIN_GROWTH_FACTOR, MIN_R_SQUARED)
 }
 
+/// Where a run's saturated state starts (mean-field units): the later of the end of its growth
+/// phase and half the run (without a growth phase, half the run). Time averages (the norm, the
+/// correlations) are taken from there to the end.
+pub fn saturated_from(c: &NormCurve) -> f64 {
+    let half = 0.5 * c.t.last().copied().unwrap_or(0.0);
+    match growth_fit(c) {
+        Some((g, true)) => g.t1.max(half),
+        _ => half,
+    }
+}
+
+/// What the comparison's tables report of one run's norm: its growth fit and its time average
+/// over the saturated state.
+#[derive(Clone, Debug)]
+pub struct NormStatistics {
+    /// [`growth_fit`].
+    pub growth: Option<(GrowthFit, bool)>,
+    /// Start of the saturated state ([`saturated_from`]), mean-field units.
+    pub saturated_from: f64,
+    /// The run's last time, mean-field units.
+    pub t_end: f64,
+    /// The norm's time average from `saturated_from` to `t_end`.
+    pub average: WindowAverage,
+}
+
+impl NormStatistics {
+    /// The statistics of one curve.
+    pub fn of(c: &NormCurve) -> Self {
+        let t_end = c.t.last().copied().unwrap_or(0.0);
+        let saturated_from = saturated_from(c);
+        Self {
+            growth: growth_fit(c),
+            saturated_from,
+            t_end,
+            average: window_average(&c.t, &c.u, saturated_from, t_end),
+        }
+    }
+
+    /// The growth fit and whether it is a growth phase; without a fit (too few samples), NaN
+    /// in every field and no growth phase, as the tables write it.
+    pub fn fit_or_nan(&self) -> (GrowthFit, bool) {
+        self.growth.unwrap_or((
+            GrowthFit {
+                rate: f64::NAN,
+                std_error: f64::NAN,
+                samples: 0,
+                t0: f64::NAN,
+                t1: f64::NAN,
+                r_squared: f64::NAN,
+                growth_factor: f64::NAN,
+                peak_rate: f64::NAN,
+            },
+            false,
+        ))
+    }
+}
+
 /// The effective rotational diffusion of the rods of the run in `dir`, from their orientation
 /// autocorrelation `C(t) = <p(t).p(0)>` over the snapshots up to `t1`: where the rods turn
 /// diffusively, `ln C = -2 d_r t` (after a short ballistic start). The least-squares slopes of
@@ -476,12 +579,16 @@ pub fn growth_fit(c: &NormCurve) -> Option<(GrowthFit, bool)> {
 /// no `d_r` (`None`, also with fewer than three snapshots in a half); `d_r` is the second
 /// half's slope over `-2`.
 pub fn rotational_diffusion(dir: &Path, t1: f64) -> anyhow::Result<Option<f64>> {
-    use crate::io::snapshot::Snapshot;
     let paths = crate::io::rundir::RunDir::open(dir)?.snapshot_paths()?;
+    rotational_diffusion_of(&paths, t1)
+}
+
+/// [`rotational_diffusion`] of the rods in the snapshot files `paths` (in order).
+fn rotational_diffusion_of(paths: &[PathBuf], t1: f64) -> anyhow::Result<Option<f64>> {
     let mut first: Option<Vec<[f64; 3]>> = None;
     let mut points = Vec::new();
     for p in paths {
-        let Snapshot::Particle(s) = crate::io::snapshot::read_snapshot(&p)? else {
+        let Snapshot::Particle(s) = crate::io::snapshot::read_snapshot(p)? else {
             continue;
         };
         if s.time > t1 + 1e-9 {

@@ -4,5 +4,8 @@
 pub mod accuracy;
 pub mod analyze;
 pub mod compare;
+pub(crate) mod compare_figures;
 pub mod curves;
+pub mod opened_run;
 pub mod plot;
+pub(crate) mod series;

@@ -1,0 +1,148 @@
+//! A finished run opened once for the report (`motile compare`, the demo's checks): its
+//! directory, its validated config, its time series, the list of its snapshot files and, for a
+//! particle run, the units that put it in the mean-field unit system (docs/MODEL.md §5:
+//! `t_mf = t_p nu / (8 eta mu)`, `u_mf = (u_p / (beta L)) 8 eta mu / nu`). The stages of a
+//! comparison take what they need from here instead of reading the run directory again.
+
+use crate::io::IoError;
+use crate::io::rundir::{RunDir, TimeSeries, read_run_config};
+use crate::io::snapshot::{Snapshot, read_snapshot};
+use crate::run::meanfield::MeanFieldRunConfig;
+use crate::run::particle::ParticleRunConfig;
+use anyhow::{Context, bail};
+use motile_particle::model::units::{meanfield_time_unit, particle_to_meanfield};
+use std::path::{Path, PathBuf};
+
+/// A run directory read once: config, time series, snapshot files.
+#[derive(Clone, Debug)]
+pub struct OpenedRun {
+    /// The run directory.
+    pub dir: RunDir,
+    /// The run's model and its config (with a particle run's units).
+    pub model: OpenedModel,
+    /// The run's own time series (`timeseries.csv`).
+    pub series: TimeSeries,
+    /// Where the time series was read from (error messages name it).
+    pub series_path: PathBuf,
+    /// The snapshot files, in order.
+    pub snapshot_paths: Vec<PathBuf>,
+}
+
+/// The model of an opened run, with its validated config.
+#[derive(Clone, Debug)]
+pub enum OpenedModel {
+    /// A particle run and its units.
+    Particle {
+        /// The run's config.
+        config: ParticleRunConfig,
+        /// Its size and unit conversion.
+        units: ParticleUnits,
+    },
+    /// A mean-field run (already in mean-field units).
+    MeanField(MeanFieldRunConfig),
+}
+
+/// A particle run's size and its conversion to mean-field units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParticleUnits {
+    /// Box side `L/l`.
+    pub box_length: f64,
+    /// Rods (the config's, or `round(nu L^3)`).
+    pub rods: usize,
+    /// The volume fraction of those rods, `N / L^3`.
+    pub nu: f64,
+    /// Rod diameter `b`.
+    pub diameter: f64,
+    /// The mean-field time unit in particle time, `8 eta mu / nu`: `t_mf = t_p / time_unit`.
+    pub time_unit: f64,
+}
+
+impl ParticleUnits {
+    /// The units of a particle run's config.
+    pub fn of(config: &ParticleRunConfig) -> Self {
+        let l = config.box_length;
+        let rods = config
+            .rods
+            .unwrap_or((config.volume_fraction * l * l * l).round() as usize);
+        let nu = rods as f64 / (l * l * l);
+        Self {
+            box_length: l,
+            rods,
+            nu,
+            diameter: config.diameter,
+            time_unit: meanfield_time_unit(nu, config.diameter),
+        }
+    }
+
+    /// A particle time (1/beta) and velocity (normalised by `beta L`) in mean-field units.
+    pub fn to_meanfield(&self, t: f64, u: f64) -> (f64, f64) {
+        particle_to_meanfield(t, u, self.nu, self.diameter)
+    }
+}
+
+impl OpenedRun {
+    /// Open the run directory `run`: its header and config (validated), its time series and
+    /// the list of its snapshots. A run of another kind than particle or mean-field is refused.
+    pub fn open(run: &Path) -> anyhow::Result<Self> {
+        let dir = RunDir::open(run)?;
+        let kind = dir.header()?.model;
+        let series_path = run.join("timeseries.csv");
+        let series = TimeSeries::read(&series_path)?;
+        let model = match kind.as_str() {
+            "particle" => {
+                let config: ParticleRunConfig = read_run_config(run, ParticleRunConfig::validate)?;
+                let units = ParticleUnits::of(&config);
+                OpenedModel::Particle { config, units }
+            }
+            "meanfield" => {
+                OpenedModel::MeanField(read_run_config(run, MeanFieldRunConfig::validate)?)
+            }
+            other => bail!("{}: cannot compare a run of kind `{other}`", run.display()),
+        };
+        let snapshot_paths = dir.snapshot_paths()?;
+        Ok(Self {
+            dir,
+            model,
+            series,
+            series_path,
+            snapshot_paths,
+        })
+    }
+
+    /// The run directory's path.
+    pub fn path(&self) -> &Path {
+        self.dir.path()
+    }
+
+    /// The particle run's config and units; `None` for a mean-field run.
+    pub fn particle(&self) -> Option<(&ParticleRunConfig, &ParticleUnits)> {
+        match &self.model {
+            OpenedModel::Particle { config, units } => Some((config, units)),
+            OpenedModel::MeanField(_) => None,
+        }
+    }
+
+    /// The time-series column whose name starts with `prefix`.
+    pub fn column(&self, prefix: &str) -> anyhow::Result<Vec<f64>> {
+        let c = self
+            .series
+            .columns
+            .iter()
+            .position(|c| c.starts_with(prefix))
+            .with_context(|| format!("{}: no column `{prefix}`", self.series_path.display()))?;
+        Ok(self.series.rows.iter().map(|r| r[c]).collect())
+    }
+
+    /// Whether the time series has a column whose name starts with `prefix`.
+    pub fn has_column(&self, prefix: &str) -> bool {
+        self.series.columns.iter().any(|c| c.starts_with(prefix))
+    }
+
+    /// Read every snapshot, in order.
+    pub fn snapshots(&self) -> Result<Vec<Snapshot>, IoError> {
+        self.snapshot_paths
+            .iter()
+            .map(|p| read_snapshot(p))
+            .collect()
+    }
+}

@@ -1,0 +1,243 @@
+//! The series summary of `motile compare` (`series.csv`, `series.md`): one row per run with its
+//! model, size, level, growth rate with its window, R^2 and growth factor, the saturated norm
+//! with its standard error, and the first zero of the time-averaged Corr[u] (units of L); and,
+//! with particle runs, the saturated norm against L/l beside the continuum's, with the onset of
+//! the box's linear theory marked (`saturated_norm.{png,svg}`, docs/MODEL.md §5b).
+
+use crate::io::write_atomic;
+use crate::report::curves::{NormCurve, NormStatistics};
+use crate::report::plot::{Chart, Series, line_chart};
+use motile_particle::model::linear_theory::onset_box;
+use motile_particle::model::units::DEFAULT_DIAMETER;
+use std::path::Path;
+
+const CSV_HEADER: &str = "model,L/l,rods,level,growth_phase,growth_rate [mf],growth_t0 [mf],growth_t1 [mf],r_squared,growth_factor,theory_rate [mf],rotational_diffusion [beta],theory_rate_d_r [mf],saturated_from [mf],mean_u_l2 [mf],std_error,samples,batches,corr_u_first_zero [L]\n";
+
+const MD_HEADER: &str = "# Series summary\n\nOne row per run, mean-field units. Growth: the least-squares rate of ln ||u||_2 over the growth phase (docs/MODEL.md §6), with its window, R^2 and growth factor; theory: the box's linear theory (Re sigma of the lowest mode, docs/MODEL.md §5b) for particles, without diffusion and with the rotational diffusion d_r (1/beta) measured in the run from <p(t).p(0)> over its first half; M3 for the continuum. Saturated norm: the time average from the later of the growth phase's end and half the run, to its end; standard error from batch means over up to 10 contiguous blocks (samples within a block are correlated; blocks are taken as independent).\n\n| run | L/l | rods | level | growth rate (window, R^2, grown by) | theory | saturated ||u||_2 | samples | first zero of Corr[u] (L) |\n|---|---|---|---|---|---|---|---|---|\n";
+
+/// What a row says about the run's model and its theory.
+struct RunColumns {
+    model: &'static str,
+    /// `L/l`; NaN for the continuum.
+    box_length: f64,
+    rods: String,
+    level: String,
+    /// The linear theory's rate (mean-field units); NaN where damped.
+    theory: f64,
+    /// The rotational diffusion measured in a particle run (1/beta); NaN where not.
+    rotational_diffusion: f64,
+    /// The box theory's rate with it; NaN where not measured or damped.
+    theory_with_diffusion: f64,
+}
+
+impl RunColumns {
+    fn of(c: &NormCurve) -> Self {
+        match &c.particle {
+            Some(p) => Self {
+                model: "particle",
+                box_length: p.box_length,
+                rods: p.rods.to_string(),
+                level: p.level.clone(),
+                theory: p.box_theory.map_or(f64::NAN, |s| s.re),
+                rotational_diffusion: p.rotational_diffusion.unwrap_or(f64::NAN),
+                theory_with_diffusion: p.box_theory_dr.map_or(f64::NAN, |s| s.re),
+            },
+            None => Self {
+                model: "meanfield",
+                box_length: f64::NAN,
+                rods: "-".to_string(),
+                level: "continuum".to_string(),
+                theory: c.theory_rate,
+                rotational_diffusion: f64::NAN,
+                theory_with_diffusion: f64::NAN,
+            },
+        }
+    }
+}
+
+/// A particle run's saturated norm against its box.
+struct SaturatedPoint {
+    box_length: f64,
+    mean: f64,
+    nu: f64,
+    rotational_diffusion: Option<f64>,
+}
+
+/// The series summary (`series.csv`, `series.md`) of the runs' `curves` with their
+/// `statistics` and the first zeros of their Corr[u] (`corr_u_zeros`), and, with particle runs,
+/// `saturated_norm.{png,svg}`.
+pub(crate) fn write_series(
+    curves: &[NormCurve],
+    statistics: &[NormStatistics],
+    corr_u_zeros: &[f64],
+    out: &Path,
+) -> anyhow::Result<()> {
+    let mut csv = String::from(CSV_HEADER);
+    let mut md = String::from(MD_HEADER);
+    let mut points = Vec::new();
+    let mut continuum = Vec::new();
+    for ((c, s), &zero) in curves.iter().zip(statistics).zip(corr_u_zeros) {
+        let columns = RunColumns::of(c);
+        csv.push_str(&csv_row(&columns, s, zero));
+        md.push_str(&md_row(c, &columns, s, zero));
+        match &c.particle {
+            Some(p) => points.push(SaturatedPoint {
+                box_length: p.box_length,
+                mean: s.average.mean,
+                nu: p.nu,
+                rotational_diffusion: p.rotational_diffusion,
+            }),
+            None => continuum.push((c.label.clone(), s.average.mean)),
+        }
+    }
+    write_atomic(&out.join("series.csv"), csv.as_bytes())?;
+    write_atomic(&out.join("series.md"), md.as_bytes())?;
+    if points.is_empty() {
+        return Ok(());
+    }
+    write_saturated_norm(&points, &continuum, out)
+}
+
+fn csv_row(columns: &RunColumns, s: &NormStatistics, zero: f64) -> String {
+    let (g, grew) = s.fit_or_nan();
+    let RunColumns {
+        model,
+        box_length: l,
+        rods,
+        level,
+        theory,
+        rotational_diffusion: d_r,
+        theory_with_diffusion: theory_dr,
+    } = columns;
+    let w = &s.average;
+    format!(
+        "{model},{l},{rods},{level},{grew},{:e},{:e},{:e},{},{},{theory:e},{d_r:e},{theory_dr:e},{:e},{:e},{:e},{},{},{zero:e}\n",
+        g.rate,
+        g.t0,
+        g.t1,
+        g.r_squared,
+        g.growth_factor,
+        s.saturated_from,
+        w.mean,
+        w.std_error,
+        w.samples,
+        w.batches
+    )
+}
+
+fn md_row(c: &NormCurve, columns: &RunColumns, s: &NormStatistics, zero: f64) -> String {
+    let (g, grew) = s.fit_or_nan();
+    let (rate, g0, g1, r2, gf) = (g.rate, g.t0, g.t1, g.r_squared, g.growth_factor);
+    let (theory, d_r, theory_dr) = (
+        columns.theory,
+        columns.rotational_diffusion,
+        columns.theory_with_diffusion,
+    );
+    let l = columns.box_length;
+    let theory_cell = match (theory.is_nan(), d_r.is_nan()) {
+        (true, _) => "damped".to_string(),
+        (false, true) => format!("{theory:.4}"),
+        (false, false) => format!(
+            "{theory:.4}; with d_r = {d_r:.1e}: {}",
+            if theory_dr.is_nan() {
+                "damped".to_string()
+            } else {
+                format!("{theory_dr:.4}")
+            }
+        ),
+    };
+    format!(
+        "| {} | {} | {} | {} | {} | {theory_cell} | {:.4e} +- {:.1e} (from t = {:.1}) | {} | {} |\n",
+        c.label,
+        if l.is_nan() {
+            "-".into()
+        } else {
+            format!("{l}")
+        },
+        columns.rods,
+        columns.level,
+        if grew {
+            format!("{rate:.4} ({g0:.1}-{g1:.1}, R^2 {r2:.3}, x{gf:.0})")
+        } else {
+            format!("no growth phase (R^2 {r2:.2}, x{gf:.1})")
+        },
+        s.average.mean,
+        s.average.std_error,
+        s.saturated_from,
+        s.average.samples,
+        if zero.is_nan() {
+            "no zero".into()
+        } else {
+            format!("{zero:.3}")
+        }
+    )
+}
+
+/// `saturated_norm.{png,svg}`: the particle runs' saturated norms against `L/l`, the
+/// continuum's as flat lines, and the box theory's onset without and with the rotational
+/// diffusion measured in the runs (their mean).
+fn write_saturated_norm(
+    points: &[SaturatedPoint],
+    continuum: &[(String, f64)],
+    out: &Path,
+) -> anyhow::Result<()> {
+    let (x_lo, x_hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| {
+        (a.min(p.box_length), b.max(p.box_length))
+    });
+    let nu = points[0].nu;
+    let onset = onset_box(nu, DEFAULT_DIAMETER, 0.0, (2.0, 1000.0));
+    let measured: Vec<f64> = points
+        .iter()
+        .filter_map(|p| p.rotational_diffusion)
+        .collect();
+    let onset_dr = (!measured.is_empty())
+        .then(|| {
+            let d_r = measured.iter().sum::<f64>() / measured.len() as f64;
+            onset_box(nu, DEFAULT_DIAMETER, d_r, (2.0, 1000.0)).map(|o| (d_r, o))
+        })
+        .flatten();
+    let x_lo = onset.map_or(x_lo, |o| o.min(x_lo)) * 0.9;
+    let x_hi = onset_dr.map_or(x_hi, |(_, o)| o.max(x_hi)) * 1.1;
+    let y_hi = points
+        .iter()
+        .map(|p| p.mean)
+        .chain(continuum.iter().map(|c| c.1))
+        .fold(0.0, f64::max)
+        * 1.2;
+    let mut series = vec![Series {
+        label: format!("particles, nu = {nu:.3}"),
+        points: points.iter().map(|p| (p.box_length, p.mean)).collect(),
+    }];
+    for (label, mean) in continuum {
+        series.push(Series {
+            label: label.clone(),
+            points: vec![(x_lo, *mean), (x_hi, *mean)],
+        });
+    }
+    let onset_line = |label: String, o: f64| Series {
+        label,
+        points: vec![(o, 0.0), (o, y_hi)],
+    };
+    if let Some(o) = onset {
+        series.push(onset_line(
+            format!("onset of the lowest box mode (linear theory): L/l = {o:.1}"),
+            o,
+        ));
+    }
+    if let Some((d_r, o)) = onset_dr {
+        series.push(onset_line(
+            format!("onset with the measured d_r = {d_r:.1e}/beta: L/l = {o:.1}"),
+            o,
+        ));
+    }
+    line_chart(
+        &out.join("saturated_norm"),
+        &Chart {
+            title: "Saturated velocity norm against the box (time average), mean-field units",
+            x_label: "L / l",
+            y_label: "time-averaged ||u||_2 [L |sigma_a|/mu]",
+            series,
+        },
+    )?;
+    Ok(())
+}
