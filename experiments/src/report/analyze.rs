@@ -178,62 +178,23 @@ fn field_fields(s: &FieldSnapshot) -> Vec<(String, Spectrum)> {
     ]
 }
 
+/// "particle" or "meanfield": the kind of a run's snapshots.
+fn snapshot_kind(s: &Snapshot) -> &'static str {
+    match s {
+        Snapshot::Particle(_) => "particle",
+        Snapshot::Field(_) => "meanfield",
+    }
+}
+
 /// Analyse every snapshot of a run.
 pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisReport, String> {
     opts.validate()?;
     let first = snaps.first().ok_or("the run has no snapshots")?;
-    let kind = match first {
-        Snapshot::Particle(_) => "particle",
-        Snapshot::Field(_) => "meanfield",
-    };
-    let mut per = Vec::new();
-    for s in snaps {
-        let (fields, msd, orientation) = match (s, first) {
-            (Snapshot::Particle(p), Snapshot::Particle(p0)) => {
-                if p.positions.len() != p0.positions.len() {
-                    return Err(format!(
-                        "snapshot at t = {} has {} rods, the first has {}",
-                        p.time,
-                        p.positions.len(),
-                        p0.positions.len()
-                    ));
-                }
-                let x0: Vec<[f64; 3]> = p0
-                    .positions
-                    .iter()
-                    .zip(&p0.image_counts)
-                    .map(|(x, i)| unwrap(*x, *i, p0.box_length))
-                    .collect();
-                let xt: Vec<[f64; 3]> = p
-                    .positions
-                    .iter()
-                    .zip(&p.image_counts)
-                    .map(|(x, i)| unwrap(*x, *i, p.box_length))
-                    .collect();
-                (
-                    particle_fields(p, opts)?,
-                    Some(mean_squared_displacement(&x0, &xt)),
-                    Some(orientation_autocorrelation(
-                        &p0.orientations,
-                        &p.orientations,
-                    )),
-                )
-            }
-            (Snapshot::Field(f), Snapshot::Field(_)) => (field_fields(f), None, None),
-            _ => return Err("the run mixes particle and mean-field snapshots".into()),
-        };
-        let correlations = fields
-            .iter()
-            .map(|(n, sp)| (n.clone(), sp.correlation(opts.shell_width)))
-            .collect();
-        per.push(SnapshotAnalysis {
-            time: s.time(),
-            correlations,
-            msd,
-            orientation,
-        });
-    }
-    // Time series of scalars.
+    let kind = snapshot_kind(first);
+    let per = snaps
+        .iter()
+        .map(|s| analyse_snapshot(s, first, opts))
+        .collect::<Result<Vec<_>, String>>()?;
     // Fields may be missing from some snapshots (the initial one of a hydrodynamic run has no
     // force density, so no velocity): the columns are those of the richest snapshot, and a
     // snapshot without a field gets NaN there.
@@ -242,56 +203,7 @@ pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisRepo
         .max_by_key(|a| a.correlations.len())
         .map(|a| a.correlations.iter().map(|(n, _)| n.clone()).collect())
         .unwrap_or_default();
-    let find = |a: &SnapshotAnalysis, name: &str| -> Option<RadialCorrelation> {
-        a.correlations
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(_, c)| c.clone())
-    };
-    let unit_t = if kind == "particle" {
-        "1/beta"
-    } else {
-        "mu/|sigma_a|"
-    };
-    let unit_r = if kind == "particle" { "l" } else { "L" };
-    let mut cols = vec![format!("t [{unit_t}]")];
-    for n in &names {
-        let unit = if n == "u" {
-            if kind == "particle" {
-                "beta L"
-            } else {
-                "L |sigma_a|/mu"
-            }
-        } else {
-            "1"
-        };
-        cols.push(format!("{n}_l2 [{unit}]"));
-        cols.push(format!("{n}_corr_length [{unit_r}]"));
-    }
-    if kind == "particle" {
-        cols.push("msd [l^2]".into());
-        cols.push("orientation_autocorrelation [1]".into());
-    }
-    let col_refs: Vec<&str> = cols.iter().map(|s| s.as_str()).collect();
-    let mut ts = TimeSeries::new(&col_refs);
-    for a in &per {
-        let mut row = vec![a.time];
-        for n in &names {
-            match find(a, n) {
-                Some(c) => {
-                    row.push(c.at_zero().max(0.0).sqrt());
-                    row.push(correlation_length(&c.r, &c.value).unwrap_or(f64::NAN));
-                }
-                None => row.extend([f64::NAN, f64::NAN]),
-            }
-        }
-        if kind == "particle" {
-            row.push(a.msd.unwrap_or(f64::NAN));
-            row.push(a.orientation.unwrap_or(f64::NAN));
-        }
-        ts.push(row);
-    }
-    // Time averages over the window.
+    let timeseries = scalar_series(kind, &names, &per);
     let window: Vec<&SnapshotAnalysis> = per.iter().filter(|a| a.time >= opts.t_start).collect();
     if window.is_empty() {
         return Err(format!(
@@ -300,11 +212,127 @@ pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisRepo
             per.last().map_or(f64::NAN, |a| a.time)
         ));
     }
-    // Time averages over the window's snapshots that have the field.
-    let mean = names
+    let mean = window_means(&names, &window);
+    let window_count = window.len();
+    Ok(AnalysisReport {
+        kind: kind.into(),
+        snapshots: per,
+        mean,
+        window_count,
+        timeseries,
+    })
+}
+
+/// One snapshot's correlations and, for particles, its mean squared displacement and
+/// orientation autocorrelation against the `first` snapshot.
+fn analyse_snapshot(
+    s: &Snapshot,
+    first: &Snapshot,
+    opts: &AnalyzeOptions,
+) -> Result<SnapshotAnalysis, String> {
+    let (fields, msd, orientation) = match (s, first) {
+        (Snapshot::Particle(p), Snapshot::Particle(p0)) => {
+            if p.positions.len() != p0.positions.len() {
+                return Err(format!(
+                    "snapshot at t = {} has {} rods, the first has {}",
+                    p.time,
+                    p.positions.len(),
+                    p0.positions.len()
+                ));
+            }
+            (
+                particle_fields(p, opts)?,
+                Some(mean_squared_displacement(&unwrapped(p0), &unwrapped(p))),
+                Some(orientation_autocorrelation(
+                    &p0.orientations,
+                    &p.orientations,
+                )),
+            )
+        }
+        (Snapshot::Field(f), Snapshot::Field(_)) => (field_fields(f), None, None),
+        _ => return Err("the run mixes particle and mean-field snapshots".into()),
+    };
+    let correlations = fields
+        .iter()
+        .map(|(n, sp)| (n.clone(), sp.correlation(opts.shell_width)))
+        .collect();
+    Ok(SnapshotAnalysis {
+        time: s.time(),
+        correlations,
+        msd,
+        orientation,
+    })
+}
+
+/// The rods' centres with the periodic images they crossed undone.
+fn unwrapped(p: &ParticleSnapshot) -> Vec<[f64; 3]> {
+    p.positions
+        .iter()
+        .zip(&p.image_counts)
+        .map(|(x, i)| unwrap(*x, *i, p.box_length))
+        .collect()
+}
+
+/// A snapshot's correlation of the field `name`, if it has that field.
+fn correlation_of(a: &SnapshotAnalysis, name: &str) -> Option<RadialCorrelation> {
+    a.correlations
+        .iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, c)| c.clone())
+}
+
+/// The time series of scalars: per snapshot, each field's L2 norm and correlation length, and
+/// for particles the mean squared displacement and orientation autocorrelation.
+fn scalar_series(kind: &str, names: &[String], per: &[SnapshotAnalysis]) -> TimeSeries {
+    let particle = kind == "particle";
+    let unit_t = if particle { "1/beta" } else { "mu/|sigma_a|" };
+    let unit_r = if particle { "l" } else { "L" };
+    let mut cols = vec![format!("t [{unit_t}]")];
+    for n in names {
+        let unit = match (n == "u", particle) {
+            (true, true) => "beta L",
+            (true, false) => "L |sigma_a|/mu",
+            (false, _) => "1",
+        };
+        cols.push(format!("{n}_l2 [{unit}]"));
+        cols.push(format!("{n}_corr_length [{unit_r}]"));
+    }
+    if particle {
+        cols.push("msd [l^2]".into());
+        cols.push("orientation_autocorrelation [1]".into());
+    }
+    let col_refs: Vec<&str> = cols.iter().map(|s| s.as_str()).collect();
+    let mut ts = TimeSeries::new(&col_refs);
+    for a in per {
+        let mut row = vec![a.time];
+        for n in names {
+            match correlation_of(a, n) {
+                Some(c) => {
+                    row.push(c.at_zero().max(0.0).sqrt());
+                    row.push(correlation_length(&c.r, &c.value).unwrap_or(f64::NAN));
+                }
+                None => row.extend([f64::NAN, f64::NAN]),
+            }
+        }
+        if particle {
+            row.push(a.msd.unwrap_or(f64::NAN));
+            row.push(a.orientation.unwrap_or(f64::NAN));
+        }
+        ts.push(row);
+    }
+    ts
+}
+
+/// Each field's correlation averaged over the window's snapshots that have it.
+fn window_means(
+    names: &[String],
+    window: &[&SnapshotAnalysis],
+) -> Vec<(String, RadialCorrelation)> {
+    names
         .iter()
         .filter_map(|n| {
-            let have: Vec<RadialCorrelation> = window.iter().filter_map(|a| find(a, n)).collect();
+            let have: Vec<RadialCorrelation> =
+                window.iter().filter_map(|a| correlation_of(a, n)).collect();
             let base = have.first()?;
             let mut value = vec![0.0; base.value.len()];
             for c in &have {
@@ -321,15 +349,7 @@ pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisRepo
                 },
             ))
         })
-        .collect();
-    let window_count = window.len();
-    Ok(AnalysisReport {
-        kind: kind.into(),
-        snapshots: per,
-        mean,
-        window_count,
-        timeseries: ts,
-    })
+        .collect()
 }
 
 /// Write a report to `<run>/analysis/`: `config.toml`, `timeseries.csv`, `correlations.csv`,
@@ -346,7 +366,16 @@ pub fn write_report(
     })?;
     write_atomic(&dir.join("config.toml"), cfg.as_bytes())?;
     report.timeseries.write(&dir.join("timeseries.csv"))?;
-    // Time-averaged correlations, one (r, value) column pair per field.
+    write_atomic(
+        &dir.join("correlations.csv"),
+        correlations_csv(report).as_bytes(),
+    )?;
+    write_h5(&dir.join("analysis.h5"), opts, report)?;
+    write_correlation_chart(&dir.join("correlations"), opts, report)
+}
+
+/// The time-averaged correlations as CSV, one (r, value) column pair per field.
+fn correlations_csv(report: &AnalysisReport) -> String {
     let mut csv = String::new();
     let header: Vec<String> = report
         .mean
@@ -373,9 +402,11 @@ pub fn write_report(
         csv.push_str(&cells.join(","));
         csv.push('\n');
     }
-    write_atomic(&dir.join("correlations.csv"), csv.as_bytes())?;
-    // HDF5: per-snapshot and time-averaged correlations.
-    let h5 = dir.join("analysis.h5");
+    csv
+}
+
+/// `analysis.h5`: per-snapshot and time-averaged correlations.
+fn write_h5(h5: &Path, opts: &AnalyzeOptions, report: &AnalysisReport) -> Result<(), IoError> {
     let mut b = FileBuilder::new();
     b.set_attr("kind", AttrValue::VarLenString(report.kind.clone()));
     b.set_attr("t_start", AttrValue::F64(opts.t_start));
@@ -406,11 +437,18 @@ pub fn write_report(
             .with_shape(&[times.len() as u64, nr]);
     }
     let bytes = b.finish().map_err(|e| IoError::Hdf5 {
-        path: h5.clone(),
+        path: h5.to_path_buf(),
         message: e.to_string(),
     })?;
-    write_atomic(&h5, &bytes)?;
-    // Figure: time-averaged correlations normalised by their value at r = 0.
+    write_atomic(h5, &bytes)
+}
+
+/// The figure: time-averaged correlations normalised by their value at r = 0.
+fn write_correlation_chart(
+    stem: &Path,
+    opts: &AnalyzeOptions,
+    report: &AnalysisReport,
+) -> Result<(), IoError> {
     let unit = if report.kind == "particle" { "l" } else { "L" };
     let series = report
         .mean
@@ -431,7 +469,7 @@ pub fn write_report(
         report.kind, report.window_count, opts.t_start
     );
     line_chart(
-        &dir.join("correlations"),
+        stem,
         &Chart {
             title: &title,
             x_label: &format!("r [{unit}]"),
