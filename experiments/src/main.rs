@@ -34,11 +34,20 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Compare particle and mean-field runs in one unit system (docs/MODEL.md section 5): velocity
-    /// norm against time (PNG, SVG, CSV) and a table of its time averages.
+    /// Compare particle and mean-field runs in mean-field units: figures, tables.
+    ///
+    /// Puts the runs in one unit system (docs/MODEL.md section 5) and writes into OUT up to nine
+    /// figures, each as PNG and SVG: the velocity norm against time with the linear theory,
+    /// the saturated norm against L/l (particle runs), the time-averaged velocity
+    /// autocorrelation, |u| on the plane z = 0, the correlations of c, n (particle runs) and Q,
+    /// and for particle runs the mean squared displacement and the orientation
+    /// autocorrelation; the data as CSV; summary.md and series.md (growth rates, saturated
+    /// norms, correlation lengths). It prints the summary table.
     Compare(CompareArgs),
-    /// Compute correlation functions, norms and trajectory statistics of a run's snapshots;
-    /// writes <RUN_DIR>/analysis/ (CSV, HDF5, PNG, SVG).
+    /// Analyse a run's snapshots: correlation functions, norms, trajectory statistics.
+    ///
+    /// Writes <RUN_DIR>/analysis/ (timeseries.csv, correlations.{csv,png,svg}, analysis.h5)
+    /// and prints the time series.
     Analyze(AnalyzeArgs),
     /// Particle model: `motile particle run [CONFIG] --out DIR`.
     Particle {
@@ -50,51 +59,64 @@ enum Command {
         #[command(subcommand)]
         action: MeanfieldAction,
     },
-    /// Run a scene: a named, versioned set of particle and mean-field runs
-    /// (`motile scenes` lists the built-in ones; or give a scene file), each analysed, all
-    /// compared in OUT/compare, a summary in OUT/scene.md. Running it again resumes what is
-    /// unfinished and skips what is done.
+    /// Run a scene (a named set of runs): `motile scenes` lists the built-in ones.
+    ///
+    /// A scene is a named, versioned set of particle and mean-field runs (a built-in one or a
+    /// scene file), each run into OUT/RUN and analysed, all compared in OUT/compare, a summary
+    /// in OUT/scene.md. Running it again resumes what is unfinished and skips what is done.
     Run(SceneArgs),
-    /// List the built-in scenes.
+    /// List the built-in scenes: what each shows, its runs and its cost.
     Scenes,
-    /// Where methods fail: a map of short runs, time step against volume fraction (particle)
-    /// or against resolution (mean-field), each cell the run's outcome (PNG, SVG, CSV, MD in
-    /// OUT). `onset`: where the particle model starts to grow like the continuum, the growth
-    /// rate of a seeded box-scale perturbation over nu against L nu for each volume fraction,
-    /// beside the continuum's rate (docs/MODEL.md section 5; OUT/onset.{png,svg,csv,md}).
+    /// Where the methods fail (a map of short runs), or where the particle model's growth sets
+    /// in (`onset`).
+    ///
+    /// `particle` and `meanfield`: a map of short runs, time step against volume fraction
+    /// (particle) or against resolution (mean-field), each cell the run's outcome
+    /// (OUT/stability_MODEL.{png,svg,csv,md}). `onset`: the growth rate of a seeded box-scale
+    /// perturbation over nu against L nu for each volume fraction, beside the continuum's
+    /// rate (docs/MODEL.md section 5; OUT/onset.{png,svg,csv,md}).
     Stability(StabilityArgs),
-    /// Accuracy against cost: sweep one knob of a scene's run (particle: sum_tolerance,
-    /// quadrature_points, hydrodynamics, dt; mean-field: meanfield_dt, grid, closure_degree),
-    /// measure each setting's error against the most accurate one and its wall time, chart
-    /// them (OUT/study_KNOB.{png,svg,csv,md}) and name the cheapest setting within the
-    /// stated accuracy.
+    /// Accuracy against cost: sweep one knob of a scene's run.
+    ///
+    /// Measures each setting's error against the most accurate one and its wall time, charts
+    /// them (OUT/study_KNOB.{png,svg,csv,md}) and names the cheapest setting within the stated
+    /// accuracy.
     Study(StudyArgs),
-    /// Audit a particle run's fast sums: evaluate the sum its config uses on one snapshot and
-    /// the direct Ewald sum at K sampled targets, and print the measured error of each output
-    /// (and of the rod motion it gives) beside hydro.sum_tolerance (docs/accuracy.md).
+    /// Audit a particle run's fast sums against the direct Ewald sum.
+    ///
+    /// Evaluates the sum the run's config uses on one snapshot and the direct Ewald sum at K
+    /// sampled targets, and prints the measured error of each output (and of the rod motion it
+    /// gives) beside hydro.sum_tolerance (docs/accuracy.md).
     CheckAccuracy(CheckAccuracyArgs),
     /// Continue a stopped or killed run from its newest checkpoint, bit for bit.
     Resume(ResumeArgs),
-    /// Pair fidelity of the hydrodynamic levels: two rods at centre distances 0.5-5 l with
-    /// random orientations, each level's flow-induced velocities against slender-body theory's
+    /// Pair fidelity of the hydrodynamic levels against slender-body theory.
+    ///
+    /// Two rods at centre distances 0.5-5 l with random orientations; each level's
+    /// flow-induced velocities against slender-body theory's
     /// (OUT/pair_fidelity.{png,svg,csv,md}).
     Fidelity(FidelityArgs),
-    /// The linear theory of the periodic box (docs/MODEL.md section 5b): the lowest mode's
-    /// growth rate for swimmers at volume fraction nu in boxes of given sides, and the onset box.
+    /// The linear theory of the periodic box: growth rates, the onset box.
+    ///
+    /// The lowest mode's growth rate for swimmers at volume fraction nu in boxes of given
+    /// sides, the onset box and the continuum's rate (docs/MODEL.md section 5b).
     Theory(TheoryArgs),
-    /// The main job, the `demo` scene (experiments/scenes/demo.toml): pushers above the
-    /// instability in both models from one initial condition. A particle run with slender-body
-    /// hydrodynamics (8 640 rods at nu = 5 in a box of 12 rod lengths, to t = 8.5/beta) in
-    /// OUT/particle, the mean-field run from the same initial Q at the same zeta on a 32^3 grid
-    /// in OUT/meanfield, both analysed and compared in mean-field units in OUT/compare; then
-    /// free swimmers checked against exact values in OUT/free_swimmers.
+    /// The main job: both models above the instability, compared (about 3 minutes on 2 cores).
+    ///
+    /// Runs the `demo` scene (experiments/scenes/demo.toml): pushers above the instability in
+    /// both models from one initial condition. A particle run with slender-body hydrodynamics
+    /// (8 640 rods at nu = 5 in a box of 12 rod lengths, to t = 8.5/beta) in OUT/particle, the
+    /// mean-field run from the same initial Q at the same zeta on a 32^3 grid in OUT/meanfield,
+    /// both analysed and compared in mean-field units: figures and summary.md in OUT/compare,
+    /// the scene report in OUT/scene.md. Then free swimmers checked against exact values in
+    /// OUT/free_swimmers. The last lines printed say where each of these is.
     Demo(DemoArgs),
 }
 
 #[derive(Subcommand, Debug)]
 enum ParticleAction {
-    /// Run the particle model (rods, contacts, hydrodynamics "none", "dipole" or "sbt") into a
-    /// run directory.
+    /// Run the particle model into a run directory (the levels are listed from the model).
+    #[command(about = cli::model_run::particle_about())]
     Run(RunArgs),
 }
 

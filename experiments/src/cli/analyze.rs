@@ -13,7 +13,7 @@ pub struct AnalyzeArgs {
     /// TOML file with analysis options (keys: modes, shell_width, tolerance, t_start, viscosity).
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Fourier modes per dimension for particle snapshots [default: floor((L/l)/2)].
+    /// Fourier modes per dimension for particle snapshots [default: floor((L/l)/2), at least 4].
     #[arg(long)]
     pub modes: Option<usize>,
     /// Spacing of the radii of the correlation functions, in units of length [default: L/128,

@@ -2,8 +2,11 @@
 
 use crate::campaign::demo::{DemoConfig, DemoSummary, free_swimmers, meanfield_bound_line};
 use crate::campaign::scene::{load_scene, run_scene};
-use crate::cli::{print_table, progress};
-use std::path::PathBuf;
+use crate::cli::{print_table, progress, wrap};
+use std::path::{Path, PathBuf};
+
+/// Width of the closing lines' figure list.
+const WIDTH: usize = 96;
 
 /// Arguments of `motile demo`.
 #[derive(clap::Args, Debug)]
@@ -51,9 +54,88 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
         println!("{line}");
     }
     println!(
-        "wrote {} in {:.1} s",
+        "part 2 wrote {} in {:.1} s",
         out.display(),
         t0.elapsed().as_secs_f64()
     );
+    println!("\n{}", results(&a.out, report.compare.is_some())?);
     Ok(())
+}
+
+/// The closing lines: where the demo's figures, summary, scene report and runs are (the figures
+/// as the comparison folder holds them).
+fn results(out: &Path, compared: bool) -> anyhow::Result<String> {
+    let compare = out.join("compare");
+    let mut lines = vec![format!("Results in {}:", out.display())];
+    if compared {
+        let mut charts: Vec<String> = std::fs::read_dir(&compare)?
+            .filter_map(|e| {
+                let p = e.ok()?.path();
+                let stem = p.file_stem()?.to_string_lossy().into_owned();
+                (p.extension()? == "png").then_some(stem)
+            })
+            .collect();
+        charts.sort();
+        lines.push(wrap(
+            &format!(
+                "{} ({} charts, each .png and .svg, data in .csv): {}",
+                compare.display(),
+                charts.len(),
+                charts.join(", ")
+            ),
+            WIDTH,
+            "  figures:       ",
+            "                 ",
+        ));
+        lines.push(format!(
+            "  summary:       {} (growth rates beside the theory, saturated norms)",
+            compare.join("summary.md").display()
+        ));
+    }
+    lines.push(format!(
+        "  scene report:  {}",
+        out.join("scene.md").display()
+    ));
+    lines.push(format!(
+        "  runs:          {}, {}, {}",
+        out.join("particle").display(),
+        out.join("meanfield").display(),
+        out.join("free_swimmers").display()
+    ));
+    Ok(lines.join("\n"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_closing_lines_name_the_figures_the_summary_and_the_scene_report() {
+        let dir = tempfile::tempdir().unwrap();
+        let compare = dir.path().join("compare");
+        std::fs::create_dir(&compare).unwrap();
+        for f in [
+            "velocity_norm.png",
+            "velocity_norm.svg",
+            "msd.png",
+            "summary.md",
+        ] {
+            std::fs::write(compare.join(f), "").unwrap();
+        }
+        let text = results(dir.path(), true).unwrap();
+        let c = compare.display().to_string();
+        // The chart names as one list (the line may wrap).
+        let flat = text.replace("\n                 ", " ");
+        assert!(
+            text.contains(&format!("figures:       {c} (2 charts"))
+                && flat.contains(": msd, velocity_norm\n")
+                && text.contains(&format!("summary:       {c}/summary.md"))
+                && text.contains(&format!(
+                    "scene report:  {}",
+                    dir.path().join("scene.md").display()
+                )),
+            "{text}"
+        );
+        assert!(!results(dir.path(), false).unwrap().contains("figures"));
+    }
 }

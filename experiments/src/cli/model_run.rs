@@ -19,11 +19,33 @@ pub struct RunArgs {
     /// Print the resolved config and exit.
     #[arg(long)]
     pub dry_run: bool,
-    /// Where the work runs, overriding the config's `device`: cpu, or gpu (a build with
-    /// `--features gpu`: the whole mean-field step, or the Fourier part of the particle model's
-    /// hydrodynamic sums; a GPU request without a GPU is an error, never a CPU fallback).
-    #[arg(long, value_enum)]
+    /// Where the step runs, overriding the config's `device` (cpu or gpu; [`device_help`]).
+    #[arg(long, value_enum, hide_possible_values = true, help = device_help())]
     pub device: Option<Device>,
+}
+
+/// What `motile particle run` does, its hydrodynamic levels named from
+/// [`motile_particle::model::level::Hydrodynamics::ALL`].
+pub fn particle_about() -> String {
+    format!(
+        "Run the particle model (rods, contacts, hydrodynamics {}) into a run directory",
+        crate::cli::levels(|_| true)
+    )
+}
+
+/// The help of `--device`: what runs on the GPU (docs/gpu.md), the levels named from
+/// [`motile_particle::model::level::Hydrodynamics::ALL`].
+pub fn device_help() -> String {
+    format!(
+        "Where the run's steps run, overriding the config's `device`: cpu (the worker threads, \
+         --threads) or gpu: the whole step on one NVIDIA GPU through CUDA, for the mean-field \
+         model and for the particle model at every hydrodynamic level ({}), the state resident \
+         there (snapshots, diagnostics and checkpoints are written from it by the CPU). A \
+         particle run on the GPU is one process (not MPI ranks) in a box at least 3 contact \
+         reaches wide. gpu needs a build with `--features gpu`; a GPU request without a GPU is \
+         an error, never a CPU fallback (docs/gpu.md)",
+        crate::cli::levels(|_| true)
+    )
 }
 
 /// The config of a run command: parsed from `path` (or the defaults), file names in it made
@@ -70,7 +92,8 @@ pub fn particle(a: RunArgs) -> anyhow::Result<()> {
     else {
         return Ok(());
     };
-    // The override is checked with the rest (a GPU needs hydrodynamic sums to run).
+    // The override is checked with the rest (the GPU step needs a box of at least 3 contact
+    // reaches).
     cfg.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
     let out = a.out.context("--out DIR is required to run")?;
     let s = run_particle(&cfg, &out, progress())?;

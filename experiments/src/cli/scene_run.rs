@@ -2,14 +2,14 @@
 
 use crate::campaign::estimate::estimate;
 use crate::campaign::scene::{BUILTIN, load_scene, parse_scene, run_scene};
-use crate::cli::progress;
+use crate::cli::{progress, wrap};
 use std::path::PathBuf;
 
 /// Arguments of `motile run`.
 #[derive(clap::Args, Debug)]
 pub struct SceneArgs {
-    /// Built-in scene name (demo, dilute, paper-dilute, concentrated, meanfield) or a
-    /// scene file.
+    /// Built-in scene name or a scene file ([`scene_help`]).
+    #[arg(help = scene_help())]
     pub scene: String,
     /// Output directory [default: runs/SCENE (the scene's name)].
     #[arg(long)]
@@ -34,23 +34,24 @@ pub fn run(a: SceneArgs) -> anyhow::Result<()> {
         .unwrap_or_else(|| PathBuf::from("runs").join(&s.info.name));
     if a.dry_run {
         println!(
-            "scene {} (version {}) -> {}\n{}\nmodel level: {}\ncost: {}",
+            "scene {} (version {}) -> {}\n{}\n{}\n{}",
             s.info.name,
             s.info.version,
             out.display(),
-            s.info.description.trim(),
-            s.info.level.trim(),
-            s.info.cost
+            wrap(&s.info.description, WIDTH, "", ""),
+            wrap(&s.info.level, WIDTH, "model level: ", "  "),
+            wrap(&s.info.cost, WIDTH, "cost: ", "  ")
         );
+        println!("runs:");
         let scratch = std::env::temp_dir().join(format!("motile-estimate-{}", std::process::id()));
         for (run, cfg) in &s.runs {
             if !a.only.is_empty() && !a.only.contains(run) {
                 continue;
             }
-            println!("  {run}: {}", cfg.describe());
+            println!("    {run}: {}", cfg.describe());
             if a.estimate {
                 let e = estimate(cfg, &scratch)?;
-                println!("    estimated cost: {}", e.describe());
+                println!("      estimated cost: {}", e.describe());
             }
         }
         return Ok(());
@@ -63,14 +64,63 @@ pub fn run(a: SceneArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `motile scenes`: the built-in scenes and their runs.
+/// Width of the text `motile scenes` and `motile run --dry-run` reflow.
+const WIDTH: usize = 96;
+
+/// The help of the scene argument: the built-in scenes' names, from [`BUILTIN`].
+pub fn scene_help() -> String {
+    let names: Vec<&str> = BUILTIN.iter().map(|(n, _)| *n).collect();
+    format!(
+        "Built-in scene name ({}; `motile scenes` lists them) or a scene file",
+        names.join(", ")
+    )
+}
+
+/// A scene's summary: its description up to the end of the first clause (the first ": " or
+/// ". "), on one line.
+fn summary(description: &str) -> String {
+    let flat = description.split_whitespace().collect::<Vec<_>>().join(" ");
+    let end = [": ", ". "]
+        .iter()
+        .filter_map(|p| flat.find(p))
+        .min()
+        .unwrap_or(flat.len());
+    flat[..end].trim_end_matches('.').to_string()
+}
+
+/// `motile scenes`: the built-in scenes, each on one line with its summary, then its runs and
+/// its cost (reflowed at word boundaries under its label).
 pub fn list() -> anyhow::Result<()> {
-    for (name, text) in BUILTIN {
+    for (i, (name, text)) in BUILTIN.iter().enumerate() {
         let s = parse_scene(text, name)?;
-        println!("{name} (version {}): {}", s.info.version, s.info.cost);
-        for (run, cfg) in &s.runs {
-            println!("    {run}: {}", cfg.describe());
+        if i > 0 {
+            println!();
         }
+        println!(
+            "{name} (version {}): {}",
+            s.info.version,
+            summary(&s.info.description)
+        );
+        let width = s.runs.iter().map(|(r, _)| r.len()).max().unwrap_or(0);
+        for (run, cfg) in &s.runs {
+            println!("    {run:<width$}  {}", cfg.describe());
+        }
+        println!("{}", wrap(&s.info.cost, WIDTH, "    cost: ", "          "));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summaries_are_the_first_clause() {
+        assert_eq!(
+            summary("The paper's case: zeta = 0.14."),
+            "The paper's case"
+        );
+        assert_eq!(summary("Two\nlines. More: here"), "Two lines");
+        assert_eq!(summary("No clause."), "No clause");
+    }
 }

@@ -10,19 +10,23 @@ use std::path::PathBuf;
 /// Arguments of `motile stability`.
 #[derive(clap::Args, Debug)]
 pub struct StabilityArgs {
-    /// "particle", "meanfield" or "onset".
+    /// What to map: the particle or the mean-field model's failures, or the particle model's
+    /// onset.
+    #[arg(value_parser = ["particle", "meanfield", "onset"])]
     pub model: String,
     /// Time steps (particle dt, 1/beta; mean-field dt_max), comma-separated
-    /// [default: particle 0.005,0.01,0.02,0.04; mean-field 0.05,0.1,0.2,0.4,0.8].
+    /// [default: particle 0.005,0.01,0.02,0.04; mean-field 0.05,0.1,0.2,0.4,0.8; onset: the
+    /// first is its step, default 0.04].
     #[arg(long, value_delimiter = ',')]
     pub dts: Option<Vec<f64>>,
-    /// Particle: volume fractions [default: 0.625,2,5; onset: 3.75,5].
+    /// Particle and onset: volume fractions, comma-separated [default: particle 0.625,2,5;
+    /// onset 3.75,5].
     #[arg(long, value_delimiter = ',')]
     pub fractions: Option<Vec<f64>>,
-    /// Mean-field: grids [default: 8,16,32].
+    /// Mean-field: grids, comma-separated [default: 8,16,32].
     #[arg(long, value_delimiter = ',')]
     pub grids: Option<Vec<usize>>,
-    /// Particle: box side L/l [default: 6].
+    /// Particle: box side L/l.
     #[arg(long, default_value_t = 6.0)]
     pub box_length: f64,
     /// Onset: values of L nu, comma-separated [default: 30,45,60].
@@ -44,22 +48,30 @@ pub struct StabilityArgs {
     /// [default: the first and last only].
     #[arg(long)]
     pub snapshot_interval: Option<f64>,
-    /// Particle and onset: hydrodynamics [default: sbt].
-    #[arg(long, default_value = "sbt")]
+    /// Particle and onset: the hydrodynamic level.
+    #[arg(long, default_value = "sbt", value_parser = levels_parser())]
     pub hydrodynamics: Hydrodynamics,
-    /// Mean-field: diffusion D [default: 1e-4, the paper's].
+    /// Mean-field: diffusion D (the default is the paper's).
     #[arg(long, default_value_t = 1e-4)]
     pub diffusion: f64,
-    /// Mean-field: CFL number [default: 2, the largest allowed, so dt_max is the step until
-    /// the flow is strong].
+    /// Mean-field: CFL number (the default is the largest allowed, so dt_max is the step until
+    /// the flow is strong).
     #[arg(long, default_value_t = 2.0)]
     pub cfl: f64,
-    /// End time of each run [default: particle 2, mean-field 60]; onset: end time times nu [default: 40].
+    /// End time of each run [default: particle 2, mean-field 60]; onset: end time times nu
+    /// [default: 40], or with --boxes the end time.
     #[arg(long)]
     pub t_end: Option<f64>,
     /// Output directory.
     #[arg(long, default_value = "runs/stability")]
     pub out: PathBuf,
+}
+
+/// The hydrodynamic levels as clap's possible values, named from [`Hydrodynamics::ALL`].
+fn levels_parser() -> impl clap::builder::TypedValueParser<Value = Hydrodynamics> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(Hydrodynamics::names())
+        .try_map(|s| s.parse::<Hydrodynamics>())
 }
 
 /// Map the model's failures (or the onset) and print the table.

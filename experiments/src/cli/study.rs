@@ -1,13 +1,18 @@
 //! `motile study KNOB`.
 
 use crate::campaign::scene::load_scene;
-use crate::campaign::study::{StudyOptions, study};
+use crate::campaign::study::{KNOBS, StudyOptions, study};
 use std::path::PathBuf;
 
 /// Arguments of `motile study`.
 #[derive(clap::Args, Debug)]
 pub struct StudyArgs {
-    /// The knob.
+    /// The knob ([`knob_help`]).
+    #[arg(
+        help = knob_help(),
+        hide_possible_values = true,
+        value_parser = clap::builder::PossibleValuesParser::new(KNOBS.map(|k| k.0))
+    )]
     pub knob: String,
     /// Scene whose run is the base (its first run of the knob's model).
     #[arg(long, default_value = "demo")]
@@ -18,7 +23,7 @@ pub struct StudyArgs {
     /// End time of each run [default: the scene run's].
     #[arg(long)]
     pub t_end: Option<f64>,
-    /// Stated accuracy (relative error) [default: 1e-2].
+    /// Stated accuracy (relative error).
     #[arg(long, default_value_t = 1e-2)]
     pub accuracy: f64,
     /// The scene run to sweep [default: its first run of the knob's model].
@@ -27,6 +32,17 @@ pub struct StudyArgs {
     /// Output directory.
     #[arg(long, default_value = "runs/study")]
     pub out: PathBuf,
+}
+
+/// The help of the knob: each knob of [`KNOBS`] with its model and default values.
+pub fn knob_help() -> String {
+    let knobs: Vec<String> = KNOBS
+        .iter()
+        .map(|(name, model, values, reference)| {
+            format!("{name} ({model}: {values}; reference {reference})")
+        })
+        .collect();
+    format!("The knob: {}", knobs.join(", "))
 }
 
 /// Run the study and print its table.

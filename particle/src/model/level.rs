@@ -35,6 +35,17 @@ impl Hydrodynamics {
         }
     }
 
+    /// Every level's configuration name, in the order of [`Self::ALL`]: the one list that help
+    /// texts and messages name the levels from.
+    pub fn names() -> [&'static str; 4] {
+        Self::ALL.map(Self::name)
+    }
+
+    /// The names quoted and separated by commas: `"none", "dipole", "sbt-explicit", "sbt"`.
+    pub fn quoted_names() -> String {
+        Self::names().map(|n| format!("\"{n}\"")).join(", ")
+    }
+
     /// Whether the level computes a flow (and so force densities, sums, GMRES).
     pub fn has_flow(self) -> bool {
         self != Self::None
@@ -49,7 +60,7 @@ impl fmt::Display for Hydrodynamics {
 
 /// An unknown level name; the message names the allowed ones.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("hydrodynamics = \"{0}\" is not one of \"none\", \"dipole\", \"sbt-explicit\", \"sbt\"")]
+#[error("hydrodynamics = \"{0}\" is not one of {names}", names = Hydrodynamics::quoted_names())]
 pub struct UnknownHydrodynamics(pub String);
 
 impl FromStr for Hydrodynamics {
