@@ -2,8 +2,9 @@
 //! neighbour search, steric contacts as a complementarity problem solved by BBPGD, and explicit
 //! time stepping with quaternion orientation updates. Hydrodynamics plugs in through
 //! [`hydro::mobility::Mobility`], one implementation per [`model::level::Hydrodynamics`] level:
-//! [`hydro::mobility::LocalDrag`] (`"none"`), [`hydro::dipole::Dipole`] (point stresslets, §2)
-//! and [`hydro::slender::SlenderBody`] (slender-body theory inside GMRES, §1); their periodic
+//! [`hydro::mobility::LocalDrag`] (`"none"`), [`hydro::dipole::Dipole`] (point stresslets, §2),
+//! [`hydro::explicit::ExplicitSlender`] (isolated-swimmer densities, one sum per step) and
+//! [`hydro::slender::SlenderBody`] (slender-body theory inside GMRES, §1); their periodic
 //! flows come from a [`ewald::periodic::PeriodicStokes`] sum
 //! ([`ewald::spectral::SpectralEwald`], with the direct [`ewald::reference::EwaldReference`] as
 //! its slow twin), which honours the tolerance of docs/accuracy.md for every output it returns.
@@ -12,18 +13,21 @@
 //! mobility, the solver and scratch memory, and returns a [`step::report::StepReport`] instead
 //! of printing.
 //!
-//! The crate in rooms, one folder per concern (ARCHITECTURE.md):
-//! - [`model`]: rods, vectors and quaternions, units, the hydrodynamic level, initial states;
-//! - [`step`]: the stepper, contact constraints and the contact solver, the cell list;
-//! - [`hydro`]: the mobilities and the GMRES of the slender-body equation;
+//! The crate in rooms, one folder per concern (ARCHITECTURE.md), each naming only those listed
+//! before it:
+//! - [`model`]: rods, vectors and quaternions, units, the hydrodynamic level, initial states,
+//!   the cell list of rods;
+//! - [`parallel`]: the communication seam, halos, fixed-order reductions, the distributed FFT;
 //! - [`ewald`]: the periodic sums, their kernels, the direct reference and the spectral Ewald
 //!   method (its machinery: parameters, window, grid, point cells, phased writes; the sum
 //!   shared among ranks; the GPU back-end);
-//! - [`parallel`]: the communication seam, halos, fixed-order reductions, the distributed FFT
-//!   and the distributed driver.
+//! - [`hydro`]: the mobilities and the GMRES of the slender-body equation;
+//! - [`step`]: the stepper, contact constraints and the contact solver, the driver of a box
+//!   shared among ranks, the step on a GPU.
 //!
-//! Inside the crate, code names the module that defines an item, never a re-export, and no two
-//! files refer to each other in a circle (tests/tests/architecture.rs checks both). The
+//! Inside the crate, code names the module that defines an item, never a re-export, no two
+//! files refer to each other in a circle and no folder names one listed after it above
+//! (tests/tests/architecture.rs checks all three). The
 //! [`prelude`] is what a run needs in one import.
 #![warn(missing_docs)]
 #![warn(unreachable_pub)]

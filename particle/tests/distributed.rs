@@ -1,12 +1,12 @@
-//! The particle step shared by several ranks (`motile_particle::parallel::distributed`) against the
+//! The particle step shared by several ranks (`motile_particle::step::distributed`) against the
 //! single-process step: ranks as threads ([`ThreadRanks`]), so this runs everywhere; the MPI
 //! driver is the same code over another [`motile_particle::parallel::comm::Comm`].
 
 use motile_particle::model::init::random_nonoverlapping;
 use motile_particle::model::units::DEFAULT_DIAMETER;
 use motile_particle::parallel::comm::ThreadRanks;
-use motile_particle::parallel::distributed::Distributed;
 use motile_particle::prelude::*;
+use motile_particle::step::distributed::Distributed;
 
 const STEPS: usize = 20;
 const DT: f64 = 0.002;

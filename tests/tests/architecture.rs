@@ -1,5 +1,7 @@
 //! The shape of the source tree (ARCHITECTURE.md): inside every crate, no two files refer to
-//! each other in a circle, and no file is over 800 lines.
+//! each other in a circle, folders refer to each other in one direction only (each crate's
+//! [`LAYERS`], bottom up), every source file is named in ARCHITECTURE.md, and no file is over
+//! 800 lines.
 //!
 //! A file refers to another when it names a path into it: `use crate::a::b::X`, an inline
 //! `crate::a::f()`, `super::X`, or `child::f()` for a module it declares. Paths resolve to the
@@ -16,6 +18,17 @@ use std::path::{Path, PathBuf};
 /// The library and binary crates whose sources are checked.
 const CRATES: [&str; 5] = ["analysis", "gpu", "particle", "meanfield", "experiments"];
 const MAX_LINES: usize = 800;
+
+/// Each crate's folders from the bottom up: a file in one of them names files of its own
+/// folder, of the folders below it and at the crate's root, never of a folder above. Every
+/// folder of a crate's `src` is listed (a new folder must be placed).
+const LAYERS: [(&str, &[&str]); 5] = [
+    ("analysis", &[]),
+    ("gpu", &[]),
+    ("particle", &["model", "parallel", "ewald", "hydro", "step"]),
+    ("meanfield", &["solver", "gpu"]),
+    ("experiments", &["io", "run", "report", "campaign", "cli"]),
+];
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -491,5 +504,121 @@ fn no_source_file_is_over_800_lines() {
         long.is_empty(),
         "files over {MAX_LINES} lines:\n{}",
         long.join("\n")
+    );
+}
+
+/// The references from a folder to a folder above it in `layers` (bottom up), as
+/// `"from -> to"`; a file's folder is the first part of its module path (files at the root
+/// have none).
+fn upward_references(g: &CrateGraph, layers: &[&str]) -> Vec<String> {
+    let rank = |m: &[String]| -> Option<usize> {
+        (m.len() > 1).then(|| {
+            layers
+                .iter()
+                .position(|l| *l == m[0])
+                .unwrap_or_else(|| panic!("folder {} is not in LAYERS", m[0]))
+        })
+    };
+    let mut found = Vec::new();
+    for (from, to) in &g.edges {
+        let Some(a) = rank(from) else { continue };
+        for t in to {
+            if rank(t).is_some_and(|b| b > a) {
+                found.push(format!("{} -> {}", name(from), name(t)));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn folders_refer_to_each_other_in_one_direction() {
+    let mut found = Vec::new();
+    for (krate, layers) in LAYERS {
+        let g = graph(krate);
+        let folders: BTreeSet<&str> = g
+            .files
+            .keys()
+            .filter(|m| m.len() > 1)
+            .map(|m| m[0].as_str())
+            .collect();
+        let listed: BTreeSet<&str> = layers.iter().copied().collect();
+        assert_eq!(
+            folders, listed,
+            "{krate}: the folders of src against LAYERS"
+        );
+        found.extend(
+            upward_references(&g, layers)
+                .into_iter()
+                .map(|e| format!("{krate}: {e}")),
+        );
+    }
+    assert!(
+        found.is_empty(),
+        "folders that refer to a folder above them (ARCHITECTURE.md's layers):\n{}",
+        found.join("\n")
+    );
+}
+
+#[test]
+fn the_layering_check_finds_an_upward_reference() {
+    let m = |s: &[&str]| s.iter().map(|p| p.to_string()).collect::<Vec<_>>();
+    let files = [m(&["low", "a"]), m(&["high", "b"]), m(&["c"])]
+        .into_iter()
+        .map(|k| (k, PathBuf::new()))
+        .collect();
+    let edges = [
+        (
+            m(&["low", "a"]),
+            BTreeSet::from([m(&["high", "b"]), m(&["c"])]),
+        ),
+        (m(&["high", "b"]), BTreeSet::from([m(&["low", "a"])])),
+        (m(&["c"]), BTreeSet::from([m(&["high", "b"])])),
+    ]
+    .into_iter()
+    .collect();
+    let found = upward_references(&CrateGraph { files, edges }, &["low", "high"]);
+    assert_eq!(found, ["low::a -> high::b"]);
+}
+
+#[test]
+fn every_source_file_is_named_in_architecture_md() {
+    let map = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
+    let named = |word: &str| {
+        map.match_indices(word).any(|(i, _)| {
+            let before = map[..i].chars().next_back();
+            let after = map[i + word.len()..].chars().next();
+            !before.is_some_and(|c| c.is_alphanumeric() || c == '_')
+                && !after.is_some_and(|c| c.is_alphanumeric() || c == '_')
+        })
+    };
+    let mut missing = Vec::new();
+    for krate in CRATES {
+        let src = root().join(krate).join("src");
+        let mut list = Vec::new();
+        rust_files(&src, &mut list);
+        for f in list {
+            let stem = f.file_stem().unwrap().to_string_lossy().into_owned();
+            // A folder's mod.rs is named by its folder; lib.rs and main.rs by their crate.
+            let word = match stem.as_str() {
+                "lib" | "main" => continue,
+                "mod" => f
+                    .parent()
+                    .unwrap()
+                    .file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .into_owned(),
+                _ => stem,
+            };
+            if !named(&word) {
+                missing.push(f.strip_prefix(root()).unwrap().display().to_string());
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "source files ARCHITECTURE.md does not name:\n{}",
+        missing.join("\n")
     );
 }

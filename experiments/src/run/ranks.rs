@@ -2,7 +2,7 @@
 //!
 //! Rank 0 is the leader: it runs the command as a single process would (the run loop, the run
 //! directory, every file), with the particle model's step shared among all ranks
-//! ([`motile_particle::parallel::distributed::Distributed`]). The other ranks are followers: they ignore
+//! ([`motile_particle::step::distributed::Distributed`]). The other ranks are followers: they ignore
 //! their command line, take the resolved config and the starting state from the leader, and
 //! then do what it says, one collective operation at a time (an order each): step, gather the state
 //! to rank 0 (for snapshots, checkpoints and the last good state), stop. The leader always says

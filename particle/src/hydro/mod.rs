@@ -10,5 +10,6 @@ pub mod gmres;
 #[cfg_attr(not(feature = "gpu"), path = "gpu/off.rs")]
 pub mod gpu;
 pub mod mobility;
+pub mod report;
 pub mod slender;
 pub mod sum;

@@ -3,10 +3,10 @@
 //! its centerline stays at least `b` from every other), with a cell grid so each trial costs
 //! O(1).
 
+use crate::model::cells::CellList;
 use crate::model::geometry::{Vec3, axpy, min_image, quat_from_axis, segment_distance, sub};
 use crate::model::rods::RodSet;
 use crate::model::units::ROD_LENGTH;
-use crate::step::cells::CellList;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;

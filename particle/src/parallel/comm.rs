@@ -1,5 +1,5 @@
 //! One box shared by several processes (docs/MODEL.md §3a; the distributed driver of
-//! [`crate::parallel::distributed`]): the collective operations a step needs ([`Comm`]); the
+//! [`crate::step::distributed`]): the collective operations a step needs ([`Comm`]); the
 //! halo that ties each rank's copies of its neighbours' rods to their owners is
 //! [`crate::parallel::halo::Halo`].
 //!

@@ -13,6 +13,7 @@
 //! 6. the true (nonlinear) largest overlap among the constrained pairs after the move.
 
 use crate::hydro::mobility::{Mobility, MobilityError, MobilityState, RodVelocities};
+use crate::model::cells::CellList;
 use crate::model::geometry::{Vec3, axpy, min_image, norm, quat_exp, quat_mul, scale, sub};
 use crate::model::rods::RodSet;
 use crate::model::units::ROD_LENGTH;
@@ -20,7 +21,6 @@ use crate::parallel::comm::SingleProcess;
 use crate::parallel::halo::Halo;
 use crate::parallel::part::{Part, Share};
 use crate::parallel::reduce::max_with_key;
-use crate::step::cells::CellList;
 use crate::step::constraints::{constraint, true_overlap};
 use crate::step::contact::{Constraint, ContactParams, ContactProblem, ContactSolver};
 use crate::step::report::{StepError, StepReport};

@@ -8,8 +8,8 @@ use crate::run::ranks::{self, Order, broadcast};
 use anyhow::{Context, bail};
 use motile_particle::model::rods::RodSet;
 use motile_particle::parallel::comm::Comm;
-use motile_particle::parallel::distributed::Distributed;
 use motile_particle::step::contact::WarmStart;
+use motile_particle::step::distributed::Distributed;
 use motile_particle::step::report::{StepError, StepReport};
 use motile_particle::step::stepper::Stepper;
 

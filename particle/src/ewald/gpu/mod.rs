@@ -23,7 +23,7 @@
 //! default the sums repeat bit for bit on a GPU; with the atomic spreaders the last bits vary
 //! from run to run.
 
-mod backend;
+pub(crate) mod backend;
 mod binned;
 mod launch;
 pub(crate) mod resident;
@@ -31,7 +31,6 @@ mod scan;
 mod signatures;
 mod work;
 
-pub(crate) use backend::geometry as device_geometry;
 pub use binned::{CELL_BIN, CELL_BIN_MAX, MAX_TILE_SUPPORT, SpreadMethod, TILE, cell_bin};
 pub(crate) use launch::Geometry;
 pub use launch::STRESSLET_FIELDS;

@@ -87,7 +87,7 @@ impl SpectralEwald {
                 weights: outputs.map(|o| estimate_weights(o, (scale(o), internal))),
                 chunk: ESTIMATE_CHUNK,
             };
-            let geo = crate::ewald::gpu::device_geometry(&prm, l);
+            let geo = crate::ewald::gpu::backend::geometry(&prm, l);
             let generation = self.generation;
             let gpu = self.gpu.as_mut().ok_or_else(|| {
                 SumError::Device("a resident sum on a sum without a device".into())
@@ -161,7 +161,7 @@ impl SpectralEwald {
                 weights: estimate_weights(output, (scale, internal)),
                 chunk: ESTIMATE_CHUNK,
             };
-            let geo = crate::ewald::gpu::device_geometry(&prm, l);
+            let geo = crate::ewald::gpu::backend::geometry(&prm, l);
             let generation = self.generation;
             let gpu = self.gpu.as_mut().ok_or_else(|| {
                 SumError::Device("a resident sum on a sum without a device".into())

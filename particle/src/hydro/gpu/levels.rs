@@ -7,7 +7,7 @@ use super::resident::{
 };
 use crate::hydro::dipole::{Dipole, stresslet_strength};
 use crate::hydro::explicit::ExplicitSlender;
-use crate::hydro::mobility::MobilityError;
+use crate::hydro::report::MobilityError;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED, eta};
 use motile_gpu::Counters;
 

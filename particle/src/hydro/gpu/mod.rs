@@ -23,7 +23,7 @@ pub use resident::{DeviceVelocities, ResidentMobility, RodsOnDevice};
 use crate::ewald::periodic::{PeriodicStokes, RpyGeometry, SumError};
 use crate::ewald::spectral::SpectralEwald;
 use crate::hydro::gmres::{GmresError, GmresInfo, GmresParams, KrylovSpace, gmres_in};
-use crate::hydro::mobility::HydroReport;
+use crate::hydro::report::HydroReport;
 use crate::model::geometry::Vec3;
 use crate::parallel::reduce::CHUNK;
 use motile_gpu::{Backend, Buffer, Device, GpuError, kernel_int as int};

@@ -16,14 +16,12 @@ pub trait ResidentMobility {
     }
 
     /// The warm state kept on a device: none here.
-    fn resident_warm_state(
-        &self,
-    ) -> Option<Result<Vec<f64>, crate::hydro::mobility::MobilityError>> {
+    fn resident_warm_state(&self) -> Option<Result<Vec<f64>, crate::hydro::report::MobilityError>> {
         None
     }
 
     /// Bring the host's copies up to date: they are the only copies here.
-    fn sync_resident(&mut self) -> Result<(), crate::hydro::mobility::MobilityError> {
+    fn sync_resident(&mut self) -> Result<(), crate::hydro::report::MobilityError> {
         Ok(())
     }
 

@@ -3,7 +3,7 @@
 //! steps keep there.
 
 use crate::ewald::spectral::SpectralEwald;
-use crate::hydro::mobility::{HydroReport, MobilityError};
+use crate::hydro::report::{HydroReport, MobilityError};
 use crate::hydro::sum::FlowSum;
 use motile_gpu::{Buffer, Counters, GpuError};
 

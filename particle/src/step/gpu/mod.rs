@@ -1,6 +1,6 @@
 //! The particle step on a GPU (feature `gpu`), room by room; what is here so far:
 //! - the rods' cell list and their neighbour pairs (`cells.rs`, `cells.cu`), the twins of
-//!   `step::cells` (the contact search's candidates: every pair of centres closer
+//!   `model::cells` (the contact search's candidates: every pair of centres closer
 //!   than the reach, each once, `i < j`). Each centre's cell and the cells' counts
 //!   (`cell_count`, an integer atomic), the cells' starts (a prefix sum, `scan.cu`), the
 //!   members scattered into cell order (`cell_scatter`) and each cell's members put in
