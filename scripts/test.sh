@@ -33,6 +33,17 @@ export MOTILE_REQUIRE_CUDA_CLANG=1
 # otherwise compile the same sets again); emptied first, so that every set is compiled anew.
 export MOTILE_EMULATION_CACHE="$PWD/target/emulation-cache"
 rm -rf "$MOTILE_EMULATION_CACHE"
+# The habits: formatting, clippy without warnings (the default build and the GPU features'),
+# and the API docs without warnings (broken links included). rustfmt and clippy are rustup
+# components, added where missing.
+if ! cargo fmt --version >/dev/null 2>&1 || ! cargo clippy --version >/dev/null 2>&1; then
+  rustup component add rustfmt clippy
+fi
+cargo fmt --all -- --check
+cargo clippy --workspace --all-targets -- -D warnings
+cargo clippy --workspace --all-targets \
+  --features motile-particle/gpu,motile-meanfield/gpu,motile-experiments/gpu -- -D warnings
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace
 cargo test --release --workspace
 # The Python module (python/, outside the cargo workspace): built by maturin through pip, in
 # this target folder (it reuses the crates just compiled), then its tests, which also run the

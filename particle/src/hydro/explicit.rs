@@ -72,7 +72,7 @@ impl ExplicitSlender {
     }
 
     /// The same mobility able to run on one rank's part of a box shared by several, its sum
-    /// then [`SharedEwald`] at tolerance `tol` ([`Mobility::predicted_velocities_shared`]).
+    /// then [`SharedEwald`] at tolerance `tol` ([`SharedMobility::predicted_velocities_shared`]).
     pub fn shared(mut self, tol: f64) -> Result<Self, crate::ewald::periodic::SumError> {
         self.shared = Some(SharedEwald::new(tol)?);
         Ok(self)

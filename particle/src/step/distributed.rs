@@ -480,7 +480,7 @@ impl<C: Comm> Distributed<C> {
         Some((all, out))
     }
 
-    /// The mobility's per-rod state ([`crate::hydro::mobility::Mobility::rod_state`]) of the whole box
+    /// The mobility's per-rod state ([`crate::hydro::mobility::MobilityState::rod_state`]) of the whole box
     /// on rank 0, in the single-process numbering: empty when some rank has none (before the
     /// first solve) or the mobility keeps none; `None` on the other ranks (collective).
     pub fn gather_rod_state(&self) -> Option<Vec<f64>> {

@@ -150,7 +150,7 @@ impl Stepper {
     /// rods within reach of them, as `part.halo` says. Every own rod and every copy moves
     /// (the copies with their owners' velocities); the report is the whole box's. Velocities and
     /// contact forces ([`Self::velocities`], [`Self::contact_forces`]) are those of the local
-    /// rods, correct for the own ones. Mobilities not built to share ([`Mobility::shares`])
+    /// rods, correct for the own ones. Mobilities not built to share ([`Mobility::on_ranks`] `None`)
     /// return [`StepError::NotShared`] on more than one rank.
     pub fn step_part(
         &mut self,
