@@ -96,3 +96,50 @@ fn dry_run_needs_no_out_and_relative_initial_paths_follow_the_config_file() {
         "a run without --out must say it needs one"
     );
 }
+
+/// The help texts name what the code has: every hydrodynamic level (from the enum), the GPU
+/// running the whole step; `motile scenes` puts each scene on one line and indents the rest.
+#[test]
+fn help_names_the_levels_and_the_scenes_listing_is_tidy() {
+    let bin = env!("CARGO_BIN_EXE_motile");
+    let text = |args: &[&str]| {
+        let out = std::process::Command::new(bin).args(args).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let help = text(&["particle", "run", "--help"]);
+    for name in motile_particle::model::level::Hydrodynamics::names() {
+        assert!(help.contains(&format!("\"{name}\"")), "{name}: {help}");
+    }
+    assert!(
+        help.contains("the whole step on one NVIDIA GPU") && !help.contains("Fourier part"),
+        "{help}"
+    );
+    let help = text(&["compare", "--help"]);
+    assert!(
+        help.contains("nine figures") && help.contains("\"sbt-explicit\""),
+        "{help}"
+    );
+    let scenes = text(&["scenes"]);
+    let builtin = motile_experiments::campaign::scene::BUILTIN;
+    let heads: Vec<&str> = scenes
+        .lines()
+        .filter(|l| !l.is_empty() && !l.starts_with(' '))
+        .collect();
+    assert_eq!(heads.len(), builtin.len(), "{scenes}");
+    for ((name, _), head) in builtin.iter().zip(&heads) {
+        assert!(head.starts_with(&format!("{name} (version ")), "{head}");
+    }
+    // The cost paragraphs are reflowed: every indented line (runs, costs) fits in 96 characters.
+    assert!(
+        scenes
+            .lines()
+            .filter(|l| l.starts_with(' '))
+            .all(|l| l.chars().count() <= 96),
+        "{scenes}"
+    );
+}
