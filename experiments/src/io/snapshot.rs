@@ -233,17 +233,38 @@ fn read_rows(
     Ok(out)
 }
 
+/// What every snapshot's root attributes hold.
+struct SnapshotHeader {
+    time: f64,
+    step: u64,
+    box_length: f64,
+}
+
 /// Read and validate a snapshot of either kind.
 pub fn read_snapshot(path: &Path) -> Result<Snapshot, IoError> {
-    // A file that is not HDF5 at all, or whose root cannot be read (cut short), is not a
-    // snapshot: say so, not which attribute is missing.
+    if !path.exists() {
+        return Err(h5err(path, "no such file"));
+    }
+    let (file, attrs, kind) = open_snapshot(path)?;
+    let header = read_header(&attrs, path)?;
+    match kind.as_str() {
+        "particle" => read_particle(&file, header, path).map(Snapshot::Particle),
+        "meanfield" => read_field(&file, &attrs, header, path).map(Snapshot::Field),
+        other => Err(content(
+            path,
+            format!("unknown snapshot kind '{other}' (expected \"particle\" or \"meanfield\")"),
+        )),
+    }
+}
+
+/// Open a snapshot file and read its root attributes and kind. A file that is not HDF5 at all,
+/// or whose root cannot be read (cut short), is not a snapshot: say so, not which attribute is
+/// missing.
+fn open_snapshot(path: &Path) -> Result<(File, HashMap<String, AttrValue>, String), IoError> {
     let not_snapshot = |detail: String| IoError::NotSnapshot {
         path: path.to_path_buf(),
         detail,
     };
-    if !path.exists() {
-        return Err(h5err(path, "no such file"));
-    }
     let file = File::open(path).map_err(|e| not_snapshot(e.to_string()))?;
     let attrs = file
         .root()
@@ -262,116 +283,148 @@ pub fn read_snapshot(path: &Path) -> Result<Snapshot, IoError> {
             ));
         }
     };
-    let time = attr_f64(&attrs, "time", path)?;
-    let step = attr_f64(&attrs, "step", path)? as u64;
-    let box_length = attr_f64(&attrs, "box_length", path)?;
+    Ok((file, attrs, kind))
+}
+
+/// The time, step and (positive) box side every snapshot carries.
+fn read_header(attrs: &HashMap<String, AttrValue>, path: &Path) -> Result<SnapshotHeader, IoError> {
+    let time = attr_f64(attrs, "time", path)?;
+    let step = attr_f64(attrs, "step", path)? as u64;
+    let box_length = attr_f64(attrs, "box_length", path)?;
     if !(box_length.is_finite() && box_length > 0.0) {
         return Err(content(
             path,
             format!("box_length {box_length} must be positive"),
         ));
     }
-    match kind.as_str() {
-        "particle" => {
-            let positions = read_rows(&file, "positions", None, path)?;
-            let n = positions.len();
-            let orientations = read_rows(&file, "orientations", Some(n), path)?;
-            if let Some(i) = orientations
-                .iter()
-                .position(|p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs() > 1e-8)
-            {
-                return Err(content(
-                    path,
-                    format!(
-                        "dataset 'orientations': row {i} is not a unit vector: {:?}",
-                        orientations[i]
-                    ),
-                ));
-            }
-            let ds = file
-                .dataset("image_counts")
-                .map_err(|e| content(path, format!("dataset 'image_counts': {e}")))?;
-            let ic = ds.read_i64().map_err(|e| h5err(path, e))?;
-            if ic.len() != 3 * n {
-                return Err(content(
-                    path,
-                    format!(
-                        "dataset 'image_counts' has {} values, expected {}",
-                        ic.len(),
-                        3 * n
-                    ),
-                ));
-            }
-            let image_counts = ic.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-            let forces = if file.dataset("force_points").is_ok() {
-                let pts = read_rows(&file, "force_points", None, path)?;
-                let f = read_rows(&file, "point_forces", Some(pts.len()), path)?;
-                Some(PointForces {
-                    points: pts,
-                    forces: f,
-                })
-            } else {
-                None
-            };
-            let kinematics = if file.dataset("velocities").is_ok() {
-                Some(Kinematics {
-                    velocities: read_rows(&file, "velocities", Some(n), path)?,
-                    angular_velocities: read_rows(&file, "angular_velocities", Some(n), path)?,
-                    contact_forces: read_rows(&file, "contact_forces", Some(n), path)?,
-                })
-            } else {
-                None
-            };
-            Ok(Snapshot::Particle(ParticleSnapshot {
-                time,
-                step,
-                box_length,
-                positions,
-                orientations,
-                image_counts,
-                forces,
-                kinematics,
-            }))
-        }
-        "meanfield" => {
-            let grid = attr_f64(&attrs, "grid", path)? as usize;
-            let read = |name: &str, comps: usize| -> Result<Vec<Vec<f64>>, IoError> {
-                let ds = file
-                    .dataset(name)
-                    .map_err(|e| content(path, format!("dataset '{name}': {e}")))?;
-                let shape = ds.shape().map_err(|e| h5err(path, e))?;
-                let g = grid as u64;
-                if shape != [comps as u64, g, g, g] {
-                    return Err(content(
-                        path,
-                        format!(
-                            "dataset '{name}' has shape {shape:?}, expected [{comps}, {grid}, {grid}, {grid}]"
-                        ),
-                    ));
-                }
-                let v = ds.read_f64().map_err(|e| h5err(path, e))?;
-                if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                    return Err(content(
-                        path,
-                        format!("dataset '{name}': value {i} is not finite"),
-                    ));
-                }
-                Ok(v.chunks_exact(grid.pow(3)).map(|c| c.to_vec()).collect())
-            };
-            let q: [Vec<f64>; 6] = read("Q", 6)?.try_into().expect("six components");
-            let u: [Vec<f64>; 3] = read("u", 3)?.try_into().expect("three components");
-            Ok(Snapshot::Field(FieldSnapshot {
-                time,
-                step,
-                box_length,
-                grid,
-                q,
-                u,
-            }))
-        }
-        other => Err(content(
+    Ok(SnapshotHeader {
+        time,
+        step,
+        box_length,
+    })
+}
+
+/// A particle snapshot's datasets: positions, unit orientations, image counts, and the force
+/// densities and kinematics where the file has them.
+fn read_particle(
+    file: &File,
+    header: SnapshotHeader,
+    path: &Path,
+) -> Result<ParticleSnapshot, IoError> {
+    let positions = read_rows(file, "positions", None, path)?;
+    let n = positions.len();
+    let orientations = read_rows(file, "orientations", Some(n), path)?;
+    if let Some(i) = orientations
+        .iter()
+        .position(|p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs() > 1e-8)
+    {
+        return Err(content(
             path,
-            format!("unknown snapshot kind '{other}' (expected \"particle\" or \"meanfield\")"),
-        )),
+            format!(
+                "dataset 'orientations': row {i} is not a unit vector: {:?}",
+                orientations[i]
+            ),
+        ));
     }
+    let image_counts = read_image_counts(file, n, path)?;
+    let forces = if file.dataset("force_points").is_ok() {
+        let points = read_rows(file, "force_points", None, path)?;
+        let forces = read_rows(file, "point_forces", Some(points.len()), path)?;
+        Some(PointForces { points, forces })
+    } else {
+        None
+    };
+    let kinematics = if file.dataset("velocities").is_ok() {
+        Some(Kinematics {
+            velocities: read_rows(file, "velocities", Some(n), path)?,
+            angular_velocities: read_rows(file, "angular_velocities", Some(n), path)?,
+            contact_forces: read_rows(file, "contact_forces", Some(n), path)?,
+        })
+    } else {
+        None
+    };
+    Ok(ParticleSnapshot {
+        time: header.time,
+        step: header.step,
+        box_length: header.box_length,
+        positions,
+        orientations,
+        image_counts,
+        forces,
+        kinematics,
+    })
+}
+
+/// The `(n, 3)` periodic image counts of `n` rods.
+fn read_image_counts(file: &File, n: usize, path: &Path) -> Result<Vec<[i64; 3]>, IoError> {
+    let ds = file
+        .dataset("image_counts")
+        .map_err(|e| content(path, format!("dataset 'image_counts': {e}")))?;
+    let ic = ds.read_i64().map_err(|e| h5err(path, e))?;
+    if ic.len() != 3 * n {
+        return Err(content(
+            path,
+            format!(
+                "dataset 'image_counts' has {} values, expected {}",
+                ic.len(),
+                3 * n
+            ),
+        ));
+    }
+    Ok(ic.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+/// A mean-field snapshot's grid and its `Q` and `u` fields.
+fn read_field(
+    file: &File,
+    attrs: &HashMap<String, AttrValue>,
+    header: SnapshotHeader,
+    path: &Path,
+) -> Result<FieldSnapshot, IoError> {
+    let grid = attr_f64(attrs, "grid", path)? as usize;
+    let q: [Vec<f64>; 6] = read_components(file, "Q", 6, grid, path)?
+        .try_into()
+        .expect("six components");
+    let u: [Vec<f64>; 3] = read_components(file, "u", 3, grid, path)?
+        .try_into()
+        .expect("three components");
+    Ok(FieldSnapshot {
+        time: header.time,
+        step: header.step,
+        box_length: header.box_length,
+        grid,
+        q,
+        u,
+    })
+}
+
+/// The dataset `name` of shape `(comps, grid, grid, grid)`, finite, one vector per component.
+fn read_components(
+    file: &File,
+    name: &str,
+    comps: usize,
+    grid: usize,
+    path: &Path,
+) -> Result<Vec<Vec<f64>>, IoError> {
+    let ds = file
+        .dataset(name)
+        .map_err(|e| content(path, format!("dataset '{name}': {e}")))?;
+    let shape = ds.shape().map_err(|e| h5err(path, e))?;
+    let g = grid as u64;
+    if shape != [comps as u64, g, g, g] {
+        return Err(content(
+            path,
+            format!(
+                "dataset '{name}' has shape {shape:?}, expected [{comps}, {grid}, {grid}, {grid}]"
+            ),
+        ));
+    }
+    let v = ds.read_f64().map_err(|e| h5err(path, e))?;
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(content(
+            path,
+            format!("dataset '{name}': value {i} is not finite"),
+        ));
+    }
+    Ok(v.chunks_exact(grid.pow(3)).map(|c| c.to_vec()).collect())
 }
