@@ -78,11 +78,29 @@ pub struct StudyReport {
     pub markdown: String,
 }
 
-fn knob(name: &str) -> anyhow::Result<(&'static str, &'static str, &'static str, &'static str)> {
+/// One knob of [`KNOBS`], by name.
+#[derive(Clone, Copy, Debug)]
+struct Knob {
+    /// The knob's name.
+    name: &'static str,
+    /// The model it belongs to: "particle" or "meanfield".
+    model: &'static str,
+    /// The values swept by default, comma-separated, least to most accurate.
+    defaults: &'static str,
+    /// The reference setting.
+    reference: &'static str,
+}
+
+fn knob(name: &str) -> anyhow::Result<Knob> {
     KNOBS
         .iter()
-        .copied()
         .find(|k| k.0 == name)
+        .map(|&(name, model, defaults, reference)| Knob {
+            name,
+            model,
+            defaults,
+            reference,
+        })
         .with_context(|| {
             let names: Vec<&str> = KNOBS.iter().map(|k| k.0).collect();
             format!("no knob \"{name}\"; knobs: {}", names.join(", "))
@@ -120,16 +138,20 @@ fn set_meanfield(c: &mut MeanFieldRunConfig, knob: &str, v: &str) -> anyhow::Res
         .map_err(|e| anyhow::anyhow!("study {knob} = {v}: {e}"))
 }
 
-/// What one run left to compare.
-type Positions = Vec<[f64; 3]>;
+/// The rods' unwrapped positions at the start and the end of a particle run.
+struct RodPositions {
+    start: Vec<[f64; 3]>,
+    end: Vec<[f64; 3]>,
+}
 
+/// What one run left to compare.
 struct Outcome {
     /// Diagnostic times.
     t: Vec<f64>,
     /// The velocity norm at those times.
     u: Vec<f64>,
-    /// Particle runs: start and end positions (unwrapped).
-    x: Option<(Positions, Positions)>,
+    /// Particle runs: the rods' start and end positions.
+    rods: Option<RodPositions>,
 }
 
 /// What a study sweeps.
@@ -147,6 +169,23 @@ pub struct StudyOptions {
     pub run: Option<String>,
 }
 
+/// One setting of the knob, its run's config built and checked.
+struct Setting {
+    /// The knob's value, as given.
+    value: String,
+    /// Whether it is the reference setting.
+    reference: bool,
+    /// The run's config with the value set.
+    config: RunConfig,
+}
+
+/// One setting's run: its wall time and what it left (or why it stopped).
+struct SettingRun {
+    setting: Setting,
+    seconds: f64,
+    outcome: anyhow::Result<Outcome>,
+}
+
 /// Sweep `opts.knob` over its values on a run of `scene` of the knob's model, each to its end
 /// time, into `out/runs/<knob>_<value>`; write `out/study_<knob>.{csv,md,png,svg}`. `event`
 /// gets a line per run.
@@ -156,145 +195,226 @@ pub fn study(
     out: &Path,
     event: &mut dyn FnMut(&str),
 ) -> anyhow::Result<StudyReport> {
-    let (knob_name, values, t_end, accuracy) = (
-        opts.knob.as_str(),
-        opts.values.clone(),
-        opts.t_end,
-        opts.accuracy,
-    );
-    let (name, model, defaults, reference) = knob(knob_name)?;
+    let knob = knob(&opts.knob)?;
+    let accuracy = opts.accuracy;
     if !(accuracy > 0.0 && accuracy < 1.0) {
         bail!("--accuracy = {accuracy} is outside the allowed range (0, 1)");
     }
-    let base = scene
-        .runs
-        .iter()
-        .find(|(n, c)| c.model() == model && opts.run.as_ref().is_none_or(|r| r == n))
-        .map(|(_, c)| c.clone())
-        .with_context(|| {
-            format!(
-                "scene {} has no {model} run{} for the knob {name}",
-                scene.info.name,
-                opts.run
-                    .as_ref()
-                    .map_or(String::new(), |r| format!(" named {r}"))
-            )
-        })?;
-    let mut settings: Vec<(String, bool)> = values
-        .unwrap_or_else(|| defaults.split(',').map(String::from).collect())
-        .into_iter()
-        .map(|v| (v, false))
-        .collect();
-    settings.retain(|(v, _)| v != reference);
-    settings.push((reference.to_string(), true));
+    let base = base_run(scene, opts, knob)?;
     // Every setting's config is built and checked before anything is written.
-    let planned = settings
-        .into_iter()
-        .map(|(v, is_ref)| {
-            let cfg = match &base {
-                RunConfig::Particle(c) => {
-                    let mut c = c.clone();
-                    c.t_end = t_end.unwrap_or(c.t_end);
-                    c.vtk = false;
-                    c.snapshot_interval = c.t_end;
-                    c.checkpoint_interval = c.t_end;
-                    // Diagnostics every 0.2/beta: a whole number of steps for every dt swept.
-                    c.diagnostic_interval = 0.2f64.min(c.t_end);
-                    set_particle(&mut c, name, &v)?;
-                    RunConfig::Particle(c)
-                }
-                RunConfig::MeanField(c) => {
-                    let mut c = c.clone();
-                    c.t_end = t_end.unwrap_or(c.t_end);
-                    c.snapshot_interval = c.t_end;
-                    c.checkpoint_interval = c.t_end;
-                    set_meanfield(&mut c, name, &v)?;
-                    RunConfig::MeanField(c)
-                }
-            };
-            Ok((v, is_ref, cfg))
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let settings = plan(&base, opts, knob)?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let mut results = Vec::new();
-    for (v, is_ref, cfg) in &planned {
-        let dir = out.join("runs").join(format!("{name}_{v}"));
-        crate::io::remove_old_run(&dir)?;
-        // One-time costs stay out of the timing: closure tables are built (and cached) first.
-        if let RunConfig::MeanField(c) = cfg {
-            meanfield::closure_tables(c.closure_degree)?;
-        }
-        let t0 = std::time::Instant::now();
-        let outcome: Result<Outcome, anyhow::Error> = match cfg {
-            RunConfig::Particle(c) => {
-                let x0 = particle::initial_rods(c)?.unwrapped();
-                particle::run_particle(c, &dir, false).and_then(|s| {
-                    let ts = TimeSeries::read(&dir.join("timeseries.csv"))?;
-                    Ok(Outcome {
-                        t: ts.column("t [1/beta]").unwrap_or_default(),
-                        u: ts.column("velocity_norm [beta L]").unwrap_or_default(),
-                        x: Some((x0, s.rods.unwrapped())),
-                    })
-                })
-            }
-            RunConfig::MeanField(c) => meanfield::run_meanfield(c, &dir, false).map(|s| Outcome {
-                t: s.timeseries.column("t [mu/|sigma_a|]").unwrap_or_default(),
-                u: s.timeseries
-                    .column("u_l2 [L |sigma_a|/mu]")
-                    .unwrap_or_default(),
-                x: None,
-            }),
-        };
-        let seconds = t0.elapsed().as_secs_f64();
-        event(&format!(
-            "{name} = {v}{}: {:.1} s{}",
-            if *is_ref { " (reference)" } else { "" },
-            seconds,
-            match &outcome {
-                Ok(_) => String::new(),
-                Err(e) => format!(", stopped: {e:#}"),
-            }
-        ));
-        results.push((v.clone(), *is_ref, seconds, outcome));
-    }
-    let Some((_, _, _, Ok(reference_outcome))) = results.last() else {
-        let why = match results.last() {
-            Some((_, _, _, Err(e))) => format!("{e:#}"),
-            _ => "no runs".into(),
-        };
-        bail!("study {name}: the reference setting {reference} failed: {why}");
-    };
-    let mut points = Vec::new();
-    for (v, is_ref, seconds, outcome) in &results {
-        let (error, position_error, failure) = match outcome {
-            Err(e) => (f64::INFINITY, f64::INFINITY, Some(format!("{e:#}"))),
-            Ok(o) => {
-                let (e, ep) = error_against(o, reference_outcome)?;
-                (e, ep, None)
-            }
-        };
-        let has_flow = match outcome {
-            Ok(o) => o.u.iter().any(|&u| u.is_finite() && u != 0.0),
-            Err(_) => true,
-        };
-        points.push(StudyPoint {
-            value: v.clone(),
-            seconds: *seconds,
-            error,
-            position_error,
-            reference: *is_ref,
-            failure,
-            has_flow,
-        });
-    }
+    let runs: Vec<SettingRun> = settings
+        .into_iter()
+        .map(|setting| run_setting(setting, knob, out, event))
+        .collect::<anyhow::Result<_>>()?;
+    let points = study_points(&runs, knob)?;
     let cheapest = points
         .iter()
         .filter(|p| !p.reference && p.error <= accuracy)
         .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
         .cloned();
-    // Files.
+    write_csv(&points, knob, out)?;
+    let markdown = write_markdown(scene, opts, &base, knob, &points, cheapest.as_ref(), out)?;
+    write_chart(&points, knob, accuracy, cheapest.as_ref(), out)?;
+    Ok(StudyReport {
+        points,
+        cheapest,
+        markdown,
+    })
+}
+
+/// The scene's run the knob is swept on: its first of the knob's model (or the one named).
+fn base_run(scene: &Scene, opts: &StudyOptions, knob: Knob) -> anyhow::Result<RunConfig> {
+    scene
+        .runs
+        .iter()
+        .find(|(n, c)| c.model() == knob.model && opts.run.as_ref().is_none_or(|r| r == n))
+        .map(|(_, c)| c.clone())
+        .with_context(|| {
+            format!(
+                "scene {} has no {} run{} for the knob {}",
+                scene.info.name,
+                knob.model,
+                opts.run
+                    .as_ref()
+                    .map_or(String::new(), |r| format!(" named {r}")),
+                knob.name
+            )
+        })
+}
+
+/// The settings to run, the reference last, each with its config.
+fn plan(base: &RunConfig, opts: &StudyOptions, knob: Knob) -> anyhow::Result<Vec<Setting>> {
+    let mut values: Vec<String> = opts
+        .values
+        .clone()
+        .unwrap_or_else(|| knob.defaults.split(',').map(String::from).collect());
+    values.retain(|v| v != knob.reference);
+    let settings = values
+        .into_iter()
+        .map(|v| (v, false))
+        .chain([(knob.reference.to_string(), true)]);
+    settings
+        .map(|(value, reference)| {
+            let config = setting_config(base, opts.t_end, knob, &value)?;
+            Ok(Setting {
+                value,
+                reference,
+                config,
+            })
+        })
+        .collect()
+}
+
+/// The base run's config over the study's window (one snapshot and checkpoint at its end),
+/// with the knob set to `value`.
+fn setting_config(
+    base: &RunConfig,
+    t_end: Option<f64>,
+    knob: Knob,
+    value: &str,
+) -> anyhow::Result<RunConfig> {
+    Ok(match base {
+        RunConfig::Particle(c) => {
+            let mut c = c.clone();
+            c.t_end = t_end.unwrap_or(c.t_end);
+            c.vtk = false;
+            c.snapshot_interval = c.t_end;
+            c.checkpoint_interval = c.t_end;
+            // Diagnostics every 0.2/beta: a whole number of steps for every dt swept.
+            c.diagnostic_interval = 0.2f64.min(c.t_end);
+            set_particle(&mut c, knob.name, value)?;
+            RunConfig::Particle(c)
+        }
+        RunConfig::MeanField(c) => {
+            let mut c = c.clone();
+            c.t_end = t_end.unwrap_or(c.t_end);
+            c.snapshot_interval = c.t_end;
+            c.checkpoint_interval = c.t_end;
+            set_meanfield(&mut c, knob.name, value)?;
+            RunConfig::MeanField(c)
+        }
+    })
+}
+
+/// Run one setting into `out/runs/<knob>_<value>` (an earlier run there removed), timed.
+fn run_setting(
+    setting: Setting,
+    knob: Knob,
+    out: &Path,
+    event: &mut dyn FnMut(&str),
+) -> anyhow::Result<SettingRun> {
+    let dir = out
+        .join("runs")
+        .join(format!("{}_{}", knob.name, setting.value));
+    crate::io::remove_old_run(&dir)?;
+    // One-time costs stay out of the timing: closure tables are built (and cached) first.
+    if let RunConfig::MeanField(c) = &setting.config {
+        meanfield::closure_tables(c.closure_degree)?;
+    }
+    let t0 = std::time::Instant::now();
+    let outcome = run_outcome(&setting.config, &dir);
+    let seconds = t0.elapsed().as_secs_f64();
+    event(&format!(
+        "{} = {}{}: {:.1} s{}",
+        knob.name,
+        setting.value,
+        if setting.reference {
+            " (reference)"
+        } else {
+            ""
+        },
+        seconds,
+        match &outcome {
+            Ok(_) => String::new(),
+            Err(e) => format!(", stopped: {e:#}"),
+        }
+    ));
+    Ok(SettingRun {
+        setting,
+        seconds,
+        outcome,
+    })
+}
+
+/// Run `config` into `dir` and keep what the error needs: the velocity norm against time and,
+/// for particles, the rods' start and end positions.
+fn run_outcome(config: &RunConfig, dir: &Path) -> anyhow::Result<Outcome> {
+    match config {
+        RunConfig::Particle(c) => {
+            let start = particle::initial_rods(c)?.unwrapped();
+            particle::run_particle(c, dir, false).and_then(|s| {
+                let ts = TimeSeries::read(&dir.join("timeseries.csv"))?;
+                Ok(Outcome {
+                    t: ts.column("t [1/beta]").unwrap_or_default(),
+                    u: ts.column("velocity_norm [beta L]").unwrap_or_default(),
+                    rods: Some(RodPositions {
+                        start,
+                        end: s.rods.unwrapped(),
+                    }),
+                })
+            })
+        }
+        RunConfig::MeanField(c) => meanfield::run_meanfield(c, dir, false).map(|s| Outcome {
+            t: s.timeseries.column("t [mu/|sigma_a|]").unwrap_or_default(),
+            u: s.timeseries
+                .column("u_l2 [L |sigma_a|/mu]")
+                .unwrap_or_default(),
+            rods: None,
+        }),
+    }
+}
+
+/// Each setting's error against the reference (the last run, which must have finished).
+fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoint>> {
+    let Some(SettingRun {
+        outcome: Ok(reference_outcome),
+        ..
+    }) = runs.last()
+    else {
+        let why = match runs.last() {
+            Some(SettingRun {
+                outcome: Err(e), ..
+            }) => format!("{e:#}"),
+            _ => "no runs".into(),
+        };
+        bail!(
+            "study {}: the reference setting {} failed: {why}",
+            knob.name,
+            knob.reference
+        );
+    };
+    runs.iter()
+        .map(|run| {
+            let (error, position_error, failure) = match &run.outcome {
+                Err(e) => (f64::INFINITY, f64::INFINITY, Some(format!("{e:#}"))),
+                Ok(o) => {
+                    let (e, ep) = error_against(o, reference_outcome)?;
+                    (e, ep, None)
+                }
+            };
+            let has_flow = match &run.outcome {
+                Ok(o) => o.u.iter().any(|&u| u.is_finite() && u != 0.0),
+                Err(_) => true,
+            };
+            Ok(StudyPoint {
+                value: run.setting.value.clone(),
+                seconds: run.seconds,
+                error,
+                position_error,
+                reference: run.setting.reference,
+                failure,
+                has_flow,
+            })
+        })
+        .collect()
+}
+
+/// `study_<knob>.csv`.
+fn write_csv(points: &[StudyPoint], knob: Knob, out: &Path) -> anyhow::Result<()> {
     let mut csv = String::from("value,reference,wall_seconds,error,position_error,failure\n");
-    for p in &points {
+    for p in points {
         writeln!(
             csv,
             "{},{},{:.3},{:e},{:e},\"{}\"",
@@ -307,13 +427,36 @@ pub fn study(
         )
         .expect("string");
     }
-    write_atomic(&out.join(format!("study_{name}.csv")), csv.as_bytes())?;
+    write_atomic(
+        &out.join(format!("study_{}.csv", knob.name)),
+        csv.as_bytes(),
+    )?;
+    Ok(())
+}
+
+/// `study_<knob>.md` (returned too): the base, the window, the verdict and the table.
+fn write_markdown(
+    scene: &Scene,
+    opts: &StudyOptions,
+    base: &RunConfig,
+    knob: Knob,
+    points: &[StudyPoint],
+    cheapest: Option<&StudyPoint>,
+    out: &Path,
+) -> anyhow::Result<String> {
+    let Knob {
+        name,
+        model,
+        reference,
+        ..
+    } = knob;
+    let (t_end, accuracy) = (opts.t_end, opts.accuracy);
     let what = "max over the window of |Delta ||u||_2(t)| / max ||u||_2";
-    let window = match &base {
+    let window = match base {
         RunConfig::Particle(c) => format!("t = 0 to {} (1/beta)", t_end.unwrap_or(c.t_end)),
         RunConfig::MeanField(c) => format!("t = 0 to {} (mu/|sigma_a|)", t_end.unwrap_or(c.t_end)),
     };
-    let verdict = match &cheapest {
+    let verdict = match cheapest {
         Some(p) => format!(
             "cheapest setting meeting the stated accuracy {accuracy:.0e}: **{name} = {}** (error {:.2e}, {:.1} s)",
             p.value, p.error, p.seconds
@@ -327,7 +470,7 @@ pub fn study(
         scene.info.name,
         base.describe()
     );
-    for p in &points {
+    for p in points {
         writeln!(
             md,
             "| {}{} | {:.2} | {:.2e} | {:.2e} | {} |",
@@ -345,6 +488,23 @@ pub fn study(
         .expect("string");
     }
     write_atomic(&out.join(format!("study_{name}.md")), md.as_bytes())?;
+    Ok(md)
+}
+
+/// `study_<knob>.{png,svg}`: error against wall time of the charted settings (with a flow, a
+/// finite non-zero error), the stated accuracy as a line from the cheapest charted setting to
+/// the reference's wall time, where the reference (error 0 by definition, off a log axis) is
+/// labelled.
+fn write_chart(
+    points: &[StudyPoint],
+    knob: Knob,
+    accuracy: f64,
+    cheapest: Option<&StudyPoint>,
+    out: &Path,
+) -> anyhow::Result<()> {
+    let Knob {
+        name, reference, ..
+    } = knob;
     let plotted: Vec<&StudyPoint> = points
         .iter()
         .filter(|p| !p.reference && p.has_flow && p.error.is_finite() && p.error > 0.0)
@@ -353,8 +513,6 @@ pub fn study(
         label: format!("{name} (labels: values)"),
         points: plotted.iter().map(|p| (p.seconds, p.error)).collect(),
     }];
-    // The stated accuracy as a line from the cheapest charted setting to the reference's
-    // wall time, where the reference (error 0 by definition, off a log axis) is labelled.
     let ref_seconds = points.last().map_or(f64::NAN, |p| p.seconds);
     let (t_lo, t_hi) = plotted
         .iter()
@@ -367,7 +525,7 @@ pub fn study(
             points: vec![(t_lo, accuracy), (t_hi, accuracy)],
         });
     }
-    let title = match &cheapest {
+    let title = match cheapest {
         Some(p) => format!(
             "{name}: cheapest within {accuracy:.0e} is {} (reference {reference}: {ref_seconds:.1} s)",
             p.value
@@ -394,11 +552,7 @@ pub fn study(
         &series,
         &labels,
     )?;
-    Ok(StudyReport {
-        points,
-        cheapest,
-        markdown: md,
-    })
+    Ok(())
 }
 
 fn error_against(o: &Outcome, r: &Outcome) -> anyhow::Result<(f64, f64)> {
@@ -417,16 +571,18 @@ fn error_against(o: &Outcome, r: &Outcome) -> anyhow::Result<(f64, f64)> {
             .filter(|(_, b)| b.is_finite())
             .map(|(a, b)| if a.is_finite() { (a - b).abs() } else { *b })
             .fold(0.0, f64::max);
-    let position = match (&o.x, &r.x) {
-        (Some((_, x)), Some((x0, xr))) => {
-            let dx: f64 = x
+    let position = match (&o.rods, &r.rods) {
+        (Some(run), Some(reference)) => {
+            let dx: f64 = run
+                .end
                 .iter()
-                .zip(xr)
+                .zip(&reference.end)
                 .map(|(a, b)| norm(sub(*a, *b)).powi(2))
                 .sum();
-            let travel: f64 = xr
+            let travel: f64 = reference
+                .end
                 .iter()
-                .zip(x0)
+                .zip(&reference.start)
                 .map(|(a, b)| norm(sub(*a, *b)).powi(2))
                 .sum();
             (dx / travel.max(1e-300)).sqrt()
