@@ -41,8 +41,8 @@ enum Command {
     /// the saturated norm against L/l (particle runs), the time-averaged velocity
     /// autocorrelation, |u| on the plane z = 0, the correlations of c, n (particle runs) and Q,
     /// and for particle runs the mean squared displacement and the orientation
-    /// autocorrelation; the data as CSV; summary.md and series.md (growth rates, saturated
-    /// norms, correlation lengths). It prints the summary table.
+    /// autocorrelation; norms, correlations and trajectories as CSV; summary.md and series.md
+    /// (growth rates, saturated norms, correlation lengths). It prints the summary table.
     Compare(CompareArgs),
     /// Analyse a run's snapshots: correlation functions, norms, trajectory statistics.
     ///

@@ -78,7 +78,7 @@ fn results(out: &Path, compared: bool) -> anyhow::Result<String> {
         charts.sort();
         lines.push(wrap(
             &format!(
-                "{} ({} charts, each .png and .svg, data in .csv): {}",
+                "{} ({} charts, each .png and .svg): {}",
                 compare.display(),
                 charts.len(),
                 charts.join(", ")
