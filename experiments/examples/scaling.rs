@@ -137,7 +137,7 @@ fn step_case(name: &'static str, rods: RodSet, mobility: Box<dyn Mobility>, dt: 
             let t = Instant::now();
             let r = stepper.step(&mut rods, dt).expect("step");
             let total = t.elapsed().as_secs_f64();
-            let mut v = r.seconds.to_vec();
+            let mut v = r.seconds.as_array().to_vec();
             v.push(r.hydro.seconds_sums);
             v.push(total);
             v

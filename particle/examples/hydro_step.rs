@@ -49,7 +49,7 @@ fn main() {
             let h = &r.hydro;
             println!(
                 "step {k}: {wall:.3} s | neighbours {:.3} assembly {:.3} prediction {:.3} contacts {:.3} solve + update {:.3} | sums {} in {:.3} s, level {}, estimate {:.2} tol | GMRES {} ({:.1e}) | {} active contacts",
-                r.seconds[0], r.seconds[1], r.seconds[2], r.seconds[3], r.seconds[4],
+                r.seconds.cells, r.seconds.constraints, r.seconds.free_velocities, r.seconds.contacts, r.seconds.update,
                 h.sums, h.seconds_sums, h.sum_level, h.sum_error_ratio, h.gmres_iterations, h.gmres_residual, r.contact.active
             );
         }

@@ -35,7 +35,7 @@ fn main() {
         let t = Instant::now();
         for k in 0..steps {
             let r = s.step(&mut rods, 0.002).expect("step");
-            for (a, b) in total.iter_mut().zip(r.seconds) {
+            for (a, b) in total.iter_mut().zip(r.seconds.as_array()) {
                 *a += b;
             }
             if k % 5 == 0 || k == steps - 1 {

@@ -23,7 +23,7 @@ use crate::model::geometry::{Vec3, axpy, cross, dot, scale, sub};
 use crate::parallel::comm::SingleProcess;
 use crate::parallel::halo::Halo;
 use crate::parallel::part::Share;
-use crate::parallel::reduce::{CHUNK, det_sum};
+use motile_analysis::reduce::{chunk_partials, det_sum};
 use motile_analysis::params::{InvalidParameter, check_range};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -142,21 +142,17 @@ pub enum ContactError {
 /// `[max |min(lam_new, g_new)|, |s|^2, s.y, |y|^2]` with `s = lam_new - lam`, `y = g_new - g`,
 /// summed in fixed chunks (the maximum is exact in any order).
 fn fused_stats(lam: &[f64], lam_new: &[f64], g: &[f64], g_new: &[f64]) -> [f64; 4] {
-    let m = lam.len();
-    let partial: Vec<[f64; 4]> = (0..m.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| {
-            let mut a = [0.0f64; 4];
-            for k in c * CHUNK..((c + 1) * CHUNK).min(m) {
-                let (s, y) = (lam_new[k] - lam[k], g_new[k] - g[k]);
-                a[0] = a[0].max(lam_new[k].min(g_new[k]).abs());
-                a[1] += s * s;
-                a[2] += s * y;
-                a[3] += y * y;
-            }
-            a
-        })
-        .collect();
+    let partial = chunk_partials(lam.len(), |chunk| {
+        let mut a = [0.0f64; 4];
+        for k in chunk {
+            let (s, y) = (lam_new[k] - lam[k], g_new[k] - g[k]);
+            a[0] = a[0].max(lam_new[k].min(g_new[k]).abs());
+            a[1] += s * s;
+            a[2] += s * y;
+            a[3] += y * y;
+        }
+        a
+    });
     partial.iter().fold([0.0; 4], |acc, a| {
         [
             acc[0].max(a[0]),
@@ -378,119 +374,180 @@ impl ContactSolver {
         params: &ContactParams,
         initial: &[f64],
     ) -> Result<(Vec<f64>, ContactReport), ContactError> {
-        let ContactProblem {
-            cons,
-            p,
-            free_v,
-            free_w,
-            dt,
-            ..
-        } = problem;
-        let comm = share.comm;
-        let m = cons.len();
-        let mut total = [m as f64];
-        comm.sum(&mut total);
-        if total[0] == 0.0 {
+        let m = problem.cons.len();
+        let total = global_sum(share, m as f64);
+        if total == 0.0 {
             return Ok((Vec::new(), ContactReport::default()));
         }
-        let global_sum = |x: f64| {
-            let mut v = [x];
-            comm.sum(&mut v);
-            v[0]
-        };
-        let global_max = |x: f64| {
-            let mut v = [x];
-            comm.max(&mut v);
-            v[0]
-        };
         assert!(
             initial.is_empty() || initial.len() == m,
             "initial guess has the wrong length"
         );
-        self.index(cons, p.len());
-        let mut q = vec![0.0; m];
-        Self::rates(cons, free_v, free_w, &mut q);
-        q.par_iter_mut()
-            .zip(cons)
-            .for_each(|(q, c)| *q = c.phi + dt * *q);
-        let residual_of =
-            |lam: &[f64], g: &[f64]| global_max(par_max(m, |k| lam[k].min(g[k]).abs()));
-        let mut ag = vec![0.0; m];
-        // Warm start from `initial` (projected onto lambda >= 0), or from zero.
-        let warm = global_max(if initial.iter().any(|&l| l > 0.0) {
-            1.0
-        } else {
-            0.0
-        });
-        let (mut lam, mut g) = if warm > 0.0 {
-            let lam: Vec<f64> = initial.iter().map(|l| l.max(0.0)).collect();
-            let mut g = vec![0.0; m];
-            self.apply(share, &problem, &lam, &q, &mut g);
-            (lam, g)
-        } else {
-            (vec![0.0; m], q.clone())
-        };
-        let mut res = residual_of(&lam, &g);
-        let mut iterations = 0;
-        if res > params.tolerance {
-            // First step: exact line search along the projected-free gradient.
-            let gp: Vec<f64> = (0..m)
-                .map(|k| {
-                    if lam[k] > 0.0 || g[k] < 0.0 {
-                        g[k]
-                    } else {
-                        0.0
-                    }
-                })
-                .collect();
-            self.apply(share, &problem, &gp, &[], &mut ag);
-            let gg = global_sum(det_sum(m, |k| gp[k] * gp[k]));
-            let gag = global_sum(det_sum(m, |k| gp[k] * ag[k]));
-            let mut alpha = if gag > 0.0 { gg / gag } else { 1.0 };
-            let mut lam_new = vec![0.0; m];
-            let mut g_new = vec![0.0; m];
-            loop {
-                iterations += 1;
-                lam_new
-                    .par_iter_mut()
-                    .enumerate()
-                    .for_each(|(k, l)| *l = (lam[k] - alpha * g[k]).max(0.0));
-                self.apply(share, &problem, &lam_new, &q, &mut g_new);
-                // Residual and the three Barzilai-Borwein products in one fixed-chunk pass.
-                let [r, ss, sy, yy] = fused_stats(&lam, &lam_new, &g, &g_new);
-                let (r, [ss, sy, yy]) = if comm.size() == 1 {
-                    (r, [ss, sy, yy])
-                } else {
-                    // One exchange for the maximum and the three sums (in rank order).
-                    comm.all_gather(&[r, ss, sy, yy])
-                        .iter()
-                        .fold((f64::NEG_INFINITY, [0.0; 3]), |(m, s), a| {
-                            (m.max(a[0]), [s[0] + a[1], s[1] + a[2], s[2] + a[3]])
-                        })
-                };
-                res = r;
-                if !res.is_finite() {
-                    return Err(ContactError::NonFinite(iterations));
-                }
-                std::mem::swap(&mut lam, &mut lam_new);
-                std::mem::swap(&mut g, &mut g_new);
-                match next_step(alpha, iterations, res, [ss, sy, yy], params)? {
-                    Some(a) => alpha = a,
-                    None => break,
-                }
-            }
-        }
-        let active = global_sum(lam.iter().filter(|&&l| l > 0.0).count() as f64) as usize;
-        let predicted_overlap = global_max(par_max(m, |k| -g[k])).max(0.0);
+        self.index(problem.cons, problem.p.len());
+        let q = Self::shifts(&problem);
+        let (lam, g) = self.start(share, &problem, initial, &q);
+        let solved = self.iterate(share, &problem, (lam, g, &q), params)?;
+        let (lam, g) = (solved.lam, solved.g);
+        let active = global_sum(share, lam.iter().filter(|&&l| l > 0.0).count() as f64) as usize;
+        let predicted_overlap = global_max(share, par_max(m, |k| -g[k])).max(0.0);
         Ok((
             lam,
             ContactReport {
-                constraints: total[0] as usize,
+                constraints: total as usize,
                 active,
-                iterations,
-                residual: res,
+                iterations: solved.iterations,
+                residual: solved.residual,
                 predicted_overlap,
             },
         ))
     }
+
+    /// The gradient's shift: each constraint's gap plus `dt` times its rate of approach under
+    /// the velocities without contacts.
+    fn shifts(problem: &ContactProblem<'_>) -> Vec<f64> {
+        let (cons, dt) = (problem.cons, problem.dt);
+        let mut q = vec![0.0; cons.len()];
+        Self::rates(cons, problem.free_v, problem.free_w, &mut q);
+        q.par_iter_mut()
+            .zip(cons)
+            .for_each(|(q, c)| *q = c.phi + dt * *q);
+        q
+    }
+
+    /// The multipliers a solve starts from and their gradient: `initial` projected onto
+    /// `lambda >= 0` where any rank has a positive one, else zero (whose gradient is `q`).
+    fn start(
+        &mut self,
+        share: Share<'_>,
+        problem: &ContactProblem<'_>,
+        initial: &[f64],
+        q: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let m = q.len();
+        let positive = if initial.iter().any(|&l| l > 0.0) {
+            1.0
+        } else {
+            0.0
+        };
+        if global_max(share, positive) > 0.0 {
+            let lam: Vec<f64> = initial.iter().map(|l| l.max(0.0)).collect();
+            let mut g = vec![0.0; m];
+            self.apply(share, problem, &lam, q, &mut g);
+            (lam, g)
+        } else {
+            (vec![0.0; m], q.to_vec())
+        }
+    }
+
+    /// The Barzilai-Borwein projected gradient iterations from `(lam, g)` until the residual
+    /// `max_k |min(lambda_k, g_k)|` (over all ranks) meets the tolerance.
+    fn iterate(
+        &mut self,
+        share: Share<'_>,
+        problem: &ContactProblem<'_>,
+        (mut lam, mut g, q): (Vec<f64>, Vec<f64>, &[f64]),
+        params: &ContactParams,
+    ) -> Result<Iterated, ContactError> {
+        let m = q.len();
+        let mut residual = global_max(share, par_max(m, |k| lam[k].min(g[k]).abs()));
+        let mut iterations = 0;
+        if residual <= params.tolerance {
+            return Ok(Iterated {
+                lam,
+                g,
+                iterations,
+                residual,
+            });
+        }
+        let mut alpha = self.first_step(share, problem, &lam, &g);
+        let mut lam_new = vec![0.0; m];
+        let mut g_new = vec![0.0; m];
+        loop {
+            iterations += 1;
+            lam_new
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(k, l)| *l = (lam[k] - alpha * g[k]).max(0.0));
+            self.apply(share, problem, &lam_new, q, &mut g_new);
+            // Residual and the three Barzilai-Borwein products in one fixed-chunk pass.
+            let [r, ss, sy, yy] = fused_stats(&lam, &lam_new, &g, &g_new);
+            let (r, [ss, sy, yy]) = if share.comm.size() == 1 {
+                (r, [ss, sy, yy])
+            } else {
+                // One exchange for the maximum and the three sums (in rank order).
+                share
+                    .comm
+                    .all_gather(&[r, ss, sy, yy])
+                    .iter()
+                    .fold((f64::NEG_INFINITY, [0.0; 3]), |(m, s), a| {
+                        (m.max(a[0]), [s[0] + a[1], s[1] + a[2], s[2] + a[3]])
+                    })
+            };
+            residual = r;
+            if !residual.is_finite() {
+                return Err(ContactError::NonFinite(iterations));
+            }
+            std::mem::swap(&mut lam, &mut lam_new);
+            std::mem::swap(&mut g, &mut g_new);
+            match next_step(alpha, iterations, residual, [ss, sy, yy], params)? {
+                Some(a) => alpha = a,
+                None => {
+                    return Ok(Iterated {
+                        lam,
+                        g,
+                        iterations,
+                        residual,
+                    });
+                }
+            }
+        }
+    }
+
+    /// The first step length: the exact line search along the projected-free gradient of
+    /// `(lam, g)`, `gp.gp / gp.A gp` (1 where the denominator is not positive).
+    fn first_step(
+        &mut self,
+        share: Share<'_>,
+        problem: &ContactProblem<'_>,
+        lam: &[f64],
+        g: &[f64],
+    ) -> f64 {
+        let m = g.len();
+        let gp: Vec<f64> = (0..m)
+            .map(|k| {
+                if lam[k] > 0.0 || g[k] < 0.0 {
+                    g[k]
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut ag = vec![0.0; m];
+        self.apply(share, problem, &gp, &[], &mut ag);
+        let gg = global_sum(share, det_sum(m, |k| gp[k] * gp[k]));
+        let gag = global_sum(share, det_sum(m, |k| gp[k] * ag[k]));
+        if gag > 0.0 { gg / gag } else { 1.0 }
+    }
+}
+
+/// What the iterations of a solve reached.
+struct Iterated {
+    lam: Vec<f64>,
+    g: Vec<f64>,
+    iterations: usize,
+    residual: f64,
+}
+
+/// `x` summed over the ranks of `share` (in rank order).
+fn global_sum(share: Share<'_>, x: f64) -> f64 {
+    let mut v = [x];
+    share.comm.sum(&mut v);
+    v[0]
+}
+
+/// The largest `x` over the ranks of `share`.
+fn global_max(share: Share<'_>, x: f64) -> f64 {
+    let mut v = [x];
+    share.comm.max(&mut v);
+    v[0]
 }

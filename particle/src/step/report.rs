@@ -4,6 +4,34 @@ use crate::model::geometry::Vec3;
 use crate::step::contact::{ContactError, ContactReport};
 use serde::{Deserialize, Serialize};
 
+/// Seconds in the stages of a step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageTimes {
+    /// The cell list and the rods sorted in its order.
+    pub cells: f64,
+    /// The contact constraints' assembly.
+    pub constraints: f64,
+    /// The velocities the contact problem plans with (the mobility's prediction).
+    pub free_velocities: f64,
+    /// The contact problem.
+    pub contacts: f64,
+    /// The step's velocities from the contact forces, the correction and the move.
+    pub update: f64,
+}
+
+impl StageTimes {
+    /// The stages' seconds in the order of the fields.
+    pub fn as_array(&self) -> [f64; 5] {
+        [
+            self.cells,
+            self.constraints,
+            self.free_velocities,
+            self.contacts,
+            self.update,
+        ]
+    }
+}
+
 /// What a step did.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct StepReport {
@@ -28,8 +56,8 @@ pub struct StepReport {
     pub polar_order: f64,
     /// Sum of all contact forces (zero up to round-off: they are equal and opposite).
     pub net_contact_force: Vec3,
-    /// Seconds in neighbour search, constraint assembly, free velocities, contact solve, update.
-    pub seconds: [f64; 5],
+    /// Seconds in the step's stages.
+    pub seconds: StageTimes,
     /// What the hydrodynamics did (GMRES iterations and residuals, sums).
     pub hydro: crate::hydro::mobility::HydroReport,
 }

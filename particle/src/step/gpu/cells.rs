@@ -19,6 +19,22 @@ pub struct DevicePairs {
     pub cells_per_side: usize,
 }
 
+/// Points sorted into the cells of a box on the device.
+struct DeviceCells {
+    /// Each point's cell.
+    cell: Buffer<i32>,
+    /// Each cell's first member in `members` (`nc^3 + 1` values).
+    start: Buffer<i32>,
+    /// The points cell by cell, ascending within a cell.
+    members: Buffer<i32>,
+    /// How many points.
+    n: usize,
+    /// Cells per axis.
+    nc: usize,
+    /// The box side.
+    box_length: f64,
+}
+
 impl GpuStep {
     /// Every pair `(i, j)`, `i < j`, of the centres `x` (in `[0, L)^3`) closer than `cutoff`
     /// (minimum image), sorted: built on the device and downloaded.
@@ -64,22 +80,35 @@ impl GpuStep {
                 pts.len()
             )));
         }
+        int(n, "points")?;
+        int(nc.pow(3), "cells")?;
+        int(3 * n, "3 x points")?;
+        let cells = self.sort_into_cells(pts, n, box_length, nc)?;
+        self.pairs_within(pts, &cells, cutoff)
+    }
+
+    /// The `n` points sorted into `nc^3` cells of a box of side `box_length`: each point's
+    /// cell, the cells' starts and their members in ascending order (a counting sort: an
+    /// atomic count, a prefix sum, an atomic scatter, then each cell's members sorted).
+    fn sort_into_cells(
+        &self,
+        pts: &Buffer,
+        n: usize,
+        box_length: f64,
+        nc: usize,
+    ) -> Result<DeviceCells, GpuError> {
         let ncells = nc.pow(3);
         let (ni, nci, ncells_i) = (
             int(n, "points")?,
             int(nc, "cells per axis")?,
             int(ncells, "cells")?,
         );
-        int(3 * n, "3 x points")?;
         let dev = &self.dev;
         let mut cell = dev.zeros::<i32>(n)?;
         let mut count = dev.zeros::<i32>(ncells)?;
         let mut start = dev.zeros::<i32>(ncells + 1)?;
         let mut fill = dev.zeros::<i32>(ncells)?;
         let mut members = dev.zeros::<i32>(n)?;
-        let mut counts = dev.zeros::<i32>(n)?;
-        let mut offset = dev.zeros::<i32>(n + 1)?;
-        let c2 = cutoff * cutoff;
         // SAFETY: thread i < n reads pts[3 i..3 i + 3] (3 n checked), writes cell[i] (n) and
         // adds to count[k], k = (z nc + y) nc + x with each index clamped to 0..nc, so k < nc^3.
         unsafe {
@@ -123,6 +152,30 @@ impl GpuStep {
                 },
             )?;
         }
+        Ok(DeviceCells {
+            cell,
+            start,
+            members,
+            n,
+            nc,
+            box_length,
+        })
+    }
+
+    /// Every pair of points of `cells` closer than `cutoff`: counted per point, the counts'
+    /// prefix sum, then written by the same search.
+    fn pairs_within(
+        &self,
+        pts: &Buffer,
+        cells: &DeviceCells,
+        cutoff: f64,
+    ) -> Result<DevicePairs, GpuError> {
+        let (n, nc) = (cells.n, cells.nc);
+        let (ni, nci) = (int(n, "points")?, int(nc, "cells per axis")?);
+        let (l, c2) = (cells.box_length, cutoff * cutoff);
+        let dev = &self.dev;
+        let mut counts = dev.zeros::<i32>(n)?;
+        let mut offset = dev.zeros::<i32>(n + 1)?;
         // SAFETY: thread i < n reads pts (3 n), cell[i], the starts of 27 cells (< ncells,
         // wrapped into 0..nc per axis) and the members between them (< n), and writes
         // counts[i] (n).
@@ -131,13 +184,13 @@ impl GpuStep {
                 n,
                 PairCount {
                     x: pts,
-                    cell: &cell,
-                    start: &start,
-                    members: &members,
+                    cell: &cells.cell,
+                    start: &cells.start,
+                    members: &cells.members,
                     counts: &mut counts,
                     n: ni,
                     nc: nci,
-                    l: box_length,
+                    l,
                     c2,
                 },
             )?;
@@ -158,15 +211,15 @@ impl GpuStep {
                 n,
                 PairWrite {
                     x: pts,
-                    cell: &cell,
-                    start: &start,
-                    members: &members,
+                    cell: &cells.cell,
+                    start: &cells.start,
+                    members: &cells.members,
                     offset: &offset,
                     first: &mut first,
                     second: &mut second,
                     n: ni,
                     nc: nci,
-                    l: box_length,
+                    l,
                     c2,
                 },
             )?;

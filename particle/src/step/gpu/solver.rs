@@ -26,7 +26,7 @@ use motile_gpu::{Buffer, GpuError};
 const _: () = assert!(motile_gpu::THREADS == 256);
 
 /// The CPU's reduction chunk, so the device's partial sums are the CPU's.
-use crate::parallel::reduce::CHUNK;
+use motile_analysis::reduce::CHUNK;
 
 /// A failure of the device solver: the device's, or the solver's own (as on the CPU).
 #[derive(Debug, thiserror::Error)]
@@ -150,36 +150,35 @@ impl GpuStep {
         params: &ContactParams,
         initial: Start<'_>,
     ) -> Result<Option<Solved<'a>>, DeviceContactError> {
-        let DeviceContactProblem {
-            rods,
-            cons,
-            free_v,
-            free_w,
-            drag,
-            dt,
-        } = problem;
-        let (m, n) = (cons.len, rods.len);
-        if m == 0 {
+        if problem.cons.len == 0 {
             return Ok(None);
         }
-        let len = match initial {
-            Start::Host(h) => h.len(),
-            Start::Device(b) => b.len(),
-        };
-        assert!(
-            len == 0 || len >= m,
-            "initial guess has the wrong length: {len} for {m} constraints"
-        );
-        if free_v.len() < 3 * n || free_w.len() < 3 * n || rods.q.len() < 4 * n {
-            return Err(
-                GpuError::Input(format!("free velocities or rods shorter than {n} rods")).into(),
-            );
-        }
+        check_problem(&problem, initial)?;
+        let mut prob = self.problem(&problem)?;
+        let q = self.rate_offsets(&problem)?;
+        let (lam, g) = self.start(&mut prob, &q, initial)?;
+        let (lam, g, iterations, residual) = self.iterate(&mut prob, &q, (lam, g), params)?;
+        Ok(Some(Solved {
+            prob,
+            lam,
+            g,
+            iterations,
+            residual,
+        }))
+    }
+
+    /// The problem's buffers: the per-rod lists of constraints in constraint order (an atomic
+    /// scatter, then each list sorted) and the rods' axes.
+    fn problem<'a>(
+        &self,
+        problem: &DeviceContactProblem<'a>,
+    ) -> Result<Problem<'a>, DeviceContactError> {
+        let DeviceContactProblem {
+            rods, cons, drag, dt, ..
+        } = *problem;
+        let (m, n) = (cons.len, rods.len);
         let (mi, ni) = (int(m, "constraints")?, int(n, "rods")?);
-        int(10 * m, "10 x constraints")?;
-        int(6 * n, "6 x rods")?;
         let dev = &self.dev;
-        // The per-rod lists.
         let mut counts = dev.zeros::<i32>(n)?;
         let mut start = dev.zeros::<i32>(n + 1)?;
         let mut fill = dev.zeros::<i32>(n)?;
@@ -234,7 +233,7 @@ impl GpuStep {
                 },
             )?;
         }
-        let mut prob = Problem {
+        Ok(Problem {
             cons,
             p,
             start,
@@ -244,27 +243,45 @@ impl GpuStep {
             n,
             drag,
             dt,
-        };
-        let mut q = dev.zeros::<f64>(m)?;
+        })
+    }
+
+    /// Each constraint's rate of approach under the velocities without contacts, times `dt`
+    /// (the gradient's shift, the CPU's `q`).
+    fn rate_offsets(&self, problem: &DeviceContactProblem<'_>) -> Result<Buffer, GpuError> {
+        let cons = problem.cons;
+        let m = cons.len;
+        let mut q = self.dev.zeros::<f64>(m)?;
         // SAFETY: thread k < m reads row k (10 m), ci[k], cj[k] < n and the free velocities'
         // triples of both (3 n), and writes q[k] (m).
         unsafe {
-            dev.launch(
+            self.dev.launch(
                 m,
                 SolverQ {
                     rows: &cons.rows,
                     ci: &cons.i,
                     cj: &cons.j,
-                    v: free_v,
-                    w: free_w,
+                    v: problem.free_v,
+                    w: problem.free_w,
                     q: &mut q,
-                    m: mi,
-                    dt,
+                    m: int(m, "constraints")?,
+                    dt: problem.dt,
                 },
             )?;
         }
-        // From the host: warm where any multiplier is positive (the CPU's rule). From the
-        // device: always (from all zeros the warm start's gradient is q itself).
+        Ok(q)
+    }
+
+    /// The multipliers a solve starts from and their gradient. From the host: warm where any
+    /// multiplier is positive (the CPU's rule). From the device: always (from all zeros the
+    /// warm start's gradient is `q` itself).
+    fn start(
+        &self,
+        prob: &mut Problem<'_>,
+        q: &Buffer,
+        initial: Start<'_>,
+    ) -> Result<(Buffer, Buffer), GpuError> {
+        let (dev, m) = (&self.dev, prob.cons.len);
         let warm = match initial {
             Start::Host(h) if h.iter().any(|&l| l > 0.0) => {
                 Some(dev.upload(&h.iter().map(|l| l.max(0.0)).collect::<Vec<f64>>())?)
@@ -276,93 +293,115 @@ impl GpuStep {
                 Some(lam)
             }
         };
-        let (mut lam, mut g) = if let Some(lam) = warm {
-            let mut g = dev.zeros::<f64>(m)?;
-            self.apply(&mut prob, &lam, Some(&q), &mut g)?;
-            (lam, g)
-        } else {
-            let mut g = dev.zeros::<f64>(m)?;
-            dev.copy((&q, 0), (&mut g, 0), m)?;
-            (dev.zeros::<f64>(m)?, g)
-        };
-        let nchunks = m.div_ceil(CHUNK);
-        let mut partial = dev.zeros::<f64>(4 * nchunks)?;
+        let mut g = dev.zeros::<f64>(m)?;
+        match warm {
+            Some(lam) => {
+                self.apply(prob, &lam, Some(q), &mut g)?;
+                Ok((lam, g))
+            }
+            None => {
+                dev.copy((q, 0), (&mut g, 0), m)?;
+                Ok((dev.zeros::<f64>(m)?, g))
+            }
+        }
+    }
+
+    /// The Barzilai-Borwein projected gradient iterations from `(lam, g)` until the residual
+    /// meets the tolerance: the multipliers, their gradient, the iterations and the residual.
+    fn iterate(
+        &self,
+        prob: &mut Problem<'_>,
+        q: &Buffer,
+        (mut lam, mut g): (Buffer, Buffer),
+        params: &ContactParams,
+    ) -> Result<(Buffer, Buffer, usize, f64), DeviceContactError> {
+        let (dev, m) = (&self.dev, prob.cons.len);
+        let mi = int(m, "constraints")?;
+        let mut partial = dev.zeros::<f64>(4 * m.div_ceil(CHUNK))?;
         let mut res = self.stats(&lam, &lam, &g, &g, &mut partial, m)?[0];
         let mut iterations = 0;
-        if res > params.tolerance {
-            let mut gp = dev.zeros::<f64>(m)?;
-            let mut ag = dev.zeros::<f64>(m)?;
-            // SAFETY: thread k < m reads lam[k], g[k] and writes gp[k] (m each).
+        if res <= params.tolerance {
+            return Ok((lam, g, iterations, res));
+        }
+        let mut alpha = self.first_step(prob, (&lam, &g), &mut partial)?;
+        let mut lam_new = dev.zeros::<f64>(m)?;
+        let mut g_new = dev.zeros::<f64>(m)?;
+        loop {
+            iterations += 1;
+            // SAFETY: thread k < m reads lam[k], g[k] and writes lam_new[k] (m each).
             unsafe {
                 dev.launch(
                     m,
-                    SolverGp {
+                    SolverProject {
                         lam: &lam,
                         g: &g,
-                        gp: &mut gp,
+                        lam_new: &mut lam_new,
                         m: mi,
+                        alpha,
                     },
                 )?;
             }
-            self.apply(&mut prob, &gp, None, &mut ag)?;
-            // SAFETY: block c < ceil(m / CHUNK) (its THREADS = FOLD_THREADS threads load its
-            // elements in turn, its first thread folds them) reads a, b at c
-            // CHUNK..min((c + 1) CHUNK, m) and writes partial[2 c..2 c + 2] (4 ceil(m / CHUNK)
-            // allocated).
-            unsafe {
-                dev.launch(
-                    nchunks * motile_gpu::THREADS as usize,
-                    SolverDots {
-                        a: &gp,
-                        b: &ag,
-                        partial: &mut partial,
-                        m: mi,
-                        chunk: CHUNK as i32,
-                    },
-                )?;
+            self.apply(prob, &lam_new, Some(q), &mut g_new)?;
+            let [r, ss, sy, yy] = self.stats(&lam, &lam_new, &g, &g_new, &mut partial, m)?;
+            res = r;
+            if !res.is_finite() {
+                return Err(ContactError::NonFinite(iterations).into());
             }
-            let part = dev.download_range(&partial, 0, 2 * nchunks)?;
-            let gg: f64 = part.iter().step_by(2).sum();
-            let gag: f64 = part.iter().skip(1).step_by(2).sum();
-            let mut alpha = if gag > 0.0 { gg / gag } else { 1.0 };
-            let mut lam_new = dev.zeros::<f64>(m)?;
-            let mut g_new = dev.zeros::<f64>(m)?;
-            loop {
-                iterations += 1;
-                // SAFETY: thread k < m reads lam[k], g[k] and writes lam_new[k] (m each).
-                unsafe {
-                    dev.launch(
-                        m,
-                        SolverProject {
-                            lam: &lam,
-                            g: &g,
-                            lam_new: &mut lam_new,
-                            m: mi,
-                            alpha,
-                        },
-                    )?;
-                }
-                self.apply(&mut prob, &lam_new, Some(&q), &mut g_new)?;
-                let [r, ss, sy, yy] = self.stats(&lam, &lam_new, &g, &g_new, &mut partial, m)?;
-                res = r;
-                if !res.is_finite() {
-                    return Err(ContactError::NonFinite(iterations).into());
-                }
-                std::mem::swap(&mut lam, &mut lam_new);
-                std::mem::swap(&mut g, &mut g_new);
-                match next_step(alpha, iterations, res, [ss, sy, yy], params)? {
-                    Some(a) => alpha = a,
-                    None => break,
-                }
+            std::mem::swap(&mut lam, &mut lam_new);
+            std::mem::swap(&mut g, &mut g_new);
+            match next_step(alpha, iterations, res, [ss, sy, yy], params)? {
+                Some(a) => alpha = a,
+                None => return Ok((lam, g, iterations, res)),
             }
         }
-        Ok(Some(Solved {
-            prob,
-            lam,
-            g,
-            iterations,
-            residual: res,
-        }))
+    }
+
+    /// The first step length, Cauchy's: `gp.gp / gp.A gp` for the projected gradient `gp` of
+    /// `(lam, g)` (1 where the denominator is not positive), the products summed in the CPU's
+    /// chunks.
+    fn first_step(
+        &self,
+        prob: &mut Problem<'_>,
+        (lam, g): (&Buffer, &Buffer),
+        partial: &mut Buffer,
+    ) -> Result<f64, GpuError> {
+        let (dev, m) = (&self.dev, prob.cons.len);
+        let (mi, nchunks) = (int(m, "constraints")?, m.div_ceil(CHUNK));
+        let mut gp = dev.zeros::<f64>(m)?;
+        let mut ag = dev.zeros::<f64>(m)?;
+        // SAFETY: thread k < m reads lam[k], g[k] and writes gp[k] (m each).
+        unsafe {
+            dev.launch(
+                m,
+                SolverGp {
+                    lam,
+                    g,
+                    gp: &mut gp,
+                    m: mi,
+                },
+            )?;
+        }
+        self.apply(prob, &gp, None, &mut ag)?;
+        // SAFETY: block c < ceil(m / CHUNK) (its THREADS = FOLD_THREADS threads load its
+        // elements in turn, its first thread folds them) reads a, b at c
+        // CHUNK..min((c + 1) CHUNK, m) and writes partial[2 c..2 c + 2] (4 ceil(m / CHUNK)
+        // allocated).
+        unsafe {
+            dev.launch(
+                nchunks * motile_gpu::THREADS as usize,
+                SolverDots {
+                    a: &gp,
+                    b: &ag,
+                    partial,
+                    m: mi,
+                    chunk: CHUNK as i32,
+                },
+            )?;
+        }
+        let part = dev.download_range(partial, 0, 2 * nchunks)?;
+        let gg: f64 = part.iter().step_by(2).sum();
+        let gag: f64 = part.iter().skip(1).step_by(2).sum();
+        Ok(if gag > 0.0 { gg / gag } else { 1.0 })
     }
 
     /// `out = dt D^T M D lam + shift` on the device (the CPU's `apply`).
@@ -458,4 +497,32 @@ impl GpuStep {
             ]
         }))
     }
+}
+
+/// The shapes of `problem` and its start checked: a start of the right length, the velocities
+/// and rods as long as the rods' count, the counts within the kernels' `int` range.
+fn check_problem(
+    problem: &DeviceContactProblem<'_>,
+    initial: Start<'_>,
+) -> Result<(), DeviceContactError> {
+    let (m, n) = (problem.cons.len, problem.rods.len);
+    let len = match initial {
+        Start::Host(h) => h.len(),
+        Start::Device(b) => b.len(),
+    };
+    assert!(
+        len == 0 || len >= m,
+        "initial guess has the wrong length: {len} for {m} constraints"
+    );
+    if problem.free_v.len() < 3 * n || problem.free_w.len() < 3 * n || problem.rods.q.len() < 4 * n
+    {
+        return Err(
+            GpuError::Input(format!("free velocities or rods shorter than {n} rods")).into(),
+        );
+    }
+    int(m, "constraints")?;
+    int(n, "rods")?;
+    int(10 * m, "10 x constraints")?;
+    int(6 * n, "6 x rods")?;
+    Ok(())
 }

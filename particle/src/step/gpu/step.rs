@@ -66,6 +66,28 @@ pub(super) type Finish<'a> = &'a mut dyn FnMut(
     Option<&Buffer>,
 ) -> Result<Option<(Buffer, Buffer)>, MobilityError>;
 
+/// What a step's contact problem left on the device.
+struct ContactStep {
+    /// Its report.
+    report: ContactReport,
+    /// Each rod's contact force and torque (6 values), if there were constraints.
+    forces: Option<Buffer>,
+    /// The multipliers, if there were constraints.
+    multipliers: Option<Buffer>,
+}
+
+/// Velocities and angular velocities `(v, w)` (triples) checked to hold `n` rods.
+fn check_triples(what: &str, (v, w): (&Buffer, &Buffer), n: usize) -> Result<(), GpuError> {
+    if v.len() < 3 * n || w.len() < 3 * n {
+        return Err(GpuError::Input(format!(
+            "{what}: {} and {} values for {n} rods",
+            v.len(),
+            w.len()
+        )));
+    }
+    Ok(())
+}
+
 /// A step's report with its velocities and contact forces left on the device.
 pub(super) struct StepOutput {
     pub(super) report: DeviceStepReport,
@@ -112,23 +134,67 @@ impl GpuStep {
         (free, finish): (Free<'_>, Option<Finish<'_>>),
         warm: Option<&Warm>,
     ) -> Result<StepOutput, DeviceContactError> {
-        let n = rods.len;
-        let ni = int(n, "rods")?;
         let reach = ROD_LENGTH + rods.diameter + params.margin;
-        let pairs = self.build(&rods.x, n, rods.box_length, reach)?;
+        let pairs = self.build(&rods.x, rods.len, rods.box_length, reach)?;
         let cons = self.constraints(rods, &pairs, params.margin)?;
-        let dev = &self.dev;
-        let (mut v, mut w) = match free {
+        let mut report = DeviceStepReport {
+            pairs: pairs.len,
+            ..DeviceStepReport::default()
+        };
+        let (mut v, mut w) = self.free_velocities(rods, free)?;
+        let contact = self.contact_step(rods, &cons, (&mut v, &mut w), (dt, params), warm)?;
+        report.contact = contact.report;
+        let mut ft = contact.forces;
+        if let Some(finish) = finish {
+            let active = report.contact.active > 0;
+            let at = RodsOnDevice {
+                x: &rods.x,
+                q: &rods.q,
+                len: rods.len,
+                box_length: rods.box_length,
+            };
+            if let Some(done) = finish(at, ft.as_ref().filter(|_| active))? {
+                (v, w) = done;
+                check_triples("final velocities", (&v, &w), rods.len)?;
+            }
+            // As the CPU's stepper: whenever there are constraints, also where the prediction
+            // stood.
+            report.correction_active =
+                self.correct(rods, &cons, (&mut v, &mut w, &mut ft), dt, params)?;
+        }
+        self.update(rods, &v, &w, dt)?;
+        (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
+        let moved = (&mut v, ft.as_mut());
+        self.project(rods, (&cons, &pairs), moved, (dt, params), &mut report)?;
+        // The constraints' pairs (sorted) with their multipliers: the next step's start.
+        let len = cons.len;
+        let warm = contact.multipliers.map(|lam| Warm {
+            i: cons.i,
+            j: cons.j,
+            lam,
+            len,
+        });
+        Ok(StepOutput {
+            report,
+            v,
+            w,
+            ft,
+            warm,
+        })
+    }
+
+    /// The velocities and angular velocities (triples, on the device) a step plans with:
+    /// `free`'s, uploaded from the host where they are there, or swimming computed here.
+    fn free_velocities(
+        &self,
+        rods: &DeviceRods,
+        free: Free<'_>,
+    ) -> Result<(Buffer, Buffer), DeviceContactError> {
+        let (dev, n) = (&self.dev, rods.len);
+        match free {
             Free::Device(v, w) => {
-                if v.len() < 3 * n || w.len() < 3 * n {
-                    return Err(GpuError::Input(format!(
-                        "free velocities: {} and {} values for {n} rods",
-                        v.len(),
-                        w.len()
-                    ))
-                    .into());
-                }
-                (v, w)
+                check_triples("free velocities", (&v, &w), n)?;
+                Ok((v, w))
             }
             Free::Host(fv, fw) => {
                 if fv.len() != n || fw.len() != n {
@@ -139,10 +205,10 @@ impl GpuStep {
                     ))
                     .into());
                 }
-                (
+                Ok((
                     dev.upload(fv.as_flattened())?,
                     dev.upload(fw.as_flattened())?,
-                )
+                ))
             }
             Free::Swimming => {
                 let mut v = dev.zeros::<f64>(3 * n)?;
@@ -161,88 +227,85 @@ impl GpuStep {
                             q: &rods.q,
                             v: &mut v,
                             w: &mut w,
-                            n: ni,
+                            n: int(n, "rods")?,
                             u: SWIM_SPEED,
                         },
                     )?;
                 }
-                (v, w)
+                Ok((v, w))
             }
-        };
+        }
+    }
+
+    /// The step's contact problem from the planned velocities `(v, w)`, started from the
+    /// multipliers of `warm`'s pairs where given: its report, its forces (6 values per rod)
+    /// and multipliers where there were constraints, and the contact forces' local-drag
+    /// velocities added to `(v, w)`.
+    fn contact_step(
+        &self,
+        rods: &DeviceRods,
+        cons: &DeviceConstraints,
+        (v, w): (&mut Buffer, &mut Buffer),
+        (dt, params): (f64, &ContactParams),
+        warm: Option<&Warm>,
+    ) -> Result<ContactStep, DeviceContactError> {
+        let n = rods.len;
         let problem = DeviceContactProblem {
             rods,
-            cons: &cons,
-            free_v: &v,
-            free_w: &w,
+            cons,
+            free_v: v,
+            free_w: w,
             drag: LocalDrag::new(rods.diameter).coefficients(),
             dt,
         };
-        let mut report = DeviceStepReport {
-            pairs: pairs.len,
-            ..DeviceStepReport::default()
-        };
-        let mut ft = None;
         let initial = match warm {
-            Some(w) if cons.len > 0 => Some(self.warm_gather(&cons, w)?),
+            Some(w) if cons.len > 0 => Some(self.warm_gather(cons, w)?),
             _ => None,
         };
         let start = initial.as_ref().map_or(Start::Host(&[]), Start::Device);
-        let mut multipliers = None;
-        let contact = match self.solve_on_device(problem, params, start)? {
-            Some(solved) => {
-                report.contact = self.report(&solved)?.1;
-                let (lam, vel, f) = solved.into_forces();
-                multipliers = Some(lam);
-                Some((vel, f))
-            }
-            None => None,
+        let Some(solved) = self.solve_on_device(problem, params, start)? else {
+            return Ok(ContactStep {
+                report: ContactReport::default(),
+                forces: None,
+                multipliers: None,
+            });
         };
-        if let Some((vel, f)) = contact {
-            // SAFETY: thread r < n reads vel[6 r..6 r + 6] (6 n) and updates v, w at
-            // 3 r..3 r + 3 (3 n).
-            unsafe {
-                dev.launch(
-                    n,
-                    AddVelocities {
-                        vel: &vel,
-                        v: &mut v,
-                        w: &mut w,
-                        n: ni,
-                    },
-                )?;
-            }
-            ft = Some(f);
+        let report = self.report(&solved)?.1;
+        let (lam, vel, forces) = solved.into_forces();
+        // SAFETY: thread r < n reads vel[6 r..6 r + 6] (6 n) and updates v, w at
+        // 3 r..3 r + 3 (3 n).
+        unsafe {
+            self.dev.launch(
+                n,
+                AddVelocities {
+                    vel: &vel,
+                    v,
+                    w,
+                    n: int(n, "rods")?,
+                },
+            )?;
         }
-        if let Some(finish) = finish {
-            let active = report.contact.active > 0;
-            let at = RodsOnDevice {
-                x: &rods.x,
-                q: &rods.q,
-                len: n,
-                box_length: rods.box_length,
-            };
-            if let Some(done) = finish(at, ft.as_ref().filter(|_| active))? {
-                (v, w) = done;
-                if v.len() < 3 * n || w.len() < 3 * n {
-                    return Err(GpuError::Input(format!(
-                        "final velocities: {} and {} values for {n} rods",
-                        v.len(),
-                        w.len()
-                    ))
-                    .into());
-                }
-            }
-            // As the CPU's stepper: whenever there are constraints, also where the prediction
-            // stood.
-            report.correction_active =
-                self.correct(rods, &cons, (&mut v, &mut w, &mut ft), dt, params)?;
-        }
-        self.update(rods, &v, &w, dt)?;
-        (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
-        // The projection of overlaps above half the tolerance (the stepper's): the constraints
-        // of the same pairs rebuilt at the new positions, a contact problem with no free
-        // motion through the local translational drag (rotation 0), the rods translated by its
-        // displacements; at most PROJECTIONS rounds.
+        Ok(ContactStep {
+            report,
+            forces: Some(forces),
+            multipliers: Some(lam),
+        })
+    }
+
+    /// The projection of overlaps above half the tolerance after the move (the CPU
+    /// stepper's): the constraints of the same pairs `cons` rebuilt at the new positions, a
+    /// contact problem with no free motion through the local translational drag (rotation 0),
+    /// the rods translated by its displacements, `v` and the contact forces `ft` updated; at
+    /// most [`PROJECTIONS`] rounds, counted in `report` with the overlap left.
+    fn project(
+        &self,
+        rods: &mut DeviceRods,
+        (cons, pairs): (&DeviceConstraints, &DevicePairs),
+        (v, mut ft): (&mut Buffer, Option<&mut Buffer>),
+        (dt, params): (f64, &ContactParams),
+        report: &mut DeviceStepReport,
+    ) -> Result<(), DeviceContactError> {
+        let (dev, n) = (&self.dev, rods.len);
         while report.max_overlap > 0.5 * params.overlap_tolerance
             && report.projections < PROJECTIONS
         {
@@ -268,9 +331,9 @@ impl GpuStep {
             let moved = self
                 .solve_on_device(problem, params, Start::Host(&[]))?
                 .map(Solved::into_forces);
-            if let (Some((_, vel, pft)), Some(ft)) = (moved, ft.as_mut()) {
+            if let (Some((_, vel, pushes)), Some(ft)) = (moved, ft.as_deref_mut()) {
                 // SAFETY: thread r < n moves x, image (3 n) and adds to v (3 n) and ft (6 n)
-                // at its rod from vel and pft (6 n each).
+                // at its rod from vel and pushes (6 n each).
                 unsafe {
                     dev.launch(
                         n,
@@ -278,33 +341,19 @@ impl GpuStep {
                             x: &mut rods.x,
                             image: &mut rods.image,
                             vel: &vel,
-                            pft: &pft,
-                            v: &mut v,
+                            pft: &pushes,
+                            v,
                             ft,
-                            n: ni,
+                            n: int(n, "rods")?,
                             dt,
                             l: rods.box_length,
                         },
                     )?;
                 }
             }
-            (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
+            (report.max_overlap, report.worst) = self.max_overlap(rods, cons)?;
         }
-        // The constraints' pairs (sorted) with their multipliers: the next step's start.
-        let len = cons.len;
-        let warm = multipliers.map(|lam| Warm {
-            i: cons.i,
-            j: cons.j,
-            lam,
-            len,
-        });
-        Ok(StepOutput {
-            report,
-            v,
-            w,
-            ft,
-            warm,
-        })
+        Ok(())
     }
 
     /// The correction after a level's final velocities `(v, w)` (the CPU stepper's): the
