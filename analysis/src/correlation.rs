@@ -21,7 +21,6 @@
 use crate::fft3::{Direction, Fft3};
 use crate::nufft::{NufftError, NufftPlan, mode_of};
 use num_complex::Complex64;
-use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Options for correlation functions.
@@ -332,21 +331,17 @@ pub fn velocity_modes(
                 return [Complex64::default(); 3];
             }
             // Fixed chunks summed in order: the same bits for any thread count.
-            const CHUNK: usize = 4096;
-            let parts: Vec<[Complex64; 3]> = (0..y.len().div_ceil(CHUNK))
-                .into_par_iter()
-                .map(|c| {
-                    let mut acc = [Complex64::default(); 3];
-                    for j in c * CHUNK..((c + 1) * CHUNK).min(y.len()) {
-                        let phase = -(k[0] * y[j][0] + k[1] * y[j][1] + k[2] * y[j][2]);
-                        let e = Complex64::new(phase.cos(), phase.sin());
-                        for d in 0..3 {
-                            acc[d] += e * f[j][d];
-                        }
+            let parts = crate::reduce::chunk_partials(y.len(), |chunk| {
+                let mut acc = [Complex64::default(); 3];
+                for j in chunk {
+                    let phase = -(k[0] * y[j][0] + k[1] * y[j][1] + k[2] * y[j][2]);
+                    let e = Complex64::new(phase.cos(), phase.sin());
+                    for d in 0..3 {
+                        acc[d] += e * f[j][d];
                     }
-                    acc
-                })
-                .collect();
+                }
+                acc
+            });
             let mut fk = [Complex64::default(); 3];
             for p in &parts {
                 for d in 0..3 {

@@ -13,6 +13,7 @@ mod kernel;
 pub mod nufft;
 pub mod params;
 pub mod quadrature;
+pub mod reduce;
 pub mod stats;
 
 pub use correlation::{CorrelationOptions, OrderParameter, RadialCorrelation, Spectrum};

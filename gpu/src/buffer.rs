@@ -113,3 +113,19 @@ impl<T: Element> Buffer<T> {
         self.len == 0
     }
 }
+
+/// An error naming `what` where `buf` holds fewer than `at_least` values: the length check
+/// before a launch whose kernel reads or writes that many.
+pub fn check_len<T: Element>(
+    what: &str,
+    buf: &Buffer<T>,
+    at_least: usize,
+) -> Result<(), crate::error::GpuError> {
+    if buf.len() < at_least {
+        return Err(crate::error::GpuError::Input(format!(
+            "{what}: {} values where the kernel reads or writes {at_least}",
+            buf.len()
+        )));
+    }
+    Ok(())
+}

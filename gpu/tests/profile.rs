@@ -20,13 +20,9 @@ extern "C" __global__ void scale(double* y, double a, int n) {
 
 #[test]
 fn profiling_counts_each_operation_under_its_name_and_only_while_on() {
-    let dev = match Device::open(Backend::HostEmulation, &KERNELS) {
-        Ok(d) => d,
-        Err(GpuError::NoDevice(why)) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
-            eprintln!("skipped: {why}");
-            return;
-        }
-        Err(e) => panic!("host emulation: {e}"),
+    let opened = Device::open(Backend::HostEmulation, &KERNELS);
+    let Some(dev) = motile_gpu::open_or_skip(opened, Backend::HostEmulation) else {
+        return;
     };
     let n = 4096;
     let run = |launches: usize| {
@@ -47,7 +43,7 @@ fn profiling_counts_each_operation_under_its_name_and_only_while_on() {
         }
         let plan = dev.fft3(16, 1, Direction::Both).unwrap();
         let mut spectra = dev.zeros(2 * plan.spectrum_len()).unwrap();
-        dev.forward(&plan, (&y, 0), (&mut spectra, 0)).unwrap();
+        dev.forward(&plan, &y, 0, &mut spectra, 0).unwrap();
         let v = dev.download(&y).unwrap();
         assert_eq!(v[0], 2f64.powi(launches as i32));
     };

@@ -18,16 +18,15 @@
 
 mod common;
 
-use motile_gpu::{Backend, GpuError as DeviceError};
+use motile_gpu::Backend;
 
 #[test]
 #[ignore = "needs a CUDA GPU: scripts/device_run.sh runs it (--include-ignored, MOTILE_REQUIRE_GPU=1)"]
 fn gpu_step_matches_the_cpu_step() {
-    match motile_gpu::probe() {
-        Err(DeviceError::NoDevice(why)) => return skip_unless(&why, "MOTILE_REQUIRE_GPU"),
-        Err(e) => panic!("probing the GPU: {e}"),
-        Ok(info) => eprintln!("gpu parity on {} ({} GB)", info.name, info.memory >> 30),
-    }
+    let Some(info) = motile_gpu::open_or_skip(motile_gpu::probe(), Backend::Cuda) else {
+        return;
+    };
+    eprintln!("gpu parity on {} ({} GB)", info.name, info.memory >> 30);
     parity(32, Backend::Cuda);
 }
 
@@ -35,14 +34,6 @@ fn gpu_step_matches_the_cpu_step() {
 #[test]
 fn emulated_gpu_step_matches_the_cpu_step() {
     parity(16, Backend::HostEmulation);
-}
-
-/// A device that cannot be had: a failure where `require` is set to 1, else the reason.
-fn skip_unless(reason: &str, require: &str) {
-    if std::env::var(require).as_deref() == Ok("1") {
-        panic!("{require}=1 but the parity test cannot run: {reason}");
-    }
-    eprintln!("gpu parity: not run: {reason}");
 }
 
 /// Three steps on an `n^3` grid on the device opened by `open` against the CPU's.
@@ -74,9 +65,10 @@ fn parity(n: usize, backend: Backend) {
     let gpu = GpuMeanField::open(backend, &rhs, &cpu);
     let mut gpu = match gpu {
         Ok(g) => g,
-        Err(GpuError::Device(DeviceError::NoDevice(why))) => {
-            return skip_unless(&why, "MOTILE_REQUIRE_CXX");
-        }
+        Err(GpuError::Device(e)) => match motile_gpu::open_or_skip(Err(e), backend) {
+            Some(never) => never,
+            None => return,
+        },
         Err(e) => panic!("the device stepper: {e}"),
     };
     eprintln!("parity on {}", gpu.describe());
@@ -244,8 +236,11 @@ fn emulated_gpu_step_refuses_a_non_finite_right_hand_side() {
     };
     let mut gpu = match GpuMeanField::open(Backend::HostEmulation, &rhs, &cpu) {
         Ok(g) => g,
-        Err(GpuError::Device(DeviceError::NoDevice(why))) => {
-            return skip_unless(&why, "MOTILE_REQUIRE_CXX");
+        Err(GpuError::Device(e)) => {
+            match motile_gpu::open_or_skip(Err(e), Backend::HostEmulation) {
+                Some(never) => never,
+                None => return,
+            }
         }
         Err(e) => panic!("the device stepper: {e}"),
     };

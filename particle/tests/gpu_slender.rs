@@ -516,7 +516,7 @@ fn slender_body_steps_on_the_host_emulation_repeat_with_blocks_shuffled() {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/device_run.sh parity runs it)"]
 fn the_slender_body_solve_and_step_on_cuda_match_the_cpu() {
-    let cuda = || common::device("CUDA", Backend::Cuda, "MOTILE_REQUIRE_GPU");
+    let cuda = || common::device(Backend::Cuda);
     let Some(gpu) = cuda() else {
         return;
     };

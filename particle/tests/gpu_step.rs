@@ -662,14 +662,7 @@ fn check(open: &dyn Fn() -> GpuStep, shuffles: &[u64]) {
 /// The emulated device's step kernels, or `None` (the reason printed) where no C++ compiler
 /// runs and `MOTILE_REQUIRE_CXX` is unset.
 fn emulation() -> Option<GpuStep> {
-    match GpuStep::open(Backend::HostEmulation) {
-        Ok(d) => Some(d),
-        Err(e) if std::env::var("MOTILE_REQUIRE_CXX").is_err() => {
-            eprintln!("skipped ({e}); set MOTILE_REQUIRE_CXX=1 to make this a failure");
-            None
-        }
-        Err(e) => panic!("{e} (and MOTILE_REQUIRE_CXX is set)"),
-    }
+    motile_gpu::open_or_skip(GpuStep::open(Backend::HostEmulation), Backend::HostEmulation)
 }
 
 fn emulated_stepper(rods: &RodSet, warm: &WarmStart) -> DeviceStepper {
@@ -727,14 +720,10 @@ fn explicit_slender_body_steps_on_the_host_emulation_match_the_cpu() {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/device_run.sh parity runs it)"]
 fn device_step_rooms_match_their_twins_on_cuda() {
-    match GpuStep::open(Backend::Cuda) {
-        Ok(d) => eprintln!("CUDA: {}", d.describe()),
-        Err(e) if std::env::var("MOTILE_REQUIRE_GPU").is_err() => {
-            eprintln!("skipped ({e}); set MOTILE_REQUIRE_GPU=1 to make this a failure");
-            return;
-        }
-        Err(e) => panic!("{e} (and MOTILE_REQUIRE_GPU is set)"),
-    }
+    let Some(d) = motile_gpu::open_or_skip(GpuStep::open(Backend::Cuda), Backend::Cuda) else {
+        return;
+    };
+    eprintln!("CUDA: {}", d.describe());
     check(&|| GpuStep::open(Backend::Cuda).unwrap(), &[0]);
     check_update(&GpuStep::open(Backend::Cuda).unwrap(), 1e-14);
     check_constraints(&GpuStep::open(Backend::Cuda).unwrap(), 1e-13);

@@ -240,21 +240,17 @@ fn state_report(rhs: &MeanFieldRhs, ev: &RhsEval) -> MeanFieldStepReport {
         .reduce(|| 0.0, f64::max);
     let w = |c: usize| if SYM[c].0 == SYM[c].1 { 1.0 } else { 2.0 };
     // <E:E>, <E:Q>, <E:S:E> summed in fixed chunks, then in chunk order: deterministic.
-    const CHUNK: usize = 4096;
-    let chunks: Vec<[f64; 3]> = (0..g.len().div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|b| {
-            let mut acc = [0.0; 3];
-            for c in 0..6 {
-                for p in b * CHUNK..((b + 1) * CHUNK).min(g.len()) {
-                    acc[0] += w(c) * ev.e[c][p] * ev.e[c][p];
-                    acc[1] += w(c) * ev.e[c][p] * ev.q[c][p];
-                    acc[2] += w(c) * ev.e[c][p] * ev.se[c][p];
-                }
+    let chunks = motile_analysis::reduce::chunk_partials(g.len(), |chunk| {
+        let mut acc = [0.0; 3];
+        for c in 0..6 {
+            for p in chunk.clone() {
+                acc[0] += w(c) * ev.e[c][p] * ev.e[c][p];
+                acc[1] += w(c) * ev.e[c][p] * ev.q[c][p];
+                acc[2] += w(c) * ev.e[c][p] * ev.se[c][p];
             }
-            acc
-        })
-        .collect();
+        }
+        acc
+    });
     let (mut ee, mut eq, mut ese) = (0.0, 0.0, 0.0);
     for a in &chunks {
         ee += a[0];

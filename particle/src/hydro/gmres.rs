@@ -101,7 +101,7 @@ pub enum GmresError<E> {
 /// `a . b`, summed in fixed chunks in parallel and then in chunk order: the same bits for any
 /// thread count (and, below one chunk, the plain sequential sum); then over ranks.
 fn dot(comm: &dyn Comm, a: &[f64], b: &[f64]) -> f64 {
-    let mut s = [crate::parallel::reduce::det_sum(a.len(), |i| a[i] * b[i])];
+    let mut s = [motile_analysis::reduce::det_sum(a.len(), |i| a[i] * b[i])];
     comm.sum(&mut s);
     s[0]
 }

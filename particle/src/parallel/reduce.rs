@@ -1,20 +1,7 @@
-//! Reductions in a fixed order, so that results are the same bits for any thread count and on
-//! every rank: sums in fixed chunks, and the maximum over ranks with its key.
+//! Reductions over ranks in a fixed order, so that every rank gets the same bits: the maximum
+//! over ranks with its key. (Sums in fixed chunks are `motile_analysis::reduce`'s.)
 
 use crate::parallel::comm::Comm;
-use rayon::prelude::*;
-
-/// Elements per chunk of the fixed-order sums.
-pub(crate) const CHUNK: usize = 4096;
-
-/// Sum of `f(k)` for `k` in `0..n`, in fixed chunks: the same bits for any thread count.
-pub(crate) fn det_sum(n: usize, f: impl Fn(usize) -> f64 + Sync) -> f64 {
-    let partial: Vec<f64> = (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| (c * CHUNK..((c + 1) * CHUNK).min(n)).map(&f).sum())
-        .collect();
-    partial.iter().sum()
-}
 
 /// The maximum over ranks of `value` and its `key`, ties to the smallest key (compared in
 /// order; collective: every rank gets the same pair).

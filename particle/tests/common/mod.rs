@@ -94,31 +94,19 @@ pub fn matrices(g: &[[Vec3; 3]]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// A device, or `None` after saying why it was skipped (`require`: the variable that makes a
-/// skip a failure).
+/// The sums' device on `backend`, or `None` after saying why the test is skipped
+/// ([`motile_gpu::open_or_skip`]).
 #[cfg(feature = "gpu")]
-pub fn device(which: &str, backend: Backend, require: &str) -> Option<GpuFourier> {
-    match GpuFourier::open(backend) {
-        Ok(d) => {
-            eprintln!("{which}: {}", d.describe());
-            Some(d)
-        }
-        Err(e) if std::env::var(require).is_err() => {
-            eprintln!("{which}: skipped ({e}); set {require}=1 to make this a failure");
-            None
-        }
-        Err(e) => panic!("{which}: {e} (and {require} is set)"),
-    }
+pub fn device(backend: Backend) -> Option<GpuFourier> {
+    let d = motile_gpu::open_or_skip(GpuFourier::open(backend), backend)?;
+    eprintln!("{backend:?}: {}", d.describe());
+    Some(d)
 }
 
 /// The host emulation, or `None` after saying why not.
 #[cfg(feature = "gpu")]
 pub fn emulation() -> Option<GpuFourier> {
-    device(
-        "host emulation",
-        Backend::HostEmulation,
-        "MOTILE_REQUIRE_CXX",
-    )
+    device(Backend::HostEmulation)
 }
 
 /// The rods of a resident stepper after `steps` steps against the CPU stepper's `cpu`: the

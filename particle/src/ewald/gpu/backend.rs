@@ -11,8 +11,12 @@ use crate::ewald::window::Window;
 use crate::model::geometry::Vec3;
 use motile_gpu::GpuError;
 
-fn sum_error(e: GpuError) -> SumError {
-    SumError::Device(e.to_string())
+/// A device's failure as the sum's: the one mapping from a [`GpuError`] to the sums' errors
+/// (and through them to the mobilities').
+impl From<GpuError> for SumError {
+    fn from(e: GpuError) -> Self {
+        SumError::Device(e.to_string())
+    }
 }
 
 /// The device's view of the sum with parameters `p` in a box of side `l`.
@@ -36,7 +40,7 @@ impl FourierDevice for GpuFourier {
         let table = RealSpaceTable::new(at.params.cutoff, at.params.xi, radius);
         let r0 = ERROR_MODEL_RANGE * at.params.spacing(at.box_length);
         let reach = (at.params.cutoff, radius, r0);
-        GpuFourier::rpy_real(self, at.generation, cells, &table, reach, forces).map_err(sum_error)
+        GpuFourier::rpy_real(self, at.generation, cells, &table, reach, forces).map_err(SumError::from)
     }
 
     fn rpy_fourier_part(
@@ -48,7 +52,7 @@ impl FourierDevice for GpuFourier {
     ) -> Result<[Vec<f64>; 3], SumError> {
         let geo = geometry(at.params, at.box_length);
         self.rpy(at.generation, &geo, radius, points, forces)
-            .map_err(sum_error)
+            .map_err(SumError::from)
     }
 
     fn stresslet_real_part(
@@ -62,7 +66,7 @@ impl FourierDevice for GpuFourier {
         let r0 = ERROR_MODEL_RANGE * at.params.spacing(at.box_length);
         let reach = (at.params.cutoff, r0);
         GpuFourier::stresslet_real(self, at.generation, cells, &table, reach, (axes, sigma))
-            .map_err(sum_error)
+            .map_err(SumError::from)
     }
 
     fn stresslet_fourier_part(
@@ -73,6 +77,6 @@ impl FourierDevice for GpuFourier {
     ) -> Result<[Vec<f64>; 12], SumError> {
         let geo = geometry(at.params, at.box_length);
         self.stresslet(at.generation, &geo, points, components)
-            .map_err(sum_error)
+            .map_err(SumError::from)
     }
 }

@@ -8,7 +8,7 @@ use crate::ewald::gpu::signatures::{
     Gather, RpyModes, RpyReal, Spread, StressletModes, StressletReal, StressletRealPoints,
 };
 use crate::ewald::window::Window;
-use motile_gpu::{Buffer, Device, Element, GpuError};
+use motile_gpu::{Buffer, Device, GpuError};
 
 /// Values of one field of a sum's grid in the in-place layout: `m m` rows of `2 (m/2 + 1)`
 /// real values (the last `2 (m/2 + 1) - m` unused), or the half spectrum over them.
@@ -25,21 +25,7 @@ pub(crate) struct Geometry {
     pub(crate) xi: f64,
 }
 
-pub(super) fn check<T: Element>(
-    what: &str,
-    buf: &Buffer<T>,
-    at_least: usize,
-) -> Result<(), GpuError> {
-    if buf.len() < at_least {
-        return Err(GpuError::Input(format!(
-            "{what}: {} values where the kernel reads or writes {at_least}",
-            buf.len()
-        )));
-    }
-    Ok(())
-}
-
-use motile_gpu::kernel_int as int;
+use motile_gpu::{check_len as check, kernel_int as int};
 
 /// Grid indices must fit the kernels' `int`s (and `long long` products).
 fn ints(geo: &Geometry, n: usize) -> Result<(i32, i32, i32), GpuError> {

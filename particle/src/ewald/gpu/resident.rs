@@ -9,7 +9,7 @@
 #![allow(unsafe_code)]
 
 use super::GpuFourier;
-use super::launch::check as check_len;
+use motile_gpu::check_len;
 use super::launch::{self, Geometry, STRESSLET_FIELDS};
 use super::signatures::{
     BinOrder, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues, PermuteRows,

@@ -2,7 +2,7 @@
 //! [`SCAN_ONE_BLOCK`] counts, three passes beyond.
 #![allow(unsafe_code)]
 
-use super::launch::check;
+use motile_gpu::check_len as check;
 use super::signatures::{BinScan, ScanSpread, ScanTiles};
 use motile_gpu::{Buffer, Device, GpuError, THREADS, kernel_int as int};
 

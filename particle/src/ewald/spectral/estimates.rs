@@ -6,7 +6,6 @@ use crate::ewald::params::{EwaldParams, SumOutput, error_model_constants};
 use crate::ewald::periodic::{ErrorEstimate, StressletField, SumReport};
 use crate::model::geometry::dot;
 use crate::model::units::VISCOSITY;
-use rayon::prelude::*;
 
 /// Relative error of an output allowed for in the estimate beside the near-field model (see
 /// [`estimate`]): the Fourier part's error from far sources, measured at 0.02-0.1 of the
@@ -42,28 +41,21 @@ pub(crate) fn estimate_parts(
     out2: impl Fn(usize) -> f64 + Sync,
     n: usize,
 ) -> [f64; 4] {
-    const CHUNK: usize = ESTIMATE_CHUNK;
     let [a_max, a_2, far] = estimate_weights(output, (scale, internal));
-    let parts: Vec<[f64; 4]> = (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| {
-            let mut acc = [0.0f64; 4];
-            for t in c * CHUNK..((c + 1) * CHUNK).min(n) {
-                let (e, o) = (e2(t), out2(t));
-                acc[0] = acc[0].max(a_max * e + far * o);
-                acc[1] += a_2 * e + far * o;
-                acc[2] = acc[2].max(o);
-                acc[3] += o;
-            }
-            acc
-        })
-        .collect();
+    let parts = motile_analysis::reduce::chunk_partials(n, |chunk| {
+        let mut acc = [0.0f64; 4];
+        for t in chunk {
+            let (e, o) = (e2(t), out2(t));
+            acc[0] = acc[0].max(a_max * e + far * o);
+            acc[1] += a_2 * e + far * o;
+            acc[2] = acc[2].max(o);
+            acc[3] += o;
+        }
+        acc
+    });
     combine_chunks(parts.iter())
 }
 
-/// The targets per chunk of the estimates' reductions (fixed, so that their sums do not
-/// depend on the thread count; the device's are the same chunks).
-pub(crate) const ESTIMATE_CHUNK: usize = 4096;
 
 /// The weights `[a_max, a_2, far]` of an estimate's reductions: per target the max-norm term
 /// `a_max e2 + far |q|^2` and the L2 term `a_2 e2 + far |q|^2` (see [`estimate`]).

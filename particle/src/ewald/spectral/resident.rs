@@ -4,7 +4,7 @@
 //! only the error model's reductions (a few numbers per 4 096 points).
 
 use super::estimates::{
-    ESTIMATE_CHUNK, combine_chunks, estimate_from, estimate_weights, stresslet_estimates_from,
+    combine_chunks, estimate_from, estimate_weights, stresslet_estimates_from,
 };
 use super::{SpectralEwald, SumTiming, check_params};
 use crate::ewald::gpu::resident::{RpyInputs, StressletInputs};
@@ -85,7 +85,7 @@ impl SpectralEwald {
                 own_c: sigma * PI.sqrt() * xi * xi * xi / (2.0 * PI * PI),
                 mu: VISCOSITY,
                 weights: outputs.map(|o| estimate_weights(o, (scale(o), internal))),
-                chunk: ESTIMATE_CHUNK,
+                chunk: motile_analysis::reduce::CHUNK,
             };
             let geo = crate::ewald::gpu::backend::geometry(&prm, l);
             let generation = self.generation;
@@ -159,7 +159,7 @@ impl SpectralEwald {
                 group: geometry.group,
                 mu: VISCOSITY,
                 weights: estimate_weights(output, (scale, internal)),
-                chunk: ESTIMATE_CHUNK,
+                chunk: motile_analysis::reduce::CHUNK,
             };
             let geo = crate::ewald::gpu::backend::geometry(&prm, l);
             let generation = self.generation;

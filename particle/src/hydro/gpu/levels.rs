@@ -3,7 +3,7 @@
 //! velocities from kernels beside it.
 
 use super::resident::{
-    DeviceVelocities, ResidentMobility, RodsOnDevice, device_error, on_resident_sum,
+    DeviceVelocities, ResidentMobility, RodsOnDevice, on_resident_sum,
 };
 use crate::hydro::dipole::{Dipole, stresslet_strength};
 use crate::hydro::explicit::ExplicitSlender;
@@ -31,11 +31,11 @@ impl ResidentMobility for Dipole {
             let p = sum
                 .device_sum()?
                 .rod_axes(rods.q, n)
-                .map_err(device_error)?;
+                .map_err(MobilityError::from)?;
             let field = sum.stresslets_resident(rods.box_length, (rods.x, &p), sigma, n)?;
             let gpu = sum.device_sum()?;
             gpu.jeffery_velocities((&p, &field.u, &field.grad), n, SWIM_SPEED)
-                .map_err(device_error)
+                .map_err(MobilityError::from)
         })
         .map(|done| done.map(DeviceVelocities::from))
     }
@@ -61,15 +61,15 @@ impl ResidentMobility for ExplicitSlender {
         on_resident_sum(self.sum.as_mut(), shared, &mut self.report, |sum| {
             let n = rods.len;
             let gpu = sum.device_sum()?;
-            let p = gpu.rod_axes(rods.q, n).map_err(device_error)?;
+            let p = gpu.rod_axes(rods.q, n).map_err(MobilityError::from)?;
             let (nodes, force, fields) = gpu
                 .node_values((rods.x, &p), (s, w), n, c)
-                .map_err(device_error)?;
+                .map_err(MobilityError::from)?;
             let u = sum.rpy_resident(&geometry, (&nodes, &force, &fields), n * s.len())?;
             drop((nodes, force, fields));
             sum.device_sum()?
                 .rod_flow_velocities((&p, &u), (s, w), n, (SWIM_SPEED, ROD_LENGTH))
-                .map_err(device_error)
+                .map_err(MobilityError::from)
         })
         .map(|done| done.map(DeviceVelocities::from))
     }

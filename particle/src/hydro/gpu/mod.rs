@@ -25,8 +25,8 @@ use crate::ewald::spectral::SpectralEwald;
 use crate::hydro::gmres::{GmresError, GmresInfo, GmresParams, KrylovSpace, gmres_in};
 use crate::hydro::report::HydroReport;
 use crate::model::geometry::Vec3;
-use crate::parallel::reduce::CHUNK;
-use motile_gpu::{Backend, Buffer, Device, GpuError, kernel_int as int};
+use motile_analysis::reduce::CHUNK;
+use motile_gpu::{Backend, Buffer, Device, GpuError, check_len, kernel_int as int};
 use signatures::{
     KERNELS, KrylovAxpy, KrylovDiv, KrylovDotChunks, KrylovFold, KrylovResidual, KrylovUpdate,
     SlenderNodes, SlenderP4, SlenderPredict, SlenderRhs, SlenderVelocities, SlenderWeighted,
@@ -42,19 +42,6 @@ pub struct SlenderDevice {
     dev: Device,
 }
 
-fn device_error(e: GpuError) -> SumError {
-    SumError::Device(e.to_string())
-}
-
-fn check_len(what: &str, b: &Buffer, len: usize) -> Result<(), GpuError> {
-    if b.len() < len {
-        return Err(GpuError::Input(format!(
-            "{what}: {} values, {len} needed",
-            b.len()
-        )));
-    }
-    Ok(())
-}
 
 /// The rods' quadrature rule on the device: `(s, w)`, `m` nodes each.
 #[derive(Debug)]
@@ -392,7 +379,7 @@ impl SlenderDevice {
             ))
         };
         let (w, h, partial) = setup()
-            .map_err(device_error)
+            .map_err(SumError::from)
             .map_err(GmresError::Operator)?;
         let mut space = Space {
             kern: self,
@@ -488,8 +475,8 @@ fn product(
         }
         Ok((force, fields))
     };
-    check_len("density", src, 3 * npts).map_err(device_error)?;
-    let (force, fields) = launch().map_err(device_error)?;
+    check_len("density", src, 3 * npts).map_err(SumError::from)?;
+    let (force, fields) = launch().map_err(SumError::from)?;
     let t = Instant::now();
     let (u, report) = match &mut op.sum {
         P4Sum::Resident(sum) => {
@@ -499,11 +486,11 @@ fn product(
         }
         P4Sum::Host(sum, points) => {
             drop(fields);
-            let f = kern.download(&force).map_err(device_error)?;
+            let f = kern.download(&force).map_err(SumError::from)?;
             let forces: Vec<Vec3> = f.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
             let u = sum.rpy(&op.geometry, points, &forces)?;
             (
-                kern.upload(u.as_flattened()).map_err(device_error)?,
+                kern.upload(u.as_flattened()).map_err(SumError::from)?,
                 sum.last_report(),
             )
         }
@@ -523,13 +510,13 @@ fn product(
                 s: &op.rule.s,
                 w: &op.rule.w,
                 out,
-                n: int(op.n, "rods").map_err(device_error)?,
-                m: int(m, "nodes per rod").map_err(device_error)?,
+                n: int(op.n, "rods").map_err(SumError::from)?,
+                m: int(m, "nodes per rod").map_err(SumError::from)?,
                 e: op.eta,
                 l: op.l,
             },
         )
-        .map_err(device_error)?;
+        .map_err(SumError::from)?;
     }
     Ok(u)
 }
@@ -548,7 +535,7 @@ impl Space<'_, '_> {
             slot,
             true,
         )
-        .map_err(device_error)
+        .map_err(SumError::from)
     }
 
     /// The flow and product at `x` into `w`.
@@ -570,7 +557,7 @@ impl Space<'_, '_> {
         self.kern
             .dev
             .download_range(&self.h, 0, len)
-            .map_err(device_error)
+            .map_err(SumError::from)
     }
 }
 
@@ -626,14 +613,14 @@ impl KrylovSpace for Space<'_, '_> {
     }
 
     fn clear(&mut self) -> Result<(), SumError> {
-        self.kern.dev.zero(self.x).map_err(device_error)?;
+        self.kern.dev.zero(self.x).map_err(SumError::from)?;
         self.u_at_x = false;
         Ok(())
     }
 
     fn residual(&mut self) -> Result<f64, SumError> {
         self.product_at_x()?;
-        let n = int(self.dim, "unknowns").map_err(device_error)?;
+        let n = int(self.dim, "unknowns").map_err(SumError::from)?;
         // SAFETY: thread i < dim reads b[i] and updates w[i] (dim each, checked at setup).
         unsafe {
             self.kern
@@ -646,7 +633,7 @@ impl KrylovSpace for Space<'_, '_> {
                         n,
                     },
                 )
-                .map_err(device_error)?;
+                .map_err(SumError::from)?;
         }
         self.norm_into(Which::W, 0)?;
         Ok(self.column(1)?[0])
@@ -668,7 +655,7 @@ impl KrylovSpace for Space<'_, '_> {
         self.u = Some(u);
         self.u_at_x = false;
         let dev = &self.kern.dev;
-        let n = int(dim, "unknowns").map_err(device_error)?;
+        let n = int(dim, "unknowns").map_err(SumError::from)?;
         for j in 0..=k {
             dot_into(
                 dev,
@@ -677,7 +664,7 @@ impl KrylovSpace for Space<'_, '_> {
                 j,
                 false,
             )
-            .map_err(device_error)?;
+            .map_err(SumError::from)?;
             // SAFETY: thread i < dim updates w[i] from basis[j][i] (dim each) and h[j] (j <= k <
             // slots, slots + 1 values).
             unsafe {
@@ -691,7 +678,7 @@ impl KrylovSpace for Space<'_, '_> {
                         n,
                     },
                 )
-                .map_err(device_error)?;
+                .map_err(SumError::from)?;
             }
         }
         self.norm_into(Which::W, k + 1)?;
@@ -709,8 +696,8 @@ impl KrylovSpace for Space<'_, '_> {
             return Ok(());
         }
         let dev = &self.kern.dev;
-        let yb = dev.upload(y).map_err(device_error)?;
-        let n = int(self.dim, "unknowns").map_err(device_error)?;
+        let yb = dev.upload(y).map_err(SumError::from)?;
+        let n = int(self.dim, "unknowns").map_err(SumError::from)?;
         for (j, v) in self.basis.iter().take(y.len()).enumerate() {
             // SAFETY: thread i < dim updates x[i] from v[i] (dim each) and y[j] (j < k
             // uploaded).
@@ -725,7 +712,7 @@ impl KrylovSpace for Space<'_, '_> {
                         n,
                     },
                 )
-                .map_err(device_error)?;
+                .map_err(SumError::from)?;
             }
         }
         self.u_at_x = false;
@@ -744,7 +731,7 @@ impl Space<'_, '_> {
             )));
         }
         if k == self.basis.len() {
-            let v = self.kern.dev.zeros::<f64>(dim).map_err(device_error)?;
+            let v = self.kern.dev.zeros::<f64>(dim).map_err(SumError::from)?;
             self.basis.push(v);
         }
         // SAFETY: thread i < dim reads w[i] and writes basis[k][i] (dim each).
@@ -757,10 +744,10 @@ impl Space<'_, '_> {
                         src: &self.w,
                         dst: &mut self.basis[k],
                         d,
-                        n: int(dim, "unknowns").map_err(device_error)?,
+                        n: int(dim, "unknowns").map_err(SumError::from)?,
                     },
                 )
-                .map_err(device_error)?;
+                .map_err(SumError::from)?;
         }
         Ok(())
     }

@@ -132,7 +132,10 @@ pub(crate) fn on_resident_sum<T>(
     Some(out)
 }
 
-/// A device's failure as the mobility's (its sum's device).
-pub(crate) fn device_error(e: GpuError) -> MobilityError {
-    MobilityError::Sum(crate::ewald::periodic::SumError::Device(e.to_string()))
+/// A device's failure as the mobility's (its sum's: [`crate::ewald::periodic::SumError`]'s
+/// mapping).
+impl From<GpuError> for MobilityError {
+    fn from(e: GpuError) -> Self {
+        MobilityError::Sum(e.into())
+    }
 }

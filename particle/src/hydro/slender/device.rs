@@ -23,10 +23,6 @@ use crate::model::geometry::Vec3;
 use crate::model::units::{ROD_LENGTH, SWIM_SPEED, eta};
 use motile_gpu::{Buffer, Counters};
 
-fn device_error(e: motile_gpu::GpuError) -> MobilityError {
-    MobilityError::Sum(SumError::Device(e.to_string()))
-}
-
 /// The last solution of (P4) and the flow velocities (6 per rod) on the host.
 type HostState = (Vec<f64>, Vec<f64>);
 
@@ -41,11 +37,11 @@ fn kernels<'a>(
 ) -> Result<&'a (SlenderDevice, DeviceRule), MobilityError> {
     if slot.is_none() {
         let backend = sum.device_sum()?.backend();
-        let kern = SlenderDevice::open(backend).map_err(device_error)?;
+        let kern = SlenderDevice::open(backend).map_err(MobilityError::from)?;
         if shuffle != 0 {
             kern.shuffle_blocks(shuffle);
         }
-        let rule = kern.rule((s, w)).map_err(device_error)?;
+        let rule = kern.rule((s, w)).map_err(MobilityError::from)?;
         *slot = Some((kern, rule));
     }
     Ok(slot.as_ref().expect("opened above"))
@@ -114,7 +110,7 @@ impl Solve<'_> {
     ) -> Result<(GmresInfo, Buffer, HydroReport, f64), MobilityError> {
         let mut start = match x.take() {
             Some(x) => x,
-            None => self.kern.copy_of(b).map_err(device_error)?,
+            None => self.kern.copy_of(b).map_err(MobilityError::from)?,
         };
         let solved = self.run(rods, (b, &mut start), how);
         *x = Some(start);
@@ -135,7 +131,7 @@ impl Solve<'_> {
         let (kern, rule) = (self.kern, self.rule);
         let b = kern
             .rhs(p, ft, rule, n, (c, ROD_LENGTH))
-            .map_err(device_error)?;
+            .map_err(MobilityError::from)?;
         let (info, u, accuracy, seconds) =
             self.warm((nodes, p, n), (&b, x), (&params.gmres, stage))?;
         let drag = LocalDrag::new(params.diameter).coefficients();
@@ -144,7 +140,7 @@ impl Solve<'_> {
             rods: DeviceVelocities { v, w },
         } = kern
             .velocities((p, &u), ft, rule, n, (ROD_LENGTH, SWIM_SPEED, drag))
-            .map_err(device_error)?;
+            .map_err(MobilityError::from)?;
         *flow = Some(f);
         Ok(((v, w), (info, accuracy, seconds)))
     }
@@ -196,7 +192,7 @@ impl SlenderBody {
                 sum,
                 (&self.s, &self.w),
             )?;
-            let up = |v: &[f64]| kern.upload(v).map_err(device_error);
+            let up = |v: &[f64]| kern.upload(v).map_err(MobilityError::from);
             let (nodes, axes, b) = (up(points.as_flattened())?, up(p.as_flattened())?, up(rhs)?);
             let mut xd = up(x)?;
             let solve = Solve::new(kern, rule, sum, geometry, e);
@@ -206,9 +202,9 @@ impl SlenderBody {
                 (&self.params.gmres, stage),
             );
             // The last iterate is the next warm start, also after a failure (as on the host).
-            *x = kern.download(&xd).map_err(device_error)?;
+            *x = kern.download(&xd).map_err(MobilityError::from)?;
             let (info, u, accuracy, seconds) = solved?;
-            let u = kern.download(&u).map_err(device_error)?;
+            let u = kern.download(&u).map_err(MobilityError::from)?;
             let u: Vec<Vec3> = u.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
             Ok((info, u, accuracy, seconds))
         };
@@ -239,7 +235,7 @@ impl SlenderBody {
         let dev = &mut self.device;
         let mut run = || -> Result<_, MobilityError> {
             let (kern, rule) = kernels((&mut dev.kern, dev.shuffle), sum, (&self.s, &self.w))?;
-            let up = |v: &[f64]| kern.upload(v).map_err(device_error);
+            let up = |v: &[f64]| kern.upload(v).map_err(MobilityError::from);
             if dev.n != n {
                 (dev.x, dev.flow) = (None, None);
             }
@@ -262,18 +258,18 @@ impl SlenderBody {
             // The state before the step, restored if the step fails.
             let copy = |b: &Option<Buffer>| b.as_ref().map(|b| kern.copy_of(b)).transpose();
             dev.before = (
-                copy(&dev.x).map_err(device_error)?,
-                copy(&dev.flow).map_err(device_error)?,
+                copy(&dev.x).map_err(MobilityError::from)?,
+                copy(&dev.flow).map_err(MobilityError::from)?,
             );
             let p = sum
                 .device_sum()?
                 .rod_axes(rods.q, n)
-                .map_err(device_error)?;
-            let nodes = kern.nodes((rods.x, &p), rule, n).map_err(device_error)?;
+                .map_err(MobilityError::from)?;
+            let nodes = kern.nodes((rods.x, &p), rule, n).map_err(MobilityError::from)?;
             let out = if let Some(flow) = &dev.flow {
                 let v = kern
                     .predict((&p, flow), n, SWIM_SPEED)
-                    .map_err(device_error)?;
+                    .map_err(MobilityError::from)?;
                 (v, None)
             } else {
                 let solve = Solve::new(kern, rule, sum, geometry, e);
@@ -326,7 +322,7 @@ impl SlenderBody {
         let ft = match ft {
             Some(ft) => ft,
             None => {
-                zeros = kern.zeros(6 * n).map_err(device_error)?;
+                zeros = kern.zeros(6 * n).map_err(MobilityError::from)?;
                 &zeros
             }
         };
@@ -354,7 +350,7 @@ impl SlenderBody {
             };
             Ok((kern.download(x)?, flow))
         };
-        Some(get().map_err(device_error))
+        Some(get().map_err(MobilityError::from))
     }
 
     /// What the sum's device and the kernels' have been asked to do so far (`None` without a

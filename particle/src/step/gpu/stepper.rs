@@ -21,7 +21,7 @@ use motile_gpu::{Backend, Buffer, GpuError};
 pub type RodKinematics = (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>);
 
 /// The CPU's reduction chunk, so the device's partial sums are the CPU's.
-use crate::parallel::reduce::CHUNK;
+use motile_analysis::reduce::CHUNK;
 
 /// The `none`-level stepper on a device.
 #[derive(Debug)]
@@ -36,8 +36,11 @@ pub struct DeviceStepper {
     warm: Option<Warm>,
 }
 
-fn device_error(e: GpuError) -> StepError {
-    StepError::Device(e.to_string())
+/// A device's failure as the step's.
+impl From<GpuError> for StepError {
+    fn from(e: GpuError) -> Self {
+        StepError::Device(e.to_string())
+    }
 }
 
 impl DeviceStepper {
@@ -179,10 +182,10 @@ impl DeviceStepper {
             (&self.rods.q, &mut self.before.q),
         ] {
             dev.copy((src, 0), (dst, 0), src.len())
-                .map_err(device_error)?;
+                .map_err(StepError::from)?;
         }
         dev.copy((&self.rods.image, 0), (&mut self.before.image, 0), 3 * n)
-            .map_err(device_error)?;
+            .map_err(StepError::from)?;
         let StepOutput {
             report,
             v,
@@ -200,13 +203,13 @@ impl DeviceStepper {
             )
             .map_err(|e| match e {
                 DeviceContactError::Contact(c) => StepError::Contact(c),
-                DeviceContactError::Gpu(g) => device_error(g),
+                DeviceContactError::Gpu(g) => StepError::from(g),
                 DeviceContactError::Hydrodynamics(h) => StepError::Hydrodynamics(h),
             })?;
         let nchunks = n.div_ceil(CHUNK);
         let mut partial = dev
             .zeros::<f64>(10 * nchunks.max(1))
-            .map_err(device_error)?;
+            .map_err(StepError::from)?;
         // SAFETY: block c < ceil(n / CHUNK) (its 256 threads compute its rods' terms in turn,
         // its first thread folds them) reads v, w (3 n), q (4 n) and, with has_ft, ft (6 n) at
         // its chunk's rods, and writes partial[10 c..10 c + 10] (10 ceil(n / CHUNK)).
@@ -219,14 +222,14 @@ impl DeviceStepper {
                     q: &self.rods.q,
                     ft: ft.as_ref().unwrap_or(&v),
                     partial: &mut partial,
-                    n: int(n, "rods").map_err(device_error)?,
+                    n: int(n, "rods").map_err(StepError::from)?,
                     chunk: CHUNK as i32,
                     has_ft: i32::from(ft.is_some()),
                 },
             )
-            .map_err(device_error)?;
+            .map_err(StepError::from)?;
         }
-        let part = dev.download(&partial).map_err(device_error)?;
+        let part = dev.download(&partial).map_err(StepError::from)?;
         let part: Vec<&[f64]> = part.chunks(10).take(nchunks).collect();
         if let Some(bad) = part.iter().map(|c| c[6]).find(|&b| b >= 0.0) {
             return Err(StepError::NonFinite(bad as usize));
