@@ -12,7 +12,7 @@
 
 use crate::io::rundir::TimeSeries;
 use crate::io::write_atomic;
-use crate::report::curves::{MIN_GROWTH_FACTOR, MIN_R_SQUARED};
+use crate::report::curves::{MIN_GROWTH_FACTOR, MIN_R_SQUARED, nan_growth_fit};
 use crate::report::plot::{Chart, Series, line_chart};
 use crate::run::particle::{self, ParticleRunConfig, PerturbationConfig};
 use anyhow::Context;
@@ -124,136 +124,197 @@ pub fn onset(
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let mut points = Vec::new();
     for &nu in &opts.fractions {
-        let sides: Vec<f64> = if opts.boxes.is_empty() {
-            opts.box_nu
-                .iter()
-                .map(|lnu| (10.0 * lnu / nu).round() / 10.0)
-                .collect()
-        } else {
-            opts.boxes.clone()
-        };
-        for l in sides {
+        for l in box_sides(opts, nu) {
             let t_end = run_length(opts, nu, l);
-            let mut cfg = ParticleRunConfig {
-                box_length: l,
-                volume_fraction: nu,
-                dt: opts.dt,
-                t_end,
-                hydrodynamics: opts.hydrodynamics,
-                initial: "perturbation".into(),
-                perturbation: PerturbationConfig {
-                    amplitude: opts.amplitude,
-                    mode_min: 1,
-                    mode_max: 1,
-                    ..PerturbationConfig::default()
-                },
-                diagnostic_interval: (t_end / 40.0 / opts.dt).round().max(1.0) * opts.dt,
-                snapshot_interval: opts.snapshot_interval.unwrap_or(t_end),
-                checkpoint_interval: t_end,
-                vtk: false,
-                lowest_modes: opts.hydrodynamics.has_flow(),
-                ..ParticleRunConfig::default()
-            };
-            if opts.boxes.is_empty() {
-                // The earlier scans' diagnostic cadence (their runs are reused as they are).
-            } else {
-                // Fixed boxes: a row every half time unit, for the complex fits.
-                cfg.diagnostic_interval = (0.5 / opts.dt).round().max(1.0) * opts.dt;
-            }
-            if let Some(m) = opts.contact_margin {
-                cfg.contact.margin = m;
-            }
-            cfg.hydro.sum_tolerance = opts.sum_tolerance;
+            let cfg = point_config(opts, nu, l, t_end);
             let dir = out.join(format!("nu{nu}_L{l}"));
-            let seconds_file = dir.join("onset_seconds.txt");
-            let ts_path = dir.join("timeseries.csv");
-            // A finished run with the same settings is reused (a scan can be extended or
-            // re-charted without running its cells again); anything else is run afresh.
-            let finished = crate::io::rundir::read_run_config::<ParticleRunConfig>(
-                &dir,
-                ParticleRunConfig::validate,
-            )
-            // Both resolved: defaults that follow other keys (the RPY radius) filled in.
-            .is_ok_and(|c| c.resolved() == cfg.resolved())
-                && TimeSeries::read(&ts_path).is_ok_and(|ts| {
-                    ts.column("t [1/beta]")
-                        .and_then(|t| t.last().copied())
-                        .is_some_and(|t| t > t_end - cfg.diagnostic_interval)
-                });
-            let (rods, seconds) = if finished {
-                let seconds = std::fs::read_to_string(&seconds_file)
-                    .ok()
-                    .and_then(|s| s.trim().parse().ok())
-                    .unwrap_or(f64::NAN);
-                ((nu * l * l * l).round() as usize, seconds)
-            } else {
-                crate::io::remove_old_run(&dir)?;
-                let t = std::time::Instant::now();
-                let summary = particle::run_particle(&cfg, &dir, false)
-                    .with_context(|| format!("onset run nu = {nu}, L/l = {l}"))?;
-                let seconds = t.elapsed().as_secs_f64();
-                write_atomic(&seconds_file, format!("{seconds}\n").as_bytes())?;
-                (summary.rods.len(), seconds)
-            };
-            let ts = TimeSeries::read(&ts_path)?;
-            let time = ts.column("t [1/beta]").context("time column")?;
-            let u = ts
-                .column("velocity_norm_box [beta L]")
-                .context("box-scale velocity column")?;
-            let (fit, grew) = box_scale_fit(&time, &u);
-            // The lowest modes until the flow saturates (its box norm past a quarter of its
-            // largest value after growing tenfold), else the whole run.
-            let u_max = u.iter().copied().fold(0.0, f64::max);
-            let saturated = if u_max > 10.0 * u.first().copied().unwrap_or(u_max) {
-                time.iter()
-                    .zip(&u)
-                    .find(|(_, v)| **v > 0.25 * u_max)
-                    .map_or(t_end, |(t, _)| *t)
-            } else {
-                t_end
-            };
-            let complex = complex_fit(&dir, saturated, l)?;
-            let rotational_diffusion =
-                crate::report::curves::rotational_diffusion(&dir, saturated.min(0.5 * t_end))?;
-            event(&format!(
-                "nu = {nu}, L/l = {l} ({rods} rods, {seconds:.0} s{}): {}",
-                if finished { ", done already" } else { "" },
-                fit.as_ref().map_or("no fit".into(), |g| format!(
-                    "rate {:.4} +- {:.4} per 1/beta over [{:.2}, {:.2}], R^2 {:.2}, grew x{:.2}{}",
-                    g.rate,
-                    g.std_error,
-                    g.t0,
-                    g.t1,
-                    g.r_squared,
-                    g.growth_factor,
-                    if grew { " (growth phase)" } else { "" }
-                ))
-            ));
-            if let Some(c) = &complex {
-                event(&format!(
-                    "    lowest modes: sigma = {:.4} {:+.4} i over [{:.1}, {:.1}] (R^2 {:.3}); d_r = {}",
-                    c.sigma.re,
-                    c.sigma.im,
-                    c.t0,
-                    c.t1,
-                    c.r_squared,
-                    rotational_diffusion.map_or("-".into(), |d| format!("{d:.2e}"))
-                ));
-            }
+            let run = run_or_reuse(&cfg, &dir)?;
+            let measured = measure(&dir, t_end, l)?;
+            report_point(&mut event, nu, l, &run, &measured);
             points.push(OnsetPoint {
                 nu,
                 box_length: l,
-                rods,
-                fit,
-                grew,
-                complex,
-                rotational_diffusion,
-                seconds,
+                rods: run.rods,
+                fit: measured.fit,
+                grew: measured.grew,
+                complex: measured.complex,
+                rotational_diffusion: measured.rotational_diffusion,
+                seconds: run.seconds,
             });
         }
     }
     write_onset(&points, opts, out)?;
     Ok(points)
+}
+
+/// The box sides run at volume fraction `nu`: the given boxes, or `L nu / nu` for each value of
+/// `L nu`, rounded to a tenth.
+fn box_sides(opts: &OnsetOptions, nu: f64) -> Vec<f64> {
+    if opts.boxes.is_empty() {
+        opts.box_nu
+            .iter()
+            .map(|lnu| (10.0 * lnu / nu).round() / 10.0)
+            .collect()
+    } else {
+        opts.boxes.clone()
+    }
+}
+
+/// The config of the run at volume fraction `nu` in the box `l` to `t_end`: the seeded
+/// box-scale perturbation, diagnostics about 40 per run (a scan over `L nu`, the earlier scans'
+/// cadence: their runs are reused as they are) or every half time unit (fixed boxes, for the
+/// complex fits).
+fn point_config(opts: &OnsetOptions, nu: f64, l: f64, t_end: f64) -> ParticleRunConfig {
+    let mut cfg = ParticleRunConfig {
+        box_length: l,
+        volume_fraction: nu,
+        dt: opts.dt,
+        t_end,
+        hydrodynamics: opts.hydrodynamics,
+        initial: "perturbation".into(),
+        perturbation: PerturbationConfig {
+            amplitude: opts.amplitude,
+            mode_min: 1,
+            mode_max: 1,
+            ..PerturbationConfig::default()
+        },
+        diagnostic_interval: (t_end / 40.0 / opts.dt).round().max(1.0) * opts.dt,
+        snapshot_interval: opts.snapshot_interval.unwrap_or(t_end),
+        checkpoint_interval: t_end,
+        vtk: false,
+        lowest_modes: opts.hydrodynamics.has_flow(),
+        ..ParticleRunConfig::default()
+    };
+    if !opts.boxes.is_empty() {
+        cfg.diagnostic_interval = (0.5 / opts.dt).round().max(1.0) * opts.dt;
+    }
+    if let Some(m) = opts.contact_margin {
+        cfg.contact.margin = m;
+    }
+    cfg.hydro.sum_tolerance = opts.sum_tolerance;
+    cfg
+}
+
+/// One point's run: its rods and wall time, and whether an earlier run was reused.
+struct PointRun {
+    rods: usize,
+    seconds: f64,
+    reused: bool,
+}
+
+/// Run `cfg` into `dir`, or reuse a finished run there with the same settings (a scan can be
+/// extended or re-charted without running its cells again); anything else is run afresh. The
+/// wall time is kept in `onset_seconds.txt`.
+fn run_or_reuse(cfg: &ParticleRunConfig, dir: &Path) -> anyhow::Result<PointRun> {
+    let seconds_file = dir.join("onset_seconds.txt");
+    let (nu, l) = (cfg.volume_fraction, cfg.box_length);
+    let finished =
+        crate::io::rundir::read_run_config::<ParticleRunConfig>(dir, ParticleRunConfig::validate)
+            // Both resolved: defaults that follow other keys (the RPY radius) filled in.
+            .is_ok_and(|c| c.resolved() == cfg.resolved())
+            && TimeSeries::read(&dir.join("timeseries.csv")).is_ok_and(|ts| {
+                ts.column("t [1/beta]")
+                    .and_then(|t| t.last().copied())
+                    .is_some_and(|t| t > cfg.t_end - cfg.diagnostic_interval)
+            });
+    if finished {
+        let seconds = std::fs::read_to_string(&seconds_file)
+            .ok()
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or(f64::NAN);
+        return Ok(PointRun {
+            rods: (nu * l * l * l).round() as usize,
+            seconds,
+            reused: true,
+        });
+    }
+    crate::io::remove_old_run(dir)?;
+    let t = std::time::Instant::now();
+    let summary = particle::run_particle(cfg, dir, false)
+        .with_context(|| format!("onset run nu = {nu}, L/l = {l}"))?;
+    let seconds = t.elapsed().as_secs_f64();
+    write_atomic(&seconds_file, format!("{seconds}\n").as_bytes())?;
+    Ok(PointRun {
+        rods: summary.rods.len(),
+        seconds,
+        reused: false,
+    })
+}
+
+/// What a point's run measured.
+struct Measured {
+    fit: Option<GrowthFit>,
+    grew: bool,
+    complex: Option<ComplexRateFit>,
+    rotational_diffusion: Option<f64>,
+}
+
+/// Fit the run in `dir` (box `l`, to `t_end`): its box-scale norm's growth; until the flow
+/// saturates, its lowest modes' complex rate and, before that and the run's half, the rods'
+/// rotational diffusion.
+fn measure(dir: &Path, t_end: f64, l: f64) -> anyhow::Result<Measured> {
+    let ts = TimeSeries::read(&dir.join("timeseries.csv"))?;
+    let time = ts.column("t [1/beta]").context("time column")?;
+    let u = ts
+        .column("velocity_norm_box [beta L]")
+        .context("box-scale velocity column")?;
+    let (fit, grew) = box_scale_fit(&time, &u);
+    let saturated = saturation_time(&time, &u, t_end);
+    let complex = complex_fit(dir, saturated, l)?;
+    let rotational_diffusion =
+        crate::report::curves::rotational_diffusion(dir, saturated.min(0.5 * t_end))?;
+    Ok(Measured {
+        fit,
+        grew,
+        complex,
+        rotational_diffusion,
+    })
+}
+
+/// Where the flow saturates: its box norm past a quarter of its largest value after growing
+/// tenfold; else the end of the run.
+fn saturation_time(time: &[f64], u: &[f64], t_end: f64) -> f64 {
+    let u_max = u.iter().copied().fold(0.0, f64::max);
+    if u_max > 10.0 * u.first().copied().unwrap_or(u_max) {
+        time.iter()
+            .zip(u)
+            .find(|(_, v)| **v > 0.25 * u_max)
+            .map_or(t_end, |(t, _)| *t)
+    } else {
+        t_end
+    }
+}
+
+/// The lines a point gives `event`: its fit, and its lowest modes' rate where fitted.
+fn report_point(event: &mut impl FnMut(&str), nu: f64, l: f64, run: &PointRun, m: &Measured) {
+    event(&format!(
+        "nu = {nu}, L/l = {l} ({} rods, {:.0} s{}): {}",
+        run.rods,
+        run.seconds,
+        if run.reused { ", done already" } else { "" },
+        m.fit.as_ref().map_or("no fit".into(), |g| format!(
+            "rate {:.4} +- {:.4} per 1/beta over [{:.2}, {:.2}], R^2 {:.2}, grew x{:.2}{}",
+            g.rate,
+            g.std_error,
+            g.t0,
+            g.t1,
+            g.r_squared,
+            g.growth_factor,
+            if m.grew { " (growth phase)" } else { "" }
+        ))
+    ));
+    if let Some(c) = &m.complex {
+        event(&format!(
+            "    lowest modes: sigma = {:.4} {:+.4} i over [{:.1}, {:.1}] (R^2 {:.3}); d_r = {}",
+            c.sigma.re,
+            c.sigma.im,
+            c.t0,
+            c.t1,
+            c.r_squared,
+            m.rotational_diffusion
+                .map_or("-".into(), |d| format!("{d:.2e}"))
+        ));
+    }
 }
 
 /// The complex rate of the lowest box modes of the run in `dir` (its `modes.csv`) up to `t1`.
@@ -301,9 +362,6 @@ fn theory(nu: f64, box_length: f64, d_r: f64) -> Option<num_complex::Complex64> 
 /// lowest-mode complex rate beside the box theory's, without diffusion and with the rotational
 /// diffusion measured in the runs.
 fn write_box_scan(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow::Result<()> {
-    let fmt = |z: Option<num_complex::Complex64>| {
-        z.map_or("damped".into(), |z| format!("{:.4} {:+.4}i", z.re, z.im))
-    };
     let mut csv = String::from(
         "nu,L/l,rods,sigma_re,sigma_im,modes_r_squared,t0,t1,box_rate,box_r_squared,box_growth_factor,d_r,theory_re,theory_im,theory_dr_re,theory_dr_im,seconds\n",
     );
@@ -312,75 +370,113 @@ fn write_box_scan(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> any
         opts.hydrodynamics, opts.amplitude
     );
     for p in points {
-        let sigma = p.complex.map(|c| c.sigma);
-        let th = theory(p.nu, p.box_length, 0.0);
-        let d_r = p.rotational_diffusion.unwrap_or(0.0).max(0.0);
-        let thd = theory(p.nu, p.box_length, d_r);
-        let c = p.complex;
-        writeln!(
-            csv,
-            "{},{},{},{:e},{:e},{},{},{},{:e},{},{},{:e},{:e},{:e},{:e},{:e},{:.1}",
-            p.nu,
-            p.box_length,
-            p.rods,
-            sigma.map_or(f64::NAN, |z| z.re),
-            sigma.map_or(f64::NAN, |z| z.im),
-            c.map_or(f64::NAN, |c| c.r_squared),
-            c.map_or(f64::NAN, |c| c.t0),
-            c.map_or(f64::NAN, |c| c.t1),
-            p.fit.as_ref().map_or(f64::NAN, |g| g.rate),
-            p.fit.as_ref().map_or(f64::NAN, |g| g.r_squared),
-            p.fit.as_ref().map_or(f64::NAN, |g| g.growth_factor),
-            p.rotational_diffusion.unwrap_or(f64::NAN),
-            th.map_or(f64::NAN, |z| z.re),
-            th.map_or(f64::NAN, |z| z.im),
-            thd.map_or(f64::NAN, |z| z.re),
-            thd.map_or(f64::NAN, |z| z.im),
-            p.seconds
-        )?;
-        let ratio = match (sigma, th) {
-            (Some(m), Some(t)) if t.re > 0.0 => format!("{:.2}", m.re / t.re),
-            _ => "-".into(),
-        };
-        writeln!(
-            md,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} | {:.0} |",
-            p.nu,
-            p.box_length,
-            p.rods,
-            fmt(sigma),
-            c.map_or("-".into(), |c| format!("{:.3}", c.r_squared)),
-            c.map_or("-".into(), |c| format!("{:.0}-{:.0}", c.t0, c.t1)),
-            p.fit.as_ref().map_or("-".into(), |g| format!(
-                "x{:.1}, R^2 {:.2}{}",
-                g.growth_factor,
-                g.r_squared,
-                if p.grew { " (growth phase)" } else { "" }
-            )),
-            p.rotational_diffusion
-                .map_or("-".into(), |d| format!("{d:.1e}")),
-            fmt(th),
-            fmt(thd),
-            p.seconds
-        )?;
+        let theories = BoxTheories::of(p);
+        csv.push_str(&box_scan_csv_row(p, &theories));
+        md.push_str(&box_scan_md_row(p, &theories));
     }
     write_atomic(&out.join("onset.csv"), csv.as_bytes())?;
     write_atomic(&out.join("onset.md"), md.as_bytes())?;
-    // Charts: the real and imaginary parts against L/l, the theory as curves.
-    let (lo, hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| {
-        (a.min(p.box_length), b.max(p.box_length))
-    });
-    let d_mean = {
-        let d: Vec<f64> = points
-            .iter()
-            .filter_map(|p| p.rotational_diffusion)
-            .collect();
-        if d.is_empty() {
-            0.0
-        } else {
-            (d.iter().sum::<f64>() / d.len() as f64).max(0.0)
+    write_box_scan_charts(points, opts, out)
+}
+
+/// A point's box theory without diffusion and with the rotational diffusion measured in it
+/// (none where not measured).
+struct BoxTheories {
+    without_diffusion: Option<num_complex::Complex64>,
+    with_diffusion: Option<num_complex::Complex64>,
+}
+
+impl BoxTheories {
+    fn of(p: &OnsetPoint) -> Self {
+        let d_r = p.rotational_diffusion.unwrap_or(0.0).max(0.0);
+        Self {
+            without_diffusion: theory(p.nu, p.box_length, 0.0),
+            with_diffusion: theory(p.nu, p.box_length, d_r),
         }
+    }
+}
+
+/// A complex rate as the table writes it, or "damped".
+fn complex_cell(z: Option<num_complex::Complex64>) -> String {
+    z.map_or("damped".into(), |z| format!("{:.4} {:+.4}i", z.re, z.im))
+}
+
+fn box_scan_csv_row(p: &OnsetPoint, theories: &BoxTheories) -> String {
+    let c = p.complex;
+    let sigma = c.map(|c| c.sigma);
+    let (th, thd) = (theories.without_diffusion, theories.with_diffusion);
+    format!(
+        "{},{},{},{:e},{:e},{},{},{},{:e},{},{},{:e},{:e},{:e},{:e},{:e},{:.1}\n",
+        p.nu,
+        p.box_length,
+        p.rods,
+        sigma.map_or(f64::NAN, |z| z.re),
+        sigma.map_or(f64::NAN, |z| z.im),
+        c.map_or(f64::NAN, |c| c.r_squared),
+        c.map_or(f64::NAN, |c| c.t0),
+        c.map_or(f64::NAN, |c| c.t1),
+        p.fit.as_ref().map_or(f64::NAN, |g| g.rate),
+        p.fit.as_ref().map_or(f64::NAN, |g| g.r_squared),
+        p.fit.as_ref().map_or(f64::NAN, |g| g.growth_factor),
+        p.rotational_diffusion.unwrap_or(f64::NAN),
+        th.map_or(f64::NAN, |z| z.re),
+        th.map_or(f64::NAN, |z| z.im),
+        thd.map_or(f64::NAN, |z| z.re),
+        thd.map_or(f64::NAN, |z| z.im),
+        p.seconds
+    )
+}
+
+fn box_scan_md_row(p: &OnsetPoint, theories: &BoxTheories) -> String {
+    let c = p.complex;
+    let sigma = c.map(|c| c.sigma);
+    let ratio = match (sigma, theories.without_diffusion) {
+        (Some(m), Some(t)) if t.re > 0.0 => format!("{:.2}", m.re / t.re),
+        _ => "-".into(),
     };
+    format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} | {:.0} |\n",
+        p.nu,
+        p.box_length,
+        p.rods,
+        complex_cell(sigma),
+        c.map_or("-".into(), |c| format!("{:.3}", c.r_squared)),
+        c.map_or("-".into(), |c| format!("{:.0}-{:.0}", c.t0, c.t1)),
+        p.fit.as_ref().map_or("-".into(), |g| format!(
+            "x{:.1}, R^2 {:.2}{}",
+            g.growth_factor,
+            g.r_squared,
+            if p.grew { " (growth phase)" } else { "" }
+        )),
+        p.rotational_diffusion
+            .map_or("-".into(), |d| format!("{d:.1e}")),
+        complex_cell(theories.without_diffusion),
+        complex_cell(theories.with_diffusion),
+        p.seconds
+    )
+}
+
+/// The mean of the rotational diffusion measured in the runs (0 where none was, and at least
+/// 0).
+fn mean_rotational_diffusion(points: &[OnsetPoint]) -> f64 {
+    let d: Vec<f64> = points
+        .iter()
+        .filter_map(|p| p.rotational_diffusion)
+        .collect();
+    if d.is_empty() {
+        0.0
+    } else {
+        (d.iter().sum::<f64>() / d.len() as f64).max(0.0)
+    }
+}
+
+/// Charts of a box scan: the real and imaginary parts of the lowest mode's rate against L/l,
+/// the box theory (without diffusion and with the mean measured d_r) as curves.
+fn write_box_scan_charts(
+    points: &[OnsetPoint],
+    opts: &OnsetOptions,
+    out: &Path,
+) -> anyhow::Result<()> {
     for (stem, title, y_label, part) in [
         (
             "onset",
@@ -396,49 +492,64 @@ fn write_box_scan(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> any
         ),
     ] {
         let pick = |z: num_complex::Complex64| if part == 0 { z.re } else { z.im };
-        let mut series = Vec::new();
-        for &nu in &opts.fractions {
-            series.push(Series {
-                label: format!(
-                    "particles, nu = {nu} ({}, lowest modes)",
-                    opts.hydrodynamics
-                ),
-                points: points
-                    .iter()
-                    .filter(|p| p.nu == nu)
-                    .filter_map(|p| p.complex.map(|c| (p.box_length, pick(c.sigma))))
-                    .collect(),
-            });
-            for (d, label) in [
-                (0.0, format!("box theory, nu = {nu}, no diffusion")),
-                (
-                    d_mean,
-                    format!("box theory, nu = {nu}, d_r = {d_mean:.1e} (measured)"),
-                ),
-            ] {
-                let curve: Vec<(f64, f64)> = (0..=80)
-                    .map(|k| lo + (hi - lo) * k as f64 / 80.0)
-                    .filter_map(|l| theory(nu, l, d).map(|z| (l, pick(z))))
-                    .collect();
-                series.push(Series {
-                    label,
-                    points: curve,
-                });
-            }
-        }
         line_chart(
             &out.join(stem),
             &Chart {
                 title,
                 x_label: "box side L/l",
                 y_label,
-                series,
+                series: box_scan_series(points, opts, pick),
             },
         )?;
     }
     Ok(())
 }
 
+/// One box-scan chart's series: per volume fraction the runs' `pick` of their lowest-mode rate
+/// and the box theory's over the boxes' range, without diffusion and with the mean measured d_r.
+fn box_scan_series(
+    points: &[OnsetPoint],
+    opts: &OnsetOptions,
+    pick: impl Fn(num_complex::Complex64) -> f64,
+) -> Vec<Series> {
+    let (lo, hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| {
+        (a.min(p.box_length), b.max(p.box_length))
+    });
+    let d_mean = mean_rotational_diffusion(points);
+    let mut series = Vec::new();
+    for &nu in &opts.fractions {
+        series.push(Series {
+            label: format!(
+                "particles, nu = {nu} ({}, lowest modes)",
+                opts.hydrodynamics
+            ),
+            points: points
+                .iter()
+                .filter(|p| p.nu == nu)
+                .filter_map(|p| p.complex.map(|c| (p.box_length, pick(c.sigma))))
+                .collect(),
+        });
+        for (d, label) in [
+            (0.0, format!("box theory, nu = {nu}, no diffusion")),
+            (
+                d_mean,
+                format!("box theory, nu = {nu}, d_r = {d_mean:.1e} (measured)"),
+            ),
+        ] {
+            series.push(Series {
+                label,
+                points: (0..=80)
+                    .map(|k| lo + (hi - lo) * k as f64 / 80.0)
+                    .filter_map(|l| theory(nu, l, d).map(|z| (l, pick(z))))
+                    .collect(),
+            });
+        }
+    }
+    series
+}
+
+/// The table and chart of the scan (`onset.{csv,md,png,svg}`): over `L nu` at each volume
+/// fraction, or, with fixed boxes, [`write_box_scan`].
 fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow::Result<()> {
     if !opts.boxes.is_empty() {
         return write_box_scan(points, opts, out);
@@ -451,47 +562,63 @@ fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow
         opts.hydrodynamics, opts.amplitude
     );
     for p in points {
-        let c = continuum_rate(p.nu, DEFAULT_DIAMETER) / p.nu;
-        let (rate, err, r2, gf, t0, t1) = p.fit.as_ref().map_or(
-            (f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN),
-            |g| {
-                (
-                    g.rate,
-                    g.std_error,
-                    g.r_squared,
-                    g.growth_factor,
-                    g.t0,
-                    g.t1,
-                )
-            },
-        );
-        writeln!(
-            csv,
-            "{},{},{},{},{rate:e},{err:e},{:e},{c:e},{r2},{gf},{},{t0},{t1},{:.1}",
-            p.nu,
-            p.box_length,
-            p.box_length * p.nu,
-            p.rods,
-            rate / p.nu,
-            p.grew,
-            p.seconds
-        )
-        .expect("string");
-        writeln!(
-            md,
-            "| {} | {} | {:.1} | {} | {rate:.4} +- {err:.4} | {:.4} | {c:.4} | {} | {r2:.2} | {gf:.2} | {:.0} |",
-            p.nu,
-            p.box_length,
-            p.box_length * p.nu,
-            p.rods,
-            p.fit.as_ref().map_or(f64::NAN, |g| g.peak_rate) / p.nu,
-            if p.grew { "yes" } else { "no" },
-            p.seconds
-        )
-        .expect("string");
+        write_onset_rows(p, &mut csv, &mut md);
     }
     write_atomic(&out.join("onset.csv"), csv.as_bytes())?;
     write_atomic(&out.join("onset.md"), md.as_bytes())?;
+    line_chart(
+        &out.join("onset"),
+        &Chart {
+            title: "Growth rate of the box-scale flow over nu, against L nu (docs/MODEL.md section 5)",
+            x_label: "L nu [l]",
+            y_label: "peak growth rate / nu [beta]",
+            series: onset_series(points, opts),
+        },
+    )?;
+    Ok(())
+}
+
+/// One point's rows of `onset.csv` and `onset.md`: its fit beside the continuum's rate.
+fn write_onset_rows(p: &OnsetPoint, csv: &mut String, md: &mut String) {
+    let c = continuum_rate(p.nu, DEFAULT_DIAMETER) / p.nu;
+    let g = p.fit.unwrap_or_else(nan_growth_fit);
+    let (rate, err, r2, gf, t0, t1) = (
+        g.rate,
+        g.std_error,
+        g.r_squared,
+        g.growth_factor,
+        g.t0,
+        g.t1,
+    );
+    writeln!(
+        csv,
+        "{},{},{},{},{rate:e},{err:e},{:e},{c:e},{r2},{gf},{},{t0},{t1},{:.1}",
+        p.nu,
+        p.box_length,
+        p.box_length * p.nu,
+        p.rods,
+        rate / p.nu,
+        p.grew,
+        p.seconds
+    )
+    .expect("string");
+    writeln!(
+        md,
+        "| {} | {} | {:.1} | {} | {rate:.4} +- {err:.4} | {:.4} | {c:.4} | {} | {r2:.2} | {gf:.2} | {:.0} |",
+        p.nu,
+        p.box_length,
+        p.box_length * p.nu,
+        p.rods,
+        g.peak_rate / p.nu,
+        if p.grew { "yes" } else { "no" },
+        p.seconds
+    )
+    .expect("string");
+}
+
+/// The chart's series: each volume fraction's peak rates over nu against `L nu`, then the
+/// continuum's rate over nu as flat lines.
+fn onset_series(points: &[OnsetPoint], opts: &OnsetOptions) -> Vec<Series> {
     let mut series: Vec<Series> = Vec::new();
     let (x_lo, x_hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| {
         let x = p.box_length * p.nu;
@@ -518,16 +645,7 @@ fn write_onset(points: &[OnsetPoint], opts: &OnsetOptions, out: &Path) -> anyhow
             points: vec![(x_lo, c), (x_hi, c)],
         });
     }
-    line_chart(
-        &out.join("onset"),
-        &Chart {
-            title: "Growth rate of the box-scale flow over nu, against L nu (docs/MODEL.md section 5)",
-            x_label: "L nu [l]",
-            y_label: "peak growth rate / nu [beta]",
-            series,
-        },
-    )?;
-    Ok(())
+    series
 }
 
 #[cfg(test)]

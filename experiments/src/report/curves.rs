@@ -555,19 +555,21 @@ impl NormStatistics {
     /// The growth fit and whether it is a growth phase; without a fit (too few samples), NaN
     /// in every field and no growth phase, as the tables write it.
     pub fn fit_or_nan(&self) -> (GrowthFit, bool) {
-        self.growth.unwrap_or((
-            GrowthFit {
-                rate: f64::NAN,
-                std_error: f64::NAN,
-                samples: 0,
-                t0: f64::NAN,
-                t1: f64::NAN,
-                r_squared: f64::NAN,
-                growth_factor: f64::NAN,
-                peak_rate: f64::NAN,
-            },
-            false,
-        ))
+        self.growth.unwrap_or((nan_growth_fit(), false))
+    }
+}
+
+/// A growth fit that is not there, as the tables write it: NaN in every field, no samples.
+pub fn nan_growth_fit() -> GrowthFit {
+    GrowthFit {
+        rate: f64::NAN,
+        std_error: f64::NAN,
+        samples: 0,
+        t0: f64::NAN,
+        t1: f64::NAN,
+        r_squared: f64::NAN,
+        growth_factor: f64::NAN,
+        peak_rate: f64::NAN,
     }
 }
 
