@@ -6,6 +6,10 @@
 //! `state.rs`.
 
 mod config;
+// Without the `gpu` feature, `device_off.rs`: no GPU stepper, and a run that asks for one is
+// refused with how to build it.
+#[cfg_attr(not(feature = "gpu"), path = "device_off.rs")]
+mod device;
 mod state;
 
 pub use config::*;
@@ -123,20 +127,19 @@ pub fn resume_meanfield(out: &Path, progress: bool) -> anyhow::Result<MeanFieldS
 /// stepper's form for snapshots, diagnostics and checkpoints).
 struct Engine {
     cpu: MeanFieldStepper,
-    #[cfg(feature = "gpu")]
-    gpu: Option<motile_meanfield::gpu::GpuMeanField>,
+    gpu: Option<device::GpuEngine>,
 }
 
 /// A failed step: the model's own failure, or the device's.
 enum EngineError {
     Model(MeanFieldError),
+    // Made only by a device, which a build without the `gpu` feature cannot have.
     #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     Device(String),
 }
 
 impl Engine {
     /// The CPU stepper, or (`device = "gpu"`) the GPU stepper started from its state.
-    #[cfg_attr(not(feature = "gpu"), allow(unused_variables))]
     fn new(
         cfg: &MeanFieldRunConfig,
         cpu: MeanFieldStepper,
@@ -144,33 +147,18 @@ impl Engine {
         closure: &BinghamClosure,
         params: &MeanFieldParams,
     ) -> anyhow::Result<Self> {
-        if cfg.device == Device::Gpu {
-            #[cfg(feature = "gpu")]
-            {
-                let rhs = MeanFieldRhs {
-                    grid,
-                    closure,
-                    params,
-                    with_entropy: false,
-                };
-                let gpu =
-                    motile_meanfield::gpu::GpuMeanField::open(run::gpu_backend()?, &rhs, &cpu)
-                        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
-                return Ok(Self {
-                    cpu,
-                    gpu: Some(gpu),
-                });
-            }
-            #[cfg(not(feature = "gpu"))]
-            anyhow::bail!(
-                "device = \"gpu\": this motile was built without GPU support; build it with `cargo install --path experiments --features gpu` (CUDA is loaded when a run starts: the build needs nothing but cargo)"
-            );
-        }
-        Ok(Self {
-            cpu,
-            #[cfg(feature = "gpu")]
-            gpu: None,
-        })
+        let gpu = if cfg.device == Device::Gpu {
+            let rhs = MeanFieldRhs {
+                grid,
+                closure,
+                params,
+                with_entropy: false,
+            };
+            Some(device::GpuEngine::open(&rhs, &cpu)?)
+        } else {
+            None
+        };
+        Ok(Self { cpu, gpu })
     }
 
     fn t(&self) -> f64 {
@@ -179,30 +167,18 @@ impl Engine {
 
     /// One step; nothing is committed when it fails.
     fn step(&mut self, rhs: &MeanFieldRhs, dt: f64) -> Result<MeanFieldStepReport, EngineError> {
-        #[cfg(feature = "gpu")]
         if let Some(g) = self.gpu.as_mut() {
-            return match g.step(dt, rhs.with_entropy) {
-                Ok(r) => {
-                    self.cpu.t = g.t;
-                    Ok(r)
-                }
-                Err(motile_meanfield::gpu::GpuError::Step(e)) => Err(EngineError::Model(e)),
-                Err(e) => Err(EngineError::Device(e.to_string())),
-            };
+            let (report, t) = g.step(dt, rhs.with_entropy)?;
+            self.cpu.t = t;
+            return Ok(report);
         }
         self.cpu.step(rhs, dt).map_err(EngineError::Model)
     }
 
     /// The state in the CPU stepper's form (downloaded from the device with `device = "gpu"`).
     fn synced(&self) -> anyhow::Result<std::borrow::Cow<'_, MeanFieldStepper>> {
-        #[cfg(feature = "gpu")]
         if let Some(g) = &self.gpu {
-            let (t, q_hat, history, u_hat) = g
-                .state()
-                .map_err(|e| anyhow::anyhow!("downloading the state from the GPU: {e}"))?;
-            let mut s = self.cpu.clone();
-            s.restore(t, q_hat, history, u_hat);
-            return Ok(std::borrow::Cow::Owned(s));
+            return Ok(std::borrow::Cow::Owned(g.synced(&self.cpu)?));
         }
         Ok(std::borrow::Cow::Borrowed(&self.cpu))
     }
@@ -248,7 +224,6 @@ impl MeanFieldModel {
         ));
         let params = cfg.model_params();
         let stepper = Engine::new(cfg, stepper, &grid, &closure, &params)?;
-        #[cfg(feature = "gpu")]
         if let Some(g) = &stepper.gpu {
             notes.push(format!(
                 "steps run on the GPU (device = \"gpu\"): {}",
