@@ -30,12 +30,7 @@ fn motile_output(args: &[&str], emulated: bool) -> std::process::Output {
     let mut c = Command::new(env!("CARGO_BIN_EXE_motile"));
     c.args(args).arg("--threads").arg("2");
     if emulated {
-        // The global-memory spreader in bin order: the default output-driven one runs each of
-        // its many small blocks as 256 OS threads with a barrier on the emulation (6.5 s a sum
-        // of 1 728 points here, against 0.05 s); it is checked against the CPU's sums in
-        // particle/tests/gpu_ewald.rs and in resident steps in particle/tests/gpu_step.rs.
-        c.env("MOTILE_GPU_BACKEND", "emulation")
-            .env("MOTILE_GPU_SPREAD", "sorted");
+        c.env("MOTILE_GPU_BACKEND", "emulation");
     }
     c.output().expect("running motile")
 }
@@ -69,16 +64,31 @@ fn emulation_available() -> bool {
     found
 }
 
+/// A particle config's text spreading with the global-memory spreader in bin order on the
+/// GPU: the default output-driven one runs each of its many small blocks as 256 OS threads with
+/// a barrier on the emulation (6.5 s a sum of 1 728 points here, against 0.05 s); it is checked
+/// against the CPU's sums in particle/tests/gpu_ewald.rs and in resident steps in
+/// particle/tests/gpu_slender.rs and gpu_resident.rs.
+fn sorted_spreader(text: &str) -> String {
+    format!("gpu_spreader = \"sorted\"\n{text}")
+}
+
 /// `motile MODEL run CONFIG` into `dir/cpu`, and with `--device gpu` on the emulation into
-/// `dir/gpu`.
+/// `dir/gpu` (a particle run with the sorted spreader, [`sorted_spreader`]).
 fn cpu_and_gpu(model: &str, cfg: &Path, dir: &Path) -> (PathBuf, PathBuf) {
-    let cfg = cfg.to_str().unwrap();
     let (cpu, gpu) = (dir.join("cpu"), dir.join("gpu"));
-    motile(&[model, "run", cfg, "--out", cpu.to_str().unwrap()], false);
+    motile(
+        &[model, "run", cfg.to_str().unwrap(), "--out", cpu.to_str().unwrap()],
+        false,
+    );
+    let gpu_cfg = dir.join("gpu.toml");
+    let text = std::fs::read_to_string(cfg).unwrap();
+    let text = if model == "particle" { sorted_spreader(&text) } else { text };
+    std::fs::write(&gpu_cfg, text).unwrap();
     let gpu_args = [
         model,
         "run",
-        cfg,
+        gpu_cfg.to_str().unwrap(),
         "--out",
         gpu.to_str().unwrap(),
         "--device",
@@ -313,7 +323,7 @@ fn a_failed_resident_step_saves_the_state_before_it_and_resumes_on_the_cpu() {
                 t_end = 0.2\ndiagnostic_interval = 0.04\nsnapshot_interval = 0.2\n\
                 checkpoint_interval = 0.2\nvtk = false\n";
     let capped = "[contact]\nmax_iterations = 16\n";
-    std::fs::write(&cfg, format!("{text}{capped}")).unwrap();
+    std::fs::write(&cfg, sorted_spreader(&format!("{text}{capped}"))).unwrap();
     let gpu = tmp.path().join("gpu");
     let args = [
         "particle",
@@ -382,27 +392,24 @@ fn sbt_config(dir: &Path, t_end: f64) -> PathBuf {
     cfg
 }
 
-/// `MOTILE_GPU_SPREAD` with a value it does not know stops the run, naming the allowed ones.
+/// A `gpu_spreader` that does not exist is refused by name, with the allowed ones.
 #[test]
-fn an_unknown_spreading_method_is_refused_by_name() {
-    if !emulation_available() {
-        return;
-    }
+fn an_unknown_spreader_is_refused_by_name() {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = sbt_config(tmp.path(), 0.01);
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    std::fs::write(&cfg, format!("gpu_spreader = \"bins\"\n{text}")).unwrap();
     let out = tmp.path().join("run");
     let o = Command::new(env!("CARGO_BIN_EXE_motile"))
         .args(["particle", "run", cfg.to_str().unwrap(), "--out"])
         .arg(&out)
-        .args(["--device", "gpu", "--threads", "1"])
-        .env("MOTILE_GPU_BACKEND", "emulation")
-        .env("MOTILE_GPU_SPREAD", "bins")
+        .args(["--device", "gpu", "--threads", "1", "--dry-run"])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "ran with MOTILE_GPU_SPREAD = bins");
+    assert!(!o.status.success(), "ran with gpu_spreader = bins");
     assert!(
-        err.contains("MOTILE_GPU_SPREAD = \"bins\"") && err.contains("\"cells\" (the default)"),
-        "the error names the value and the allowed ones: {err}"
+        err.contains("gpu_spreader") && err.contains("bins") && err.contains("cells"),
+        "the error names the key, the value and the allowed ones: {err}"
     );
 }
