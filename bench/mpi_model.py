@@ -1,4 +1,4 @@
-"""Step-time and communication model of the particle step shared among MPI ranks (issue 19),
+"""Step-time and communication model of the particle step shared among MPI ranks,
 fitted to measurements on 1-2 ranks, projected to the paper's largest run.
 
 Usage: python3 bench/mpi_model.py [RUN_1RANK RUN_2RANKS VALUES_SENT EXCHANGES]
@@ -12,7 +12,7 @@ The model (hydrodynamics "none", z slabs):
   H    = 2 r N / L            copies per rank (two slab faces of width r = l + b + margin)
   t_rod                        seconds per rod and step on one core (fitted at P = 1)
   e_node                       speed-up of one rank's threads on a node (16 cores: 5.9, the
-                               contact step's measured 16-thread figure, issue 18)
+                               contact step's measured 16-thread figure, BENCHMARKS.md)
   E                            exchanges per step (measured), each an all-to-all: alpha P latency
   c_V                          values sent per copy per step (measured)
   alpha, beta                  interconnect latency and bandwidth (stated, not fitted):
@@ -88,7 +88,7 @@ def dipole():
     real, spread, gather, fft = 7.4e-6, 4.1e-6, 22e-6, 0.91e-6  # s per local pt, own pt, own pt, grid pt
     m_per_l, rc = 72 / 25, 3.28
     nu = 0.625
-    print("\ndipole level, nu = 0.625, one rank per node (node speed-up 6.0: the 16-thread mobility product, issue 18)")
+    print("\ndipole level, nu = 0.625, one rank per node (node speed-up 6.0: the 16-thread mobility product)")
     print("| L/l | rods | grid | nodes | own | copies | compute | transposes | step |")
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for big_l in [100, 175]:

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds what a session with a lent GPU machine runs there (issue 18), into device-bin/ (ignored
+# Builds what a GPU machine without Rust runs (scripts/device_run.sh), into device-bin/ (ignored
 # by git; name it in the device tool's `carry`): the motile binary and the benchmark examples
 # with the gpu feature, the GPU parity test executables, stripped, device_run.sh and the
 # science phase's config.

@@ -22,7 +22,7 @@
 #            the mean-field step, the dipole and explicit steps, the sbt step's profile, the
 #            whole runs and Nsight Compute on the dipole sum's spreader and gather, each phase
 #            under its own limit
-#   memory   issue 29's open figures (about 5 minutes): the CUDA parity tests of the sums and
+#   memory   the memory and speed figures (about 5 minutes): the CUDA parity tests of the sums and
 #            the resident steps (sbt's among them), ptxas (no stack in the dipole step's
 #            kernels), then gpu_bench's dipole steps at L/l = 100 and 175 and the sbt step at
 #            L/l = 50 (the resident rows print steps/s, bytes in use per rod and the breakdown)
@@ -122,7 +122,7 @@ case "${1:-}" in
     grep -A12 "^profile:" "$OUT/profile.txt" | head -60
     ;;
   ncu)
-    ncu -k 'regex:spread_tiles|spread_sorted|gather_sorted' -c 6 --section SpeedOfLight \
+    ncu -k 'regex:spread_cells|spread_sorted|gather_sorted' -c 6 --section SpeedOfLight \
       --section Occupancy --section LaunchStats --section MemoryWorkloadAnalysis \
       "$B/gpu_bench" --cases sum --sum-sizes 1000000 --cpu-max 0 --reps 1 >"$OUT/ncu.txt" 2>&1
     echo "ncu exit $?"

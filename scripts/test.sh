@@ -68,7 +68,7 @@ cargo test --release -p motile-particle --features gpu --test gpu_ewald
 cargo test --release -p motile-particle --features gpu --test gpu_step
 cargo test --release -p motile-particle --features gpu --test gpu_resident
 cargo test --release -p motile-particle --features gpu --test gpu_slender
-# The resident dipole step's device buffers against issue 29's memory budget, and the sbt
+# The resident dipole step's device buffers against its memory budget, and the sbt
 # step's against its design (the process's tally: the same bytes on the emulation as on CUDA;
 # a file of one test, as the tally is shared).
 cargo test --release -p motile-particle --features gpu --test gpu_memory

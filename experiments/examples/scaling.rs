@@ -1,10 +1,10 @@
-//! Thread scaling of every hot path, phase by phase: the table issue 18 asks for.
+//! Thread scaling of every hot path, phase by phase (BENCHMARKS.md, "Thread scaling").
 //!
 //! ```text
 //! cargo run --release -p motile-experiments --example scaling -- [--threads 1,2] [--reps 3] [--large] [--only CASE]
 //! ```
 //!
-//! Cases (the sizes of issue 18): `mf64` (mean-field step on 64^3, closure degree 20: Q to the
+//! Cases: `mf64` (mean-field step on 64^3, closure degree 20: Q to the
 //! grid, closure, fixed point, gradients, explicit terms, update), `mobility` (RPY mobility
 //! product of 1e5 points at tolerance 1e-4, new points every call: setup, real space, Fourier,
 //! corrections), `sbt` (slender-body step, 9 766 rods at nu = 0.625, L/l = 25: neighbours,

@@ -268,8 +268,8 @@ fn a_truncated_or_bit_flipped_checkpoint_is_skipped_for_the_previous_one() {
 fn forced_divergence_ends_with_the_structured_error_and_a_usable_checkpoint() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    // Particle model: a dense suspension whose contact solver may take one iteration. (The
-    // largest dt used to overlap rods here; the step's projection now removes such overlaps.)
+    // Particle model: a dense suspension whose contact solver may take one iteration (the
+    // step's projection removes the overlaps the largest dt leaves).
     std::fs::write(
         d.join("p.toml"),
         "box_length = 6\nvolume_fraction = 5\ndt = 0.05\nt_end = 2\ndiagnostic_interval = 0.05\n[contact]\nmargin = 0.2\nmax_iterations = 1\n",

@@ -1,4 +1,4 @@
-//! The GPU mean-field step against the CPU step (issue 18): from the same strongly anisotropic
+//! The GPU mean-field step against the CPU step: from the same strongly anisotropic
 //! state (the dynamics tests' `nonlinear_state`), three steps (the first SBDF1, then
 //! variable-step SBDF2 with a step ratio of 1.25) with the fixed point's iteration count pinned
 //! to 6 (so round-off cannot stop the two one iteration apart), the entropy evaluated: Q and u

@@ -1,4 +1,4 @@
-//! Criterion benchmarks of the hydrodynamics (issue 5), 2 threads:
+//! Criterion benchmarks of the hydrodynamics, 2 threads:
 //! - `rpy_product/{N}/{tol}`: one spectral Ewald RPY mobility product (velocity from forces at
 //!   the same N random points, 2.5 points per unit volume as rods' nodes at nu = 0.625), each
 //!   iteration at new points (two configurations alternate, so nothing prepared is reused);

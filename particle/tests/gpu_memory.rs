@@ -1,5 +1,5 @@
 //! The device memory of the dipole level's step resident on the device (feature `gpu`), the
-//! quantity of issue 29's target (at most 3 KB of GPU memory per rod at L/l = 100), counted
+//! quantity of the GPU memory target (at most 3 KB of GPU memory per rod at L/l = 100), counted
 //! without a GPU: the process's tally of device buffers (`motile_gpu::live_bytes` and
 //! `peak_bytes`) counts the same bytes on the host emulation as on CUDA.
 //!
@@ -8,7 +8,7 @@
 //! cell lists, bins and the sum's per-point values). The test runs two resident steps at the
 //! paper's volume fraction and checks the second step's peak without the grids against the
 //! budget the target leaves at L/l = 100: 3 000 bytes per rod, less the CUDA context (0.55 GB,
-//! measured on the H100 in every device check of issue 29 before any case ran) and the grids
+//! measured on an H100 before any case ran, BENCHMARKS.md) and the grids
 //! at L/l = 100 (their size from the sum's parameters there). The per-rod part is measured
 //! here at L/l = 16 (2 560 rods); it holds no part that grows faster than the rods.
 //!
@@ -39,10 +39,10 @@ use motile_particle::step::report::StepReport;
 
 /// The paper's volume fraction in rods per unit volume (`nu = n l^3 / L^3`).
 const NU: f64 = 0.625;
-/// The CUDA context's bytes on the H100 before any case (BENCHMARKS.md, issue 29's device
-/// checks: 0.55 GB in each).
+/// The CUDA context's bytes on an H100 before any case (BENCHMARKS.md: 0.55 GB in each
+/// device check).
 const CONTEXT_BYTES: f64 = 0.55e9;
-/// Issue 29's target.
+/// The target: GPU memory per rod at the dipole level's step peak, L/l = 100.
 const TARGET_PER_ROD: f64 = 3_000.0;
 
 /// Bytes of the stresslet sum's grids (one in-place grid of `m^3` per trace-free component:

@@ -1,14 +1,12 @@
 //! Golden outputs of the run loop: a small slender-body particle run (125 rods with contacts,
 //! a perturbed start, snapshots, VTK and checkpoints every 5 of its 10 steps) and a mean-field
-//! run (8^3, adaptive steps, outputs at t = 0.25/0.5 to t = 1) write exactly the files they
-//! wrote before the run loop was made generic (hashes of every file but the log, the
-//! particle time series without its wall-clock column), fresh and when resumed from the
-//! mid-run checkpoints that the old code wrote (tests/data/golden/{particle,meanfield}: each
-//! run's directory as it stood just after its mid-run checkpoint).
-//!
-//! Since then the particle config gained `diameter` (the rod diameter, a run parameter) and
-//! `device` (where the sums' Fourier part runs): the fresh run's config.toml has them, every
-//! other file is unchanged.
+//! run (8^3, adaptive steps, outputs at t = 0.25/0.5 to t = 1) write exactly the files whose
+//! hashes are recorded here (every file but the log, the particle time series without its
+//! wall-clock column), fresh and when resumed from mid-run checkpoints kept in
+//! tests/data/golden/{particle,meanfield} (each run's directory as it stood just after its
+//! mid-run checkpoint, written by an earlier format of the config: without the `diameter` and
+//! `device` keys). A change that moves any bit of these outputs fails here; one that must,
+//! records the new hashes and says why in its commit.
 //!
 //! The hashes were recorded on x86_64 with AVX2 and FMA (rustfft and the compiler's vector
 //! code choose their kernels at run time); on a machine with other vector units the test
@@ -40,16 +38,10 @@ const PARTICLE: [(&str, u64); 15] = [
     ("vtk/rods_000001.vtp", 0x5743968c092134b2),
     ("vtk/rods_000002.vtp", 0x9bf88dc555aacd8e),
 ];
-/// config.toml of the particle run as the code before the rod diameter became a run parameter
-/// wrote it (no `diameter` key): a run resumed from tests/data/golden keeps that file, and every
-/// other file it writes is the same as before.
+/// config.toml of the particle run in the format of tests/data/golden (no `diameter` key): a
+/// run resumed from there keeps that file, and every other file it writes is the fresh run's.
 const PARTICLE_CONFIG_BEFORE_DIAMETER: u64 = 0xcb6a1b2e4109c3c8;
-/// The same for the mean-field run, recorded after the closed-form eigen-decomposition, the
-/// lab-frame contraction and the deterministic parallel sums (issue 18) changed its round-off;
-/// its config.toml has the `device` key since. Recorded again when the Stokes fixed point's
-/// warm start gained the flow of Q's change (issue 29: one iteration fewer per step, the
-/// results within the fixed point's tolerance: `||u||_2` within 1.4e-10 of the old code's over
-/// the paper's case at 32^3 to t = 40; the end-of-run diagnostics start from the same guess).
+/// The same for the mean-field run (config.toml with the `device` key).
 const MEANFIELD: [(&str, u64); 11] = [
     ("checkpoints/ckpt_000000000.h5", 0x41601fb6bdd7c0e8),
     ("checkpoints/ckpt_000000000.h5.crc32", 0xef17168d2178a150),
@@ -234,13 +226,12 @@ fn series_difference(a: &Path, b: &Path) -> (f64, String) {
     worst
 }
 
-/// The mean-field run's files are pinned fresh. Resumed from the mid-run checkpoint that the
-/// code before the run loop was shared wrote (tests/data/golden/meanfield, also before the
-/// round-off changes of issue 18), the run reads it and ends where the fresh run ends: its
-/// time series agrees with the fresh one to 1e-10 of each column's scale, the last snapshot's
-/// Q to 1e-12 (measured: 2.8e-14 and 5.6e-17, with the same fixed-point iteration counts,
-/// before the warm start of issue 29; since, 9.5e-13 and 3.3e-15, the iteration counts of the
-/// old rows being the old code's and not compared).
+/// The mean-field run's files are pinned fresh. Resumed from the mid-run checkpoint in
+/// tests/data/golden/meanfield (written with another round-off: before the closed-form
+/// eigen-decomposition and the fixed point's warm start), the run reads it and ends where the
+/// fresh run ends: its time series agrees with the fresh one to 1e-10 of each column's scale,
+/// the last snapshot's Q to 1e-12 (measured 9.5e-13 and 3.3e-15; the iteration counts of the
+/// checkpoint's rows are not compared).
 #[test]
 fn meanfield_run_writes_the_golden_files_fresh_and_resumed_from_an_old_checkpoint() {
     if !same_cpu_as_recorded() {

@@ -55,7 +55,7 @@ fn plane_wave_run_grows_at_the_linear_rate_and_is_analysed() {
 }
 
 /// The outputs due at t_end are written: the last diagnostic row and the last snapshot are at
-/// t_end (they used to stop one interval early, so a short run's "second half" held one
+/// t_end (not one interval early, which would leave a short run's "second half" one
 /// snapshot), and the final checkpoint too.
 #[test]
 fn a_short_run_writes_its_final_state() {

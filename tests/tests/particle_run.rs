@@ -286,7 +286,7 @@ fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
     };
     run_particle(&cfg, &dir.path().join("second"), false).unwrap();
     // So is its last snapshot, after steps at nu = 5: rods in contact and within the overlap
-    // tolerance (the check used to demand distances of at least the diameter less 1e-9).
+    // tolerance (not at distances of at least the diameter less 1e-9, which contacts break).
     let dense = dir.path().join("dense");
     run_particle(&small(), &dense, false).unwrap();
     let last = dense.join("snapshots/snap_000002.h5");

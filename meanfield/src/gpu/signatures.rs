@@ -160,8 +160,8 @@ mod tests {
     /// keeps no stack (`motile_gpu::frontend`), those named apart.
     ///
     /// `closure_field` keeps a small stack (40 bytes per thread by the H100's ptxas, more by
-    /// clang's): the mean-field step's memory was measured with it (issue 29: 9.89 GB at
-    /// 256^3, the target 10).
+    /// clang's): the mean-field step's memory on a GPU (9.89 GB at 256^3, BENCHMARKS.md) is
+    /// with it.
     #[test]
     fn the_kernels_compile_for_a_device_without_a_stack() {
         let said = motile_gpu::frontend::check_set_in_test(&super::KERNELS, &["closure_field"]);
