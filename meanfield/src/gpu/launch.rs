@@ -718,7 +718,7 @@ mod tests {
     use crate::gpu::signatures::KERNELS;
     use crate::gpu::work::device_bytes;
     use crate::solver::grid::SpectralGrid;
-    use motile_gpu::{Backend, Device, GpuError};
+    use motile_gpu::{Backend, Device};
 
     /// The buffers allocated on the host emulation take the bytes `device_bytes` counts, at a
     /// few small grids.
