@@ -3,7 +3,7 @@
 //! it is off. (Its own test binary: profiling is a switch for the whole process.)
 #![allow(unsafe_code)]
 
-use motile_gpu::{Backend, Buffer, Device, Direction, GpuError, profile};
+use motile_gpu::{Backend, Buffer, Device, Direction, profile};
 
 motile_gpu::kernels! {
     /// The test kernel.
