@@ -3,6 +3,7 @@
 
 use crate::buffer::{Data, Element};
 use crate::error::{DeviceInfo, GpuError};
+use crate::fft::Direction;
 use crate::kernel::{Arg, THREADS};
 use cudarc::cufft::{CudaFft, sys::cufftType, sys::double2};
 use cudarc::driver::{
@@ -184,14 +185,19 @@ impl Cuda {
             .map_err(driver)
     }
 
-    /// cuFFT plans of `batch` transforms of `m^3` grids, forward (D2Z) and/or inverse (Z2D).
+    /// cuFFT plans of `batch` transforms of `m^3` grids, forward (D2Z) and/or inverse (Z2D),
+    /// as `direction` asks.
     pub(crate) fn fft3(
         &self,
         m: usize,
         batch: usize,
-        (forward, inverse): (bool, bool),
+        direction: Direction,
         in_place: bool,
-    ) -> Result<(Option<CudaFft>, Option<CudaFft>, bool), GpuError> {
+    ) -> Result<(Option<CudaFft>, Option<CudaFft>), GpuError> {
+        let (forward, inverse) = (
+            direction != Direction::Inverse,
+            direction != Direction::Forward,
+        );
         let int = |v: usize, what: &str| {
             i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds cuFFT's int")))
         };
@@ -199,12 +205,9 @@ impl Cuda {
         let real = int(m * m * m, "grid points")?;
         let half = int(m * m * (m / 2 + 1), "half-spectrum size")?;
         // In place: each field's real values padded to rows of 2 (m/2 + 1), its half spectrum
-        // over them (cuFFT's layout for in-place real transforms). How the plan describes it
-        // (`in_place_layout`): the layout given (embed), cuFFT's default for in-place
-        // execution (basic), or one field per plan, executed once per field (single).
-        let layout = in_place_layout();
-        let per_field = in_place && layout == "single";
-        let b = int(if per_field { 1 } else { batch }, "batch")?;
+        // over them (cuFFT's layout for in-place real transforms), the padded dimensions given
+        // to the plan.
+        let b = int(batch, "batch")?;
         let padded = int(2 * m * m * (m / 2 + 1), "padded grid values")?;
         let real_embed = [n[0], n[1], int(2 * (m / 2 + 1), "padded row")?];
         let half_embed = [n[0], n[1], int(m / 2 + 1, "half row")?];
@@ -223,9 +226,7 @@ impl Cuda {
             )
             .map_err(fft)
         };
-        let (real, half) = if in_place && layout == "basic" {
-            ((None, padded), (None, half))
-        } else if in_place {
+        let (real, half) = if in_place {
             (
                 (Some(&real_embed[..]), padded),
                 (Some(&half_embed[..]), half),
@@ -244,46 +245,34 @@ impl Cuda {
             } else {
                 None
             },
-            per_field,
         ))
     }
 
     /// An in-place batch of `plan` over `len` values of `buf` from `at` (the padded fields,
-    /// or their spectra): forward (D2Z) or inverse (Z2D), `step` values per execution (the
-    /// whole batch, or one field for a plan of one field).
+    /// or their spectra): forward (D2Z) or inverse (Z2D).
     pub(crate) fn fft_in_place(
         &self,
         plan: Option<&CudaFft>,
         buf: &mut CudaSlice<f64>,
-        (at, len, step): (usize, usize, usize),
+        at: usize,
+        len: usize,
         forward: bool,
     ) -> Result<(), GpuError> {
         let plan = plan.ok_or_else(|| GpuError::Input("no plan for this direction".into()))?;
-        for from in (at..at + len).step_by(step) {
-            let mut view = buf.slice_mut(from..from + step);
-            let (ptr, _record) = view.device_ptr_mut(&self.stream);
-            // SAFETY: the plan was made for in-place transforms of `step / field` padded
-            // fields (fft3 with in_place), exactly `step` values from `from` inside the
-            // caller's checked range; the pointer is this view's, valid while `_record`
-            // lives, on the plan's stream; an even f64 offset keeps double2's alignment.
-            unsafe {
-                if forward {
-                    cudarc::cufft::result::exec_d2z(
-                        plan.handle(),
-                        ptr as *mut f64,
-                        ptr as *mut double2,
-                    )
-                } else {
-                    cudarc::cufft::result::exec_z2d(
-                        plan.handle(),
-                        ptr as *mut double2,
-                        ptr as *mut f64,
-                    )
-                }
+        let mut view = buf.slice_mut(at..at + len);
+        let (ptr, _record) = view.device_ptr_mut(&self.stream);
+        // SAFETY: the plan was made for in-place transforms of the batch's padded fields
+        // (fft3 with in_place), exactly `len` values from `at` inside the caller's checked
+        // range; the pointer is this view's, valid while `_record` lives, on the plan's
+        // stream; an even f64 offset keeps double2's alignment.
+        unsafe {
+            if forward {
+                cudarc::cufft::result::exec_d2z(plan.handle(), ptr as *mut f64, ptr as *mut double2)
+            } else {
+                cudarc::cufft::result::exec_z2d(plan.handle(), ptr as *mut double2, ptr as *mut f64)
             }
-            .map_err(fft)?;
         }
-        Ok(())
+        .map_err(fft)
     }
 
     /// # Safety
@@ -330,18 +319,6 @@ impl Cuda {
     }
 }
 
-/// How in-place plans describe their padded layout, from `MOTILE_CUFFT_IN_PLACE`: `embed`
-/// (the default: the padded dimensions given), `basic` (none given: cuFFT's own in-place
-/// layout, the same memory) or `single` (a plan of one field, run once per field). A
-/// diagnostic for comparing cuFFT's algorithms on a device; the results are the same layout.
-fn in_place_layout() -> String {
-    match std::env::var("MOTILE_CUFFT_IN_PLACE").as_deref() {
-        Ok("basic") => "basic".into(),
-        Ok("single") => "single".into(),
-        _ => "embed".into(),
-    }
-}
-
 /// Bytes of the work area cuFFT holds for `plan` (0 for none).
 pub(crate) fn work_size(plan: Option<&CudaFft>) -> Result<usize, GpuError> {
     match plan {
@@ -351,13 +328,26 @@ pub(crate) fn work_size(plan: Option<&CudaFft>) -> Result<usize, GpuError> {
     }
 }
 
-/// The batch of forward transforms of a plan: `len` real values from `real_at`, into the
-/// half spectra from `spectra_at` (`2 half` values).
+/// What one execution of a plan covers: its batch's real values and half-spectrum values.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BatchSizes {
+    /// `f64` values of the batch's real fields.
+    pub(crate) real: usize,
+    /// Complex values of the batch's half spectra (`2 half` values of `f64`).
+    pub(crate) half: usize,
+}
+
+/// The batch of forward transforms of a plan: `sizes.real` real values from `real_at`, into
+/// the half spectra from `spectra_at` (`2 sizes.half` values).
 pub(crate) fn forward(
     plan: &CudaFft,
-    (real, real_at, len): (&CudaSlice<f64>, usize, usize),
-    (spectra, spectra_at, half): (&mut CudaSlice<f64>, usize, usize),
+    real: &CudaSlice<f64>,
+    real_at: usize,
+    spectra: &mut CudaSlice<f64>,
+    spectra_at: usize,
+    sizes: BatchSizes,
 ) -> Result<(), GpuError> {
+    let BatchSizes { real: len, half } = sizes;
     let src = real.slice(real_at..real_at + len);
     let mut dst = spectra.slice_mut(spectra_at..spectra_at + 2 * half);
     // SAFETY: double2 is two f64 (no padding, the alignment of an f64 pair: the offsets are
@@ -370,9 +360,13 @@ pub(crate) fn forward(
 /// The batch of inverse transforms of a plan (the spectra are overwritten), as [`forward`].
 pub(crate) fn inverse(
     plan: &CudaFft,
-    (spectra, spectra_at, half): (&mut CudaSlice<f64>, usize, usize),
-    (real, real_at, len): (&mut CudaSlice<f64>, usize, usize),
+    spectra: &mut CudaSlice<f64>,
+    spectra_at: usize,
+    real: &mut CudaSlice<f64>,
+    real_at: usize,
+    sizes: BatchSizes,
 ) -> Result<(), GpuError> {
+    let BatchSizes { real: len, half } = sizes;
     let mut src = spectra.slice_mut(spectra_at..spectra_at + 2 * half);
     let mut dst = real.slice_mut(real_at..real_at + len);
     // SAFETY: as in `forward`.
@@ -384,8 +378,10 @@ pub(crate) fn inverse(
 /// Copy `len` values of `src` from `src_at` into `dst` from `dst_at`.
 pub(crate) fn copy<T: Element>(
     c: &Cuda,
-    (src, src_at): (&CudaSlice<T>, usize),
-    (dst, dst_at): (&mut CudaSlice<T>, usize),
+    src: &CudaSlice<T>,
+    src_at: usize,
+    dst: &mut CudaSlice<T>,
+    dst_at: usize,
     len: usize,
 ) -> Result<(), GpuError> {
     let from = src.slice(src_at..src_at + len);

@@ -307,7 +307,7 @@ impl Device {
                 }
                 #[cfg(feature = "cuda")]
                 (Inner::Cuda(c), Data::Cuda(a), Data::Cuda(b)) => {
-                    cuda::copy(c, (a, src_at), (b, dst_at), len)
+                    cuda::copy(c, a, src_at, b, dst_at, len)
                 }
                 #[allow(unreachable_patterns)]
                 _ => Err(GpuError::foreign()),

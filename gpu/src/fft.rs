@@ -42,9 +42,6 @@ enum FftInner {
     Cuda {
         forward: Option<cudarc::cufft::CudaFft>,
         inverse: Option<cudarc::cufft::CudaFft>,
-        /// In place, a plan of one field, run once per field (`MOTILE_CUFFT_IN_PLACE=single`,
-        /// read when the plan was made).
-        per_field: bool,
     },
 }
 
@@ -142,25 +139,10 @@ impl Device {
             ),
             #[cfg(feature = "cuda")]
             Inner::Cuda(c) => {
-                let (forward, inverse, per_field) = c.fft3(
-                    m,
-                    batch,
-                    (
-                        direction != Direction::Inverse,
-                        direction != Direction::Forward,
-                    ),
-                    in_place,
-                )?;
+                let (forward, inverse) = c.fft3(m, batch, direction, in_place)?;
                 let work = crate::cuda::work_size(forward.as_ref())?
                     + crate::cuda::work_size(inverse.as_ref())?;
-                (
-                    FftInner::Cuda {
-                        forward,
-                        inverse,
-                        per_field,
-                    },
-                    work,
-                )
+                (FftInner::Cuda { forward, inverse }, work)
             }
         };
         WORK.fetch_add(work, Ordering::Relaxed);
@@ -180,10 +162,12 @@ impl Device {
     pub fn forward(
         &self,
         plan: &Fft3,
-        (real, real_at): (&Buffer, usize),
-        (spectra, spectra_at): (&mut Buffer, usize),
+        real: &Buffer,
+        real_at: usize,
+        spectra: &mut Buffer,
+        spectra_at: usize,
     ) -> Result<(), GpuError> {
-        check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        check_fft(plan, real.len, real_at, spectra.len, spectra_at)?;
         if plan.in_place {
             return Err(GpuError::Input(
                 "an out-of-place transform with an in-place plan".into(),
@@ -220,7 +204,13 @@ impl Device {
                     },
                     Data::Cuda(x),
                     Data::Cuda(y),
-                ) => cuda::forward(forward, (x, real_at, n), (y, spectra_at, plan.batch * s)),
+                ) => {
+                    let sizes = cuda::BatchSizes {
+                        real: n,
+                        half: plan.batch * s,
+                    };
+                    cuda::forward(forward, x, real_at, y, spectra_at, sizes)
+                }
                 #[allow(unreachable_patterns)]
                 _ => {
                     let _ = n;
@@ -236,10 +226,12 @@ impl Device {
     pub fn inverse(
         &self,
         plan: &Fft3,
-        (spectra, spectra_at): (&mut Buffer, usize),
-        (real, real_at): (&mut Buffer, usize),
+        spectra: &mut Buffer,
+        spectra_at: usize,
+        real: &mut Buffer,
+        real_at: usize,
     ) -> Result<(), GpuError> {
-        check_fft(plan, (real.len, real_at), (spectra.len, spectra_at))?;
+        check_fft(plan, real.len, real_at, spectra.len, spectra_at)?;
         if plan.in_place {
             return Err(GpuError::Input(
                 "an out-of-place transform with an in-place plan".into(),
@@ -275,7 +267,13 @@ impl Device {
                     },
                     Data::Cuda(y),
                     Data::Cuda(x),
-                ) => cuda::inverse(inverse, (y, spectra_at, plan.batch * s), (x, real_at, n)),
+                ) => {
+                    let sizes = cuda::BatchSizes {
+                        real: n,
+                        half: plan.batch * s,
+                    };
+                    cuda::inverse(inverse, y, spectra_at, x, real_at, sizes)
+                }
                 #[allow(unreachable_patterns)]
                 _ => {
                     let _ = n;
@@ -293,9 +291,10 @@ impl Device {
     pub fn forward_in_place(
         &self,
         plan: &Fft3,
-        (buf, at): (&mut Buffer, usize),
+        buf: &mut Buffer,
+        at: usize,
     ) -> Result<(), GpuError> {
-        self.in_place(plan, (buf, at), true)
+        self.in_place(plan, buf, at, true)
     }
 
     /// Inverse transforms (unnormalised) of the batch of half spectra at `buf[at..]` into
@@ -303,19 +302,21 @@ impl Device {
     pub fn inverse_in_place(
         &self,
         plan: &Fft3,
-        (buf, at): (&mut Buffer, usize),
+        buf: &mut Buffer,
+        at: usize,
     ) -> Result<(), GpuError> {
-        self.in_place(plan, (buf, at), false)
+        self.in_place(plan, buf, at, false)
     }
 
     fn in_place(
         &self,
         plan: &Fft3,
-        (buf, at): (&mut Buffer, usize),
+        buf: &mut Buffer,
+        at: usize,
         forward: bool,
     ) -> Result<(), GpuError> {
         let len = plan.padded_len();
-        if !plan.in_place || at + len > buf.len || at % 2 != 0 {
+        if !plan.in_place || at + len > buf.len || !at.is_multiple_of(2) {
             return Err(GpuError::Input(format!(
                 "in-place FFT of {} grids of {}^3 needs an in-place plan and {len} values from \
                  {at} (even); the buffer holds {}",
@@ -358,23 +359,13 @@ impl Device {
                 FftInner::Cuda {
                     forward: f,
                     inverse: i,
-                    per_field,
                 },
                 Data::Cuda(x),
-            ) => {
-                let step = if *per_field {
-                    plan.padded_field_len()
-                } else {
-                    len
-                };
-                match (&self.inner, forward) {
-                    (Inner::Cuda(c), true) => c.fft_in_place(f.as_ref(), x, (at, len, step), true),
-                    (Inner::Cuda(c), false) => {
-                        c.fft_in_place(i.as_ref(), x, (at, len, step), false)
-                    }
-                    _ => Err(GpuError::foreign()),
-                }
-            }
+            ) => match (&self.inner, forward) {
+                (Inner::Cuda(c), true) => c.fft_in_place(f.as_ref(), x, at, len, true),
+                (Inner::Cuda(c), false) => c.fft_in_place(i.as_ref(), x, at, len, false),
+                _ => Err(GpuError::foreign()),
+            },
             #[allow(unreachable_patterns)]
             _ => Err(GpuError::foreign()),
         })
@@ -410,14 +401,18 @@ fn host_in_place(fft: &motile_analysis::fft3::RealFft3, plan: &Fft3, x: &mut [f6
     }
 }
 
+/// An out-of-place batch of `plan` fits: its real values from `real_at` in a buffer of `real`
+/// values, its spectra from `complex_at` (even) in one of `complex`.
 fn check_fft(
     plan: &Fft3,
-    (real, real_at): (usize, usize),
-    (complex, complex_at): (usize, usize),
+    real: usize,
+    real_at: usize,
+    complex: usize,
+    complex_at: usize,
 ) -> Result<(), GpuError> {
     if real_at + plan.real_len() > real
         || complex_at + plan.complex_len() > complex
-        || complex_at % 2 != 0
+        || !complex_at.is_multiple_of(2)
     {
         return Err(GpuError::Input(format!(
             "FFT of {} grids of {}^3 needs {} real values from {real_at} and {} complex-pair \
