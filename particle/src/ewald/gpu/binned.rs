@@ -1,22 +1,19 @@
 //! Binned spreading and gathering, as cuFINUFFT's: the points sorted into bins of grid cells on
 //! the device (a counting sort: each point's bin and rank by an integer atomic, the bins'
 //! starts by a prefix sum, the points scattered into bin order), then
-//! - [`SpreadMethod::Tiles`] (supports up to [`MAX_TILE_SUPPORT`]): one block per bin
-//!   accumulates its points in a shared-memory tile of [`TILE`]^3 cells per field and adds the
-//!   tile's nonzero cells to the grid once;
-//! - [`SpreadMethod::Sorted`] (wider supports, whose tiles would not fit in shared memory): the
-//!   per-point global-memory spreader run in bin order, so that a warp's threads add to
-//!   neighbouring cells;
+//! - [`SpreadMethod::Sorted`]: the per-point global-memory spreader run in bin order, so that
+//!   a warp's threads add to neighbouring cells;
 //! - [`SpreadMethod::Cells`] (the default at every support): output-driven, no atomics. One
 //!   block per bin of [`CELL_BIN`]^3 grid points sums, for each of its cells, every point whose
 //!   window covers it, from the bins below it that its points' windows can reach (bins are by
 //!   the window's first index), taken as one list and staged chunk by chunk in shared memory
 //!   (two barriers per chunk of 64 points), each bin's points in
 //!   ascending order (`bin_order` after the scatter). Each grid value is written once, in the
-//!   same order in every run: the spread repeats bit for bit on a GPU. The H100 measured the
-//!   tiles at 4-5 points per bin at the particle sums' densities (0.03-0.1 points per grid
-//!   point), where zeroing and flushing a tile costs more than its points, and the global
-//!   atomics of the others at 1.3-2.7e10 per second (BENCHMARKS.md);
+//!   same order in every run: the spread repeats bit for bit on a GPU. At the particle sums'
+//!   densities (0.03-0.1 points per grid point) a shared-memory tile per bin (cuFINUFFT's
+//!   "SM" method) holds 4-5 points, fewer than it costs to zero and flush, and the global
+//!   atomics of the per-point spreaders run at 1.3-2.7e10 per second on an H100
+//!   (BENCHMARKS.md);
 //!
 //! and the gather runs over the points in bin order for either. The points of one generation
 //! (one GMRES solve) are sorted once. [`SpreadMethod::Atomic`], the per-point spreader in the
@@ -27,16 +24,10 @@
 
 use crate::ewald::gpu::launch::{Geometry, padded_field};
 use crate::ewald::gpu::signatures::{
-    BinCount, BinOrder, BinScatter, GatherSorted, SpreadCells, SpreadSorted, SpreadTiles,
+    BinCount, BinOrder, BinScatter, GatherSorted, SpreadCells, SpreadSorted,
 };
+use crate::ewald::gpu::{Fields, Points};
 use motile_gpu::{Buffer, Device, GpuError, THREADS};
-
-/// Tile edge (grid cells) of the shared-memory spreader: `TILE` in `kernels.cu`.
-pub const TILE: usize = 12;
-
-/// The widest support the tiles take: a bin is `TILE + 1 - p` cells wide, at least 4 (the
-/// RPY sum's support is 8-9 at 1e-4, 15-16 at 1e-8).
-pub const MAX_TILE_SUPPORT: usize = 9;
 
 /// Bin edge of the sorted global-memory spreader (for locality only).
 const SORTED_BIN: usize = 8;
@@ -64,8 +55,6 @@ pub fn cell_bin(p: usize, m: usize) -> usize {
 pub enum SpreadMethod {
     /// One thread per point in the points' own order, global atomic adds: the slow twin.
     Atomic,
-    /// Points sorted into bins, each bin accumulated in a shared-memory tile.
-    Tiles,
     /// Points sorted into bins, the global-memory spreader in bin order.
     Sorted,
     /// Points sorted into bins, each bin's cells summed from the points that reach them.
@@ -75,30 +64,14 @@ pub enum SpreadMethod {
 impl SpreadMethod {
     /// The method for support `p`: the output-driven [`SpreadMethod::Cells`] at every support
     /// (its shared memory holds a chunk of points, not a tile of the grid, so it has no
-    /// support limit; the tiles and the sorted global-memory spreader stay selectable).
+    /// support limit; the sorted global-memory spreader stays selectable).
     pub fn for_support(_p: usize) -> Self {
         Self::Cells
-    }
-
-    /// The method `MOTILE_GPU_SPREAD` names (`cells`, `tiles`, `sorted`, `atomic`), `None`
-    /// where it is unset or empty; any other value is an error naming the allowed ones.
-    pub fn from_env() -> Result<Option<Self>, GpuError> {
-        match std::env::var("MOTILE_GPU_SPREAD").as_deref() {
-            Err(_) | Ok("") => Ok(None),
-            Ok("cells") => Ok(Some(Self::Cells)),
-            Ok("tiles") => Ok(Some(Self::Tiles)),
-            Ok("sorted") => Ok(Some(Self::Sorted)),
-            Ok("atomic") => Ok(Some(Self::Atomic)),
-            Ok(other) => Err(GpuError::Input(format!(
-                "MOTILE_GPU_SPREAD = \"{other}\": allowed \"cells\" (the default), \"tiles\", \"sorted\" or \"atomic\""
-            ))),
-        }
     }
 
     /// Bin edge (grid cells) for support `p` on a grid of `m`.
     pub(super) fn bin_edge(self, p: usize, m: usize) -> usize {
         match self {
-            Self::Tiles => TILE + 1 - p,
             Self::Cells => cell_bin(p, m),
             _ => SORTED_BIN,
         }
@@ -129,21 +102,7 @@ pub(crate) struct Bins {
     start: Buffer<i32>,
 }
 
-use motile_gpu::kernel_int as int;
-
-fn check<T: motile_gpu::Element>(
-    what: &str,
-    b: &Buffer<T>,
-    at_least: usize,
-) -> Result<(), GpuError> {
-    if b.len() < at_least {
-        return Err(GpuError::Input(format!(
-            "{what}: {} values where the kernel reads or writes {at_least}",
-            b.len()
-        )));
-    }
-    Ok(())
-}
+use motile_gpu::{check_len as check, kernel_int as int};
 
 /// Sort the `n` points `pts` into bins for `method` (not [`SpreadMethod::Atomic`]).
 pub(crate) fn sort(
@@ -251,11 +210,12 @@ pub(crate) fn spread(
     dev: &Device,
     geo: &Geometry,
     bins: &Bins,
-    pts: &Buffer,
-    vals: &Buffer,
+    points: Points<'_>,
+    fields: Fields<'_>,
     grid: &mut Buffer,
-    (n, nf): (usize, usize),
 ) -> Result<(), GpuError> {
+    let Points { pos: pts, n } = points;
+    let Fields { vals, nf } = fields;
     let (p, method) = (geo.window.p, bins.method);
     let (m, b) = (geo.m, method.bin_edge(p, geo.m));
     assert_eq!(bins.key, (m, p, b), "bins of this grid, support and method");
@@ -273,45 +233,6 @@ pub(crate) fn spread(
     let w = &geo.window;
     match method {
         SpreadMethod::Atomic => unreachable!("the atomic spreader has no bins"),
-        SpreadMethod::Tiles => {
-            assert!(
-                p <= MAX_TILE_SUPPORT,
-                "tiles take supports up to {MAX_TILE_SUPPORT}"
-            );
-            let nbins = bins.nb.pow(3);
-            for f0 in (0..nf).step_by(3) {
-                // SAFETY: block k < nbins (nbins THREADS threads launched) reads start[k],
-                // start[k + 1] (nbins + 1 checked) and perm[j] for j between them (< n,
-                // checked), points and values of i = perm[j] < n (3 n and nf n checked); its
-                // tile indices o + q < (b - 1) + p = TILE (b = TILE + 1 - p, p <= 9 asserted),
-                // its grid indices reduced into 0..m per axis, fields f0 + c < nf (nf
-                // padded_field(m) checked).
-                unsafe {
-                    dev.launch(
-                        nbins * THREADS as usize,
-                        SpreadTiles {
-                            pts,
-                            vals,
-                            perm: &bins.perm,
-                            start: &bins.start,
-                            grid,
-                            n: ni,
-                            f0: f0 as i32,
-                            nf: (nf - f0).min(3) as i32,
-                            m: mi,
-                            p: pi,
-                            l: geo.l,
-                            h: w.h,
-                            alpha: w.alpha,
-                            norm: w.norm,
-                            b: b as i32,
-                            nb: bins.nb as i32,
-                        },
-                    )?;
-                }
-            }
-            Ok(())
-        }
         SpreadMethod::Cells => {
             assert_eq!(
                 THREADS, 256,
@@ -388,11 +309,12 @@ pub(crate) fn gather(
     dev: &Device,
     geo: &Geometry,
     bins: &Bins,
-    pts: &Buffer,
+    points: Points<'_>,
     grid: &Buffer,
     out: &mut Buffer,
-    (n, gradient): (usize, bool),
+    gradient: bool,
 ) -> Result<(), GpuError> {
+    let Points { pos: pts, n } = points;
     let (m, p) = (geo.m, geo.window.p);
     assert!(
         p <= 24 && p <= m,

@@ -233,15 +233,35 @@ pub(super) struct PointOutputs<'a> {
     pub(super) weighted: &'a mut Buffer,
 }
 
+/// Stresslets of one strength for [`stresslet_real_points`]: their orientations (3 per point,
+/// cell order), the strength, and the table's splitting and direct range.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct OneStrength<'a> {
+    /// Orientations, 3 per point in cell order.
+    pub(super) orient: &'a Buffer,
+    /// The strength of every stresslet.
+    pub(super) sigma: f64,
+    /// The splitting parameter.
+    pub(super) xi: f64,
+    /// The direct range of the table.
+    pub(super) r_direct: f64,
+}
+
 /// The real-space sum of stresslets of one strength `sigma` with orientations `orient` (cell
 /// order), the splitting `xi` and the direct range `r_direct`, written straight to the points'
 /// order (no 13-value copy in cell order and no permutation after it, no strength per point).
 pub(super) fn stresslet_real_points(
     dev: &Device,
-    (orient, sigma, xi, r_direct): (&Buffer, f64, f64, f64),
+    stresslets: OneStrength<'_>,
     r: &RealSpace<'_>,
     out: PointOutputs<'_>,
 ) -> Result<(), GpuError> {
+    let OneStrength {
+        orient,
+        sigma,
+        xi,
+        r_direct,
+    } = stresslets;
     let n = r.npts;
     let (npts, ncell, nt) = check_real(5, r, 13)?;
     check("orientations", orient, 3 * n)?;

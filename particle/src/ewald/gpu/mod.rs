@@ -18,8 +18,8 @@
 //!
 //! Spreading sorts the points into bins on the device and sums each bin's grid values from the
 //! points that reach them, without atomics, in the same order in every run (`binned.rs`, the
-//! default; the shared-memory tiles, the global-memory spreader in bin order and the per-point
-//! atomic spreader in the points' order stay selectable, the last as the slow twin). With the
+//! default; the global-memory spreader in bin order and the per-point atomic spreader in the
+//! points' order stay selectable, the last as the slow twin). With the
 //! default the sums repeat bit for bit on a GPU; with the atomic spreaders the last bits vary
 //! from run to run.
 
@@ -31,11 +31,12 @@ mod scan;
 mod signatures;
 mod work;
 
-pub use binned::{CELL_BIN, CELL_BIN_MAX, MAX_TILE_SUPPORT, SpreadMethod, TILE, cell_bin};
+pub use binned::{CELL_BIN, CELL_BIN_MAX, SpreadMethod, cell_bin};
 pub(crate) use launch::Geometry;
 pub use launch::STRESSLET_FIELDS;
+pub use resident::{OrientedPoints, PointForces};
 pub(crate) use scan::prefix_sum;
-pub use work::{PhaseWork, work_model};
+pub use work::{FourierPart, PhaseWork, work_model};
 
 use crate::ewald::gpu::signatures::KERNELS;
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
@@ -78,6 +79,54 @@ struct Grid {
     inverse3: Fft3,
 }
 
+/// `n` points on the device (triples).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Points<'a> {
+    /// The positions, `3 n` values.
+    pub(crate) pos: &'a Buffer,
+    /// How many points.
+    pub(crate) n: usize,
+}
+
+/// Values spread from the points: `nf` fields, field-major (`nf n` values).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Fields<'a> {
+    /// The values.
+    pub(crate) vals: &'a Buffer,
+    /// How many fields.
+    pub(crate) nf: usize,
+}
+
+/// Which Fourier part a sum takes: the multiplication of the spectra, and whether the gather
+/// adds the gradients (12 values per point instead of 3).
+#[derive(Clone, Copy, Debug)]
+struct FourierKind {
+    /// The multiplication of the spectra.
+    modes: launch::Modes,
+    /// Whether the gather adds the gradients.
+    gradient: bool,
+}
+
+/// How far a real-space sum reaches, and the range of its error model.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RealSpaceReach {
+    /// The cutoff: pairs farther apart are left to the Fourier part.
+    pub(crate) cutoff: f64,
+    /// The error model's range `r0`.
+    pub(crate) error_range: f64,
+}
+
+/// A real-space kernel's table as the device reads it.
+#[derive(Clone, Copy, Debug)]
+struct TableParts<'a> {
+    /// The tabulated values.
+    values: &'a [f64],
+    /// Nodes of the table.
+    nodes: usize,
+    /// The inverse of the node spacing.
+    inv_h: f64,
+}
+
 /// `nf` spread fields and their in-place forward plan: each field's real values in cuFFT's
 /// padded layout (`x` rows of `2 (m/2 + 1)` values), its half spectrum over them, so a sum
 /// holds one grid per field (`2 m m (m/2 + 1)` values).
@@ -89,13 +138,8 @@ pub(crate) struct Input {
 
 impl GpuFourier {
     /// The device `backend` names, with the kernels compiled: [`GpuError::NoDevice`] where
-    /// there is none.
-    ///
-    /// `MOTILE_GPU_SPREAD` (`cells`, `tiles`, `sorted` or `atomic`; unset or empty for the
-    /// default choice) picks the spreading method for every sum of the process: for comparing
-    /// the spreaders in whole runs, and for runs on the host emulation, whose threaded blocks
-    /// (an OS thread per GPU thread, a condition-variable barrier) make the output-driven
-    /// spreader's many small blocks slow there. Any other value is an error naming these.
+    /// there is none. It spreads with [`SpreadMethod::for_support`]'s choice until
+    /// [`Self::set_spread_method`] says otherwise.
     pub fn open(backend: Backend) -> Result<Self, GpuError> {
         Ok(Self {
             dev: Device::open(backend, &KERNELS)?,
@@ -103,7 +147,7 @@ impl GpuFourier {
             points: None,
             cells: None,
             bins: None,
-            method: SpreadMethod::from_env()?,
+            method: None,
         })
     }
 
@@ -113,7 +157,9 @@ impl GpuFourier {
     }
 
     /// Spread with `method` from now on, or (`None`) with [`SpreadMethod::for_support`]'s
-    /// choice: for tests and benchmarks that compare the spreaders.
+    /// choice: for tests and benchmarks that compare the spreaders, and for runs on the host
+    /// emulation, whose threaded blocks (an OS thread per GPU thread, a condition-variable
+    /// barrier) make the output-driven spreader's many small blocks slow there.
     pub fn set_spread_method(&mut self, method: Option<SpreadMethod>) {
         self.method = method;
         self.bins = None;
@@ -126,14 +172,9 @@ impl GpuFourier {
     }
 
     /// The method a sum of support `p` spreads with: the one set, or
-    /// [`SpreadMethod::for_support`]'s; tiles asked for a support wider than
-    /// [`MAX_TILE_SUPPORT`] spread sorted (their tile would not fit in shared memory).
+    /// [`SpreadMethod::for_support`]'s.
     pub fn spread_method(&self, p: usize) -> SpreadMethod {
-        match self.method {
-            Some(SpreadMethod::Tiles) if p > MAX_TILE_SUPPORT => SpreadMethod::Sorted,
-            Some(m) => m,
-            None => SpreadMethod::for_support(p),
-        }
+        self.method.unwrap_or_else(|| SpreadMethod::for_support(p))
     }
 
     /// What the device is.
@@ -178,10 +219,11 @@ impl GpuFourier {
         &mut self,
         generation: u64,
         geo: &Geometry,
-        pts: &Buffer,
-        n: usize,
-        (vals, nf): (&Buffer, usize),
+        points: Points<'_>,
+        fields: Fields<'_>,
     ) -> Result<(), GpuError> {
+        let Points { pos: pts, n } = points;
+        let Fields { vals, nf } = fields;
         self.grid(geo.m, nf)?;
         let method = self.spread_method(geo.window.p);
         let bins = match method {
@@ -199,10 +241,10 @@ impl GpuFourier {
         }
         match &bins {
             None => launch::spread(dev, geo, pts, vals, &mut input.grids, n, nf)?,
-            Some(b) => binned::spread(dev, geo, b, pts, vals, &mut input.grids, (n, nf))?,
+            Some(b) => binned::spread(dev, geo, b, points, fields, &mut input.grids)?,
         }
         self.bins = bins.map(|b| (generation, b));
-        dev.forward_in_place(&input.plan, (&mut input.grids, 0))
+        dev.forward_in_place(&input.plan, &mut input.grids, 0)
     }
 
     /// The points of `generation` sorted into bins for `method`: the cached sort, or a new one
@@ -238,12 +280,12 @@ impl GpuFourier {
         &mut self,
         generation: u64,
         geo: &Geometry,
-        (pts, n): (&Buffer, usize),
-        (vals, nf): (&Buffer, usize),
-        (which, gradient): (launch::Modes, bool),
+        points: Points<'_>,
+        fields: Fields<'_>,
+        kind: FourierKind,
     ) -> Result<Buffer, GpuError> {
-        self.spread(generation, geo, pts, n, (vals, nf))?;
-        self.fourier_spread(geo, (pts, n), nf, (which, gradient))
+        self.spread(generation, geo, points, fields)?;
+        self.fourier_spread(geo, points, fields.nf, kind)
     }
 
     /// [`Self::fourier`] after its spread (the values of the `nf` fields already on the grid,
@@ -252,10 +294,15 @@ impl GpuFourier {
     fn fourier_spread(
         &mut self,
         geo: &Geometry,
-        (pts, n): (&Buffer, usize),
+        points: Points<'_>,
         nf: usize,
-        (which, gradient): (launch::Modes, bool),
+        kind: FourierKind,
     ) -> Result<Buffer, GpuError> {
+        let Points { pos: pts, n } = points;
+        let FourierKind {
+            modes: which,
+            gradient,
+        } = kind;
         let method = self.spread_method(geo.window.p);
         let g = self.grid.as_mut().expect("spread made it");
         let input = g.inputs[usize::from(nf == STRESSLET_FIELDS)]
@@ -264,12 +311,12 @@ impl GpuFourier {
         let dev = &self.dev;
         launch::modes(dev, geo, which, &mut input.grids)?;
         // The velocity spectra back to the grid, in place.
-        dev.inverse_in_place(&g.inverse3, (&mut input.grids, 0))?;
+        dev.inverse_in_place(&g.inverse3, &mut input.grids, 0)?;
         let mut out = dev.zeros(if gradient { 12 } else { 3 } * n)?;
         let back = &input.grids;
         match (&self.bins, method) {
             (Some((_, b)), m) if m != SpreadMethod::Atomic => {
-                binned::gather(dev, geo, b, pts, back, &mut out, (n, gradient))?;
+                binned::gather(dev, geo, b, points, back, &mut out, gradient)?;
             }
             _ => launch::gather(dev, geo, pts, back, &mut out, n, gradient)?,
         }
@@ -295,9 +342,12 @@ impl GpuFourier {
         let back = self.fourier(
             generation,
             geo,
-            (&pts, n),
-            (&vals, 3),
-            (launch::Modes::Rpy { a }, false),
+            Points { pos: &pts, n },
+            Fields { vals: &vals, nf: 3 },
+            FourierKind {
+                modes: launch::Modes::Rpy { a },
+                gradient: false,
+            },
         )?;
         let out = self.dev.download(&back)?;
         self.points = Some((generation, pts));
@@ -352,9 +402,18 @@ impl GpuFourier {
         generation: u64,
         which: launch::Real<'_>,
         cells: &PointCells,
-        (table, nodes): (&[f64], usize),
-        (cutoff, inv_h, r0): (f64, f64, f64),
+        table: TableParts<'_>,
+        reach: RealSpaceReach,
     ) -> Result<Vec<[f64; K]>, GpuError> {
+        let TableParts {
+            values: table,
+            nodes,
+            inv_h,
+        } = table;
+        let RealSpaceReach {
+            cutoff,
+            error_range: r0,
+        } = reach;
         let n = cells.members.len();
         let cb = self.cells(generation, cells)?;
         let dev = &self.dev;
@@ -386,13 +445,14 @@ impl GpuFourier {
     /// The real-space part of the RPY sum (radius `a`, cutoff and table as the CPU's
     /// [`crate::ewald::spectral::real_space::rpy_real`]) at every point of `cells`: `[u_0, u_1, u_2, e2]`
     /// per point in the points' own order, `e2` the error model's weighted strengths with
-    /// range `r0`.
+    /// the reach's error range.
     pub(crate) fn rpy_real(
         &mut self,
         generation: u64,
         cells: &PointCells,
         table: &RealSpaceTable,
-        (cutoff, a, r0): (f64, f64, f64),
+        reach: RealSpaceReach,
+        a: f64,
         forces: &[Vec3],
     ) -> Result<Vec<[f64; 4]>, GpuError> {
         let (inv_h, nodes, [c, ca, cb], g) = table.parts();
@@ -409,8 +469,12 @@ impl GpuFourier {
                 a,
             },
             cells,
-            (&g, nodes),
-            (cutoff, inv_h, r0),
+            TableParts {
+                values: &g,
+                nodes,
+                inv_h,
+            },
+            reach,
         )
     }
 
@@ -423,8 +487,9 @@ impl GpuFourier {
         generation: u64,
         cells: &PointCells,
         table: &StressletTable,
-        (cutoff, r0): (f64, f64),
-        (p, sigma): (&[Vec3], &[f64]),
+        reach: RealSpaceReach,
+        p: &[Vec3],
+        sigma: &[f64],
     ) -> Result<Vec<[f64; 13]>, GpuError> {
         let (inv_h, nodes, xi, r_direct, g) = table.parts();
         let orient = self.dev.upload(cells.sorted_values(p).as_flattened())?;
@@ -438,8 +503,12 @@ impl GpuFourier {
                 r_direct,
             },
             cells,
-            (&g, nodes),
-            (cutoff, inv_h, r0),
+            TableParts {
+                values: &g,
+                nodes,
+                inv_h,
+            },
+            reach,
         )
     }
 
@@ -475,9 +544,15 @@ impl GpuFourier {
         let back = self.fourier(
             generation,
             geo,
-            (&pts, n),
-            (&vals, STRESSLET_FIELDS),
-            (launch::Modes::Stresslet, true),
+            Points { pos: &pts, n },
+            Fields {
+                vals: &vals,
+                nf: STRESSLET_FIELDS,
+            },
+            FourierKind {
+                modes: launch::Modes::Stresslet,
+                gradient: true,
+            },
         )?;
         let out = self.dev.download(&back)?;
         self.points = Some((generation, pts));

@@ -8,14 +8,14 @@
 //! and decides, as for the CPU's sums, whether the attempt stands.
 #![allow(unsafe_code)]
 
-use super::GpuFourier;
-use motile_gpu::check_len;
 use super::launch::{self, Geometry, STRESSLET_FIELDS};
 use super::signatures::{
     BinOrder, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues, PermuteRows,
     PointCell, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble, StressletValues,
 };
+use super::{Fields, FourierKind, GpuFourier, Points};
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
+use motile_gpu::check_len;
 use motile_gpu::{Buffer, GpuError, kernel_int as int};
 
 /// The point cell list on the device: positions wrapped and in cell order, each one's group,
@@ -39,6 +39,46 @@ pub(crate) struct ResidentStresslets {
     pub(crate) grad: Buffer,
     /// The estimate's reductions per output (velocity, gradient) and chunk.
     pub(crate) reductions: [Vec<[f64; 4]>; 2],
+}
+
+/// Points with axes on the device, triples: stresslets at `centres` oriented along `axes`, or
+/// rods' centres and axes.
+#[derive(Clone, Copy, Debug)]
+pub struct OrientedPoints<'a> {
+    /// The points (rods' centres), 3 per point.
+    pub centres: &'a Buffer,
+    /// The unit axes, 3 per point.
+    pub axes: &'a Buffer,
+}
+
+/// Points and the forces on them on the device: the forces as triples, and again field-major.
+#[derive(Clone, Copy, Debug)]
+pub struct PointForces<'a> {
+    /// The points, 3 per point.
+    pub points: &'a Buffer,
+    /// The forces, 3 per point.
+    pub forces: &'a Buffer,
+    /// The forces field-major: each component's `n` values in turn.
+    pub fields: &'a Buffer,
+}
+
+/// The quadrature rule along a rod: node positions `s_j` (arc length from the centre) and
+/// weights `w_j`, as many of each.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Rule<'a> {
+    /// The nodes' positions along the rod.
+    pub(crate) s: &'a [f64],
+    /// The nodes' weights.
+    pub(crate) w: &'a [f64],
+}
+
+/// How the rods swim: their swimming speed and their length.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Swimming {
+    /// The swimming speed along the axis.
+    pub(crate) speed: f64,
+    /// The rods' length.
+    pub(crate) length: f64,
 }
 
 /// What a resident RPY sum needs besides its points: the real-space table, cutoff and
@@ -81,7 +121,8 @@ impl GpuFourier {
         &self,
         y: &Buffer,
         npts: usize,
-        (l, cutoff): (f64, f64),
+        l: f64,
+        cutoff: f64,
         group: usize,
     ) -> Result<ResidentCells, GpuError> {
         let nc = ((2.0 * l / cutoff).floor() as usize).max(1);
@@ -147,7 +188,7 @@ impl GpuFourier {
                 },
             )?;
         }
-        let pos = self.permute_rows(&wrapped, &members, (npts, 3), false)?;
+        let pos = self.permute_rows(&wrapped, &members, npts, 3, false)?;
         let mut groups = dev.zeros::<i32>(npts)?;
         // SAFETY: thread k < npts reads members[k] and writes group[k] (npts each).
         unsafe {
@@ -192,7 +233,8 @@ impl GpuFourier {
         &self,
         rows: &Buffer,
         idx: &Buffer<i32>,
-        (n, width): (usize, usize),
+        n: usize,
+        width: usize,
         scatter: bool,
     ) -> Result<Buffer, GpuError> {
         check_len("rows", rows, width * n)?;
@@ -239,7 +281,9 @@ impl GpuFourier {
     /// with gradient `grad` (as [`ResidentStresslets`]), swimming at `swim`.
     pub(crate) fn jeffery_velocities(
         &self,
-        (p, u, grad): (&Buffer, &Buffer, &Buffer),
+        p: &Buffer,
+        u: &Buffer,
+        grad: &Buffer,
         n: usize,
         swim: f64,
     ) -> Result<(Buffer, Buffer), GpuError> {
@@ -267,24 +311,29 @@ impl GpuFourier {
         Ok((v, w))
     }
 
-    /// One attempt of the stresslet sum of `n` stresslets `sigma p p` at the points `x` with
-    /// axes `p` (triples, on this device), with the parameters of `geo` and `inp`: the
-    /// velocities and gradients left on the device, the error model's reductions read back.
+    /// One attempt of the stresslet sum of `n` stresslets `sigma p p` at the `stresslets`'
+    /// centres `x` with axes `p` (triples, on this device), with the parameters of `geo` and
+    /// `inp`: the velocities and gradients left on the device, the error model's reductions read
+    /// back.
     pub(crate) fn stresslet_resident(
         &mut self,
         generation: u64,
         geo: &Geometry,
         inp: &StressletInputs<'_>,
-        (x, p): (&Buffer, &Buffer),
+        stresslets: OrientedPoints<'_>,
         n: usize,
     ) -> Result<ResidentStresslets, GpuError> {
+        let OrientedPoints {
+            centres: x,
+            axes: p,
+        } = stresslets;
         let ni = int(n, "points")?;
         int(13 * n, "13 x points")?;
         check_len("points", x, 3 * n)?;
         check_len("axes", p, 3 * n)?;
         // The real-space part over the device's cell list, written in the points' order.
-        let cells = self.resident_cells(x, n, (geo.l, inp.cutoff), 1)?;
-        let orient = self.permute_rows(p, &cells.members, (n, 3), false)?;
+        let cells = self.resident_cells(x, n, geo.l, inp.cutoff, 1)?;
+        let orient = self.permute_rows(p, &cells.members, n, 3, false)?;
         let table = &inp.table;
         let (inv_h, nodes, xi, r_direct, g) = table.parts();
         let table_buf = self.dev.upload(&g)?;
@@ -307,7 +356,12 @@ impl GpuFourier {
         };
         launch::stresslet_real_points(
             dev,
-            (&orient, inp.sigma, xi, r_direct),
+            launch::OneStrength {
+                orient: &orient,
+                sigma: inp.sigma,
+                xi,
+                r_direct,
+            },
             &real_in,
             launch::PointOutputs {
                 members: &cells.members,
@@ -333,14 +387,18 @@ impl GpuFourier {
                 },
             )?;
         }
-        self.spread(generation, geo, x, n, (&vals, STRESSLET_FIELDS))?;
+        let points = Points { pos: x, n };
+        let fields = Fields {
+            vals: &vals,
+            nf: STRESSLET_FIELDS,
+        };
+        self.spread(generation, geo, points, fields)?;
         drop(vals);
-        let back = self.fourier_spread(
-            geo,
-            (x, n),
-            STRESSLET_FIELDS,
-            (launch::Modes::Stresslet, true),
-        )?;
+        let kind = FourierKind {
+            modes: launch::Modes::Stresslet,
+            gradient: true,
+        };
+        let back = self.fourier_spread(geo, points, STRESSLET_FIELDS, kind)?;
         // Assembly (on the real part's velocities and gradients) and the error model.
         let dev = &self.dev;
         let mut parts = dev.zeros::<f64>(4 * n)?;
@@ -374,16 +432,22 @@ impl GpuFourier {
         })
     }
 
-    /// The explicit level's nodes of `n` rods with centres `x` and axes `p` (triples on this
-    /// device), `m = s.len()` per rod at `x + s_j p`, and their weighted forces
-    /// `(c sign(s_j) p) w_j`: `(nodes, forces)` as triples and the forces field-major.
+    /// The explicit level's nodes of `n` `rods` with centres `x` and axes `p` (triples on this
+    /// device), `m = s.len()` per rod at `x + s_j p` (the `rule`'s nodes `s` and weights `w`),
+    /// and their weighted forces `(c sign(s_j) p) w_j`: `(nodes, forces)` as triples and the
+    /// forces field-major.
     pub(crate) fn node_values(
         &self,
-        (x, p): (&Buffer, &Buffer),
-        (s, w): (&[f64], &[f64]),
+        rods: OrientedPoints<'_>,
+        rule: Rule<'_>,
         n: usize,
         c: f64,
     ) -> Result<(Buffer, Buffer, Buffer), GpuError> {
+        let OrientedPoints {
+            centres: x,
+            axes: p,
+        } = rods;
+        let Rule { s, w } = rule;
         let m = s.len();
         assert_eq!(w.len(), m, "a weight per node");
         check_len("centres", x, 3 * n)?;
@@ -417,16 +481,22 @@ impl GpuFourier {
         Ok((nodes, force, fields))
     }
 
-    /// The rods' velocities `(v, w)` from the flow `u` at their `m = s.len()` nodes each
-    /// (swimming at `swim` plus the rigid-body projection over the rule `(s, w)` of rods of
-    /// length `rod`).
+    /// The rods' velocities `(v, w)` from the flow `u` at their `m = s.len()` nodes each, the
+    /// rods' axes `p` (swimming at `swimming.speed` plus the rigid-body projection over the
+    /// rule `(s, w)` of rods of length `swimming.length`).
     pub(crate) fn rod_flow_velocities(
         &self,
-        (p, u): (&Buffer, &Buffer),
-        (s, w): (&[f64], &[f64]),
+        p: &Buffer,
+        u: &Buffer,
+        rule: Rule<'_>,
         n: usize,
-        (swim, rod): (f64, f64),
+        swimming: Swimming,
     ) -> Result<(Buffer, Buffer), GpuError> {
+        let Rule { s, w } = rule;
+        let Swimming {
+            speed: swim,
+            length: rod,
+        } = swimming;
         let m = s.len();
         assert_eq!(w.len(), m, "a weight per node");
         check_len("axes", p, 3 * n)?;
@@ -456,17 +526,22 @@ impl GpuFourier {
         Ok((v, omega))
     }
 
-    /// One attempt of the RPY sum of the `n` points `pts` with forces `force` (triples, and
-    /// field-major in `fields`) on this device: the velocities left there, the error model's
+    /// One attempt of the RPY sum of the `n` points of `sources` with their forces (triples,
+    /// and field-major) on this device: the velocities left there, the error model's
     /// reductions read back.
     pub(crate) fn rpy_resident(
         &mut self,
         generation: u64,
         geo: &Geometry,
         inp: &RpyInputs<'_>,
-        (pts, force, fields): (&Buffer, &Buffer, &Buffer),
+        sources: PointForces<'_>,
         n: usize,
     ) -> Result<(Buffer, Vec<[f64; 4]>), GpuError> {
+        let PointForces {
+            points: pts,
+            forces: force,
+            fields,
+        } = sources;
         let ni = int(n, "points")?;
         int(4 * n, "4 x points")?;
         check_len("points", pts, 3 * n)?;
@@ -478,8 +553,8 @@ impl GpuFourier {
                 inp.group
             )));
         }
-        let cells = self.resident_cells(pts, n, (geo.l, inp.cutoff), inp.group)?;
-        let sorted_force = self.permute_rows(force, &cells.members, (n, 3), false)?;
+        let cells = self.resident_cells(pts, n, geo.l, inp.cutoff, inp.group)?;
+        let sorted_force = self.permute_rows(force, &cells.members, n, 3, false)?;
         let (inv_h, nodes, [c, ca, cb], g) = inp.table.parts();
         let table_buf = self.dev.upload(&g)?;
         let mut sorted = self.dev.zeros::<f64>(4 * n)?;
@@ -508,14 +583,20 @@ impl GpuFourier {
             &real_in,
             &mut sorted,
         )?;
-        let real = self.permute_rows(&sorted, &cells.members, (n, 4), true)?;
+        let real = self.permute_rows(&sorted, &cells.members, n, 4, true)?;
         drop((sorted, sorted_force, cells));
         let back = self.fourier(
             generation,
             geo,
-            (pts, n),
-            (fields, 3),
-            (launch::Modes::Rpy { a: inp.a }, false),
+            Points { pos: pts, n },
+            Fields {
+                vals: fields,
+                nf: 3,
+            },
+            FourierKind {
+                modes: launch::Modes::Rpy { a: inp.a },
+                gradient: false,
+            },
         )?;
         let dev = &self.dev;
         let mut u = dev.zeros::<f64>(3 * n)?;
@@ -635,7 +716,7 @@ mod tests {
             for seed in [0, 11] {
                 gpu.shuffle_blocks(seed);
                 let dev = gpu.dev.upload(y.as_flattened()).unwrap();
-                let cells = gpu.resident_cells(&dev, n, (l, cutoff), group).unwrap();
+                let cells = gpu.resident_cells(&dev, n, l, cutoff, group).unwrap();
                 let what =
                     format!("L {l}, cutoff {cutoff}, {n} points, group {group}, seed {seed}");
                 assert_eq!(cells.n, host.n, "{what}: cells per axis");

@@ -3,7 +3,7 @@
 //! request, the distinct grid lines each warp touches, and global and shared-memory atomics,
 //! for each [`SpreadMethod`]; no device needed.
 
-use super::binned::{SpreadMethod, TILE};
+use super::binned::SpreadMethod;
 use super::scan::SCAN_ONE_BLOCK;
 
 /// One phase's work in the work model ([`work_model`]): what its kernels request of global
@@ -21,8 +21,8 @@ pub struct PhaseWork {
     pub global_atomics: f64,
     /// Shared-memory atomic adds.
     pub shared_atomics: f64,
-    /// Distinct 128-byte lines of the grids that the phase's warps (32 consecutive threads;
-    /// for the tiles, each bin's block) touch, summed over warps: the traffic at the cache
+    /// Distinct 128-byte lines of the grids that the phase's warps (32 consecutive threads)
+    /// touch, summed over warps: the traffic at the cache
     /// (times 128 bytes), where the order of the points shows. Estimated from up to 4096
     /// warps evenly spaced; 0 for phases that do not touch the grids point by point.
     pub grid_lines: f64,
@@ -39,21 +39,34 @@ fn first_index(y: f64, l: f64, m: usize, p: usize) -> usize {
     (i0 as i64).rem_euclid(m as i64) as usize
 }
 
-/// The work of one Fourier part on the device with `method`, counted from the points
+/// One Fourier part as the work model counts it: its grid, its window and the fields it
+/// spreads and gathers.
+#[derive(Clone, Copy, Debug)]
+pub struct FourierPart {
+    /// Grid points per axis (an `m^3` grid).
+    pub m: usize,
+    /// The window's support `p`, grid points per axis.
+    pub p: usize,
+    /// Fields spread: 3 for RPY forces, [`super::STRESSLET_FIELDS`] for stresslets.
+    pub nf: usize,
+    /// Whether the three fields gathered come with the window's derivative.
+    pub gradient: bool,
+}
+
+/// The work of one Fourier `part` on the device with `method`, counted from the points
 /// themselves: `nf` fields spread (3 for RPY forces, [`super::STRESSLET_FIELDS`] for
 /// stresslets), three gathered (with the window's derivative if `gradient`), on an `m^3` grid
-/// with support `p`. The tiles'
-/// global atomics are their nonzero cells, found per bin from the points' supports. Phases:
+/// with support `p`. Phases:
 /// values up, the sort (once per generation: the products of a GMRES solve share it), spread,
 /// FFTs and the mode multiplication (each transform counted as two passes over its data, read
 /// and written), gather, values down.
 pub fn work_model(
     points: &[[f64; 3]],
     l: f64,
-    (m, p): (usize, usize),
-    (nf, gradient): (usize, bool),
+    part: FourierPart,
     method: SpreadMethod,
 ) -> Vec<PhaseWork> {
+    let FourierPart { m, p, nf, gradient } = part;
     let n = points.len() as f64;
     let outputs = if gradient { 12.0 } else { 3.0 };
     let (m3, p3) = ((m * m * m) as f64, (p * p * p) as f64);
@@ -80,7 +93,7 @@ pub fn work_model(
             grid_lines: warp_lines(&own, &first, m, p) * nf as f64,
             ..phase("spread", 2, zero + point_reads, n * p3 * nf as f64, 0.0)
         }),
-        SpreadMethod::Tiles | SpreadMethod::Sorted | SpreadMethod::Cells => {
+        SpreadMethod::Sorted | SpreadMethod::Cells => {
             let p = p.min(m);
             let b = method.bin_edge(p, m);
             let nb = m.div_ceil(b);
@@ -119,7 +132,7 @@ pub fn work_model(
                         0.0,
                     )
                 });
-            } else if method == SpreadMethod::Sorted {
+            } else {
                 rows.push(PhaseWork {
                     grid_lines: warp_lines(&order, &first, m, p) * nf as f64,
                     ..phase(
@@ -128,19 +141,6 @@ pub fn work_model(
                         zero + point_reads + 4.0 * n,
                         n * p3 * nf as f64,
                         0.0,
-                    )
-                });
-            } else {
-                let passes = nf.div_ceil(3);
-                let (cells, lines) = tile_cells(&first, m, p, b, nb);
-                rows.push(PhaseWork {
-                    grid_lines: lines as f64 * nf as f64,
-                    ..phase(
-                        "spread",
-                        1 + passes,
-                        zero + point_reads + passes as f64 * (4.0 * n + 8.0 * nbins),
-                        cells as f64 * nf as f64,
-                        n * p3 * nf as f64,
                     )
                 });
             }
@@ -232,61 +232,15 @@ fn warp_lines(order: &[usize], first: &[[usize; 3]], m: usize, p: usize) -> f64 
     total as f64 * warps as f64 / sample.max(1) as f64
 }
 
-/// The tiles' nonzero cells over all bins (per bin, the union of its points' supports in the
-/// bin's tile, as rows of bits), and the distinct grid lines (16 doubles along x, one field)
-/// those cells lie on.
-fn tile_cells(first: &[[usize; 3]], m: usize, p: usize, b: usize, nb: usize) -> (usize, usize) {
-    let bin = |f: &[usize; 3]| (f[2] / b * nb + f[1] / b) * nb + f[0] / b;
-    let order = bin_order(first, b, nb);
-    let (mut cells, mut lines) = (0, 0);
-    let mut rows = vec![0u64; TILE * TILE];
-    let mut k = 0;
-    let mut touched = Vec::new();
-    while k < order.len() {
-        let this = bin(&first[order[k]]);
-        rows.fill(0);
-        while k < order.len() && bin(&first[order[k]]) == this {
-            let f = &first[order[k]];
-            let o = [f[0] % b, f[1] % b, f[2] % b];
-            let mask = ((1u64 << p) - 1) << o[0];
-            for qz in 0..p {
-                for qy in 0..p {
-                    rows[(o[2] + qz) * TILE + o[1] + qy] |= mask;
-                }
-            }
-            k += 1;
-        }
-        cells += rows.iter().map(|r| r.count_ones() as usize).sum::<usize>();
-        let origin = [this % nb * b, this / nb % nb * b, this / (nb * nb) * b];
-        touched.clear();
-        for (r, &bits) in rows.iter().enumerate() {
-            let (z, y) = ((origin[2] + r / TILE) % m, (origin[1] + r % TILE) % m);
-            for t in 0..TILE {
-                if bits >> t & 1 == 1 {
-                    touched.push(((z * m + y) * m.div_ceil(16)) + (origin[0] + t) % m / 16);
-                }
-            }
-        }
-        touched.sort_unstable();
-        touched.dedup();
-        lines += touched.len();
-    }
-    (cells, lines)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::collections::HashSet;
 
-    /// The tiles' nonzero cells against a brute-force count (a set of (bin, cell) per point's
-    /// support), with points on bin and box boundaries; the atomic spreader's atomics are
-    /// `n p^3 nf`.
+    /// The atomic spreader's atomics are `n p^3 nf`; the output-driven spreader has none and
+    /// writes the grid once, in one launch.
     #[test]
-    fn the_work_model_counts_the_tiles_cells() {
+    fn the_work_model_counts_the_spreaders_atomics() {
         let (l, m, p) = (7.0, 20usize, 5usize);
-        let b = SpreadMethod::Tiles.bin_edge(p, m);
-        let nb = m.div_ceil(b);
         let mut points: Vec<[f64; 3]> = (0..300)
             .map(|i| {
                 let x = |k: usize| ((i * k * 7919) % 10007) as f64 / 10007.0 * l;
@@ -295,32 +249,13 @@ mod tests {
             .collect();
         points.push([0.0, 0.0, 0.0]);
         points.push([l - 1e-12, 2.8, 3.5]);
-        let mut set = HashSet::new();
-        for y in &points {
-            let f: [usize; 3] = std::array::from_fn(|d| first_index(y[d], l, m, p));
-            let bin = (f[2] / b * nb + f[1] / b) * nb + f[0] / b;
-            for qz in 0..p {
-                for qy in 0..p {
-                    for qx in 0..p {
-                        set.insert((bin, f[0] % b + qx, f[1] % b + qy, f[2] % b + qz));
-                    }
-                }
-            }
-        }
-        let first: Vec<[usize; 3]> = points
-            .iter()
-            .map(|y| std::array::from_fn(|d| first_index(y[d], l, m, p)))
-            .collect();
-        assert_eq!(tile_cells(&first, m, p, b, nb).0, set.len());
-        let rows = work_model(&points, l, (m, p), (3, false), SpreadMethod::Atomic);
+        let part = |nf, gradient| FourierPart { m, p, nf, gradient };
+        let rows = work_model(&points, l, part(3, false), SpreadMethod::Atomic);
         let spread = rows.iter().find(|r| r.phase == "spread").unwrap();
         assert_eq!(spread.global_atomics, (points.len() * p * p * p * 3) as f64);
-        let rows = work_model(&points, l, (m, p), (6, true), SpreadMethod::Tiles);
+        let rows = work_model(&points, l, part(6, true), SpreadMethod::Cells);
         let spread = rows.iter().find(|r| r.phase == "spread").unwrap();
-        assert_eq!(spread.global_atomics, (set.len() * 6) as f64);
-        assert_eq!(
-            spread.launches, 3,
-            "the grid zeroed, two passes of three fields"
-        );
+        assert_eq!(spread.global_atomics, 0.0);
+        assert_eq!(spread.launches, 1, "one launch, the grid written once");
     }
 }
