@@ -12,6 +12,51 @@ use crate::model::units::VISCOSITY;
 /// internal tolerance relative to their flow.
 const FAR_FIELD_SHARE: f64 = 0.25;
 
+/// The scales of one output's error estimate: the model's near-field scale
+/// `scale = tol_i Phi / mu` and the internal tolerance `tol_i` (see [`estimate`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ErrorScale {
+    /// The near-field scale `tol_i Phi / mu`.
+    pub(crate) scale: f64,
+    /// The internal tolerance `tol_i`.
+    pub(crate) internal: f64,
+}
+
+/// Where the refinement stood when an attempt was accepted: its internal tolerance, the
+/// refinement level and the attempts it took.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Accepted {
+    /// The internal tolerance of the accepted attempt.
+    pub(crate) internal: f64,
+    /// The refinement level.
+    pub(crate) level: u32,
+    /// Attempts, the accepted one included.
+    pub(crate) attempts: u32,
+}
+
+/// A stresslet attempt's outputs and the weights of its error model, per target.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct StressletOutputs<'a> {
+    /// The velocities and gradients.
+    pub(crate) field: &'a StressletField,
+    /// The weighted strengths of the real-space pass.
+    pub(crate) e2: &'a [f64],
+    /// The stresslets' strengths.
+    pub(crate) sigma: &'a [f64],
+}
+
+/// What a stresslet attempt's estimates are measured against: its parameters, its internal
+/// tolerance and the sum's tolerance.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct AttemptTolerance<'a> {
+    /// The attempt's parameters.
+    pub(crate) params: &'a EwaldParams,
+    /// The internal tolerance the attempt ran at.
+    pub(crate) internal: f64,
+    /// The sum's tolerance.
+    pub(crate) tol: f64,
+}
+
 /// The error model's estimate for one output of an attempt (see the module doc): per target
 /// `est_t^2 = (C scale)^2 e2_t + (FAR_FIELD_SHARE tol_i)^2 |q_t|^2`, the model near the target
 /// (`scale = tol_i Phi / mu`, `C` the output's calibrated constant for each metric) plus a
@@ -22,13 +67,13 @@ const FAR_FIELD_SHARE: f64 = 0.25;
 /// so the result does not depend on the thread count.
 pub(crate) fn estimate(
     output: SumOutput,
-    (scale, internal): (f64, f64),
+    scales: ErrorScale,
     e2: impl Fn(usize) -> f64 + Sync,
     out2: impl Fn(usize) -> f64 + Sync,
     n: usize,
     floor: f64,
 ) -> ErrorEstimate {
-    let tot = estimate_parts(output, (scale, internal), e2, out2, n);
+    let tot = estimate_parts(output, scales, e2, out2, n);
     estimate_from(output, tot, n, floor)
 }
 
@@ -36,12 +81,12 @@ pub(crate) fn estimate(
 /// sum |q|^2]` (sums in fixed chunks: the same bits for any thread count).
 pub(crate) fn estimate_parts(
     output: SumOutput,
-    (scale, internal): (f64, f64),
+    scales: ErrorScale,
     e2: impl Fn(usize) -> f64 + Sync,
     out2: impl Fn(usize) -> f64 + Sync,
     n: usize,
 ) -> [f64; 4] {
-    let [a_max, a_2, far] = estimate_weights(output, (scale, internal));
+    let [a_max, a_2, far] = estimate_weights(output, scales);
     let parts = motile_analysis::reduce::chunk_partials(n, |chunk| {
         let mut acc = [0.0f64; 4];
         for t in chunk {
@@ -56,10 +101,10 @@ pub(crate) fn estimate_parts(
     combine_chunks(parts.iter())
 }
 
-
 /// The weights `[a_max, a_2, far]` of an estimate's reductions: per target the max-norm term
 /// `a_max e2 + far |q|^2` and the L2 term `a_2 e2 + far |q|^2` (see [`estimate`]).
-pub(crate) fn estimate_weights(output: SumOutput, (scale, internal): (f64, f64)) -> [f64; 3] {
+pub(crate) fn estimate_weights(output: SumOutput, scales: ErrorScale) -> [f64; 3] {
+    let ErrorScale { scale, internal } = scales;
     let (c_max, c_2) = error_model_constants(output, internal);
     [
         (c_max * scale).powi(2),
@@ -80,13 +125,18 @@ pub(crate) fn combine_chunks<'a>(parts: impl Iterator<Item = &'a [f64; 4]>) -> [
     tot
 }
 
-/// The report of an accepted attempt (`(internal tolerance, level, attempts)`).
+/// The report of an accepted attempt.
 pub(crate) fn report_of(
     tol: f64,
-    (internal, level, attempts): (f64, u32, u32),
+    accepted: Accepted,
     params: EwaldParams,
     estimates: Vec<ErrorEstimate>,
 ) -> SumReport {
+    let Accepted {
+        internal,
+        level,
+        attempts,
+    } = accepted;
     let met = estimates
         .iter()
         .all(|e| e.max_relative <= tol && e.l2_relative <= tol);
@@ -102,28 +152,40 @@ pub(crate) fn report_of(
 }
 
 /// The estimates of a stresslet attempt (velocity, gradient) and the worst estimate/bound
-/// ratio, from its `(field, weighted strengths, sigma)` over `n` targets in all; `reduce`
+/// ratio, from its outputs (field, weighted strengths, sigma) over `n` targets in all; `reduce`
 /// turns the local reductions into the whole box's (the identity for one process).
 pub(crate) fn stresslet_estimates(
-    (field, e2, sigma): (&StressletField, &[f64], &[f64]),
-    (prm, internal, tol): (&EwaldParams, f64, f64),
+    outputs_of: StressletOutputs<'_>,
+    tolerance: AttemptTolerance<'_>,
     floor: impl Fn(i32) -> f64,
     reduce: impl Fn([f64; 4]) -> [f64; 4],
     n: usize,
 ) -> (Vec<ErrorEstimate>, f64) {
+    let StressletOutputs { field, e2, sigma } = outputs_of;
+    let AttemptTolerance {
+        params: prm,
+        internal,
+        tol,
+    } = tolerance;
     let outputs = [SumOutput::StressletVelocity, SumOutput::StressletGradient];
     let scale = |o: SumOutput| internal * o.self_scale(prm.xi) / VISCOSITY;
     let local = field.u.len();
     let u = estimate_parts(
         outputs[0],
-        (scale(outputs[0]), internal),
+        ErrorScale {
+            scale: scale(outputs[0]),
+            internal,
+        },
         |t| e2[t],
         |t| dot(field.u[t], field.u[t]),
         local,
     );
     let g = estimate_parts(
         outputs[1],
-        (scale(outputs[1]), internal),
+        ErrorScale {
+            scale: scale(outputs[1]),
+            internal,
+        },
         |t| e2[t] + sigma[t] * sigma[t],
         |t| field.grad[t].iter().map(|r| dot(*r, *r)).sum(),
         local,

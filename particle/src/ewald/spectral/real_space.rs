@@ -100,12 +100,15 @@ pub(crate) fn rpy_real(
 /// The RPY velocities of the first `real.len()` points from their real-space parts `real`
 /// ([`rpy_real`]) and Fourier parts `fourier(t)`: the own group's direct Fourier-part terms come
 /// out (the point itself included), and the own group enters the error model with the same
-/// weights. Returns the velocities and the error model's weighted strengths.
+/// weights (the `points` and `forces` of the sum, its parameters `p` and `geometry`). Returns
+/// the velocities and the error model's weighted strengths.
 pub(crate) fn rpy_assemble(
     real: Vec<[f64; 4]>,
     fourier: impl Fn(usize) -> Vec3 + Sync,
-    (points, forces): (&[Vec3], &[Vec3]),
-    (p, geometry): (&EwaldParams, &RpyGeometry),
+    points: &[Vec3],
+    forces: &[Vec3],
+    p: &EwaldParams,
+    geometry: &RpyGeometry,
 ) -> (Vec<Vec3>, Vec<f64>) {
     let (l, a, g, xi) = (geometry.box_length, geometry.radius, geometry.group, p.xi);
     let r0 = ERROR_MODEL_RANGE * p.spacing(l);

@@ -4,10 +4,11 @@
 //! only the error model's reductions (a few numbers per 4 096 points).
 
 use super::estimates::{
-    combine_chunks, estimate_from, estimate_weights, stresslet_estimates_from,
+    ErrorScale, combine_chunks, estimate_from, estimate_weights, stresslet_estimates_from,
 };
 use super::{SpectralEwald, SumTiming, check_params};
 use crate::ewald::gpu::resident::{RpyInputs, StressletInputs};
+use crate::ewald::gpu::{OrientedPoints, PointForces};
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use crate::ewald::params::{
     ERROR_MODEL_RANGE, EwaldParams, PAIR_COST, STRESSLET_PAIR_COST, SumOutput,
@@ -47,13 +48,13 @@ impl SpectralEwald {
     }
 
     /// [`crate::ewald::periodic::PeriodicStokes::stresslets`] of `n` stresslets
-    /// `sigma p_n p_n` of one strength `sigma` at `x` with axes `p` (triples on this sum's
-    /// device), the flow left there: the same parameters, estimates, refinement and report
-    /// as the sum of host values. An error where this sum has no device.
+    /// `sigma p_n p_n` of one strength `sigma` at the `stresslets`' centres `x` with axes `p`
+    /// (triples on this sum's device), the flow left there: the same parameters, estimates,
+    /// refinement and report as the sum of host values. An error where this sum has no device.
     pub fn stresslets_resident(
         &mut self,
         box_length: f64,
-        (x, p): (&Buffer, &Buffer),
+        stresslets: OrientedPoints<'_>,
         sigma: f64,
         n: usize,
     ) -> Result<ResidentField, SumError> {
@@ -84,7 +85,13 @@ impl SpectralEwald {
                 sigma,
                 own_c: sigma * PI.sqrt() * xi * xi * xi / (2.0 * PI * PI),
                 mu: VISCOSITY,
-                weights: outputs.map(|o| estimate_weights(o, (scale(o), internal))),
+                weights: outputs.map(|o| {
+                    let scales = ErrorScale {
+                        scale: scale(o),
+                        internal,
+                    };
+                    estimate_weights(o, scales)
+                }),
                 chunk: motile_analysis::reduce::CHUNK,
             };
             let geo = crate::ewald::gpu::backend::geometry(&prm, l);
@@ -93,7 +100,7 @@ impl SpectralEwald {
                 SumError::Device("a resident sum on a sum without a device".into())
             })?;
             let res = gpu
-                .stresslet_resident(generation, &geo, &inputs, (x, p), n)
+                .stresslet_resident(generation, &geo, &inputs, stresslets, n)
                 .map_err(|e| SumError::Device(e.to_string()))?;
             let joined = res.reductions.each_ref().map(|r| combine_chunks(r.iter()));
             let (estimates, ratio) = stresslet_estimates_from(joined, n, floor, self.tol);
@@ -122,14 +129,14 @@ impl SpectralEwald {
 }
 
 impl SpectralEwald {
-    /// [`crate::ewald::periodic::PeriodicStokes::rpy`] of the `n` points `pts` with forces
-    /// `force` (triples, and field-major in `fields`, on this sum's device) in groups of
+    /// [`crate::ewald::periodic::PeriodicStokes::rpy`] of the `n` points of `sources` with their
+    /// forces (triples, and field-major, on this sum's device) in groups of
     /// `geometry.group`, the velocities left there: the same parameters, estimate, refinement
     /// and report as the sum of host values.
     pub fn rpy_resident(
         &mut self,
         geometry: &RpyGeometry,
-        (pts, force, fields): (&Buffer, &Buffer, &Buffer),
+        sources: PointForces<'_>,
         n: usize,
     ) -> Result<Buffer, SumError> {
         let (l, a) = (geometry.box_length, geometry.radius);
@@ -158,7 +165,7 @@ impl SpectralEwald {
                 a,
                 group: geometry.group,
                 mu: VISCOSITY,
-                weights: estimate_weights(output, (scale, internal)),
+                weights: estimate_weights(output, ErrorScale { scale, internal }),
                 chunk: motile_analysis::reduce::CHUNK,
             };
             let geo = crate::ewald::gpu::backend::geometry(&prm, l);
@@ -167,7 +174,7 @@ impl SpectralEwald {
                 SumError::Device("a resident sum on a sum without a device".into())
             })?;
             let (u, reductions) = gpu
-                .rpy_resident(generation, &geo, &inputs, (pts, force, fields), n)
+                .rpy_resident(generation, &geo, &inputs, sources, n)
                 .map_err(|e| SumError::Device(e.to_string()))?;
             let est = estimate_from(output, combine_chunks(reductions.iter()), n, 0.0);
             let ratio = est.max_relative.max(est.l2_relative) / self.tol;
@@ -209,7 +216,8 @@ impl SpectralEwald {
     pub fn rpy_via_device(
         &mut self,
         geometry: &RpyGeometry,
-        (points, points_on_device): (&[Vec3], &mut Option<Buffer>),
+        points: &[Vec3],
+        points_on_device: &mut Option<Buffer>,
         forces: &[Vec3],
     ) -> Result<Vec<Vec3>, SumError> {
         check_rpy(geometry, points, forces)?;
@@ -222,7 +230,12 @@ impl SpectralEwald {
             .flat_map(|d| forces.iter().map(move |v| v[d]))
             .collect();
         let fields = self.upload(&fields)?;
-        let u = self.rpy_resident(geometry, (&nodes, &force, &fields), points.len());
+        let sources = PointForces {
+            points: &nodes,
+            forces: &force,
+            fields: &fields,
+        };
+        let u = self.rpy_resident(geometry, sources, points.len());
         *points_on_device = Some(nodes);
         let u = self.download(&u?)?;
         Ok(u.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
