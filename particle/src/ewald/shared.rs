@@ -30,7 +30,8 @@ use crate::ewald::periodic::{
 };
 use crate::ewald::point_cells::PointCells;
 use crate::ewald::spectral::estimates::{
-    estimate_from, estimate_parts, report_of, stresslet_estimates,
+    Accepted, AttemptTolerance, ErrorScale, StressletOutputs, estimate_from, estimate_parts,
+    report_of, stresslet_estimates,
 };
 use crate::ewald::spectral::real_space::{rpy_assemble, rpy_real, stresslet_real};
 use crate::ewald::spectral::refinement::{Refinement, check_tolerance};
@@ -48,6 +49,18 @@ use std::f64::consts::PI;
 const COMPONENTS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 /// The component of `S_ij` in [`COMPONENTS`], row by row.
 const SYMMETRIC: [[usize; 3]; 3] = [[0, 3, 4], [3, 1, 5], [4, 5, 2]];
+
+/// One rank's share of a sum over all ranks: its own points (first in its arrays), the points
+/// in the whole box, and how far the copies of other ranks' points reach beyond its own.
+#[derive(Clone, Copy, Debug)]
+pub struct RankShare {
+    /// This rank's own points, first in its arrays.
+    pub owned: usize,
+    /// Points in the whole box.
+    pub total: usize,
+    /// How far the copies of other ranks' points reach: the real-space cutoff's bound.
+    pub reach: f64,
+}
 
 /// The stresslet sum shared among ranks, with the adaptive level of one process.
 #[derive(Debug)]
@@ -398,12 +411,13 @@ impl SharedEwald {
     pub fn stresslets(
         &mut self,
         comm: &dyn Comm,
-        (owned, total, reach): (usize, usize, f64),
+        share: RankShare,
         l: f64,
         x: &[Vec3],
         p: &[Vec3],
         sigma: &[f64],
     ) -> Result<StressletField, SumError> {
+        let RankShare { owned, total, .. } = share;
         if x.len() != p.len() || x.len() != sigma.len() || owned > x.len() {
             return Err(SumError::Input(
                 "shared stresslets: x, p, sigma lengths differ".into(),
@@ -414,31 +428,39 @@ impl SharedEwald {
         comm.max(&mut strongest);
         let floor = |k: i32| strongest[0] / (8.0 * PI * VISCOSITY * l.powi(k));
         let tol = self.tol;
-        self.refined(
-            (total, l, reach),
-            (&outputs, STRESSLET_PAIR_COST),
-            |prm, internal| {
-                let (field, e2) = attempt(comm, prm, l, owned, x, p, sigma)?;
-                let (estimates, ratio) = stresslet_estimates(
-                    (&field, &e2, sigma),
-                    (prm, internal, tol),
-                    floor,
-                    |mine| over_ranks(comm, mine),
-                    total,
-                );
-                Ok((field, estimates, ratio))
-            },
-        )
+        self.refined(share, l, &outputs, STRESSLET_PAIR_COST, |prm, internal| {
+            let (field, e2) = attempt(comm, prm, l, owned, x, p, sigma)?;
+            let (estimates, ratio) = stresslet_estimates(
+                StressletOutputs {
+                    field: &field,
+                    e2: &e2,
+                    sigma,
+                },
+                AttemptTolerance {
+                    params: prm,
+                    internal,
+                    tol,
+                },
+                floor,
+                |mine| over_ranks(comm, mine),
+                total,
+            );
+            Ok((field, estimates, ratio))
+        })
     }
 
     /// The refinement loop of one process: attempts at the current level's parameters (the
-    /// cutoff at most `reach`) until `attempt`'s estimate/bound ratio stands; records the report.
+    /// cutoff at most the `share`'s reach, for its total points in a box of side `l`) until
+    /// `attempt`'s estimate/bound ratio stands; records the report.
     fn refined<T>(
         &mut self,
-        (total, l, reach): (usize, f64, f64),
-        (outputs, pair_cost): (&[SumOutput], f64),
+        share: RankShare,
+        l: f64,
+        outputs: &[SumOutput],
+        pair_cost: f64,
         mut attempt: impl FnMut(&EwaldParams, f64) -> Result<(T, Vec<ErrorEstimate>, f64), SumError>,
     ) -> Result<T, SumError> {
+        let RankShare { total, reach, .. } = share;
         let mut attempts = 0;
         loop {
             attempts += 1;
@@ -446,12 +468,12 @@ impl SharedEwald {
             let prm = EwaldParams::choose_within(internal, total, l, outputs, pair_cost, reach);
             let (out, estimates, ratio) = attempt(&prm, internal)?;
             if self.refine.accept(self.tol, ratio, false) {
-                self.report = Some(report_of(
-                    self.tol,
-                    (internal, self.refine.level, attempts),
-                    prm,
-                    estimates,
-                ));
+                let accepted = Accepted {
+                    internal,
+                    level: self.refine.level,
+                    attempts,
+                };
+                self.report = Some(report_of(self.tol, accepted, prm, estimates));
                 return Ok(out);
             }
         }
@@ -473,11 +495,12 @@ impl SharedEwald {
     pub fn rpy(
         &mut self,
         comm: &dyn Comm,
-        (owned, total, reach): (usize, usize, f64),
+        share: RankShare,
         geometry: &RpyGeometry,
         points: &[Vec3],
         forces: &[Vec3],
     ) -> Result<Vec<Vec3>, SumError> {
+        let RankShare { owned, total, .. } = share;
         check_rpy(geometry, points, forces)?;
         if !owned.is_multiple_of(geometry.group) || owned > points.len() {
             return Err(SumError::Input(format!(
@@ -489,14 +512,16 @@ impl SharedEwald {
         let output = SumOutput::RpyVelocity;
         let tol = self.tol;
         self.refined(
-            (total, geometry.box_length, reach),
-            (&[output], PAIR_COST),
+            share,
+            geometry.box_length,
+            &[output],
+            PAIR_COST,
             |prm, internal| {
                 let (u, e2) = rpy_attempt(comm, prm, geometry, owned, points, forces)?;
                 let scale = internal * output.self_scale(prm.xi) / VISCOSITY;
                 let mine = estimate_parts(
                     output,
-                    (scale, internal),
+                    ErrorScale { scale, internal },
                     |t| e2[t],
                     |t| dot(u[t], u[t]),
                     owned,
@@ -566,8 +591,10 @@ fn rpy_attempt(
     Ok(rpy_assemble(
         real,
         |t| [back[t][0], back[t][1], back[t][2]],
-        (points, forces),
-        (prm, geometry),
+        points,
+        forces,
+        prm,
+        geometry,
     ))
 }
 
