@@ -15,6 +15,15 @@ use std::sync::Arc;
 /// A block of a transpose: a range of planes (z) and a range of rows (y).
 type Block = (std::ops::Range<usize>, std::ops::Range<usize>);
 
+/// One side of a transpose: the block of each rank's message (its `z` and `y` ranges), and
+/// where element `(z, y, x)` lies in this side's fields.
+struct Side<B, I> {
+    /// The block of rank `r`.
+    block: B,
+    /// The index of element `(z, y, x)` in a field.
+    index: I,
+}
+
 /// The planes of each rank and the plans of the distributed FFT of an `M^3` grid.
 pub(crate) struct SlabFft {
     pub(crate) m: usize,
@@ -129,15 +138,16 @@ impl SlabFft {
         let (zs, ys) = (self.share(self.me), self.share(self.me));
         self.transpose(
             comm,
-            (fields, ys.len()),
-            (
-                |r| (0..zs.len(), self.share(r)),
-                |z, y, x| (z * m + y) * mx + x,
-            ),
-            (
-                |r| (self.share(r), 0..ys.len()),
-                |z, y, x| (y * mx + x) * m + z,
-            ),
+            fields,
+            ys.len(),
+            Side {
+                block: |r| (0..zs.len(), self.share(r)),
+                index: |z, y, x| (z * m + y) * mx + x,
+            },
+            Side {
+                block: |r| (self.share(r), 0..ys.len()),
+                index: |z, y, x| (y * mx + x) * m + z,
+            },
         )
     }
 
@@ -147,34 +157,42 @@ impl SlabFft {
         let (zs, ys) = (self.share(self.me), self.share(self.me));
         self.transpose(
             comm,
-            (fields, zs.len()),
-            (
-                |r| (self.share(r), 0..ys.len()),
-                |z, y, x| (y * mx + x) * m + z,
-            ),
-            (
-                |r| (0..zs.len(), self.share(r)),
-                |z, y, x| (z * m + y) * mx + x,
-            ),
+            fields,
+            zs.len(),
+            Side {
+                block: |r| (self.share(r), 0..ys.len()),
+                index: |z, y, x| (y * mx + x) * m + z,
+            },
+            Side {
+                block: |r| (0..zs.len(), self.share(r)),
+                index: |z, y, x| (z * m + y) * mx + x,
+            },
         )
     }
 
     /// All-to-all of blocks: to rank `r` the elements `src(z, y, x)` for `(z, y)` in
     /// `send(r)` (z outer) and every `x < mx`; from rank `r` into `dst(z, y, x)` over `recv(r)`
-    /// in the same order. The result holds `len M mx` elements per field.
+    /// in the same order (`send` and `src` the sending side's block and index, `recv` and `dst`
+    /// the receiving side's). The result holds `len M mx` elements per field.
     fn transpose(
         &self,
         comm: &dyn Comm,
-        (fields, len): (&[Vec<Complex64>], usize),
-        (send, src): (
+        fields: &[Vec<Complex64>],
+        len: usize,
+        sending: Side<impl Fn(usize) -> Block + Sync, impl Fn(usize, usize, usize) -> usize + Sync>,
+        receiving: Side<
             impl Fn(usize) -> Block + Sync,
             impl Fn(usize, usize, usize) -> usize + Sync,
-        ),
-        (recv, dst): (
-            impl Fn(usize) -> Block + Sync,
-            impl Fn(usize, usize, usize) -> usize + Sync,
-        ),
+        >,
     ) -> Vec<Vec<Complex64>> {
+        let Side {
+            block: send,
+            index: src,
+        } = sending;
+        let Side {
+            block: recv,
+            index: dst,
+        } = receiving;
         let (m, mx, me) = (self.m, self.mx, self.me);
         // This rank's own block is copied directly below, not sent to itself.
         let messages = (0..self.ranks)
