@@ -57,7 +57,7 @@ use motile_meanfield::solver::grid::SpectralGrid;
 use motile_meanfield::solver::params::MeanFieldParams;
 use motile_meanfield::solver::rhs::MeanFieldRhs;
 use motile_meanfield::solver::stepper::{MeanFieldStepper, SBDF2};
-use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
+use motile_particle::ewald::gpu::{GpuFourier, PointForces, SpreadMethod};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
@@ -299,11 +299,16 @@ impl Bench {
         let up = |v: Vec<f64>| gpu.upload(&v).expect("upload");
         let (pts, force) = (up(y.as_flattened().to_vec()), up(f.as_flattened().to_vec()));
         let fields = up((0..3).flat_map(|d| f.iter().map(move |v| v[d])).collect());
+        let sources = PointForces {
+            points: &pts,
+            forces: &force,
+            fields: &fields,
+        };
         let mut ur = None;
         self.profile_begin();
         let tr = time(reps, || {
             ur = Some(
-                gpu.rpy_resident(&geo, (&pts, &force, &fields), n)
+                gpu.rpy_resident(&geo, sources, n)
                     .expect("resident GPU sum"),
             )
         });
@@ -315,14 +320,10 @@ impl Bench {
             .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
             .fold(0.0, f64::max);
         drop((pts, force, fields, gpu));
-        // The other spreaders on the same device, for the before/after ratios (the per-point
-        // atomic one; the tiles, the default at 1e-4 before the output-driven spreader; the
-        // global-memory one in bin order, the default at 1e-8 before it); skipped at 1e7
-        // points (their times there are in BENCHMARKS.md).
+        // The other spreaders on the same device, for the ratios (the per-point atomic one,
+        // the global-memory one in bin order); skipped at 1e7 points (their times there are
+        // in BENCHMARKS.md).
         let mut methods = vec![SpreadMethod::Atomic, SpreadMethod::Sorted];
-        if tol >= 1e-4 {
-            methods.insert(1, SpreadMethod::Tiles);
-        }
         if n >= 10_000_000 {
             methods.clear();
         }
@@ -386,7 +387,6 @@ impl Bench {
             let da = sq(&ua, &ug);
             let side = match method {
                 SpreadMethod::Atomic => "gpu atomic",
-                SpreadMethod::Tiles => "gpu tiles",
                 SpreadMethod::Sorted => "gpu sorted",
                 SpreadMethod::Cells => "gpu cells",
             };

@@ -15,7 +15,7 @@ mod common;
 
 use common::{device, emulation, errors, matrices, rod_points, rods, vectors};
 use motile_gpu::Backend;
-use motile_particle::ewald::gpu::GpuFourier;
+use motile_particle::ewald::gpu::{GpuFourier, OrientedPoints};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry};
 use motile_particle::ewald::reference::EwaldReference;
 use motile_particle::ewald::spectral::SpectralEwald;
@@ -90,7 +90,7 @@ fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
         assert!(largest(&vectors(&ud)) > 0.0, "a flow");
         // The resident product (points, forces and velocities on the device) against the
         // direct sum too.
-        let ur = dev.rpy_via_device(&geo, (&y, &mut None), &f).unwrap();
+        let ur = dev.rpy_via_device(&geo, &y, &mut None, &f).unwrap();
         let (max, l2) = errors(&vectors(&ur), &vectors(&exact), 0.0);
         rows.push(format!(
             "RPY resident, tol {tol:.0e}: vs the direct sum max-relative {:.2} tol, L2 {:.2} tol",
@@ -153,7 +153,15 @@ fn check_device(open: &dyn Fn() -> GpuFourier) -> Vec<String> {
             dev.upload(p.as_flattened()).unwrap(),
         );
         let field = dev
-            .stresslets_resident(l, (&xb, &pb), SIGMA, x.len())
+            .stresslets_resident(
+                l,
+                OrientedPoints {
+                    centres: &xb,
+                    axes: &pb,
+                },
+                SIGMA,
+                x.len(),
+            )
             .unwrap();
         let ru: Vec<Vec<f64>> = dev
             .download(&field.u)
@@ -245,7 +253,7 @@ fn five_cells_per_axis_and_points_on_cell_boundaries() {
 #[test]
 #[ignore = "needs a CUDA GPU: scripts/device_run.sh runs it (--include-ignored, MOTILE_REQUIRE_GPU=1)"]
 fn gpu_sums_match_the_cpu_and_the_direct_sum() {
-    let Some(first) = device("CUDA", Backend::Cuda, "MOTILE_REQUIRE_GPU") else {
+    let Some(first) = device(Backend::Cuda) else {
         return;
     };
     drop(first);
@@ -382,11 +390,7 @@ fn binned_spreaders_match_the_atomic_one() {
             c1 == c2,
             "Cells at tol {tol:e}: not the same bits under another block order"
         );
-        for method in [
-            SpreadMethod::Tiles,
-            SpreadMethod::Sorted,
-            SpreadMethod::Cells,
-        ] {
+        for method in [SpreadMethod::Sorted, SpreadMethod::Cells] {
             let err = errors(&run(method), &atomic, 0.0).0;
             rows.push(format!(
                 "RPY tol {tol:.0e}, {} nodes, grid {modes}^3: {method:?} vs Atomic {err:.1e}",
@@ -411,11 +415,7 @@ fn binned_spreaders_match_the_atomic_one() {
         s.stresslets(l, &x, &p, &sigma).unwrap()
     };
     let atomic = run(SpreadMethod::Atomic);
-    for method in [
-        SpreadMethod::Tiles,
-        SpreadMethod::Sorted,
-        SpreadMethod::Cells,
-    ] {
+    for method in [SpreadMethod::Sorted, SpreadMethod::Cells] {
         let s = run(method);
         let eu = errors(&vectors(&s.u), &vectors(&atomic.u), floor(2)).0;
         let eg = errors(&matrices(&s.grad), &matrices(&atomic.grad), floor(3)).0;

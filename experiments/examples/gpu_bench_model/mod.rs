@@ -235,7 +235,7 @@ pub(crate) fn counted_table() {
 /// The work model's table (`--model`): per case and spreading method, each phase's launches,
 /// bytes, global and shared atomics per point, and the sum's totals.
 pub(crate) fn model_table(small: bool) {
-    use motile_particle::ewald::gpu::work_model;
+    use motile_particle::ewald::gpu::{FourierPart, work_model};
     use motile_particle::ewald::params::{EwaldParams, STRESSLET_PAIR_COST, SumOutput};
     let scale = if small { 100 } else { 1 };
     let rods = |l: f64| {
@@ -306,16 +306,19 @@ pub(crate) fn model_table(small: bool) {
     println!("|---|---|---|---|---|---|---|---|---|");
     for (name, l, pts, (m, p), fields) in &cases {
         let n = pts.len() as f64;
-        let mut methods = vec![
+        for method in [
             SpreadMethod::Atomic,
             SpreadMethod::Sorted,
             SpreadMethod::Cells,
-        ];
-        if *p <= motile_particle::ewald::gpu::MAX_TILE_SUPPORT {
-            methods.insert(1, SpreadMethod::Tiles);
-        }
-        for method in methods {
-            let rows = work_model(pts, *l, (*m, *p), *fields, method);
+        ] {
+            let (nf, gradient) = *fields;
+            let part = FourierPart {
+                m: *m,
+                p: *p,
+                nf,
+                gradient,
+            };
+            let rows = work_model(pts, *l, part, method);
             let (mut launches, mut bytes, mut lines, mut ga, mut sa) = (0, 0.0, 0.0, 0.0, 0.0);
             for r in &rows {
                 println!(

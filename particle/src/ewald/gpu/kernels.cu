@@ -99,15 +99,10 @@ extern "C" __global__ void spread(const double* pts, const double* vals, double*
 
 // ---------------------------------------------------------------------------------------------
 // Binned spreading, as cuFINUFFT's: the points sorted into bins of b^3 grid points by the first
-// index of their window (a counting sort: bin_count, bin_scan, bin_scatter), then either each
-// bin's points accumulated in a shared-memory tile that is added to the grid once
-// (spread_tiles), or, where the tile would not fit (wide supports), the global-memory spreader
-// run in bin order (spread_sorted) so that neighbouring threads add to neighbouring cells.
-// Bins: nb per axis, index (bz nb + by) nb + bx.
-
-// Tile edge of spread_tiles: a bin of b = TILE - p + 1 grid points per axis and its points'
-// supports; three fields of TILE^3 doubles, 41.5 KB of shared memory.
-#define TILE 12
+// index of their window (a counting sort: bin_count, bin_scan, bin_scatter), then either the
+// output-driven spreader (spread_cells, the default: each bin's cells summed from the points
+// that reach them) or the global-memory spreader run in bin order (spread_sorted) so that
+// neighbouring threads add to neighbouring cells. Bins: nb per axis, index (bz nb + by) nb + bx.
 
 // The bin of point i, and its rank among the points of that bin (the counts' old value).
 extern "C" __global__ void bin_count(const double* pts, int* bin, int* rank, int* count, int n,
@@ -128,56 +123,6 @@ extern "C" __global__ void bin_scatter(const int* bin, const int* rank, const in
     int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
     perm[start[bin[i]] + rank[i]] = i;
-}
-
-// One block per bin: its points' fields f0..f0 + nf - 1 (nf <= 3) accumulated in a shared
-// tile (shared-memory atomics), then the tile's nonzero cells added to the grids (global
-// atomics, one per cell instead of one per point and cell).
-extern "C" __global__ void spread_tiles(const double* pts, const double* vals, const int* perm,
-                                        const int* start, double* grid, int n, int f0, int nf,
-                                        int m, int p, double l, double h, double alpha,
-                                        double norm, int b, int nb) {
-    __shared__ double tile[3 * TILE * TILE * TILE];
-    int k = blockIdx.x;
-    const int t3 = TILE * TILE * TILE;
-    for (int c = threadIdx.x; c < 3 * t3; c += blockDim.x) tile[c] = 0.0;
-    int lo = start[k], hi = start[k + 1];
-    int origin[3] = {(k % nb) * b, ((k / nb) % nb) * b, (k / (nb * nb)) * b};
-    __syncthreads();
-    for (int j = lo + threadIdx.x; j < hi; j += blockDim.x) {
-        int i = perm[j];
-        int f[3];
-        double d0[3];
-        double w[3][MAX_SUPPORT];
-        for (int d = 0; d < 3; ++d)
-            window_axis(pts[3 * i + d], l, m, p, h, alpha, norm, &f[d], &d0[d], w[d]);
-        double v[3];
-        for (int c = 0; c < nf; ++c) v[c] = vals[(long long)(f0 + c) * n + i];
-        // The window's first cell relative to the bin (in 0..b: the bin is that of f).
-        int o[3];
-        for (int d = 0; d < 3; ++d) o[d] = f[d] - origin[d];
-        for (int qz = 0; qz < p; ++qz) {
-            for (int qy = 0; qy < p; ++qy) {
-                double wzy = w[2][qz] * w[1][qy];
-                int row = ((o[2] + qz) * TILE + o[1] + qy) * TILE + o[0];
-                for (int qx = 0; qx < p; ++qx) {
-                    double wt = wzy * w[0][qx];
-                    for (int c = 0; c < nf; ++c) atomicAdd(&tile[c * t3 + row + qx], wt * v[c]);
-                }
-            }
-        }
-    }
-    __syncthreads();
-    long long m3 = grid_field(m), r = grid_row(m);
-    for (int cell = threadIdx.x; cell < t3; cell += blockDim.x) {
-        int tx = cell % TILE, ty = (cell / TILE) % TILE, tz = cell / (TILE * TILE);
-        long long g = ((long long)((origin[2] + tz) % m) * m + (origin[1] + ty) % m) * r +
-                      (origin[0] + tx) % m;
-        for (int c = 0; c < nf; ++c) {
-            double v = tile[c * t3 + cell];
-            if (v != 0.0) atomicAdd(&grid[(f0 + c) * m3 + g], v);
-        }
-    }
 }
 
 // The global-memory spreader over the points in bin order (thread j spreads point perm[j]).

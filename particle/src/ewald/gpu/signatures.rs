@@ -105,26 +105,6 @@ motile_gpu::kernels! {
         reach: i32,
     }
 
-    /// Spread fields `f0..f0 + nf` (`nf <= 3`) bin by bin through shared-memory tiles.
-    pub(crate) struct SpreadTiles = "spread_tiles" {
-        pts: &'a Buffer<f64>,
-        vals: &'a Buffer<f64>,
-        perm: &'a Buffer<i32>,
-        start: &'a Buffer<i32>,
-        grid: &'a mut Buffer<f64>,
-        n: i32,
-        f0: i32,
-        nf: i32,
-        m: i32,
-        p: i32,
-        l: f64,
-        h: f64,
-        alpha: f64,
-        norm: f64,
-        b: i32,
-        nb: i32,
-    }
-
     /// The global-memory spreader over the points in bin order.
     pub(crate) struct SpreadSorted = "spread_sorted" {
         pts: &'a Buffer<f64>,
@@ -398,13 +378,13 @@ mod tests {
     /// keeps no stack (`motile_gpu::frontend`), those named apart.
     ///
     /// The spreaders that keep a point's window weights in an array of the support's length
-    /// (known at run time) have a stack: the atomic one (the slow twin) and the two a run takes
-    /// only when asked (`MOTILE_GPU_SPREAD=tiles|sorted`); the default, `spread_cells`, has none.
+    /// (known at run time) have a stack: the atomic one (the slow twin) and the sorted one (a
+    /// run takes it only when its config asks); the default, `spread_cells`, has none.
     #[test]
     fn the_kernels_compile_for_a_device_without_a_stack() {
         let said = motile_gpu::frontend::check_set_in_test(
             &super::KERNELS,
-            &["spread", "spread_tiles", "spread_sorted"],
+            &["spread", "spread_sorted"],
         );
         eprintln!("{}", said.unwrap_or_else(|e| panic!("{e}")));
     }
