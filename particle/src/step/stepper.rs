@@ -263,7 +263,7 @@ impl Stepper {
         let t = Instant::now();
         let mut forces = self.rod_forces(&constraints, &lambda, &plan.order, part);
         self.finish_velocities(rods, &plan.p, &forces, part)?;
-        let correction_active = self.correct(&plan, &constraints, (&mut forces, dt), part)?;
+        let correction_active = self.correct(&plan, &constraints, &mut forces, dt, part)?;
         self.contact_force = forces.par_iter().map(|(f, _)| *f).collect();
         self.advance(rods, dt, part)?;
         times.update = t.elapsed().as_secs_f64();
@@ -424,7 +424,8 @@ impl Stepper {
         &mut self,
         plan: &Plan,
         constraints: &[Constraint],
-        (forces, dt): (&mut [(Vec3, Vec3)], f64),
+        forces: &mut [(Vec3, Vec3)],
+        dt: f64,
         part: Part<'_>,
     ) -> Result<usize, StepError> {
         let comm = part.comm;
@@ -541,7 +542,7 @@ impl Stepper {
         let mut rounds = 0;
         while max_overlap > 0.5 * self.contact.overlap_tolerance && rounds < PROJECTIONS {
             rounds += 1;
-            self.project_once(rods, plan, constraints, (&p_new, dt), part)?;
+            self.project_once(rods, plan, constraints, dt, part)?;
             (max_overlap, worst) = overlap_of(rods);
         }
         if max_overlap > self.contact.overlap_tolerance {
@@ -558,19 +559,20 @@ impl Stepper {
         })
     }
 
-    /// One round of [`Self::project`]: the constraints at the rods' positions now (axes
-    /// `p_new`), the translations that remove their overlaps, applied to the rods, their
-    /// velocities and contact forces.
+    /// One round of [`Self::project`]: the constraints at the rods' positions now, the
+    /// translations that remove their overlaps, applied to the rods, their velocities and
+    /// contact forces.
     fn project_once(
         &mut self,
         rods: &mut RodSet,
         plan: &Plan,
         constraints: &[Constraint],
-        (p_new, dt): (&[Vec3], f64),
+        dt: f64,
         part: Part<'_>,
     ) -> Result<(), StepError> {
+        let p_new = rods.orientations();
         let xs = gather(&plan.order, &rods.x);
-        let ps = gather(&plan.order, p_new);
+        let ps = gather(&plan.order, &p_new);
         let (b, margin) = (rods.diameter, self.contact.margin);
         let again: Vec<Constraint> = constraints
             .par_iter()

@@ -86,6 +86,12 @@ pub(super) struct Problem<'a> {
     dt: f64,
 }
 
+/// Multipliers and their gradient on the device.
+struct Multipliers {
+    lam: Buffer,
+    g: Buffer,
+}
+
 /// A solved problem: its buffers, the multipliers and the last gradient on the device.
 pub(super) struct Solved<'a> {
     pub(super) prob: Problem<'a>,
@@ -156,8 +162,9 @@ impl GpuStep {
         check_problem(&problem, initial)?;
         let mut prob = self.problem(&problem)?;
         let q = self.rate_offsets(&problem)?;
-        let (lam, g) = self.start(&mut prob, &q, initial)?;
-        let (lam, g, iterations, residual) = self.iterate(&mut prob, &q, (lam, g), params)?;
+        let start = self.start(&mut prob, &q, initial)?;
+        let (Multipliers { lam, g }, iterations, residual) =
+            self.iterate(&mut prob, &q, start, params)?;
         Ok(Some(Solved {
             prob,
             lam,
@@ -280,7 +287,7 @@ impl GpuStep {
         prob: &mut Problem<'_>,
         q: &Buffer,
         initial: Start<'_>,
-    ) -> Result<(Buffer, Buffer), GpuError> {
+    ) -> Result<Multipliers, GpuError> {
         let (dev, m) = (&self.dev, prob.cons.len);
         let warm = match initial {
             Start::Host(h) if h.iter().any(|&l| l > 0.0) => {
@@ -297,33 +304,36 @@ impl GpuStep {
         match warm {
             Some(lam) => {
                 self.apply(prob, &lam, Some(q), &mut g)?;
-                Ok((lam, g))
+                Ok(Multipliers { lam, g })
             }
             None => {
                 dev.copy((q, 0), (&mut g, 0), m)?;
-                Ok((dev.zeros::<f64>(m)?, g))
+                let lam = dev.zeros::<f64>(m)?;
+                Ok(Multipliers { lam, g })
             }
         }
     }
 
-    /// The Barzilai-Borwein projected gradient iterations from `(lam, g)` until the residual
-    /// meets the tolerance: the multipliers, their gradient, the iterations and the residual.
+    /// The Barzilai-Borwein projected gradient iterations from `start` until the residual
+    /// meets the tolerance: the multipliers with their gradient, the iterations and the
+    /// residual.
     fn iterate(
         &self,
         prob: &mut Problem<'_>,
         q: &Buffer,
-        (mut lam, mut g): (Buffer, Buffer),
+        start: Multipliers,
         params: &ContactParams,
-    ) -> Result<(Buffer, Buffer, usize, f64), DeviceContactError> {
+    ) -> Result<(Multipliers, usize, f64), DeviceContactError> {
+        let Multipliers { mut lam, mut g } = start;
         let (dev, m) = (&self.dev, prob.cons.len);
         let mi = int(m, "constraints")?;
         let mut partial = dev.zeros::<f64>(4 * m.div_ceil(CHUNK))?;
         let mut res = self.stats(&lam, &lam, &g, &g, &mut partial, m)?[0];
         let mut iterations = 0;
         if res <= params.tolerance {
-            return Ok((lam, g, iterations, res));
+            return Ok((Multipliers { lam, g }, iterations, res));
         }
-        let mut alpha = self.first_step(prob, (&lam, &g), &mut partial)?;
+        let mut alpha = self.first_step(prob, &lam, &g, &mut partial)?;
         let mut lam_new = dev.zeros::<f64>(m)?;
         let mut g_new = dev.zeros::<f64>(m)?;
         loop {
@@ -351,7 +361,7 @@ impl GpuStep {
             std::mem::swap(&mut g, &mut g_new);
             match next_step(alpha, iterations, res, [ss, sy, yy], params)? {
                 Some(a) => alpha = a,
-                None => return Ok((lam, g, iterations, res)),
+                None => return Ok((Multipliers { lam, g }, iterations, res)),
             }
         }
     }
@@ -362,7 +372,8 @@ impl GpuStep {
     fn first_step(
         &self,
         prob: &mut Problem<'_>,
-        (lam, g): (&Buffer, &Buffer),
+        lam: &Buffer,
+        g: &Buffer,
         partial: &mut Buffer,
     ) -> Result<f64, GpuError> {
         let (dev, m) = (&self.dev, prob.cons.len);
