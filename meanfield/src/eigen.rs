@@ -72,7 +72,8 @@ pub(crate) fn sym3_eigen_sorted(a: &Sym3) -> ([f64; 3], Sym3) {
     // sqrt(6 p2) is the Frobenius norm of the traceless part: the spread of the eigenvalues.
     // Not positive also catches NaN.
     if p2.is_nan() || p2 <= 0.0 || (6.0 * p2).sqrt() <= 1e-9 * scale {
-        return sorted(sym3_eigen(a));
+        let (w, r) = sym3_eigen(a);
+        return sorted(w, r);
     }
     let p = p2.sqrt();
     // det(B / p) / 2 = cos(3 phi), B = A - c I.
@@ -109,7 +110,8 @@ pub(crate) fn sym3_eigen_sorted(a: &Sym3) -> ([f64; 3], Sym3) {
         2
     };
     if norms[k].is_nan() || norms[k] <= 0.0 {
-        return sorted(sym3_eigen(a));
+        let (w, r) = sym3_eigen(a);
+        return sorted(w, r);
     }
     let v = scale3(crosses[k], 1.0 / norms[k].sqrt());
     // An orthonormal pair (u, w) spanning the plane orthogonal to v.
@@ -152,10 +154,10 @@ pub(crate) fn sym3_eigen_sorted(a: &Sym3) -> ([f64; 3], Sym3) {
         [hi, lo, (lv, v)]
     };
     // Round-off can reorder eigenvalues that differ by less than it: keep them descending.
-    sorted((
+    sorted(
         cols.map(|c| c.0),
         std::array::from_fn(|i| cols.map(|c| c.1[i])),
-    ))
+    )
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -178,8 +180,8 @@ fn mat_vec(a: &Sym3, v: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|i| dot(a[i], v))
 }
 
-/// Eigenvalues in descending order, eigenvector columns permuted with them.
-fn sorted((w, r): ([f64; 3], Sym3)) -> ([f64; 3], Sym3) {
+/// Eigenvalues `w` in descending order, the eigenvector columns of `r` permuted with them.
+fn sorted(w: [f64; 3], r: Sym3) -> ([f64; 3], Sym3) {
     let mut order = [0usize, 1, 2];
     order.sort_by(|&i, &j| w[j].total_cmp(&w[i]));
     (
@@ -324,7 +326,8 @@ pub(crate) mod tests {
             let a: Sym3 = std::array::from_fn(|i| std::array::from_fn(|j| a[i.min(j)][i.max(j)]));
             check_sorted(a, 3e-14);
             let (w, _) = sym3_eigen_sorted(&a);
-            let (wj, _) = sorted(sym3_eigen(&a));
+            let (wj, rj) = sym3_eigen(&a);
+            let (wj, _) = sorted(wj, rj);
             for c in 0..3 {
                 assert!(
                     (w[c] - wj[c]).abs() < 1e-14,
