@@ -5,8 +5,12 @@
 //! known exactly: the shot-noise level of a random configuration and the ballistic mean squared
 //! displacement `(U t)^2`.
 
+use crate::campaign::scene::SceneReport;
 use crate::io::rundir::RunDir;
 use crate::io::snapshot::{ParticleSnapshot, PointForces};
+use crate::report::curves::{NormCurve, growth_fit, norm_curve_of};
+use crate::report::opened_run::{OpenedModel, OpenedRun};
+use anyhow::Context;
 use motile_analysis::quadrature::gauss_legendre;
 use motile_particle::model::init::isotropic_orientation;
 use rand::{RngExt, SeedableRng};
@@ -170,11 +174,41 @@ pub struct DemoSummary {
 impl DemoSummary {
     /// Read the summary of a finished demo scene in `out`.
     pub fn read(out: &Path) -> anyhow::Result<Self> {
-        use crate::report::curves::{growth_fit, norm_curve_of};
-        use crate::report::opened_run::{OpenedModel, OpenedRun};
-        let p = norm_curve_of(&OpenedRun::open(&out.join("particle"))?)?;
+        let particle = OpenedRun::open(&out.join("particle"))?;
+        let p = norm_curve_of(&particle)?;
         let meanfield = OpenedRun::open(&out.join("meanfield"))?;
         let m = norm_curve_of(&meanfield)?;
+        Self::of_runs(out, &p, &m, &meanfield)
+    }
+
+    /// The summary of the demo scene just run into `out`: from its comparison's runs and curves
+    /// where it has one (each run opened once), else read back ([`Self::read`]).
+    pub fn of_scene(out: &Path, report: &SceneReport) -> anyhow::Result<Self> {
+        let Some(compared) = &report.compare else {
+            return Self::read(out);
+        };
+        let find = |name: &str| {
+            let path = out.join(name);
+            compared
+                .runs
+                .iter()
+                .zip(&compared.curves)
+                .find(|(run, _)| run.path() == path)
+                .with_context(|| format!("{}: not in the comparison", path.display()))
+        };
+        let (_, p) = find("particle")?;
+        let (meanfield, m) = find("meanfield")?;
+        Self::of_runs(out, p, m, meanfield)
+    }
+
+    /// The summary from the particle and mean-field curves `p`, `m`, the mean-field run and the
+    /// comparison's velocity correlations in `out/compare`.
+    fn of_runs(
+        out: &Path,
+        p: &NormCurve,
+        m: &NormCurve,
+        meanfield: &OpenedRun,
+    ) -> anyhow::Result<Self> {
         let last_fifth = |t: &[f64], u: &[f64]| {
             let t1 = t.last().copied().unwrap_or(0.0);
             let t0 = 0.8 * t1;
@@ -187,24 +221,9 @@ impl DemoSummary {
         let OpenedModel::MeanField(cfg) = &meanfield.model else {
             anyhow::bail!("{}: not a mean-field run", meanfield.path().display());
         };
-        let csv = std::fs::read_to_string(out.join("compare").join("velocity_correlation.csv"))?;
-        // Rows `"label",r/L,value` (the label may hold commas): the fewest radii in (0, 1/2]
-        // over the runs.
-        let mut per_run: std::collections::BTreeMap<&str, usize> = Default::default();
-        for line in csv.lines().skip(1) {
-            let mut f = line.rsplitn(3, ',');
-            let (_, r, label) = (f.next(), f.next(), f.next().unwrap_or(""));
-            if let Some(r) = r.and_then(|r| r.trim().parse::<f64>().ok())
-                && r > 0.0
-                && r <= 0.5 + 1e-12
-            {
-                *per_run.entry(label).or_default() += 1;
-            }
-        }
-        let radial_points = per_run.values().copied().min().unwrap_or(0);
         Ok(Self {
-            particle: growth_fit(&p),
-            meanfield: growth_fit(&m),
+            particle: growth_fit(p),
+            meanfield: growth_fit(m),
             theory_rate: m.theory_rate,
             saturated: (ps, ms),
             late_growth: (pg, mg),
@@ -213,7 +232,7 @@ impl DemoSummary {
                 m.t.last().copied().unwrap_or(f64::NAN),
             ),
             meanfield_t_end_config: cfg.t_end,
-            radial_points,
+            radial_points: radial_points(out)?,
         })
     }
 
@@ -251,6 +270,25 @@ impl DemoSummary {
             ),
         ]
     }
+}
+
+/// The fewest radii in `0 < r/L <= 1/2` over the runs of the velocity autocorrelation that the
+/// comparison in `out/compare` wrote.
+fn radial_points(out: &Path) -> anyhow::Result<usize> {
+    let csv = std::fs::read_to_string(out.join("compare").join("velocity_correlation.csv"))?;
+    // Rows `"label",r/L,value` (the label may hold commas).
+    let mut per_run: std::collections::BTreeMap<&str, usize> = Default::default();
+    for line in csv.lines().skip(1) {
+        let mut f = line.rsplitn(3, ',');
+        let (_, r, label) = (f.next(), f.next(), f.next().unwrap_or(""));
+        if let Some(r) = r.and_then(|r| r.trim().parse::<f64>().ok())
+            && r > 0.0
+            && r <= 0.5 + 1e-12
+        {
+            *per_run.entry(label).or_default() += 1;
+        }
+    }
+    Ok(per_run.values().copied().min().unwrap_or(0))
 }
 
 /// The mean-field bound `||u||_2 <= sqrt(1/(24 pi^2))` (docs/MODEL.md §4), which holds once

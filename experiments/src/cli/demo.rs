@@ -30,7 +30,7 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
     let report = run_scene(&s, &a.out, &[], progress(), &mut |line| println!("{line}"))?;
     println!("{}", meanfield_bound_line(&a.out)?);
     println!("{}", report.markdown);
-    for line in DemoSummary::read(&a.out)?.lines() {
+    for line in DemoSummary::of_scene(&a.out, &report)?.lines() {
         println!("{line}");
     }
     let out = a.out.join("free_swimmers");

@@ -23,7 +23,9 @@ use std::path::{Path, PathBuf};
 /// What `compare` wrote.
 #[derive(Clone, Debug)]
 pub struct CompareReport {
-    /// The curves.
+    /// The runs compared, each opened once (in the order given).
+    pub runs: Vec<OpenedRun>,
+    /// The curves (one per run).
     pub curves: Vec<NormCurve>,
     /// Time-averaged velocity autocorrelations (runs whose snapshots carry a flow).
     pub correlations: Vec<CorrCurve>,
@@ -99,6 +101,7 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     let figures = CompareFigures::collect(&curves, analyses);
     figures.write(out)?;
     Ok(CompareReport {
+        runs: opened,
         curves,
         correlations: figures.correlations,
         trajectories: figures.trajectories,
