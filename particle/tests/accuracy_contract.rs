@@ -16,7 +16,7 @@ use common::{errors, matrices, rod_points, rods, vectors};
 use motile_particle::ewald::params::{EwaldParams, SumOutput};
 use motile_particle::ewald::periodic::{PeriodicStokes, RpyGeometry, SumReport};
 use motile_particle::ewald::reference::EwaldReference;
-use motile_particle::ewald::shared::SharedEwald;
+use motile_particle::ewald::shared::{RankShare, SharedEwald};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::model::geometry::Vec3;
 use motile_particle::parallel::comm::{Comm, ThreadRanks};
@@ -289,9 +289,12 @@ fn shared(x: &[Vec3], p: &[Vec3], l: f64, tol: f64, ranks: usize) -> Vec<(Vec3, 
                     let ps: Vec<Vec3> = order.iter().map(|&k| p[k]).collect();
                     let sigma = vec![SIGMA; xs.len()];
                     let mut sum = SharedEwald::new(tol).unwrap();
-                    let f = sum
-                        .stresslets(&comm, (owned, x.len(), REACH), l, &xs, &ps, &sigma)
-                        .unwrap();
+                    let share = RankShare {
+                        owned,
+                        total: x.len(),
+                        reach: REACH,
+                    };
+                    let f = sum.stresslets(&comm, share, l, &xs, &ps, &sigma).unwrap();
                     let report = sum.last_report().unwrap();
                     (order[..owned].to_vec(), f, report)
                 })
@@ -390,9 +393,12 @@ fn shared_rpy(x: &[Vec3], y: &[Vec3], f: &[Vec3], l: f64, tol: f64, ranks: usize
                     };
                     let (ys, fs) = (pick(&y), pick(&f));
                     let mut sum = SharedEwald::new(tol).unwrap();
-                    let u = sum
-                        .rpy(&comm, (owned * g, y.len(), reach), &geo, &ys, &fs)
-                        .unwrap();
+                    let share = RankShare {
+                        owned: owned * g,
+                        total: y.len(),
+                        reach,
+                    };
+                    let u = sum.rpy(&comm, share, &geo, &ys, &fs).unwrap();
                     let report = sum.last_report().unwrap();
                     (order[..owned].to_vec(), u, report)
                 })

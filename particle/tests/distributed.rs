@@ -214,7 +214,7 @@ fn the_dipole_level_on_two_and_three_ranks_agrees_with_one_process_within_the_su
 /// that returned alone would leave the others waiting forever).
 #[test]
 fn a_non_finite_point_on_one_rank_fails_the_shared_sums_on_every_rank() {
-    use motile_particle::ewald::shared::SharedEwald;
+    use motile_particle::ewald::shared::{RankShare, SharedEwald};
     let handles: Vec<_> = ThreadRanks::group(2)
         .into_iter()
         .map(|comm| {
@@ -229,7 +229,12 @@ fn a_non_finite_point_on_one_rank_fails_the_shared_sums_on_every_rank() {
                 let p = vec![[0.0, 0.0, 1.0]; x.len()];
                 let sigma = vec![1.0; x.len()];
                 let mut sum = SharedEwald::new(1e-4).unwrap();
-                sum.stresslets(&comm, (x.len(), 40, 1.3), 8.0, &x, &p, &sigma)
+                let share = RankShare {
+                    owned: x.len(),
+                    total: 40,
+                    reach: 1.3,
+                };
+                sum.stresslets(&comm, share, 8.0, &x, &p, &sigma)
                     .map(|_| ())
                     .map_err(|e| e.to_string())
             })

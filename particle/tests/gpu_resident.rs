@@ -206,7 +206,7 @@ fn check_caches(backend: Backend) {
     let first = sum.rpy(&geometry, &few.x, &forces(&few)).unwrap();
     sum.fixed = sum.last_params();
     let other = sum
-        .rpy_via_device(&geometry, (&many.x, &mut None), &forces(&many))
+        .rpy_via_device(&geometry, &many.x, &mut None, &forces(&many))
         .unwrap();
     assert_eq!(other.len(), many.len());
     let again = sum.rpy(&geometry, &few.x, &forces(&few)).unwrap();

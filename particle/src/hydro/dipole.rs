@@ -12,7 +12,7 @@
 //! unlike the slender-body one. Measured consequences belong to the model comparison.
 
 use crate::ewald::periodic::StressletField;
-use crate::ewald::shared::SharedEwald;
+use crate::ewald::shared::{RankShare, SharedEwald};
 use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, MobilityState, ResidentMobility,
     RodVelocities, SharedMobility,
@@ -126,7 +126,11 @@ impl SharedMobility for Dipole {
             .ok_or(MobilityError::NotShared("dipole"))?;
         let field = shared.stresslets(
             part.comm,
-            (part.halo.owned, part.total, part.reach),
+            RankShare {
+                owned: part.halo.owned,
+                total: part.total,
+                reach: part.reach,
+            },
             rods.box_length,
             &rods.x,
             p,

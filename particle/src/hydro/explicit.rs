@@ -11,7 +11,7 @@
 //! local mobility, as at the dipole level.
 
 use crate::ewald::periodic::RpyGeometry;
-use crate::ewald::shared::SharedEwald;
+use crate::ewald::shared::{RankShare, SharedEwald};
 use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, MobilityState, ResidentMobility,
     RodVelocities, SharedMobility,
@@ -168,7 +168,11 @@ impl SharedMobility for ExplicitSlender {
             .ok_or(MobilityError::NotShared("sbt-explicit"))?;
         // Copies reach `part.reach` beyond the slab from their centres; nodes lie within half
         // a rod of theirs.
-        let counts = (part.halo.owned * m, part.total * m, part.reach - ROD_LENGTH);
+        let counts = RankShare {
+            owned: part.halo.owned * m,
+            total: part.total * m,
+            reach: part.reach - ROD_LENGTH,
+        };
         let u = shared.rpy(part.comm, counts, &geometry, &points, &weighted)?;
         self.report = HydroReport {
             seconds_sums: t.elapsed().as_secs_f64(),

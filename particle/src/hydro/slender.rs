@@ -23,7 +23,7 @@
 //! the step's cost (BENCHMARKS.md).
 
 use crate::ewald::periodic::{PeriodicStokes, RpyGeometry, SumError};
-use crate::ewald::shared::SharedEwald;
+use crate::ewald::shared::{RankShare, SharedEwald};
 use crate::hydro::gmres::{GmresInfo, GmresParams, LinOp, gmres_shared};
 use crate::hydro::mobility::{
     ForceDensity, HydroReport, LocalDrag, Mobility, MobilityError, MobilityState, ResidentMobility,
@@ -218,7 +218,11 @@ impl P4<'_> {
                 let mut full = vec![0.0; self.points.len() * 3];
                 full[..f.len()].copy_from_slice(f);
                 part.halo.refresh_rows(part.comm, &mut full, width);
-                let counts = (self.owned * m, part.total * m, *reach);
+                let counts = RankShare {
+                    owned: self.owned * m,
+                    total: part.total * m,
+                    reach: *reach,
+                };
                 let u = sum.rpy(
                     part.comm,
                     counts,

@@ -1,7 +1,7 @@
 //! [`GpuFourier`] as a spectral sum's device ([`FourierDevice`]): the host's parameters turned
 //! into the device's geometry and tables, its errors into the sum's.
 
-use super::{GpuFourier, launch::Geometry};
+use super::{GpuFourier, RealSpaceReach, launch::Geometry};
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use crate::ewald::params::{ERROR_MODEL_RANGE, EwaldParams};
 use crate::ewald::periodic::SumError;
@@ -39,8 +39,12 @@ impl FourierDevice for GpuFourier {
     ) -> Result<Vec<[f64; 4]>, SumError> {
         let table = RealSpaceTable::new(at.params.cutoff, at.params.xi, radius);
         let r0 = ERROR_MODEL_RANGE * at.params.spacing(at.box_length);
-        let reach = (at.params.cutoff, radius, r0);
-        GpuFourier::rpy_real(self, at.generation, cells, &table, reach, forces).map_err(SumError::from)
+        let reach = RealSpaceReach {
+            cutoff: at.params.cutoff,
+            error_range: r0,
+        };
+        GpuFourier::rpy_real(self, at.generation, cells, &table, reach, radius, forces)
+            .map_err(SumError::from)
     }
 
     fn rpy_fourier_part(
@@ -64,8 +68,11 @@ impl FourierDevice for GpuFourier {
     ) -> Result<Vec<[f64; 13]>, SumError> {
         let table = StressletTable::new(at.params.cutoff, at.params.xi);
         let r0 = ERROR_MODEL_RANGE * at.params.spacing(at.box_length);
-        let reach = (at.params.cutoff, r0);
-        GpuFourier::stresslet_real(self, at.generation, cells, &table, reach, (axes, sigma))
+        let reach = RealSpaceReach {
+            cutoff: at.params.cutoff,
+            error_range: r0,
+        };
+        GpuFourier::stresslet_real(self, at.generation, cells, &table, reach, axes, sigma)
             .map_err(SumError::from)
     }
 

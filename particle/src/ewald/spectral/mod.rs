@@ -56,7 +56,10 @@ use crate::ewald::periodic::{
 };
 use crate::ewald::point_cells::PointCells;
 use crate::ewald::spectral::device::{Attempt, FourierDevice};
-use crate::ewald::spectral::estimates::{estimate, report_of, stresslet_estimates};
+use crate::ewald::spectral::estimates::{
+    Accepted, AttemptTolerance, ErrorScale, StressletOutputs, estimate, report_of,
+    stresslet_estimates,
+};
 use crate::ewald::spectral::real_space::{rpy_assemble, rpy_real, stresslet_real};
 use crate::ewald::spectral::refinement::{Refinement, check_tolerance};
 use crate::model::geometry::{Vec3, dot};
@@ -282,8 +285,10 @@ impl SpectralEwald {
         let (u, e2) = rpy_assemble(
             real,
             |t| [uf[0][t], uf[1][t], uf[2][t]],
-            (points, forces),
-            (&p, geometry),
+            points,
+            forces,
+            &p,
+            geometry,
         );
         self.prepared = Some(prep);
         self.timing = SumTiming {
@@ -423,12 +428,12 @@ impl SpectralEwald {
     /// Record the accepted attempt.
     fn record(&mut self, internal: f64, attempts: u32, estimates: Vec<ErrorEstimate>) {
         let params = self.last.expect("an attempt ran");
-        self.report = Some(report_of(
-            self.tol,
-            (internal, self.refine.level, attempts),
-            params,
-            estimates,
-        ));
+        let accepted = Accepted {
+            internal,
+            level: self.refine.level,
+            attempts,
+        };
+        self.report = Some(report_of(self.tol, accepted, params, estimates));
     }
 }
 
@@ -458,7 +463,7 @@ impl PeriodicStokes for SpectralEwald {
             let scale = internal * SumOutput::RpyVelocity.self_scale(p.xi) / VISCOSITY;
             let est = estimate(
                 SumOutput::RpyVelocity,
-                (scale, internal),
+                ErrorScale { scale, internal },
                 |t| e2[t],
                 |t| dot(u[t], u[t]),
                 u.len(),
@@ -498,8 +503,16 @@ impl PeriodicStokes for SpectralEwald {
             let (field, e2) = self.stresslet_attempt(prm, l, x, p, sigma)?;
             let n = x.len();
             let (estimates, ratio) = stresslet_estimates(
-                (&field, &e2, sigma),
-                (&prm, internal, self.tol),
+                StressletOutputs {
+                    field: &field,
+                    e2: &e2,
+                    sigma,
+                },
+                AttemptTolerance {
+                    params: &prm,
+                    internal,
+                    tol: self.tol,
+                },
                 floor,
                 |parts| parts,
                 n,

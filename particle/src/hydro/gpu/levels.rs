@@ -5,6 +5,8 @@
 use super::resident::{
     DeviceVelocities, ResidentMobility, RodsOnDevice, on_resident_sum,
 };
+use crate::ewald::gpu::resident::{Rule, Swimming};
+use crate::ewald::gpu::{OrientedPoints, PointForces};
 use crate::hydro::dipole::{Dipole, stresslet_strength};
 use crate::hydro::explicit::ExplicitSlender;
 use crate::hydro::report::MobilityError;
@@ -32,9 +34,13 @@ impl ResidentMobility for Dipole {
                 .device_sum()?
                 .rod_axes(rods.q, n)
                 .map_err(MobilityError::from)?;
-            let field = sum.stresslets_resident(rods.box_length, (rods.x, &p), sigma, n)?;
+            let stresslets = OrientedPoints {
+                centres: rods.x,
+                axes: &p,
+            };
+            let field = sum.stresslets_resident(rods.box_length, stresslets, sigma, n)?;
             let gpu = sum.device_sum()?;
-            gpu.jeffery_velocities((&p, &field.u, &field.grad), n, SWIM_SPEED)
+            gpu.jeffery_velocities(&p, &field.u, &field.grad, n, SWIM_SPEED)
                 .map_err(MobilityError::from)
         })
         .map(|done| done.map(DeviceVelocities::from))
@@ -57,18 +63,37 @@ impl ResidentMobility for ExplicitSlender {
         let geometry = self.geometry(rods.box_length);
         let c = SWIM_SPEED / (2.0 * eta(self.diameter));
         let (s, w) = (&self.s, &self.w);
+        let rule = Rule { s, w };
         let shared = self.shared.is_some();
         on_resident_sum(self.sum.as_mut(), shared, &mut self.report, |sum| {
             let n = rods.len;
             let gpu = sum.device_sum()?;
             let p = gpu.rod_axes(rods.q, n).map_err(MobilityError::from)?;
+            let rod_frames = OrientedPoints {
+                centres: rods.x,
+                axes: &p,
+            };
             let (nodes, force, fields) = gpu
-                .node_values((rods.x, &p), (s, w), n, c)
+                .node_values(rod_frames, rule, n, c)
                 .map_err(MobilityError::from)?;
-            let u = sum.rpy_resident(&geometry, (&nodes, &force, &fields), n * s.len())?;
+            let sources = PointForces {
+                points: &nodes,
+                forces: &force,
+                fields: &fields,
+            };
+            let u = sum.rpy_resident(&geometry, sources, n * s.len())?;
             drop((nodes, force, fields));
             sum.device_sum()?
-                .rod_flow_velocities((&p, &u), (s, w), n, (SWIM_SPEED, ROD_LENGTH))
+                .rod_flow_velocities(
+                    &p,
+                    &u,
+                    rule,
+                    n,
+                    Swimming {
+                        speed: SWIM_SPEED,
+                        length: ROD_LENGTH,
+                    },
+                )
                 .map_err(MobilityError::from)
         })
         .map(|done| done.map(DeviceVelocities::from))

@@ -480,7 +480,12 @@ fn product(
     let t = Instant::now();
     let (u, report) = match &mut op.sum {
         P4Sum::Resident(sum) => {
-            let u = sum.rpy_resident(&op.geometry, (op.nodes, &force, &fields), npts)?;
+            let sources = crate::ewald::gpu::PointForces {
+                points: op.nodes,
+                forces: &force,
+                fields: &fields,
+            };
+            let u = sum.rpy_resident(&op.geometry, sources, npts)?;
             drop((force, fields));
             (u, sum.last_report())
         }
