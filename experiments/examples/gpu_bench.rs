@@ -101,6 +101,58 @@ fn rss() -> usize {
         .map_or(0, |kb| kb * 1024)
 }
 
+/// One RPY product case: `n` random points and forces in a box, timed `reps` times at the
+/// sum tolerance `tol`.
+struct SumCase {
+    n: usize,
+    tol: f64,
+    geometry: RpyGeometry,
+    points: Vec<[f64; 3]>,
+    forces: Vec<[f64; 3]>,
+    reps: usize,
+}
+
+/// The default GPU sum of a case and its resident product.
+struct DefaultSum {
+    /// Seconds per sum.
+    seconds: f64,
+    /// Seconds of its Fourier part.
+    fourier_seconds: f64,
+    /// Its other parts' seconds, as the note writes them.
+    split: String,
+    /// Device memory in use after it.
+    gpu_bytes: Option<usize>,
+    /// The velocities.
+    velocities: Vec<[f64; 3]>,
+    /// Seconds per resident product.
+    resident_seconds: f64,
+    /// The largest squared difference of the resident product's velocities from `velocities`.
+    resident_difference: f64,
+}
+
+/// A case's sum with another spreader.
+struct SpreaderSum {
+    method: SpreadMethod,
+    seconds: f64,
+    fourier_seconds: f64,
+    velocities: Vec<[f64; 3]>,
+}
+
+/// The largest squared velocity.
+fn largest_squared(u: &[[f64; 3]]) -> f64 {
+    u.iter()
+        .map(|a| a.iter().map(|c| c * c).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// The largest squared difference of two sets of velocities.
+fn largest_squared_difference(u: &[[f64; 3]], v: &[[f64; 3]]) -> f64 {
+    u.iter()
+        .zip(v)
+        .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
 /// Seconds of one untimed then `reps` timed calls, the median.
 fn time(reps: usize, mut f: impl FnMut()) -> f64 {
     f();
@@ -273,29 +325,57 @@ impl Bench {
         }
     }
 
+    /// The RPY product of `n` random points at tolerance `tol`: the default spreader, its
+    /// resident product and the other spreaders on the device, and the CPU's where it runs.
     fn sum(&mut self, n: usize, tol: f64) {
-        let (l, y, f) = random_points(n);
-        let geo = RpyGeometry {
-            box_length: l,
-            radius: 0.0866,
-            group: 1,
+        let (box_length, points, forces) = random_points(n);
+        let case = SumCase {
+            n,
+            tol,
+            geometry: RpyGeometry {
+                box_length,
+                radius: 0.0866,
+                group: 1,
+            },
+            points,
+            forces,
+            reps: if n >= 10_000_000 { 1 } else { self.reps },
         };
-        let reps = if n >= 10_000_000 { 1 } else { self.reps };
+        let default = self.default_sum(&case);
+        // The other spreaders on the same device, for the ratios (the per-point atomic one,
+        // the global-memory one in bin order); skipped at 1e7 points (their times there are
+        // in BENCHMARKS.md).
+        let methods = if n >= 10_000_000 {
+            Vec::new()
+        } else {
+            vec![SpreadMethod::Atomic, SpreadMethod::Sorted]
+        };
+        let others: Vec<SpreaderSum> = methods
+            .into_iter()
+            .map(|method| self.spreader_sum(&case, method))
+            .collect();
+        self.push_sum_rows(&case, default, others);
+    }
+
+    /// The default GPU sum, timed, and the resident product (points, forces and velocities on
+    /// the device: the product the resident particle step runs) against the same sum of host
+    /// values.
+    fn default_sum(&mut self, case: &SumCase) -> DefaultSum {
+        let (n, tol, reps) = (case.n, case.tol, case.reps);
+        let (geo, y, f) = (&case.geometry, &case.points, &case.forces);
         let mut gpu = SpectralEwald::with_device(tol, self.fourier()).expect("tolerance");
         let mut ug = Vec::new();
         self.profile_begin();
-        let tg = time(reps, || ug = gpu.rpy(&geo, &y, &f).expect("GPU sum"));
+        let tg = time(reps, || ug = gpu.rpy(geo, y, f).expect("GPU sum"));
         let label = format!("RPY product, {n} points, tol {tol:.0e}, gpu");
         self.profile_end(&label, reps + 1, tg);
         let tm = gpu.last_timing();
-        let fourier_gpu = tm.fourier;
         let split = format!(
             "setup {:.3} s, real space {:.3} s, corrections {:.3} s",
             tm.setup, tm.real, tm.corrections
         );
+        let fourier_seconds = tm.fourier;
         let gpu_bytes = self.gpu_bytes();
-        // The resident product (points, forces and velocities on the device: the product the
-        // resident particle step runs), against the same sum of host values.
         let up = |v: Vec<f64>| gpu.upload(&v).expect("upload");
         let (pts, force) = (up(y.as_flattened().to_vec()), up(f.as_flattened().to_vec()));
         let fields = up((0..3).flat_map(|d| f.iter().map(move |v| v[d])).collect());
@@ -307,66 +387,75 @@ impl Bench {
         let mut ur = None;
         self.profile_begin();
         let tr = time(reps, || {
-            ur = Some(
-                gpu.rpy_resident(&geo, sources, n)
-                    .expect("resident GPU sum"),
-            )
+            ur = Some(gpu.rpy_resident(geo, sources, n).expect("resident GPU sum"))
         });
         self.profile_end(&format!("{label}, resident"), reps + 1, tr);
         let ur = gpu.download(&ur.expect("ran")).expect("download");
-        let resident_diff = ur
+        let resident_difference = ur
             .chunks(3)
             .zip(&ug)
             .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
             .fold(0.0, f64::max);
         drop((pts, force, fields, gpu));
-        // The other spreaders on the same device, for the ratios (the per-point atomic one,
-        // the global-memory one in bin order); skipped at 1e7 points (their times there are
-        // in BENCHMARKS.md).
-        let mut methods = vec![SpreadMethod::Atomic, SpreadMethod::Sorted];
-        if n >= 10_000_000 {
-            methods.clear();
+        DefaultSum {
+            seconds: tg,
+            fourier_seconds,
+            split,
+            gpu_bytes,
+            velocities: ug,
+            resident_seconds: tr,
+            resident_difference,
         }
-        let others: Vec<_> = methods
-            .into_iter()
-            .map(|method| {
-                let mut f0 = self.fourier();
-                f0.set_spread_method(Some(method));
-                let mut g0 = SpectralEwald::with_device(tol, f0).expect("tolerance");
-                let mut ua = Vec::new();
-                self.profile_begin();
-                let t = time(reps, || {
-                    ua = g0.rpy(&geo, &y, &f).expect("GPU sum (another spreader)")
-                });
-                let label = format!("RPY product, {n} points, tol {tol:.0e}, gpu {method:?}");
-                self.profile_end(&label, reps + 1, t);
-                (method, t, g0.last_timing().fourier, ua)
-            })
-            .collect();
-        let case = format!("RPY product, {n} points, tol {tol:.0e}");
-        let sq = |u: &Vec<[f64; 3]>, v: &Vec<[f64; 3]>| {
-            u.iter()
-                .zip(v)
-                .map(|(a, b)| (0..3).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>())
-                .fold(0.0, f64::max)
-        };
-        // The largest squared velocity (of the CPU's where it runs, else the GPU's).
-        let norm2 = |u: &Vec<[f64; 3]>| {
-            u.iter()
-                .map(|a| a.iter().map(|c| c * c).sum::<f64>())
-                .fold(0.0, f64::max)
-        };
-        let mut largest = norm2(&ug);
-        let mut gpu_note = format!("Fourier part {fourier_gpu:.3} s, {split}");
+    }
+
+    /// The sum with the spreader `method`, timed.
+    fn spreader_sum(&mut self, case: &SumCase, method: SpreadMethod) -> SpreaderSum {
+        let (n, tol, reps) = (case.n, case.tol, case.reps);
+        let mut fourier = self.fourier();
+        fourier.set_spread_method(Some(method));
+        let mut sum = SpectralEwald::with_device(tol, fourier).expect("tolerance");
+        let mut velocities = Vec::new();
+        self.profile_begin();
+        let t = time(reps, || {
+            velocities = sum
+                .rpy(&case.geometry, &case.points, &case.forces)
+                .expect("GPU sum (another spreader)")
+        });
+        let label = format!("RPY product, {n} points, tol {tol:.0e}, gpu {method:?}");
+        self.profile_end(&label, reps + 1, t);
+        SpreaderSum {
+            method,
+            seconds: t,
+            fourier_seconds: sum.last_timing().fourier,
+            velocities,
+        }
+    }
+
+    /// The case's rows: the CPU's sum (timed here, where it runs), the default GPU sum, its
+    /// resident product and the other spreaders, each with its difference from the reference
+    /// relative to the largest velocity (of the CPU's where it runs, else the GPU's).
+    fn push_sum_rows(&mut self, case: &SumCase, default: DefaultSum, others: Vec<SpreaderSum>) {
+        let (n, tol, reps) = (case.n, case.tol, case.reps);
+        let title = format!("RPY product, {n} points, tol {tol:.0e}");
+        let ug = &default.velocities;
+        let mut largest = largest_squared(ug);
+        let mut gpu_note = format!(
+            "Fourier part {:.3} s, {}",
+            default.fourier_seconds, default.split
+        );
         if n <= self.cpu_max {
             let mut cpu = SpectralEwald::new(tol).expect("tolerance");
             let mut uc = Vec::new();
-            let tc = time(reps, || uc = cpu.rpy(&geo, &y, &f).expect("CPU sum"));
+            let tc = time(reps, || {
+                uc = cpu
+                    .rpy(&case.geometry, &case.points, &case.forces)
+                    .expect("CPU sum")
+            });
             let fourier_cpu = cpu.last_timing().fourier;
-            largest = norm2(&uc);
-            let diff = sq(&uc, &ug);
+            largest = largest_squared(&uc);
+            let diff = largest_squared_difference(&uc, ug);
             let note = format!("Fourier part {fourier_cpu:.3} s");
-            self.push(&case, "cpu", tc, n as f64, "points/s", note);
+            self.push(&title, "cpu", tc, n as f64, "points/s", note);
             gpu_note.push_str(&format!(
                 "; differs from the CPU's by {:.1e}",
                 (diff / largest.max(1e-300)).sqrt()
@@ -374,30 +463,40 @@ impl Bench {
         } else {
             gpu_note.push_str("; CPU side left out (--cpu-max)");
         }
-        self.push(&case, "gpu", tg, n as f64, "points/s", gpu_note);
+        self.push(
+            &title,
+            "gpu",
+            default.seconds,
+            n as f64,
+            "points/s",
+            gpu_note,
+        );
         if let Some(last) = self.rows.last_mut() {
-            last.gpu_bytes = gpu_bytes;
+            last.gpu_bytes = default.gpu_bytes;
         }
         let note = format!(
             "inputs and velocities on the device; differs from the host values' sum by {:.1e}",
-            (resident_diff / largest.max(1e-300)).sqrt()
+            (default.resident_difference / largest.max(1e-300)).sqrt()
         );
-        self.push(&case, "gpu resident", tr, n as f64, "points/s", note);
-        for (method, ta, fa, ua) in others {
-            let da = sq(&ua, &ug);
-            let side = match method {
+        let tr = default.resident_seconds;
+        self.push(&title, "gpu resident", tr, n as f64, "points/s", note);
+        for other in others {
+            let da = largest_squared_difference(&other.velocities, ug);
+            let side = match other.method {
                 SpreadMethod::Atomic => "gpu atomic",
                 SpreadMethod::Sorted => "gpu sorted",
                 SpreadMethod::Cells => "gpu cells",
             };
             self.push(
-                &case,
+                &title,
                 side,
-                ta,
+                other.seconds,
                 n as f64,
                 "points/s",
                 format!(
-                    "Fourier part {fa:.3} s; {method:?} spreader; differs from the default's by {:.1e}",
+                    "Fourier part {:.3} s; {:?} spreader; differs from the default's by {:.1e}",
+                    other.fourier_seconds,
+                    other.method,
                     (da / largest.max(1e-300)).sqrt()
                 ),
             );

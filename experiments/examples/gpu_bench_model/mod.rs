@@ -16,6 +16,7 @@ use motile_particle::hydro::explicit::ExplicitSlender;
 use motile_particle::hydro::mobility::Mobility;
 use motile_particle::hydro::slender::{SlenderBody, SlenderParams};
 use motile_particle::model::init::random_nonoverlapping;
+use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::DEFAULT_DIAMETER;
 use motile_particle::step::contact::ContactParams;
 use motile_particle::step::gpu::DeviceStepper;
@@ -77,6 +78,23 @@ pub(crate) fn meanfield_model_table() {
 /// step (16^3, the paper's zeta and D) and the particle step resident on the device at each
 /// level it runs (432 rods, nu = 2: contacts every step), per step.
 pub(crate) fn counted_table() {
+    if !counted_meanfield_steps() {
+        return;
+    }
+    let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).expect("rods");
+    for level in ["none", "dipole", "sbt-explicit"] {
+        counted_particle_steps(&rods, level);
+    }
+    // The same levels with the flow summed on the device (what runs use): the stepper's and
+    // the sum's device together.
+    for level in ["dipole", "sbt-explicit", "sbt"] {
+        counted_resident_flow_steps(&rods, level);
+    }
+}
+
+/// The table's header and the mean-field step's rows (16^3, three steps); `false` where the
+/// host emulation cannot be opened (the whole table is then skipped).
+fn counted_meanfield_steps() -> bool {
     let closure = BinghamClosure::new(DEFAULT_DEGREE).expect("closure tables");
     let n = 16;
     let grid = SpectralGrid::new(n);
@@ -96,7 +114,7 @@ pub(crate) fn counted_table() {
         Ok(g) => g,
         Err(e) => {
             println!("(counts on the host emulation skipped: {e})");
-            return;
+            return false;
         }
     };
     println!(
@@ -126,109 +144,112 @@ pub(crate) fn counted_table() {
             c.copy_bytes
         );
     }
-    let rods = random_nonoverlapping(432, 6.0, DEFAULT_DIAMETER, 12, 1_000_000).expect("rods");
-    for level in ["none", "dipole", "sbt-explicit"] {
-        let mut mobility: Option<Box<dyn Mobility>> = match level {
-            "dipole" => Some(Box::new(Dipole::new(
-                Box::new(SpectralEwald::new(1e-4).unwrap()),
-                DEFAULT_DIAMETER,
-            ))),
-            "sbt-explicit" => Some(Box::new(ExplicitSlender::new(
-                SlenderParams::default(),
-                Box::new(SpectralEwald::new(1e-4).unwrap()),
-            ))),
-            _ => None,
-        };
-        let mut d = DeviceStepper::new(
-            Backend::HostEmulation,
-            &rods,
-            ContactParams::default(),
-            &Vec::new(),
-        )
-        .expect("device stepper");
-        let mut at = rods.clone();
-        for k in 0..3 {
-            let before = d.counters();
-            let r = match &mut mobility {
-                Some(m) => {
-                    d.download(&mut at).expect("download");
-                    d.step_with_flow(0.02, m.as_mut(), &at)
-                }
-                None => d.step(0.02),
+    true
+}
+
+/// Three steps of the particle stepper resident on the device at `level`, the flow (if any)
+/// summed on the host.
+fn counted_particle_steps(rods: &RodSet, level: &str) {
+    let mut mobility: Option<Box<dyn Mobility>> = match level {
+        "dipole" => Some(Box::new(Dipole::new(
+            Box::new(SpectralEwald::new(1e-4).unwrap()),
+            DEFAULT_DIAMETER,
+        ))),
+        "sbt-explicit" => Some(Box::new(ExplicitSlender::new(
+            SlenderParams::default(),
+            Box::new(SpectralEwald::new(1e-4).unwrap()),
+        ))),
+        _ => None,
+    };
+    let mut stepper = DeviceStepper::new(
+        Backend::HostEmulation,
+        rods,
+        ContactParams::default(),
+        &Vec::new(),
+    )
+    .expect("device stepper");
+    let mut at = rods.clone();
+    for k in 0..3 {
+        let before = stepper.counters();
+        let r = match &mut mobility {
+            Some(m) => {
+                stepper.download(&mut at).expect("download");
+                stepper.step_with_flow(0.02, m.as_mut(), &at)
             }
-            .expect("device step");
-            let c = d.counters().since(&before);
-            println!(
-                "| particle `{level}`, 432 rods, step {} | {} ({} projections) | {} | - | {} ({}) | {} ({}) | {} ({}) |",
-                k + 1,
-                r.contact.iterations,
-                r.projections,
-                c.launches,
-                c.downloads,
-                c.download_bytes,
-                c.uploads,
-                c.upload_bytes,
-                c.copies,
-                c.copy_bytes
-            );
+            None => stepper.step(0.02),
         }
+        .expect("device step");
+        let c = stepper.counters().since(&before);
+        println!(
+            "| particle `{level}`, 432 rods, step {} | {} ({} projections) | {} | - | {} ({}) | {} ({}) | {} ({}) |",
+            k + 1,
+            r.contact.iterations,
+            r.projections,
+            c.launches,
+            c.downloads,
+            c.download_bytes,
+            c.uploads,
+            c.upload_bytes,
+            c.copies,
+            c.copy_bytes
+        );
     }
-    // The same levels with the flow summed on the device (what runs use): the stepper's and
-    // the sum's device together.
-    for level in ["dipole", "sbt-explicit", "sbt"] {
-        let sum = || {
-            let gpu = GpuFourier::open(Backend::HostEmulation).expect("host emulation");
-            SpectralEwald::with_device(1e-4, gpu).expect("tolerance")
-        };
-        let mut mobility: Box<dyn Mobility> = match level {
-            "dipole" => Box::new(Dipole::new(Box::new(sum()), DEFAULT_DIAMETER)),
-            "sbt" => Box::new(SlenderBody::new(SlenderParams::default(), Box::new(sum()))),
-            _ => Box::new(ExplicitSlender::new(
-                SlenderParams::default(),
-                Box::new(sum()),
-            )),
-        };
-        let mut d = DeviceStepper::new(
-            Backend::HostEmulation,
-            &rods,
-            ContactParams::default(),
-            &Vec::new(),
-        )
-        .expect("device stepper");
-        let counted = |d: &DeviceStepper, m: &mut dyn Mobility| {
-            let mut c = d.counters();
-            if let Some(s) = m.resident().and_then(|r| r.sum_counters()) {
-                c.add(&s);
-            }
-            c
-        };
-        for k in 0..3 {
-            let before = counted(&d, mobility.as_mut());
-            let r = d
-                .step_with_resident_flow(0.02, mobility.as_mut())
-                .expect("device step");
-            let c = counted(&d, mobility.as_mut()).since(&before);
-            let gmres = if level == "sbt" {
-                format!(", {} GMRES", r.hydro.gmres_iterations)
-            } else {
-                String::new()
-            };
-            println!(
-                "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections{gmres}) | {} | {} + {} | {} ({}) | {} ({}) | {} ({}) |",
-                k + 1,
-                r.contact.iterations,
-                r.projections,
-                c.launches,
-                c.forward,
-                c.inverse,
-                c.downloads,
-                c.download_bytes,
-                c.uploads,
-                c.upload_bytes,
-                c.copies,
-                c.copy_bytes
-            );
+}
+
+/// Three steps of the particle stepper at `level` with the flow summed on the device too.
+fn counted_resident_flow_steps(rods: &RodSet, level: &str) {
+    let sum = || {
+        let gpu = GpuFourier::open(Backend::HostEmulation).expect("host emulation");
+        SpectralEwald::with_device(1e-4, gpu).expect("tolerance")
+    };
+    let mut mobility: Box<dyn Mobility> = match level {
+        "dipole" => Box::new(Dipole::new(Box::new(sum()), DEFAULT_DIAMETER)),
+        "sbt" => Box::new(SlenderBody::new(SlenderParams::default(), Box::new(sum()))),
+        _ => Box::new(ExplicitSlender::new(
+            SlenderParams::default(),
+            Box::new(sum()),
+        )),
+    };
+    let mut stepper = DeviceStepper::new(
+        Backend::HostEmulation,
+        rods,
+        ContactParams::default(),
+        &Vec::new(),
+    )
+    .expect("device stepper");
+    let counted = |stepper: &DeviceStepper, m: &mut dyn Mobility| {
+        let mut c = stepper.counters();
+        if let Some(s) = m.resident().and_then(|r| r.sum_counters()) {
+            c.add(&s);
         }
+        c
+    };
+    for k in 0..3 {
+        let before = counted(&stepper, mobility.as_mut());
+        let r = stepper
+            .step_with_resident_flow(0.02, mobility.as_mut())
+            .expect("device step");
+        let c = counted(&stepper, mobility.as_mut()).since(&before);
+        let gmres = if level == "sbt" {
+            format!(", {} GMRES", r.hydro.gmres_iterations)
+        } else {
+            String::new()
+        };
+        println!(
+            "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections{gmres}) | {} | {} + {} | {} ({}) | {} ({}) | {} ({}) |",
+            k + 1,
+            r.contact.iterations,
+            r.projections,
+            c.launches,
+            c.forward,
+            c.inverse,
+            c.downloads,
+            c.download_bytes,
+            c.uploads,
+            c.upload_bytes,
+            c.copies,
+            c.copy_bytes
+        );
     }
 }
 
