@@ -90,17 +90,11 @@ impl Dipole {
 
 impl MobilityState for Dipole {
     fn sum_state(&self) -> Vec<u32> {
-        match &self.shared {
-            Some(s) => s.adaptive_state(),
-            None => self.sum.adaptive_state(),
-        }
+        crate::hydro::sum::adaptive_state(self.sum.as_ref(), self.shared.as_ref())
     }
 
     fn set_sum_state(&mut self, state: &[u32]) {
-        match &mut self.shared {
-            Some(s) => s.set_adaptive_state(state),
-            None => self.sum.set_adaptive_state(state),
-        }
+        crate::hydro::sum::set_adaptive_state(self.sum.as_mut(), self.shared.as_mut(), state);
     }
 }
 

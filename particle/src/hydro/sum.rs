@@ -4,6 +4,7 @@
 
 use crate::ewald::periodic::PeriodicStokes;
 use crate::ewald::reference::EwaldReference;
+use crate::ewald::shared::SharedEwald;
 use crate::ewald::spectral::SpectralEwald;
 
 /// A periodic sum as a mobility holds it.
@@ -21,5 +22,26 @@ impl FlowSum for EwaldReference {}
 impl FlowSum for SpectralEwald {
     fn resident(&mut self) -> Option<&mut SpectralEwald> {
         if self.on_device() { Some(self) } else { None }
+    }
+}
+
+/// The adaptive state of a mobility's sums for checkpoints: its sum shared among ranks where
+/// it has one, else its own sum's.
+pub(crate) fn adaptive_state(sum: &dyn FlowSum, shared: Option<&SharedEwald>) -> Vec<u32> {
+    match shared {
+        Some(s) => s.adaptive_state(),
+        None => sum.adaptive_state(),
+    }
+}
+
+/// Restore what [`adaptive_state`] returned.
+pub(crate) fn set_adaptive_state(
+    sum: &mut dyn FlowSum,
+    shared: Option<&mut SharedEwald>,
+    state: &[u32],
+) {
+    match shared {
+        Some(s) => s.set_adaptive_state(state),
+        None => sum.set_adaptive_state(state),
     }
 }
