@@ -2,7 +2,7 @@
 //! cases.
 
 use crate::shared::{meanfield_state, random_points};
-use motile_gpu::Backend;
+use motile_gpu::{Backend, Counters};
 use motile_meanfield::closure::{BinghamClosure, DEFAULT_DEGREE};
 use motile_meanfield::gpu::GpuMeanField;
 use motile_meanfield::solver::grid::SpectralGrid;
@@ -130,18 +130,13 @@ fn counted_meanfield_steps() -> bool {
         let r = gpu.step(0.01, false).expect("mean-field step");
         let c = gpu.counters().since(&before);
         println!(
-            "| mean-field {n}^3, step {} | {} | {} | {} + {} | {} ({}) | {} ({}) | {} ({}) |",
+            "| mean-field {n}^3, step {} | {} | {} | {} + {} | {} |",
             k + 1,
             r.rhs.iterations,
             c.launches,
             c.forward,
             c.inverse,
-            c.downloads,
-            c.download_bytes,
-            c.uploads,
-            c.upload_bytes,
-            c.copies,
-            c.copy_bytes
+            transfers(&c)
         );
     }
     true
@@ -181,17 +176,12 @@ fn counted_particle_steps(rods: &RodSet, level: &str) {
         .expect("device step");
         let c = stepper.counters().since(&before);
         println!(
-            "| particle `{level}`, 432 rods, step {} | {} ({} projections) | {} | - | {} ({}) | {} ({}) | {} ({}) |",
+            "| particle `{level}`, 432 rods, step {} | {} ({} projections) | {} | - | {} |",
             k + 1,
             r.contact.iterations,
             r.projections,
             c.launches,
-            c.downloads,
-            c.download_bytes,
-            c.uploads,
-            c.upload_bytes,
-            c.copies,
-            c.copy_bytes
+            transfers(&c)
         );
     }
 }
@@ -236,21 +226,25 @@ fn counted_resident_flow_steps(rods: &RodSet, level: &str) {
             String::new()
         };
         println!(
-            "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections{gmres}) | {} | {} + {} | {} ({}) | {} ({}) | {} ({}) |",
+            "| particle `{level}` (flow on the device), 432 rods, step {} | {} ({} projections{gmres}) | {} | {} + {} | {} |",
             k + 1,
             r.contact.iterations,
             r.projections,
             c.launches,
             c.forward,
             c.inverse,
-            c.downloads,
-            c.download_bytes,
-            c.uploads,
-            c.upload_bytes,
-            c.copies,
-            c.copy_bytes
+            transfers(&c)
         );
     }
+}
+
+/// The last three cells of a counted row: downloads, uploads and copies on the device, each
+/// with its bytes.
+fn transfers(c: &Counters) -> String {
+    format!(
+        "{} ({}) | {} ({}) | {} ({})",
+        c.downloads, c.download_bytes, c.uploads, c.upload_bytes, c.copies, c.copy_bytes
+    )
 }
 
 /// The work model's table (`--model`): per case and spreading method, each phase's launches,
