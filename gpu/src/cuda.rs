@@ -3,7 +3,6 @@
 
 use crate::buffer::{Data, Element};
 use crate::error::{DeviceInfo, GpuError};
-use crate::fft::Direction;
 use crate::kernel::{Arg, THREADS};
 use cudarc::cufft::{CudaFft, sys::cufftType, sys::double2};
 use cudarc::driver::{
@@ -185,19 +184,16 @@ impl Cuda {
             .map_err(driver)
     }
 
-    /// cuFFT plans of `batch` transforms of `m^3` grids, forward (D2Z) and/or inverse (Z2D),
-    /// as `direction` asks.
+    /// cuFFT plans of `batch` transforms of `m^3` grids: forward (D2Z) where `forward`, inverse
+    /// (Z2D) where `inverse`.
     pub(crate) fn fft3(
         &self,
         m: usize,
         batch: usize,
-        direction: Direction,
+        forward: bool,
+        inverse: bool,
         in_place: bool,
     ) -> Result<(Option<CudaFft>, Option<CudaFft>), GpuError> {
-        let (forward, inverse) = (
-            direction != Direction::Inverse,
-            direction != Direction::Forward,
-        );
         let int = |v: usize, what: &str| {
             i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds cuFFT's int")))
         };

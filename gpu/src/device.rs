@@ -330,3 +330,24 @@ pub fn probe() -> Result<crate::error::DeviceInfo, GpuError> {
         ))
     }
 }
+
+/// For tests: what `opened` holds (a device, or something opened on one of `backend`), or
+/// `None` after printing why the test is skipped where there is no such device
+/// ([`GpuError::NoDevice`]: no C++ compiler for the host emulation, no CUDA driver or GPU) and
+/// the variable that requires one is unset: `MOTILE_REQUIRE_CXX` for the host emulation,
+/// `MOTILE_REQUIRE_GPU` for CUDA. Any other failure, or a missing device that is required,
+/// panics with the error.
+pub fn open_or_skip<T>(opened: Result<T, GpuError>, backend: Backend) -> Option<T> {
+    let required = match backend {
+        Backend::HostEmulation => "MOTILE_REQUIRE_CXX",
+        Backend::Cuda => "MOTILE_REQUIRE_GPU",
+    };
+    match opened {
+        Ok(t) => Some(t),
+        Err(GpuError::NoDevice(why)) if std::env::var_os(required).is_none() => {
+            eprintln!("skipped ({why}); set {required}=1 to make this a failure");
+            None
+        }
+        Err(e) => panic!("{backend:?}: {e} (set {required}=1 requires the device)"),
+    }
+}

@@ -34,27 +34,6 @@ pub fn kernel_int(v: usize, what: &str) -> Result<i32, GpuError> {
     i32::try_from(v).map_err(|_| GpuError::Input(format!("{what} {v} exceeds an int")))
 }
 
-/// For tests: what `opened` holds (a device, or something opened on one of `backend`), or
-/// `None` after printing why the test is skipped where there is no such device
-/// ([`GpuError::NoDevice`]: no C++ compiler for the host emulation, no CUDA driver or GPU) and
-/// the variable that requires one is unset: `MOTILE_REQUIRE_CXX` for the host emulation,
-/// `MOTILE_REQUIRE_GPU` for CUDA. Any other failure, or a missing device that is required,
-/// panics with the error.
-pub fn open_or_skip<T>(opened: Result<T, GpuError>, backend: crate::Backend) -> Option<T> {
-    let required = match backend {
-        crate::Backend::HostEmulation => "MOTILE_REQUIRE_CXX",
-        crate::Backend::Cuda => "MOTILE_REQUIRE_GPU",
-    };
-    match opened {
-        Ok(t) => Some(t),
-        Err(GpuError::NoDevice(why)) if std::env::var_os(required).is_none() => {
-            eprintln!("skipped ({why}); set {required}=1 to make this a failure");
-            None
-        }
-        Err(e) => panic!("{backend:?}: {e} (set {required}=1 requires the device)"),
-    }
-}
-
 /// What [`crate::probe`] found.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DeviceInfo {

@@ -139,7 +139,9 @@ impl Device {
             ),
             #[cfg(feature = "cuda")]
             Inner::Cuda(c) => {
-                let (forward, inverse) = c.fft3(m, batch, direction, in_place)?;
+                let forward = direction != Direction::Inverse;
+                let inverse = direction != Direction::Forward;
+                let (forward, inverse) = c.fft3(m, batch, forward, inverse, in_place)?;
                 let work = crate::cuda::work_size(forward.as_ref())?
                     + crate::cuda::work_size(inverse.as_ref())?;
                 (FftInner::Cuda { forward, inverse }, work)

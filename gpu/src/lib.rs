@@ -48,8 +48,8 @@ pub mod profile;
 
 pub use buffer::{Buffer, Element, check_len, live_bytes, peak_bytes, reset_peak};
 pub use counters::Counters;
-pub use device::{Backend, Device, probe};
-pub use error::{DeviceInfo, GpuError, kernel_int, open_or_skip};
+pub use device::{Backend, Device, open_or_skip, probe};
+pub use error::{DeviceInfo, GpuError, kernel_int};
 pub use fft::{Direction, Fft3, fft_work_bytes};
 #[doc(hidden)]
 pub use kernel::Arg;

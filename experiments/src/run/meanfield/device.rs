@@ -2,7 +2,7 @@
 //! ([`motile_meanfield::gpu::GpuMeanField`]): the state held on the device, downloaded into the
 //! CPU stepper's form only for snapshots, diagnostics and checkpoints.
 
-use super::EngineError;
+use super::step_error::EngineError;
 use motile_meanfield::gpu::{GpuError, GpuMeanField};
 use motile_meanfield::solver::rhs::MeanFieldRhs;
 use motile_meanfield::solver::stepper::{MeanFieldStepReport, MeanFieldStepper};

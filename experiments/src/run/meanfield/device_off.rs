@@ -1,7 +1,7 @@
 //! The mean-field step on a GPU in a build without the `gpu` feature: no GPU stepper exists
 //! (its type has no values), and a run with `device = "gpu"` is refused with how to build it.
 
-use super::EngineError;
+use super::step_error::EngineError;
 use motile_meanfield::solver::rhs::MeanFieldRhs;
 use motile_meanfield::solver::stepper::{MeanFieldStepReport, MeanFieldStepper};
 

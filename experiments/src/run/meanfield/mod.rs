@@ -11,6 +11,7 @@ mod config;
 #[cfg_attr(not(feature = "gpu"), path = "device_off.rs")]
 mod device;
 mod state;
+mod step_error;
 
 pub use config::*;
 pub use state::*;
@@ -20,6 +21,7 @@ use crate::io::rundir::{RunDir, TimeSeries};
 use crate::io::snapshot::FieldSnapshot;
 use crate::run;
 use crate::run::Device;
+use step_error::EngineError;
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::control::StepControl;
 use motile_meanfield::solver::grid::SpectralGrid;
@@ -130,13 +132,6 @@ struct Engine {
     gpu: Option<device::GpuEngine>,
 }
 
-/// A failed step: the model's own failure, or the device's.
-enum EngineError {
-    Model(MeanFieldError),
-    // Made only by a device, which a build without the `gpu` feature cannot have.
-    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
-    Device(String),
-}
 
 impl Engine {
     /// The CPU stepper, or (`device = "gpu"`) the GPU stepper started from its state.

@@ -26,7 +26,7 @@ use crate::ewald::gpu::launch::{Geometry, padded_field};
 use crate::ewald::gpu::signatures::{
     BinCount, BinOrder, BinScatter, GatherSorted, SpreadCells, SpreadSorted,
 };
-use crate::ewald::gpu::{Fields, Points};
+use crate::ewald::gpu::launch::{Fields, Points};
 use motile_gpu::{Buffer, Device, GpuError, THREADS};
 
 /// Bin edge of the sorted global-memory spreader (for locality only).

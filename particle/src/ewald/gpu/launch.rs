@@ -413,3 +413,52 @@ pub(super) fn real_space(
         }
     }
 }
+
+/// `n` points on the device (triples).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Points<'a> {
+    /// The positions, `3 n` values.
+    pub(crate) pos: &'a Buffer,
+    /// How many points.
+    pub(crate) n: usize,
+}
+
+/// Values spread from the points: `nf` fields, field-major (`nf n` values).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Fields<'a> {
+    /// The values.
+    pub(crate) vals: &'a Buffer,
+    /// How many fields.
+    pub(crate) nf: usize,
+}
+
+/// Which Fourier part a sum takes: the multiplication of the spectra, and whether the gather
+/// adds the gradients (12 values per point instead of 3).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct FourierKind {
+    /// The multiplication of the spectra.
+    pub(super) modes: Modes,
+    /// Whether the gather adds the gradients.
+    pub(super) gradient: bool,
+}
+
+/// Points with axes on the device, triples: stresslets at `centres` oriented along `axes`, or
+/// rods' centres and axes.
+#[derive(Clone, Copy, Debug)]
+pub struct OrientedPoints<'a> {
+    /// The points (rods' centres), 3 per point.
+    pub centres: &'a Buffer,
+    /// The unit axes, 3 per point.
+    pub axes: &'a Buffer,
+}
+
+/// Points and the forces on them on the device: the forces as triples, and again field-major.
+#[derive(Clone, Copy, Debug)]
+pub struct PointForces<'a> {
+    /// The points, 3 per point.
+    pub points: &'a Buffer,
+    /// The forces, 3 per point.
+    pub forces: &'a Buffer,
+    /// The forces field-major: each component's `n` values in turn.
+    pub fields: &'a Buffer,
+}

@@ -34,7 +34,8 @@ mod work;
 pub use binned::{CELL_BIN, CELL_BIN_MAX, SpreadMethod, cell_bin};
 pub(crate) use launch::Geometry;
 pub use launch::STRESSLET_FIELDS;
-pub use resident::{OrientedPoints, PointForces};
+pub use launch::{OrientedPoints, PointForces};
+use launch::{Fields, FourierKind, Points};
 pub(crate) use scan::prefix_sum;
 pub use work::{FourierPart, PhaseWork, work_model};
 
@@ -77,34 +78,6 @@ struct Grid {
     /// The inverse transform of three fields, in place: the first three of an input's spectra
     /// (the multiplication leaves the velocities there) into the first three of its fields.
     inverse3: Fft3,
-}
-
-/// `n` points on the device (triples).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Points<'a> {
-    /// The positions, `3 n` values.
-    pub(crate) pos: &'a Buffer,
-    /// How many points.
-    pub(crate) n: usize,
-}
-
-/// Values spread from the points: `nf` fields, field-major (`nf n` values).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Fields<'a> {
-    /// The values.
-    pub(crate) vals: &'a Buffer,
-    /// How many fields.
-    pub(crate) nf: usize,
-}
-
-/// Which Fourier part a sum takes: the multiplication of the spectra, and whether the gather
-/// adds the gradients (12 values per point instead of 3).
-#[derive(Clone, Copy, Debug)]
-struct FourierKind {
-    /// The multiplication of the spectra.
-    modes: launch::Modes,
-    /// Whether the gather adds the gradients.
-    gradient: bool,
 }
 
 /// How far a real-space sum reaches, and the range of its error model.

@@ -13,7 +13,8 @@ use super::signatures::{
     BinOrder, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues, PermuteRows,
     PointCell, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble, StressletValues,
 };
-use super::{Fields, FourierKind, GpuFourier, Points};
+use super::GpuFourier;
+use super::launch::{Fields, FourierKind, OrientedPoints, PointForces, Points};
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use motile_gpu::check_len;
 use motile_gpu::{Buffer, GpuError, kernel_int as int};
@@ -39,27 +40,6 @@ pub(crate) struct ResidentStresslets {
     pub(crate) grad: Buffer,
     /// The estimate's reductions per output (velocity, gradient) and chunk.
     pub(crate) reductions: [Vec<[f64; 4]>; 2],
-}
-
-/// Points with axes on the device, triples: stresslets at `centres` oriented along `axes`, or
-/// rods' centres and axes.
-#[derive(Clone, Copy, Debug)]
-pub struct OrientedPoints<'a> {
-    /// The points (rods' centres), 3 per point.
-    pub centres: &'a Buffer,
-    /// The unit axes, 3 per point.
-    pub axes: &'a Buffer,
-}
-
-/// Points and the forces on them on the device: the forces as triples, and again field-major.
-#[derive(Clone, Copy, Debug)]
-pub struct PointForces<'a> {
-    /// The points, 3 per point.
-    pub points: &'a Buffer,
-    /// The forces, 3 per point.
-    pub forces: &'a Buffer,
-    /// The forces field-major: each component's `n` values in turn.
-    pub fields: &'a Buffer,
 }
 
 /// The quadrature rule along a rod: node positions `s_j` (arc length from the centre) and
