@@ -78,12 +78,22 @@ fn sorted_spreader(text: &str) -> String {
 fn cpu_and_gpu(model: &str, cfg: &Path, dir: &Path) -> (PathBuf, PathBuf) {
     let (cpu, gpu) = (dir.join("cpu"), dir.join("gpu"));
     motile(
-        &[model, "run", cfg.to_str().unwrap(), "--out", cpu.to_str().unwrap()],
+        &[
+            model,
+            "run",
+            cfg.to_str().unwrap(),
+            "--out",
+            cpu.to_str().unwrap(),
+        ],
         false,
     );
     let gpu_cfg = dir.join("gpu.toml");
     let text = std::fs::read_to_string(cfg).unwrap();
-    let text = if model == "particle" { sorted_spreader(&text) } else { text };
+    let text = if model == "particle" {
+        sorted_spreader(&text)
+    } else {
+        text
+    };
     std::fs::write(&gpu_cfg, text).unwrap();
     let gpu_args = [
         model,

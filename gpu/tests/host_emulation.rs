@@ -45,7 +45,10 @@ extern "C" __global__ void widths(const int* start, const unsigned int* weight,
 /// The emulation of `set`, or `None` (and why) where no C++ compiler runs;
 /// `MOTILE_REQUIRE_CXX=1` makes that a failure.
 fn open(set: &KernelSet) -> Option<Device> {
-    motile_gpu::open_or_skip(Device::open(Backend::HostEmulation, set), Backend::HostEmulation)
+    motile_gpu::open_or_skip(
+        Device::open(Backend::HostEmulation, set),
+        Backend::HostEmulation,
+    )
 }
 
 fn device() -> Option<Device> {

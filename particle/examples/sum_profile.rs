@@ -142,7 +142,11 @@ fn profile_rpy(case: &Case, y: &[[f64; 3]], f: &[[f64; 3]]) {
     for (label, alternate) in [("new points", true), ("same points", false)] {
         let mut rows = Vec::new();
         for rep in 0..reps {
-            let pts = if alternate && rep % 2 == 1 { &y2[..] } else { y };
+            let pts = if alternate && rep % 2 == 1 {
+                &y2[..]
+            } else {
+                y
+            };
             let t = Instant::now();
             s.rpy(&geo, pts, f).unwrap();
             let total = t.elapsed().as_secs_f64();

@@ -662,7 +662,10 @@ fn check(open: &dyn Fn() -> GpuStep, shuffles: &[u64]) {
 /// The emulated device's step kernels, or `None` (the reason printed) where no C++ compiler
 /// runs and `MOTILE_REQUIRE_CXX` is unset.
 fn emulation() -> Option<GpuStep> {
-    motile_gpu::open_or_skip(GpuStep::open(Backend::HostEmulation), Backend::HostEmulation)
+    motile_gpu::open_or_skip(
+        GpuStep::open(Backend::HostEmulation),
+        Backend::HostEmulation,
+    )
 }
 
 fn emulated_stepper(rods: &RodSet, warm: &WarmStart) -> DeviceStepper {

@@ -23,8 +23,8 @@ use crate::model::geometry::{Vec3, axpy, cross, dot, scale, sub};
 use crate::parallel::comm::SingleProcess;
 use crate::parallel::halo::Halo;
 use crate::parallel::part::Share;
-use motile_analysis::reduce::{chunk_partials, det_sum};
 use motile_analysis::params::{InvalidParameter, check_range};
+use motile_analysis::reduce::{chunk_partials, det_sum};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 

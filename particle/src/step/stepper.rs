@@ -444,9 +444,9 @@ impl Stepper {
             mobility: self.mobility.as_ref(),
             dt,
         };
-        let (impulses, _) = self
-            .solver
-            .solve_shared(plan.share(part), problem, &self.contact, &[])?;
+        let (impulses, _) =
+            self.solver
+                .solve_shared(plan.share(part), problem, &self.contact, &[])?;
         let mut active = [impulses.iter().filter(|l| **l > 0.0).count() as f64];
         comm.sum(&mut active);
         let correction_active = active[0] as usize;
@@ -591,9 +591,9 @@ impl Stepper {
             mobility: &translation,
             dt,
         };
-        let (lambda, _) = self
-            .solver
-            .solve_shared(plan.share(part), problem, &self.contact, &[])?;
+        let (lambda, _) =
+            self.solver
+                .solve_shared(plan.share(part), problem, &self.contact, &[])?;
         let mut pushes = self.rod_forces(&again, &lambda, &plan.order, part);
         if part.comm.size() > 1 {
             // The owners' totals on their copies too, so that copies move with them.

@@ -21,7 +21,6 @@ use crate::io::rundir::{RunDir, TimeSeries};
 use crate::io::snapshot::FieldSnapshot;
 use crate::run;
 use crate::run::Device;
-use step_error::EngineError;
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::control::StepControl;
 use motile_meanfield::solver::grid::SpectralGrid;
@@ -32,6 +31,7 @@ use motile_meanfield::solver::stepper::{
 };
 use std::path::Path;
 use std::time::Instant;
+use step_error::EngineError;
 
 /// Columns of a mean-field `timeseries.csv`.
 pub const COLUMNS: [&str; 13] = [
@@ -131,7 +131,6 @@ struct Engine {
     cpu: MeanFieldStepper,
     gpu: Option<device::GpuEngine>,
 }
-
 
 impl Engine {
     /// The CPU stepper, or (`device = "gpu"`) the GPU stepper started from its state.

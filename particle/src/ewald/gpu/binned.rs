@@ -22,11 +22,11 @@
 //! Launching is unsafe: each launch says why every index it touches lies inside its buffers.
 #![allow(unsafe_code)]
 
+use crate::ewald::gpu::launch::{Fields, Points};
 use crate::ewald::gpu::launch::{Geometry, padded_field};
 use crate::ewald::gpu::signatures::{
     BinCount, BinOrder, BinScatter, GatherSorted, SpreadCells, SpreadSorted,
 };
-use crate::ewald::gpu::launch::{Fields, Points};
 use motile_gpu::{Buffer, Device, GpuError, THREADS};
 
 /// Bin edge of the sorted global-memory spreader (for locality only).

@@ -34,8 +34,8 @@ mod work;
 pub use binned::{CELL_BIN, CELL_BIN_MAX, SpreadMethod, cell_bin};
 pub(crate) use launch::Geometry;
 pub use launch::STRESSLET_FIELDS;
-pub use launch::{OrientedPoints, PointForces};
 use launch::{Fields, FourierKind, Points};
+pub use launch::{OrientedPoints, PointForces};
 pub(crate) use scan::prefix_sum;
 pub use work::{FourierPart, PhaseWork, work_model};
 

@@ -8,13 +8,13 @@
 //! and decides, as for the CPU's sums, whether the attempt stands.
 #![allow(unsafe_code)]
 
+use super::GpuFourier;
 use super::launch::{self, Geometry, STRESSLET_FIELDS};
+use super::launch::{Fields, FourierKind, OrientedPoints, PointForces, Points};
 use super::signatures::{
     BinOrder, BinScatter, EstimateChunks, JefferyVelocities, MemberGroup, NodeValues, PermuteRows,
     PointCell, RodAxes, RodFlowVelocities, RpyAssemble, StressletAssemble, StressletValues,
 };
-use super::GpuFourier;
-use super::launch::{Fields, FourierKind, OrientedPoints, PointForces, Points};
 use crate::ewald::kernels::{RealSpaceTable, StressletTable};
 use motile_gpu::check_len;
 use motile_gpu::{Buffer, GpuError, kernel_int as int};

@@ -2,8 +2,8 @@
 //! [`SCAN_ONE_BLOCK`] counts, three passes beyond.
 #![allow(unsafe_code)]
 
-use motile_gpu::check_len as check;
 use super::signatures::{BinScan, ScanSpread, ScanTiles};
+use motile_gpu::check_len as check;
 use motile_gpu::{Buffer, Device, GpuError, THREADS, kernel_int as int};
 
 /// Counts up to which one block scans them alone ([`prefix_sum`]).

@@ -382,10 +382,8 @@ mod tests {
     /// run takes it only when its config asks); the default, `spread_cells`, has none.
     #[test]
     fn the_kernels_compile_for_a_device_without_a_stack() {
-        let said = motile_gpu::frontend::check_set_in_test(
-            &super::KERNELS,
-            &["spread", "spread_sorted"],
-        );
+        let said =
+            motile_gpu::frontend::check_set_in_test(&super::KERNELS, &["spread", "spread_sorted"]);
         eprintln!("{}", said.unwrap_or_else(|e| panic!("{e}")));
     }
 }

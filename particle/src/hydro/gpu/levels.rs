@@ -2,9 +2,7 @@
 //! ([`ResidentMobility`]): one resident sum per step, the rods' axes, node values and
 //! velocities from kernels beside it.
 
-use super::resident::{
-    DeviceVelocities, ResidentMobility, RodsOnDevice, on_resident_sum,
-};
+use super::resident::{DeviceVelocities, ResidentMobility, RodsOnDevice, on_resident_sum};
 use crate::ewald::gpu::resident::{Rule, Swimming};
 use crate::ewald::gpu::{OrientedPoints, PointForces};
 use crate::hydro::dipole::{Dipole, stresslet_strength};

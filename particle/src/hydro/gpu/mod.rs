@@ -42,7 +42,6 @@ pub struct SlenderDevice {
     dev: Device,
 }
 
-
 /// The rods' quadrature rule on the device: `(s, w)`, `m` nodes each.
 #[derive(Debug)]
 pub struct DeviceRule {

@@ -265,7 +265,9 @@ impl SlenderBody {
                 .device_sum()?
                 .rod_axes(rods.q, n)
                 .map_err(MobilityError::from)?;
-            let nodes = kern.nodes((rods.x, &p), rule, n).map_err(MobilityError::from)?;
+            let nodes = kern
+                .nodes((rods.x, &p), rule, n)
+                .map_err(MobilityError::from)?;
             let out = if let Some(flow) = &dev.flow {
                 let v = kern
                     .predict((&p, flow), n, SWIM_SPEED)

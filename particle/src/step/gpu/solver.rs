@@ -181,7 +181,11 @@ impl GpuStep {
         problem: &DeviceContactProblem<'a>,
     ) -> Result<Problem<'a>, DeviceContactError> {
         let DeviceContactProblem {
-            rods, cons, drag, dt, ..
+            rods,
+            cons,
+            drag,
+            dt,
+            ..
         } = *problem;
         let (m, n) = (cons.len, rods.len);
         let (mi, ni) = (int(m, "constraints")?, int(n, "rods")?);
