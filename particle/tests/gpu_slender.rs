@@ -28,7 +28,9 @@ use motile_particle::ewald::gpu::{GpuFourier, SpreadMethod};
 use motile_particle::ewald::periodic::RpyGeometry;
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::gmres::GmresParams;
-use motile_particle::hydro::gpu::{DeviceP4, DeviceVelocities, P4Sum, SlenderDevice, SlenderFlow};
+use motile_particle::hydro::gpu::{
+    DeviceP4, DeviceVelocities, P4Sum, RodMotion, SlenderDevice, SlenderFlow,
+};
 use motile_particle::hydro::mobility::{LocalDrag, Mobility, MobilityState, RodVelocities};
 use motile_particle::hydro::slender::{SlenderBody, SlenderParams, half_rod_rule};
 use motile_particle::model::geometry::{Vec3, norm, sub};
@@ -118,10 +120,10 @@ fn check_same_products(backend: Backend) {
 
     let kern = SlenderDevice::open(backend).unwrap();
     let (s, w) = half_rod_rule(prm.quadrature_points, ROD_LENGTH);
-    let rule = kern.rule((&s, &w)).unwrap();
+    let rule = kern.rule(&s, &w).unwrap();
     let up = |v: &[f64]| kern.upload(v).unwrap();
     let (xs, axes) = (up(rods.x.as_flattened()), up(p.as_flattened()));
-    let nodes = kern.nodes((&xs, &axes), &rule, n).unwrap();
+    let nodes = kern.nodes(&xs, &axes, &rule, n).unwrap();
     let points = cpu.node_positions(&rods, &p);
     let nodes_host = kern.download(&nodes).unwrap();
     assert_eq!(
@@ -156,7 +158,7 @@ fn check_same_products(backend: Backend) {
             &out_ft,
         ),
     ] {
-        let b = kern.rhs(&axes, ft, &rule, n, (c, ROD_LENGTH)).unwrap();
+        let b = kern.rhs(&axes, ft, &rule, n, c, ROD_LENGTH).unwrap();
         // The CPU's first warm start is the right-hand side itself.
         let mut xd = x.take().unwrap_or_else(|| up(&kern.download(&b).unwrap()));
         let op = DeviceP4 {
@@ -169,7 +171,7 @@ fn check_same_products(backend: Backend) {
             eta: e,
             l: ROD_LENGTH,
         };
-        let solved = kern.solve(op, (&b, &mut xd), &prm.gmres).unwrap();
+        let solved = kern.solve(op, &b, &mut xd, &prm.gmres).unwrap();
         assert_eq!(
             solved.info.iterations, iterations,
             "{stage}: iterations on the device and the CPU"
@@ -187,11 +189,16 @@ fn check_same_products(backend: Backend) {
             rods: DeviceVelocities { v, w: om },
         } = kern
             .velocities(
-                (&axes, &solved.u),
+                &axes,
+                &solved.u,
                 ft,
                 &rule,
                 n,
-                (ROD_LENGTH, SWIM_SPEED, drag),
+                RodMotion {
+                    length: ROD_LENGTH,
+                    swim: SWIM_SPEED,
+                    drag,
+                },
             )
             .unwrap();
         let flow = kern.download(&flow).unwrap();

@@ -335,7 +335,7 @@ impl SlenderBody {
             *x = rhs.to_vec();
         }
         if part.is_none()
-            && let Some(done) = self.solve_resident(rods.box_length, (&points, p), (rhs, x), stage)
+            && let Some(done) = self.solve_resident(rods.box_length, &points, p, rhs, x, stage)
         {
             return done;
         }

@@ -50,6 +50,27 @@ pub struct DeviceRule {
     m: usize,
 }
 
+/// How a rod moves through the flow at its nodes: its length, its swimming speed and its local
+/// drag `(trans, rot)` ([`crate::hydro::mobility::LocalDrag::coefficients`]).
+#[derive(Clone, Copy, Debug)]
+pub struct RodMotion {
+    /// The rod's length.
+    pub length: f64,
+    /// The swimming speed along its axis.
+    pub swim: f64,
+    /// The local drag's translational and rotational coefficients.
+    pub drag: (f64, f64),
+}
+
+/// Where a dot product of the Arnoldi process goes: the chunks' partial sums, then the
+/// Hessenberg column `h` at `slot`, its square root where `root` (a norm).
+struct ColumnSlot<'a> {
+    partial: &'a mut Buffer,
+    h: &'a mut Buffer,
+    slot: usize,
+    root: bool,
+}
+
 /// What the slender-body kernels give of the rods' flow: the flow velocities (6 values per
 /// rod: `v`, then `w`) and the rods' velocities.
 #[derive(Debug)]
@@ -91,7 +112,7 @@ impl SlenderDevice {
     }
 
     /// The rule `(s, w)` on the device.
-    pub fn rule(&self, (s, w): (&[f64], &[f64])) -> Result<DeviceRule, GpuError> {
+    pub fn rule(&self, s: &[f64], w: &[f64]) -> Result<DeviceRule, GpuError> {
         if s.len() != w.len() || s.is_empty() {
             return Err(GpuError::Input(format!(
                 "a quadrature rule of {} nodes and {} weights",
@@ -109,7 +130,8 @@ impl SlenderDevice {
     /// The nodes `x_r + s_j p_r` of `n` rods with centres `x` and axes `p` (triples).
     pub fn nodes(
         &self,
-        (x, p): (&Buffer, &Buffer),
+        x: &Buffer,
+        p: &Buffer,
         rule: &DeviceRule,
         n: usize,
     ) -> Result<Buffer, GpuError> {
@@ -144,7 +166,8 @@ impl SlenderDevice {
         ft: Option<&Buffer>,
         rule: &DeviceRule,
         n: usize,
-        (c, l): (f64, f64),
+        c: f64,
+        l: f64,
     ) -> Result<Buffer, GpuError> {
         let m = rule.m;
         check_len("axes", p, 3 * n)?;
@@ -181,12 +204,18 @@ impl SlenderDevice {
     /// ([`crate::hydro::mobility::LocalDrag::coefficients`]), for rods of length `l`.
     pub fn velocities(
         &self,
-        (p, u): (&Buffer, &Buffer),
+        p: &Buffer,
+        u: &Buffer,
         ft: Option<&Buffer>,
         rule: &DeviceRule,
         n: usize,
-        (l, swim, drag): (f64, f64, (f64, f64)),
+        motion: RodMotion,
     ) -> Result<SlenderFlow, GpuError> {
+        let RodMotion {
+            length: l,
+            swim,
+            drag,
+        } = motion;
         let m = rule.m;
         check_len("axes", p, 3 * n)?;
         check_len("flow at the nodes", u, 3 * n * m)?;
@@ -232,7 +261,8 @@ impl SlenderDevice {
     /// plus the last flow velocities `flow` (6 per rod), for `n` rods.
     pub fn predict(
         &self,
-        (p, flow): (&Buffer, &Buffer),
+        p: &Buffer,
+        flow: &Buffer,
         n: usize,
         swim: f64,
     ) -> Result<(Buffer, Buffer), GpuError> {
@@ -359,7 +389,8 @@ impl SlenderDevice {
     pub fn solve(
         &self,
         op: DeviceP4<'_>,
-        (b, x): (&Buffer, &mut Buffer),
+        b: &Buffer,
+        x: &mut Buffer,
         params: &GmresParams,
     ) -> Result<DeviceSolve, GmresError<SumError>> {
         let dim = 3 * op.rule.m * op.n;
@@ -449,7 +480,8 @@ fn product(
     op: &mut DeviceP4<'_>,
     src: &Buffer,
     out: &mut Buffer,
-    (accuracy, seconds): (&mut HydroReport, &mut f64),
+    accuracy: &mut HydroReport,
+    seconds: &mut f64,
 ) -> Result<Buffer, SumError> {
     let dev = &kern.dev;
     let m = op.rule.m;
@@ -532,14 +564,13 @@ impl Space<'_, '_> {
             Which::Rhs => self.b,
             Which::W => &self.w,
         };
-        dot_into(
-            &self.kern.dev,
-            (a, a, self.dim),
-            (&mut self.partial, &mut self.h),
+        let out = ColumnSlot {
+            partial: &mut self.partial,
+            h: &mut self.h,
             slot,
-            true,
-        )
-        .map_err(SumError::from)
+            root: true,
+        };
+        dot_into(&self.kern.dev, a, a, self.dim, out).map_err(SumError::from)
     }
 
     /// The flow and product at `x` into `w`.
@@ -549,7 +580,8 @@ impl Space<'_, '_> {
             &mut self.op,
             self.x,
             &mut self.w,
-            (&mut self.accuracy, &mut self.seconds),
+            &mut self.accuracy,
+            &mut self.seconds,
         )?;
         self.u = Some(u);
         self.u_at_x = true;
@@ -568,11 +600,17 @@ impl Space<'_, '_> {
 /// `h[slot] = a . b` over `n` entries (its square root with `root`), through `partial`.
 fn dot_into(
     dev: &Device,
-    (a, b, n): (&Buffer, &Buffer, usize),
-    (partial, h): (&mut Buffer, &mut Buffer),
-    slot: usize,
-    root: bool,
+    a: &Buffer,
+    b: &Buffer,
+    n: usize,
+    out: ColumnSlot<'_>,
 ) -> Result<(), GpuError> {
+    let ColumnSlot {
+        partial,
+        h,
+        slot,
+        root,
+    } = out;
     check_len("dot operand", a, n)?;
     check_len("dot operand", b, n)?;
     let nchunks = n.div_ceil(CHUNK).max(1);
@@ -654,21 +692,21 @@ impl KrylovSpace for Space<'_, '_> {
             &mut self.op,
             &self.basis[k],
             &mut self.w,
-            (&mut self.accuracy, &mut self.seconds),
+            &mut self.accuracy,
+            &mut self.seconds,
         )?;
         self.u = Some(u);
         self.u_at_x = false;
         let dev = &self.kern.dev;
         let n = int(dim, "unknowns").map_err(SumError::from)?;
         for j in 0..=k {
-            dot_into(
-                dev,
-                (&self.w, &self.basis[j], dim),
-                (&mut self.partial, &mut self.h),
-                j,
-                false,
-            )
-            .map_err(SumError::from)?;
+            let out = ColumnSlot {
+                partial: &mut self.partial,
+                h: &mut self.h,
+                slot: j,
+                root: false,
+            };
+            dot_into(dev, &self.w, &self.basis[j], dim, out).map_err(SumError::from)?;
             // SAFETY: thread i < dim updates w[i] from basis[j][i] (dim each) and h[j] (j <= k <
             // slots, slots + 1 values).
             unsafe {

@@ -16,7 +16,7 @@ use super::{SlenderBody, densities};
 use crate::ewald::periodic::{RpyGeometry, SumError};
 use crate::ewald::spectral::SpectralEwald;
 use crate::hydro::gmres::GmresInfo;
-use crate::hydro::gpu::{DeviceP4, DeviceRule, P4Sum, SlenderDevice, SlenderFlow};
+use crate::hydro::gpu::{DeviceP4, DeviceRule, P4Sum, RodMotion, SlenderDevice, SlenderFlow};
 use crate::hydro::gpu::{DeviceVelocities, ResidentMobility, RodsOnDevice};
 use crate::hydro::mobility::{HydroReport, LocalDrag, MobilityError};
 use crate::model::geometry::Vec3;
@@ -31,9 +31,11 @@ type StepSolve = ((Buffer, Buffer), (GmresInfo, HydroReport, f64));
 
 /// The kernels beside `sum`'s device, opened where not yet.
 fn kernels<'a>(
-    (slot, shuffle): (&'a mut Option<(SlenderDevice, DeviceRule)>, u64),
+    slot: &'a mut Option<(SlenderDevice, DeviceRule)>,
+    shuffle: u64,
     sum: &SpectralEwald,
-    (s, w): (&[f64], &[f64]),
+    s: &[f64],
+    w: &[f64],
 ) -> Result<&'a (SlenderDevice, DeviceRule), MobilityError> {
     if slot.is_none() {
         let backend = sum.device_sum()?.backend();
@@ -41,10 +43,18 @@ fn kernels<'a>(
         if shuffle != 0 {
             kern.shuffle_blocks(shuffle);
         }
-        let rule = kern.rule((s, w)).map_err(MobilityError::from)?;
+        let rule = kern.rule(s, w).map_err(MobilityError::from)?;
         *slot = Some((kern, rule));
     }
     Ok(slot.as_ref().expect("opened above"))
+}
+
+/// The rods' quadrature nodes and axes on the device (triples), `n` rods.
+#[derive(Clone, Copy)]
+struct RodNodes<'a> {
+    nodes: &'a Buffer,
+    axes: &'a Buffer,
+    n: usize,
 }
 
 /// One solve of (P4) on the device: GMRES's report and the flow at the nodes for the solution,
@@ -77,23 +87,25 @@ impl<'a> Solve<'a> {
     /// From the warm start `x` (the last iterate left there, also on failure).
     fn run(
         self,
-        (nodes, p, n): (&Buffer, &Buffer, usize),
-        (b, x): (&Buffer, &mut Buffer),
-        (params, stage): (&crate::hydro::gmres::GmresParams, &'static str),
+        rods: RodNodes<'_>,
+        b: &Buffer,
+        x: &mut Buffer,
+        params: &crate::hydro::gmres::GmresParams,
+        stage: &'static str,
     ) -> Result<(GmresInfo, Buffer, HydroReport, f64), MobilityError> {
         let op = DeviceP4 {
             sum: P4Sum::Resident(self.sum),
             geometry: self.geometry,
-            nodes,
-            p,
+            nodes: rods.nodes,
+            p: rods.axes,
             rule: self.rule,
-            n,
+            n: rods.n,
             eta: self.eta,
             l: ROD_LENGTH,
         };
         let solved = self
             .kern
-            .solve(op, (b, x), params)
+            .solve(op, b, x, params)
             .map_err(|source| MobilityError::Gmres { stage, source })?;
         Ok((solved.info, solved.u, solved.accuracy, solved.seconds))
     }
@@ -104,15 +116,17 @@ impl Solve<'_> {
     /// as on the host), the last iterate left there.
     fn warm(
         self,
-        rods: (&Buffer, &Buffer, usize),
-        (b, x): (&Buffer, &mut Option<Buffer>),
-        how: (&crate::hydro::gmres::GmresParams, &'static str),
+        rods: RodNodes<'_>,
+        b: &Buffer,
+        x: &mut Option<Buffer>,
+        params: &crate::hydro::gmres::GmresParams,
+        stage: &'static str,
     ) -> Result<(GmresInfo, Buffer, HydroReport, f64), MobilityError> {
         let mut start = match x.take() {
             Some(x) => x,
             None => self.kern.copy_of(b).map_err(MobilityError::from)?,
         };
-        let solved = self.run(rods, (b, &mut start), how);
+        let solved = self.run(rods, b, &mut start, params, stage);
         *x = Some(start);
         solved
     }
@@ -122,24 +136,36 @@ impl Solve<'_> {
     /// velocities into `flow` and the rods' velocities, with the solve's report.
     fn step(
         self,
-        (nodes, p, n): (&Buffer, &Buffer, usize),
+        rods: RodNodes<'_>,
         ft: Option<&Buffer>,
         (x, flow): (&mut Option<Buffer>, &mut Option<Buffer>),
-        (params, stage): (&super::SlenderParams, &'static str),
+        params: &super::SlenderParams,
+        stage: &'static str,
     ) -> Result<StepSolve, MobilityError> {
+        let (p, n) = (rods.axes, rods.n);
         let c = SWIM_SPEED / (2.0 * self.eta);
         let (kern, rule) = (self.kern, self.rule);
         let b = kern
-            .rhs(p, ft, rule, n, (c, ROD_LENGTH))
+            .rhs(p, ft, rule, n, c, ROD_LENGTH)
             .map_err(MobilityError::from)?;
-        let (info, u, accuracy, seconds) =
-            self.warm((nodes, p, n), (&b, x), (&params.gmres, stage))?;
+        let (info, u, accuracy, seconds) = self.warm(rods, &b, x, &params.gmres, stage)?;
         let drag = LocalDrag::new(params.diameter).coefficients();
         let SlenderFlow {
             flow: f,
             rods: DeviceVelocities { v, w },
         } = kern
-            .velocities((p, &u), ft, rule, n, (ROD_LENGTH, SWIM_SPEED, drag))
+            .velocities(
+                p,
+                &u,
+                ft,
+                rule,
+                n,
+                RodMotion {
+                    length: ROD_LENGTH,
+                    swim: SWIM_SPEED,
+                    drag,
+                },
+            )
             .map_err(MobilityError::from)?;
         *flow = Some(f);
         Ok(((v, w), (info, accuracy, seconds)))
@@ -166,7 +192,7 @@ impl SlenderBody {
     }
 
     /// A solve's report into the step's.
-    fn fold_solve(&mut self, info: &GmresInfo, (accuracy, seconds): (&HydroReport, f64)) {
+    fn fold_solve(&mut self, info: &GmresInfo, accuracy: &HydroReport, seconds: f64) {
         self.fold_sums(accuracy, seconds);
         self.report.gmres_iterations = info.iterations;
         self.report.gmres_residual = info.final_residual;
@@ -179,28 +205,28 @@ impl SlenderBody {
     pub(super) fn solve_resident(
         &mut self,
         box_length: f64,
-        (points, p): (&[Vec3], &[Vec3]),
-        (rhs, x): (&[f64], &mut Vec<f64>),
+        points: &[Vec3],
+        p: &[Vec3],
+        rhs: &[f64],
+        x: &mut Vec<f64>,
         stage: &'static str,
     ) -> Option<Result<(GmresInfo, Vec<Vec3>), MobilityError>> {
         let geometry = self.geometry(box_length);
         let e = eta(self.params.diameter);
         let sum = self.sum.resident()?;
         let mut run = || -> Result<_, MobilityError> {
-            let (kern, rule) = kernels(
-                (&mut self.device.kern, self.device.shuffle),
-                sum,
-                (&self.s, &self.w),
-            )?;
+            let shuffle = self.device.shuffle;
+            let (kern, rule) = kernels(&mut self.device.kern, shuffle, sum, &self.s, &self.w)?;
             let up = |v: &[f64]| kern.upload(v).map_err(MobilityError::from);
             let (nodes, axes, b) = (up(points.as_flattened())?, up(p.as_flattened())?, up(rhs)?);
             let mut xd = up(x)?;
             let solve = Solve::new(kern, rule, sum, geometry, e);
-            let solved = solve.run(
-                (&nodes, &axes, p.len()),
-                (&b, &mut xd),
-                (&self.params.gmres, stage),
-            );
+            let rods = RodNodes {
+                nodes: &nodes,
+                axes: &axes,
+                n: p.len(),
+            };
+            let solved = solve.run(rods, &b, &mut xd, &self.params.gmres, stage);
             // The last iterate is the next warm start, also after a failure (as on the host).
             *x = kern.download(&xd).map_err(MobilityError::from)?;
             let (info, u, accuracy, seconds) = solved?;
@@ -234,7 +260,7 @@ impl SlenderBody {
         let sum = self.sum.resident()?;
         let dev = &mut self.device;
         let mut run = || -> Result<_, MobilityError> {
-            let (kern, rule) = kernels((&mut dev.kern, dev.shuffle), sum, (&self.s, &self.w))?;
+            let (kern, rule) = kernels(&mut dev.kern, dev.shuffle, sum, &self.s, &self.w)?;
             let up = |v: &[f64]| kern.upload(v).map_err(MobilityError::from);
             if dev.n != n {
                 (dev.x, dev.flow) = (None, None);
@@ -266,21 +292,22 @@ impl SlenderBody {
                 .rod_axes(rods.q, n)
                 .map_err(MobilityError::from)?;
             let nodes = kern
-                .nodes((rods.x, &p), rule, n)
+                .nodes(rods.x, &p, rule, n)
                 .map_err(MobilityError::from)?;
             let out = if let Some(flow) = &dev.flow {
                 let v = kern
-                    .predict((&p, flow), n, SWIM_SPEED)
+                    .predict(&p, flow, n, SWIM_SPEED)
                     .map_err(MobilityError::from)?;
                 (v, None)
             } else {
                 let solve = Solve::new(kern, rule, sum, geometry, e);
-                let (v, solved) = solve.step(
-                    (&nodes, &p, n),
-                    None,
-                    (&mut dev.x, &mut dev.flow),
-                    (&self.params, "free"),
-                )?;
+                let rods = RodNodes {
+                    nodes: &nodes,
+                    axes: &p,
+                    n,
+                };
+                let warm = (&mut dev.x, &mut dev.flow);
+                let (v, solved) = solve.step(rods, None, warm, &self.params, "free")?;
                 dev.host_behind = true;
                 (v, Some(solved))
             };
@@ -291,7 +318,7 @@ impl SlenderBody {
         Some(result.map(|(v, solved)| {
             self.predicted_exactly = solved.is_some();
             if let Some((info, accuracy, seconds)) = solved {
-                self.fold_solve(&info, (&accuracy, seconds));
+                self.fold_solve(&info, &accuracy, seconds);
             }
             v
         }))
@@ -329,14 +356,17 @@ impl SlenderBody {
             }
         };
         let solve = Solve::new(kern, rule, sum, geometry, e);
-        let (v, (info, accuracy, seconds)) = solve.step(
-            (&nodes, &p, n),
-            Some(ft),
-            (&mut dev.x, &mut dev.flow),
-            (&self.params, "swimming + contact"),
-        )?;
+        let rods = RodNodes {
+            nodes: &nodes,
+            axes: &p,
+            n,
+        };
+        let warm = (&mut dev.x, &mut dev.flow);
+        let stage = "swimming + contact";
+        let (v, (info, accuracy, seconds)) =
+            solve.step(rods, Some(ft), warm, &self.params, stage)?;
         dev.host_behind = true;
-        self.fold_solve(&info, (&accuracy, seconds));
+        self.fold_solve(&info, &accuracy, seconds);
         Ok(Some(v))
     }
 

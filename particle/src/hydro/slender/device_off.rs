@@ -11,8 +11,10 @@ impl SlenderBody {
     pub(super) fn solve_resident(
         &mut self,
         _box_length: f64,
-        _nodes_and_axes: (&[Vec3], &[Vec3]),
-        _rhs_and_start: (&[f64], &mut Vec<f64>),
+        _points: &[Vec3],
+        _axes: &[Vec3],
+        _rhs: &[f64],
+        _start: &mut Vec<f64>,
         _stage: &'static str,
     ) -> Option<Result<(GmresInfo, Vec<Vec3>), MobilityError>> {
         None

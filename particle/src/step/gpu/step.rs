@@ -66,6 +66,22 @@ pub(super) type Finish<'a> = &'a mut dyn FnMut(
     Option<&Buffer>,
 ) -> Result<Option<(Buffer, Buffer)>, MobilityError>;
 
+/// A step's length and contact settings.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Stepping<'a> {
+    /// The time step.
+    pub(super) dt: f64,
+    /// The contact solver's settings.
+    pub(super) params: &'a ContactParams,
+}
+
+/// What the projection moves besides the rods: their velocities and, where there were
+/// constraints, their contact forces.
+struct Moved<'a> {
+    v: &'a mut Buffer,
+    ft: Option<&'a mut Buffer>,
+}
+
 /// What a step's contact problem left on the device.
 struct ContactStep {
     /// Its report.
@@ -77,7 +93,7 @@ struct ContactStep {
 }
 
 /// Velocities and angular velocities `(v, w)` (triples) checked to hold `n` rods.
-fn check_triples(what: &str, (v, w): (&Buffer, &Buffer), n: usize) -> Result<(), GpuError> {
+fn check_triples(what: &str, v: &Buffer, w: &Buffer, n: usize) -> Result<(), GpuError> {
     if v.len() < 3 * n || w.len() < 3 * n {
         return Err(GpuError::Input(format!(
             "{what}: {} and {} values for {n} rods",
@@ -114,7 +130,7 @@ impl GpuStep {
         params: &ContactParams,
     ) -> Result<DeviceStepReport, DeviceContactError> {
         Ok(self
-            .step_output(rods, dt, params, (Free::Swimming, None), None)?
+            .step_output(rods, Stepping { dt, params }, Free::Swimming, None, None)?
             .report)
     }
 
@@ -129,11 +145,12 @@ impl GpuStep {
     pub(super) fn step_output(
         &self,
         rods: &mut DeviceRods,
-        dt: f64,
-        params: &ContactParams,
-        (free, finish): (Free<'_>, Option<Finish<'_>>),
+        stepping: Stepping<'_>,
+        free: Free<'_>,
+        finish: Option<Finish<'_>>,
         warm: Option<&Warm>,
     ) -> Result<StepOutput, DeviceContactError> {
+        let Stepping { dt, params } = stepping;
         let reach = ROD_LENGTH + rods.diameter + params.margin;
         let pairs = self.build(&rods.x, rods.len, rods.box_length, reach)?;
         let cons = self.constraints(rods, &pairs, params.margin)?;
@@ -142,7 +159,7 @@ impl GpuStep {
             ..DeviceStepReport::default()
         };
         let (mut v, mut w) = self.free_velocities(rods, free)?;
-        let contact = self.contact_step(rods, &cons, (&mut v, &mut w), (dt, params), warm)?;
+        let contact = self.contact_step(rods, &cons, &mut v, &mut w, stepping, warm)?;
         report.contact = contact.report;
         let mut ft = contact.forces;
         if let Some(finish) = finish {
@@ -155,17 +172,21 @@ impl GpuStep {
             };
             if let Some(done) = finish(at, ft.as_ref().filter(|_| active))? {
                 (v, w) = done;
-                check_triples("final velocities", (&v, &w), rods.len)?;
+                check_triples("final velocities", &v, &w, rods.len)?;
             }
             // As the CPU's stepper: whenever there are constraints, also where the prediction
             // stood.
             report.correction_active =
-                self.correct(rods, &cons, (&mut v, &mut w, &mut ft), dt, params)?;
+                self.correct(rods, &cons, &mut v, &mut w, &mut ft, stepping)?;
         }
         self.update(rods, &v, &w, dt)?;
         (report.max_overlap, report.worst) = self.max_overlap(rods, &cons)?;
-        let moved = (&mut v, ft.as_mut());
-        self.project(rods, (&cons, &pairs), moved, (dt, params), &mut report)?;
+        let moved = Moved {
+            v: &mut v,
+            ft: ft.as_mut(),
+        };
+        let cells = pairs.cells_per_side;
+        self.project(rods, &cons, cells, moved, stepping, &mut report)?;
         // The constraints' pairs (sorted) with their multipliers: the next step's start.
         let len = cons.len;
         let warm = contact.multipliers.map(|lam| Warm {
@@ -193,7 +214,7 @@ impl GpuStep {
         let (dev, n) = (&self.dev, rods.len);
         match free {
             Free::Device(v, w) => {
-                check_triples("free velocities", (&v, &w), n)?;
+                check_triples("free velocities", &v, &w, n)?;
                 Ok((v, w))
             }
             Free::Host(fv, fw) => {
@@ -245,10 +266,12 @@ impl GpuStep {
         &self,
         rods: &DeviceRods,
         cons: &DeviceConstraints,
-        (v, w): (&mut Buffer, &mut Buffer),
-        (dt, params): (f64, &ContactParams),
+        v: &mut Buffer,
+        w: &mut Buffer,
+        stepping: Stepping<'_>,
         warm: Option<&Warm>,
     ) -> Result<ContactStep, DeviceContactError> {
+        let Stepping { dt, params } = stepping;
         let n = rods.len;
         let problem = DeviceContactProblem {
             rods,
@@ -300,11 +323,14 @@ impl GpuStep {
     fn project(
         &self,
         rods: &mut DeviceRods,
-        (cons, pairs): (&DeviceConstraints, &DevicePairs),
-        (v, mut ft): (&mut Buffer, Option<&mut Buffer>),
-        (dt, params): (f64, &ContactParams),
+        cons: &DeviceConstraints,
+        cells_per_side: usize,
+        moved: Moved<'_>,
+        stepping: Stepping<'_>,
         report: &mut DeviceStepReport,
     ) -> Result<(), DeviceContactError> {
+        let Stepping { dt, params } = stepping;
+        let Moved { v, mut ft } = moved;
         let (dev, n) = (&self.dev, rods.len);
         while report.max_overlap > 0.5 * params.overlap_tolerance
             && report.projections < PROJECTIONS
@@ -315,7 +341,7 @@ impl GpuStep {
                 first: dev.zeros::<i32>(cons.len)?,
                 second: dev.zeros::<i32>(cons.len)?,
                 len: cons.len,
-                cells_per_side: pairs.cells_per_side,
+                cells_per_side,
             };
             dev.copy((&cons.i, 0), (&mut same.first, 0), cons.len)?;
             dev.copy((&cons.j, 0), (&mut same.second, 0), cons.len)?;
@@ -364,10 +390,12 @@ impl GpuStep {
         &self,
         rods: &DeviceRods,
         cons: &DeviceConstraints,
-        (v, w, ft): (&mut Buffer, &mut Buffer, &mut Option<Buffer>),
-        dt: f64,
-        params: &ContactParams,
+        v: &mut Buffer,
+        w: &mut Buffer,
+        ft: &mut Option<Buffer>,
+        stepping: Stepping<'_>,
     ) -> Result<usize, DeviceContactError> {
+        let Stepping { dt, params } = stepping;
         let n = rods.len;
         let problem = DeviceContactProblem {
             rods,

@@ -162,7 +162,7 @@ impl DeviceStepper {
 
     /// One step of `dt` from the free velocities `free`.
     fn step_with(&mut self, dt: f64, free: Free<'_>) -> Result<StepReport, StepError> {
-        self.step_finished(dt, (free, None))
+        self.step_finished(dt, free, None)
     }
 
     /// One step of `dt` from the free velocities `free`, with a level's final velocities from
@@ -170,7 +170,8 @@ impl DeviceStepper {
     fn step_finished(
         &mut self,
         dt: f64,
-        (free, finish): (Free<'_>, Option<super::step::Finish<'_>>),
+        free: Free<'_>,
+        finish: Option<super::step::Finish<'_>>,
     ) -> Result<StepReport, StepError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(StepError::InvalidTimeStep(dt));
@@ -196,9 +197,12 @@ impl DeviceStepper {
             .gpu
             .step_output(
                 &mut self.rods,
-                dt,
-                &self.contact,
-                (free, finish),
+                super::step::Stepping {
+                    dt,
+                    params: &self.contact,
+                },
+                free,
+                finish,
                 self.warm.as_ref(),
             )
             .map_err(|e| match e {
@@ -326,7 +330,7 @@ impl DeviceStepper {
             Ok(done.map(|DeviceVelocities { v, w }| (v, w)))
         };
         let hook: Option<super::step::Finish<'_>> = if finishes { Some(&mut finish) } else { None };
-        let done = self.step_finished(dt, (Free::Device(v, w), hook));
+        let done = self.step_finished(dt, Free::Device(v, w), hook);
         if done.is_err() {
             // The rods stay as before the step; so does what the mobility keeps.
             resident.rollback_resident();
