@@ -1,4 +1,4 @@
-//! The GPU back-end against the CPU, side by side in one process: issue 18's benchmark table.
+//! The GPU back-end against the CPU, side by side in one process (BENCHMARKS.md's GPU tables).
 //!
 //! ```text
 //! cargo run --release -p motile-experiments --features gpu --example gpu_bench -- \
@@ -15,7 +15,7 @@
 //! host emulation (`motile_gpu::Counters`: the same counts as on CUDA), so the design is
 //! judged by counts where no GPU is at hand.
 //!
-//! Cases (the sizes of issue 18; `--small` shrinks every one to seconds, for checking the
+//! Cases (`--small` shrinks every one to seconds, for checking the
 //! harness, e.g. on the host emulation):
 //! - `mf`: one mean-field step (64^3 warm-up, then 128^3 and 256^3; closure degree 20), the
 //!   CPU stepper and the GPU stepper from the same state, with the largest relative difference

@@ -56,7 +56,7 @@ fn bench(c: &mut Criterion) {
             radius: 0.0866,
             group: 1,
         };
-        // The target case of issue 5 is 1e5 points at 1e-4.
+        // The benchmark's target case is 1e5 points at 1e-4.
         let tols: &[f64] = if n == 100_000 {
             &[1e-3, 1e-4, 1e-6]
         } else {
