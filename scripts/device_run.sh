@@ -28,6 +28,16 @@
 #            L/l = 50 (the resident rows print steps/s, bytes in use per rod and the breakdown)
 #   meanfield  the paper's mean-field case at 128^3 to t = 128 on the GPU
 #   scaling  the thread-scaling table at 1, 2, 4, 8, 16 threads (SCALING_ARGS passed on)
+#   series   the paper's dilute series, grown a few members at a time: the members of the
+#            paper-dilute scene not yet in docs/gallery/paper_dilute_series.csv, in the order
+#            L75, L100, L150, L175, mf128, mf256, each resident on the GPU under the time left
+#            (SERIES_LIMIT seconds in all, default 540); a member whose estimate does not fit is
+#            not started. Into $OUT/series.tgz: each member's compact products (config, time
+#            series, lowest modes, log, analysis; no snapshots or checkpoints), the comparison of
+#            the members run here (compare/: series.csv rows, curves, figures) and series.log;
+#            `bash scripts/series_harvest.sh series.tgz` files them into docs/gallery/.
+#            SERIES_SCENE, SERIES_MEMBERS, SERIES_CSV, SERIES_DEVICE and MOTILE_BIN change them
+#            (the test suite runs it on the host emulation with a small scene).
 #   all      parity, bench (every target case, in two parts), runs and science in one command
 #            of at most 8 minutes: each phase under its own time limit (timeout), so a slow
 #            phase cannot hide the others' results; 8 files in $OUT (device.txt, parity.txt,
@@ -42,10 +52,11 @@ particle_cuda_parity() {
   timeout 60 "$B/test_particle_gpu_slender" --include-ignored --nocapture --test-threads 1 cuda
 }
 OUT="${OUT:-/tmp/motile-out}"
+MOTILE="${MOTILE_BIN:-$B/motile}"
 mkdir -p "$OUT"
 if [ ! -f "$OUT/device.txt" ]; then
   { nvidia-smi -L; nvidia-smi --query-gpu=name,memory.total,clocks.max.sm --format=csv
-    nproc; echo "ldd motile:"; ldd "$B/motile"; "$B/motile" --version; } >"$OUT/device.txt" 2>&1
+    nproc; echo "ldd motile:"; ldd "$MOTILE"; "$MOTILE" --version; } >"$OUT/device.txt" 2>&1
 fi
 case "${1:-}" in
   parity)
@@ -188,6 +199,64 @@ case "${1:-}" in
     cp /tmp/motile-mf/timeseries.csv "$OUT/meanfield_timeseries.csv" 2>/dev/null || true
     tail -5 "$OUT/meanfield.txt"
     ;;
+  series)
+    S="${SERIES_SCENE:-paper-dilute}"
+    CSV="${SERIES_CSV:-docs/gallery/paper_dilute_series.csv}"
+    LIMIT="${SERIES_LIMIT:-540}"
+    R="${SERIES_DIR:-/tmp/motile-series}"
+    # The products are gathered on the node and come back as one archive (the device tool
+    # brings back a few files, not a tree).
+    D="$R-products"
+    rm -rf "$D"
+    mkdir -p "$D" "$R"
+    start=$(date +%s)
+    log() { echo "$(($(date +%s) - start)) s: $*" | tee -a "$D/series.log"; }
+    for m in ${SERIES_MEMBERS:-L75 L100 L150 L175 mf128 mf256}; do
+      if grep -q "^$m," "$CSV" 2>/dev/null; then
+        log "$m: in $CSV already"
+        continue
+      fi
+      left=$((LIMIT - ($(date +%s) - start)))
+      said=$("$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" --dry-run --estimate 2>&1)
+      est=$(echo "$said" | sed -n 's/.*: \([0-9]*\) s in all.*/\1/p' | head -1)
+      if [ -z "$est" ]; then
+        log "$m: no estimate: $(echo "$said" | tail -1)"
+        continue
+      fi
+      # The estimate (steps, analysis and comparison), 20% over, and half a minute of set-up.
+      need=$((est * 6 / 5 + 30))
+      if [ "$need" -gt "$left" ]; then
+        log "$m: not started (estimated $est s, needs $need s, $left s left)"
+        continue
+      fi
+      log "$m: starting (estimated $est s, $left s left)"
+      t0=$(date +%s)
+      # SIGTERM when the time is up: the run stops at a step boundary with a checkpoint.
+      timeout "$left" "$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" --out "$R" \
+        >"$D/$m.txt" 2>&1
+      rc=$?
+      log "$m: exit $rc after $(($(date +%s) - t0)) s"
+      grep -E "steps, .* s \(with analysis\)|^motile: error|^Error" "$D/$m.txt" | tail -3
+      # The compact products (what is committed); the snapshots and checkpoints stay here.
+      mkdir -p "$D/$m/analysis"
+      for f in config.toml timeseries.csv modes.csv run.log; do
+        cp "$R/$m/$f" "$D/$m/" 2>/dev/null
+      done
+      cp "$R/$m"/analysis/*.csv "$R/$m"/analysis/*.toml "$R/$m"/analysis/*.svg "$D/$m/analysis/" \
+        2>/dev/null
+      [ "$rc" = 0 ] || mv "$D/$m" "$D/$m-partial"
+    done
+    # The last comparison covers every member run here.
+    if [ -d "$R/compare" ]; then
+      rm -rf "$D/compare"
+      cp -r "$R/compare" "$D/compare"
+    fi
+    cp "$R/scene.md" "$D/" 2>/dev/null
+    log "done"
+    tar czf "$OUT/series.tgz" -C "$D" .
+    cp "$D/series.log" "$OUT/"
+    cat "$D/compare/series.csv" 2>/dev/null
+    ;;
   all)
     # Limits in seconds (sum 480 s, 8 minutes); the CPU sides of the largest cases left
     # out (their 16-thread figures are in BENCHMARKS.md).
@@ -203,7 +272,7 @@ case "${1:-}" in
     cat "$OUT/all.txt"
     ;;
   *)
-    echo "usage: device_run.sh parity|bench|runs|science|profile|ncu|ptxas|check|memory|meanfield|scaling|all" >&2
+    echo "usage: device_run.sh parity|bench|runs|science|series|profile|ncu|ptxas|check|memory|meanfield|scaling|all" >&2
     exit 2
     ;;
 esac

@@ -423,3 +423,159 @@ fn an_unknown_spreader_is_refused_by_name() {
         "the error names the key, the value and the allowed ones: {err}"
     );
 }
+
+/// The small scene the series harvest runs in the test: a particle member at the paper's
+/// settings in a box of 8 rods (10 steps), a member already in the table, one whose estimate
+/// exceeds the time limit, and a mean-field member.
+const SERIES_SCENE: &str = r#"[scene]
+name = "series-test"
+version = 1
+description = "A small series for the harvest's test."
+level = "sbt-explicit, as the paper-dilute scene"
+cost = "seconds"
+
+[[run]]
+name = "L8"
+model = "particle"
+[run.config]
+box_length = 8.0
+volume_fraction = 0.625
+dt = 0.05
+t_end = 0.5
+hydrodynamics = "sbt-explicit"
+gpu_spreader = "sorted"
+diagnostic_interval = 0.1
+snapshot_interval = 0.25
+checkpoint_interval = 0.25
+lowest_modes = true
+vtk = false
+[run.config.contact]
+margin = 0.15
+[run.config.hydro]
+sum_tolerance = 1e-2
+quadrature_points = 4
+
+[[run]]
+name = "L9"
+model = "particle"
+[run.config]
+box_length = 9.0
+t_end = 0.5
+
+[[run]]
+name = "L300"
+model = "particle"
+[run.config]
+box_length = 300.0
+volume_fraction = 0.625
+dt = 0.05
+t_end = 300.0
+hydrodynamics = "sbt-explicit"
+diagnostic_interval = 1.0
+snapshot_interval = 10.0
+checkpoint_interval = 10.0
+[run.config.contact]
+margin = 0.15
+
+[[run]]
+name = "mf8"
+model = "meanfield"
+[run.config]
+grid = 8
+mode_max = 2
+t_end = 0.5
+diagnostic_interval = 0.1
+snapshot_interval = 0.25
+checkpoint_interval = 0.25
+"#;
+
+/// `scripts/device_run.sh series` end to end on the emulation: the members not in the table
+/// run in order on the (emulated) GPU, a member in the table and one that would not fit the
+/// time limit are not started, and only the compact products come back (no snapshot or
+/// checkpoint), with the comparison's rows named by member.
+#[test]
+fn the_series_harvest_runs_the_missing_members_on_the_emulated_gpu() {
+    if !emulation_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("scene.toml");
+    std::fs::write(&scene, SERIES_SCENE).unwrap();
+    let table = tmp.path().join("series.csv");
+    std::fs::write(&table, "run,model\nL9,particle\n").unwrap();
+    let out = tmp.path().join("out");
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/device_run.sh");
+    let o = Command::new("bash")
+        .args([script, "series"])
+        .env("OUT", &out)
+        .env("MOTILE_BIN", env!("CARGO_BIN_EXE_motile"))
+        .env("MOTILE_GPU_BACKEND", "emulation")
+        .env("SERIES_SCENE", &scene)
+        .env("SERIES_MEMBERS", "L8 L9 L300 mf8")
+        .env("SERIES_CSV", &table)
+        .env("SERIES_DIR", tmp.path().join("runs"))
+        .env("SERIES_LIMIT", "300")
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "series failed:\n{said}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let log = std::fs::read_to_string(out.join("series.log")).unwrap();
+    for line in [
+        "L8: exit 0",
+        "L9: in ",
+        "L300: not started (estimated",
+        "mf8: exit 0",
+    ] {
+        assert!(log.contains(line), "series.log lacks `{line}`:\n{log}");
+    }
+    // What comes back is one archive (and the log): unpack it.
+    let got = tmp.path().join("got");
+    std::fs::create_dir_all(&got).unwrap();
+    let untar = Command::new("tar")
+        .arg("xzf")
+        .arg(out.join("series.tgz"))
+        .arg("-C")
+        .arg(&got)
+        .status()
+        .unwrap();
+    assert!(untar.success(), "series.tgz does not unpack");
+    let rows = std::fs::read_to_string(got.join("compare/series.csv")).unwrap();
+    let names: Vec<&str> = rows
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(names, ["L8", "mf8"], "series rows:\n{rows}");
+    for member in ["L8", "mf8"] {
+        for f in ["config.toml", "timeseries.csv", "analysis/correlations.csv"] {
+            let p = got.join(member).join(f);
+            assert!(p.is_file(), "{} missing", p.display());
+        }
+        let cfg = std::fs::read_to_string(got.join(member).join("config.toml")).unwrap();
+        assert!(
+            cfg.contains("device = \"gpu\""),
+            "{member} did not run on the GPU"
+        );
+    }
+    assert!(got.join("L8/modes.csv").is_file());
+    let mut large = Vec::new();
+    let mut stack = vec![got.clone()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == "h5") {
+                large.push(p);
+            }
+        }
+    }
+    assert!(
+        large.is_empty(),
+        "snapshots or checkpoints came back: {large:?}"
+    );
+}

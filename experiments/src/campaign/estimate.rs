@@ -9,6 +9,7 @@ use crate::campaign::run_config::RunConfig;
 use crate::run::meanfield::{self, MeanFieldRunConfig};
 use crate::run::particle::{self, ParticleRunConfig};
 use anyhow::Context;
+use motile_particle::model::level::Hydrodynamics;
 use std::path::Path;
 use std::time::Instant;
 
@@ -36,16 +37,9 @@ pub struct CostEstimate {
     pub steps: u64,
     /// Whether `steps` is a lower bound.
     pub steps_at_least: bool,
-    /// Seconds per step on a GPU and how they were estimated: particle runs with a flow, the
-    /// hydrodynamic sums at the throughput an H200 measured ([`GPU_POINTS_PER_SECOND`]) and the
-    /// rest of the step as timed here (the measured step less its mobility, scaled as
-    /// `N log N`); mean-field runs, the H200's measured 256^3 step scaled as `N log N`.
+    /// Seconds per step on a GPU and how they were estimated ([`gpu_estimate`]).
     pub gpu: Option<(f64, &'static str)>,
 }
-
-/// Points per second of the RPY sum an H200 reached on a 1e7-point product at tolerance 1e-4
-/// (BENCHMARKS.md, "GPU: a lent H200"): what a GPU estimate assumes for the sums.
-pub const GPU_POINTS_PER_SECOND: f64 = 3.91e6;
 
 impl CostEstimate {
     /// Estimated wall seconds of the whole run.
@@ -101,6 +95,139 @@ fn nlogn_ratio(size: usize, measured: usize) -> f64 {
     n * n.ln() / (m * m.ln())
 }
 
+/// A run's estimated cost on a GPU, from measured rates (nothing is timed here): its steps
+/// with their outputs, then its analysis and comparison.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GpuEstimate {
+    /// Seconds per step, outputs included.
+    pub step_seconds: f64,
+    /// Of which the diagnostics' share (seconds per step).
+    pub output_seconds: f64,
+    /// Steps of the run (a lower bound for mean-field runs).
+    pub steps: u64,
+    /// Seconds of the analysis and comparison after the steps.
+    pub analysis_seconds: f64,
+    /// Where the step's time comes from.
+    pub how: &'static str,
+}
+
+impl GpuEstimate {
+    /// Estimated wall seconds of the steps.
+    pub fn step_total(&self) -> f64 {
+        self.step_seconds * self.steps as f64
+    }
+
+    /// Estimated wall seconds of the whole run, analysis included.
+    pub fn seconds(&self) -> f64 {
+        self.step_total() + self.analysis_seconds
+    }
+
+    /// One line: the step, the steps, the analysis and the total.
+    pub fn describe(&self) -> String {
+        let total = self.seconds();
+        let human = if total >= 120.0 {
+            format!(" = {}", human_duration(total))
+        } else {
+            String::new()
+        };
+        format!(
+            "on a GPU about {:.4} s/step ({:.4} of it diagnostics) x {}{} steps = {:.0} s, then {:.0} s of analysis: {total:.0} s in all{human} ({})",
+            self.step_seconds,
+            self.output_seconds,
+            if self.steps_at_least() { ">= " } else { "" },
+            self.steps,
+            self.step_total(),
+            self.analysis_seconds,
+            self.how
+        )
+    }
+
+    fn steps_at_least(&self) -> bool {
+        self.how.contains("at least")
+    }
+}
+
+/// A resident particle step's measured rate on one H100 (BENCHMARKS.md, "GPU": `gpu_bench`,
+/// the step alone): `(rods, seconds per step)` of each level's anchor.
+fn resident_anchor(level: Hydrodynamics) -> (usize, f64) {
+    match level {
+        Hydrodynamics::Sbt => (78_125, 1.0 / 16.6),
+        Hydrodynamics::SbtExplicit => (625_000, 1.0 / 20.4),
+        Hydrodynamics::Dipole => (625_000, 1.0 / 29.7),
+        Hydrodynamics::None => (625_000, 0.012),
+    }
+}
+
+/// Seconds of one diagnostic per force point (the flow's norms by a type-1 NUFFT at 1e-6 and
+/// the lowest modes, on the host's 16 threads, the rods downloaded for them): the `paper-dilute`
+/// L75 member's whole run on an H200 (263 672 rods, 1 054 688 points, a diagnostic every 10
+/// steps) took 74.9 ms per step against the `sbt-explicit` anchor's 19.3 ms at that size.
+const DIAGNOSTIC_SECONDS_PER_POINT: f64 = 5.27e-7;
+
+/// Seconds of the analysis and comparison per rod and snapshot (the L75 member: 133 s for
+/// 31 snapshots of 263 672 rods with their force points, on the node's 16 threads).
+const ANALYSIS_SECONDS_PER_ROD_SNAPSHOT: f64 = 1.63e-5;
+
+/// Seconds of a mean-field run's analysis and comparison per grid point and snapshot (the
+/// `paper-dilute` mf128 member on the H200 node: 40 s for 9 snapshots of 128^3).
+const MEANFIELD_ANALYSIS_SECONDS_PER_POINT_SNAPSHOT: f64 = 2.1e-6;
+
+/// `cfg`'s cost on a GPU from measured rates: a particle run's step from its level's resident
+/// step ([`resident_anchor`]) and its diagnostics from the L75 member's whole run
+/// ([`DIAGNOSTIC_SECONDS_PER_POINT`]); a mean-field run from the mf128 member's whole run on
+/// an H200 (3 760 steps in 53.4 s, 14.2 ms per step at 128^3); each scaled as `N log N` (the
+/// diagnostics as the points), then the analysis by its snapshots.
+pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
+    match cfg {
+        RunConfig::Particle(c) => {
+            let rods = particle_size(c);
+            let (anchor_rods, anchor_seconds) = resident_anchor(c.hydrodynamics);
+            let step = anchor_seconds * nlogn_ratio(rods, anchor_rods);
+            let points = (rods * c.hydro.quadrature_points) as f64;
+            let per_step = (c.dt / c.diagnostic_interval).min(1.0);
+            let output_seconds = if c.hydrodynamics.has_flow() {
+                DIAGNOSTIC_SECONDS_PER_POINT * points * per_step
+            } else {
+                0.0
+            };
+            let snapshots = (c.t_end / c.snapshot_interval).floor() + 1.0;
+            GpuEstimate {
+                step_seconds: step + output_seconds,
+                output_seconds,
+                steps: (c.t_end / c.dt - 1e-9).ceil() as u64,
+                analysis_seconds: ANALYSIS_SECONDS_PER_ROD_SNAPSHOT * rods as f64 * snapshots,
+                how: "the resident step's measured rate on an H100 and the diagnostics' on an H200, scaled as N log N; BENCHMARKS.md",
+            }
+        }
+        RunConfig::MeanField(c) => {
+            let points = c.grid.pow(3);
+            let snapshots = (c.t_end / c.snapshot_interval).floor() + 1.0;
+            GpuEstimate {
+                step_seconds: 0.0142 * nlogn_ratio(points, 128usize.pow(3)),
+                output_seconds: 0.0,
+                steps: meanfield_steps(c),
+                analysis_seconds: MEANFIELD_ANALYSIS_SECONDS_PER_POINT_SNAPSHOT
+                    * points as f64
+                    * snapshots,
+                how: "the mf128 member's whole run on an H200, scaled as N log N; at least this many steps (the CFL condition may shorten the step)",
+            }
+        }
+    }
+}
+
+/// A particle run's rods.
+fn particle_size(c: &ParticleRunConfig) -> usize {
+    c.rods
+        .unwrap_or((c.volume_fraction * c.box_length.powi(3)).round() as usize)
+}
+
+/// A mean-field run's steps at its largest step (at most `dt_max` and a tenth of the
+/// diagnostic interval): a lower bound.
+fn meanfield_steps(c: &MeanFieldRunConfig) -> u64 {
+    let dt = c.dt_max.min(0.1 * c.diagnostic_interval);
+    (c.t_end / dt - 1e-9).ceil() as u64
+}
+
 /// Measure and estimate `cfg`'s cost, timing its steps in scratch directories under `scratch`
 /// (removed afterwards).
 pub fn estimate(cfg: &RunConfig, scratch: &Path) -> anyhow::Result<CostEstimate> {
@@ -111,7 +238,11 @@ pub fn estimate(cfg: &RunConfig, scratch: &Path) -> anyhow::Result<CostEstimate>
         RunConfig::MeanField(c) => estimate_meanfield(c, scratch),
     };
     let _ = std::fs::remove_dir_all(scratch);
-    result
+    let gpu = gpu_estimate(cfg);
+    result.map(|e| CostEstimate {
+        gpu: Some((gpu.step_seconds, gpu.how)),
+        ..e
+    })
 }
 
 /// Wall seconds and steps of `run` into a fresh `dir`.
@@ -173,33 +304,6 @@ fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<Co
     };
     let measured = step_time(scratch, run)?;
     let ratio = nlogn_ratio(size, measured_size);
-    // The mobility alone at the proxy size (after one call that builds its plans): what a GPU
-    // would take over.
-    let gpu_step_seconds = if c.hydrodynamics.has_flow() {
-        let rods = particle::initial_rods(&proxy)?;
-        let p = rods.orientations();
-        let mut mobility = particle::config::mobility(&proxy)?;
-        let mut out = motile_particle::hydro::mobility::RodVelocities::zeros(rods.len());
-        mobility.free_velocities(&rods, &p, &mut out)?;
-        let t = Instant::now();
-        mobility.free_velocities(&rods, &p, &mut out)?;
-        let hydro = t.elapsed().as_secs_f64();
-        let points = size * c.hydro.quadrature_points;
-        let sums_per_step = if c.hydrodynamics == motile_particle::model::level::Hydrodynamics::Sbt
-        {
-            // GMRES: about ten products per step on the dilute runs (BENCHMARKS.md).
-            10.0
-        } else {
-            1.0
-        };
-        Some((
-            (measured - hydro).max(0.0) * ratio
-                + sums_per_step * points as f64 / GPU_POINTS_PER_SECOND,
-            "the sums at the 3.9e6 points/s an H200 measured, BENCHMARKS.md; the rest of the step on these CPU threads",
-        ))
-    } else {
-        None
-    };
     Ok(CostEstimate {
         unit: "rods",
         measured_size,
@@ -208,7 +312,7 @@ fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<Co
         step_seconds: measured * ratio,
         steps: (c.t_end / c.dt - 1e-9).ceil() as u64,
         steps_at_least: false,
-        gpu: gpu_step_seconds,
+        gpu: None,
     })
 }
 
@@ -232,19 +336,47 @@ fn estimate_meanfield(c: &MeanFieldRunConfig, scratch: &Path) -> anyhow::Result<
         size,
         measured_step_seconds: measured,
         step_seconds: measured * nlogn_ratio(size, measured_size),
-        steps: (c.t_end / dt - 1e-9).ceil() as u64,
+        steps: meanfield_steps(c),
         steps_at_least: true,
-        // The H200 measured 0.0992 s per step at 256^3 (BENCHMARKS.md).
-        gpu: Some((
-            0.0992 * nlogn_ratio(size, 256usize.pow(3)),
-            "the H200's measured 0.0992 s/step at 256^3, scaled as N log N; BENCHMARKS.md",
-        )),
+        gpu: None,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The GPU estimates of the `paper-dilute` members grow with the member's size, and are
+    /// within 30% of the wall times measured on an H200 node for the members run there (the
+    /// scene run with its analysis and comparison: L75 582 s, mf128 94 s).
+    #[test]
+    fn gpu_estimates_grow_with_size_and_match_the_members_run() {
+        let scene = crate::campaign::scene::load_scene("paper-dilute").unwrap();
+        let of = |name: &str| {
+            let (_, cfg) = scene.runs.iter().find(|(n, _)| n == name).unwrap();
+            gpu_estimate(cfg).seconds()
+        };
+        let particle: Vec<f64> = ["L50", "L75", "L100", "L150", "L175"]
+            .iter()
+            .map(|m| of(m))
+            .collect();
+        assert!(
+            particle.windows(2).all(|w| w[1] > w[0]),
+            "not monotone: {particle:?}"
+        );
+        let continuum: Vec<f64> = ["mf64", "mf128", "mf256"].iter().map(|m| of(m)).collect();
+        assert!(
+            continuum.windows(2).all(|w| w[1] > w[0]),
+            "not monotone: {continuum:?}"
+        );
+        for (member, measured) in [("L75", 582.0), ("mf128", 94.0)] {
+            let e = of(member);
+            assert!(
+                (e / measured - 1.0).abs() <= 0.3,
+                "{member}: estimated {e:.0} s, measured {measured} s"
+            );
+        }
+    }
 
     #[test]
     fn nlogn_scaling_and_durations() {

@@ -1,5 +1,6 @@
 //! A run config as a scene resolves it: a particle or a mean-field run.
 
+use crate::run::Device;
 use crate::run::meanfield::MeanFieldRunConfig;
 use crate::run::particle::ParticleRunConfig;
 
@@ -21,23 +22,51 @@ impl RunConfig {
         }
     }
 
-    /// One line describing the run's size.
+    /// Where the run's steps run (`device`).
+    pub fn device(&self) -> Device {
+        match self {
+            RunConfig::Particle(c) => c.device,
+            RunConfig::MeanField(c) => c.device,
+        }
+    }
+
+    /// Run the steps on `device` (`motile run --device`).
+    pub fn set_device(&mut self, device: Device) {
+        match self {
+            RunConfig::Particle(c) => c.device = device,
+            RunConfig::MeanField(c) => c.device = device,
+        }
+    }
+
+    /// One line describing the run's size (and the GPU, where it runs there).
     pub fn describe(&self) -> String {
         match self {
-            RunConfig::Particle(c) => format!(
-                "particle, {} rods, L/l = {}, nu = {}, {}, dt = {}, t_end = {}",
-                c.rods
-                    .unwrap_or((c.volume_fraction * c.box_length.powi(3)).round() as usize),
-                c.box_length,
-                c.volume_fraction,
-                c.hydrodynamics,
-                c.dt,
-                c.t_end
-            ),
-            RunConfig::MeanField(c) => format!(
-                "mean-field, {}^3, zeta = {}, D = {}, t_end = {}",
-                c.grid, c.zeta, c.diffusion, c.t_end
-            ),
+            RunConfig::Particle(c) => {
+                format!(
+                    "particle, {} rods, L/l = {}, nu = {}, {}, dt = {}, t_end = {}",
+                    c.rods
+                        .unwrap_or((c.volume_fraction * c.box_length.powi(3)).round() as usize),
+                    c.box_length,
+                    c.volume_fraction,
+                    c.hydrodynamics,
+                    c.dt,
+                    c.t_end
+                ) + on_gpu(c.device)
+            }
+            RunConfig::MeanField(c) => {
+                format!(
+                    "mean-field, {}^3, zeta = {}, D = {}, t_end = {}",
+                    c.grid, c.zeta, c.diffusion, c.t_end
+                ) + on_gpu(c.device)
+            }
         }
+    }
+}
+
+/// ", on the GPU" for a run there, nothing on the CPU.
+fn on_gpu(device: Device) -> &'static str {
+    match device {
+        Device::Gpu => ", on the GPU",
+        Device::Cpu => "",
     }
 }

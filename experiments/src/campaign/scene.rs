@@ -195,14 +195,20 @@ fn existing(dir: &Path, cfg: &RunConfig) -> anyhow::Result<bool> {
     }
     // The model first: another model's config would not parse as this one's.
     let model = RunDir::open(dir)?.header()?.model;
+    // The device is not a setting of the physics: a run begun on a GPU resumes on the CPU.
     let same = model == cfg.model()
         && match cfg {
             RunConfig::Particle(c) => {
-                read_run_config::<ParticleRunConfig>(dir, ParticleRunConfig::validate)?.resolved()
-                    == c.resolved()
+                let mut held: ParticleRunConfig =
+                    read_run_config(dir, ParticleRunConfig::validate)?;
+                held.device = c.device;
+                held.resolved() == c.resolved()
             }
             RunConfig::MeanField(c) => {
-                &read_run_config::<MeanFieldRunConfig>(dir, MeanFieldRunConfig::validate)? == c
+                let mut held: MeanFieldRunConfig =
+                    read_run_config(dir, MeanFieldRunConfig::validate)?;
+                held.device = c.device;
+                &held == c
             }
         };
     if !same {
@@ -240,8 +246,12 @@ pub fn run_scene(
             if (!only.is_empty() && !only.contains(name)) || existing(&out.join(name), cfg)? {
                 continue;
             }
-            let e = estimate::estimate(cfg, &out.join(".estimate"))?;
-            event(&format!("estimated cost of {name}: {}", e.describe()));
+            let line = if cfg.device() == crate::run::Device::Gpu {
+                estimate::gpu_estimate(cfg).describe()
+            } else {
+                estimate::estimate(cfg, &out.join(".estimate"))?.describe()
+            };
+            event(&format!("estimated cost of {name}: {line}"));
         }
     }
     let mut outcomes = Vec::new();

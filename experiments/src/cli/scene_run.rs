@@ -1,8 +1,11 @@
 //! `motile run SCENE` and `motile scenes`.
 
-use crate::campaign::estimate::estimate;
+use crate::campaign::estimate::{estimate, gpu_estimate};
+use crate::campaign::run_config::RunConfig;
 use crate::campaign::scene::{BUILTIN, load_scene, parse_scene, run_scene};
+use crate::cli::model_run::device_help;
 use crate::cli::{progress, wrap};
+use crate::run::Device;
 use std::path::PathBuf;
 
 /// Arguments of `motile run`.
@@ -24,11 +27,24 @@ pub struct SceneArgs {
     /// and print its estimated cost (scenes that set `estimate` print it before running).
     #[arg(long, requires = "dry_run")]
     pub estimate: bool,
+    /// Where every run's steps run, overriding the scene's `device` (cpu or gpu;
+    /// [`device_help`]). A run begun on one device resumes on the other.
+    #[arg(long, value_enum, hide_possible_values = true, help = device_help())]
+    pub device: Option<Device>,
 }
 
 /// Run the scene (or, with `--dry-run`, print its runs).
 pub fn run(a: SceneArgs) -> anyhow::Result<()> {
-    let s = load_scene(&a.scene)?;
+    let mut s = load_scene(&a.scene)?;
+    if let Some(d) = a.device {
+        for (name, cfg) in &mut s.runs {
+            cfg.set_device(d);
+            if let RunConfig::Particle(c) = cfg {
+                c.validate()
+                    .map_err(|e| anyhow::anyhow!("scene {}, run {name}: {e}", s.info.name))?;
+            }
+        }
+    }
     let out = a
         .out
         .unwrap_or_else(|| PathBuf::from("runs").join(&s.info.name));
@@ -50,8 +66,15 @@ pub fn run(a: SceneArgs) -> anyhow::Result<()> {
             }
             println!("    {run}: {}", cfg.describe());
             if a.estimate {
-                let e = estimate(cfg, &scratch)?;
-                println!("      estimated cost: {}", e.describe());
+                // On the GPU the estimate comes from the measured rates alone: nothing is timed
+                // on the CPU of a node whose time is counted.
+                if cfg.device() == Device::Gpu {
+                    let g = gpu_estimate(cfg);
+                    println!("      estimated cost: {}", g.describe());
+                } else {
+                    let e = estimate(cfg, &scratch)?;
+                    println!("      estimated cost: {}", e.describe());
+                }
             }
         }
         return Ok(());

@@ -11,12 +11,14 @@ use motile_particle::model::linear_theory::onset_box;
 use motile_particle::model::units::DEFAULT_DIAMETER;
 use std::path::Path;
 
-const CSV_HEADER: &str = "model,L/l,rods,level,growth_phase,growth_rate [mf],growth_t0 [mf],growth_t1 [mf],r_squared,growth_factor,theory_rate [mf],rotational_diffusion [beta],theory_rate_d_r [mf],saturated_from [mf],mean_u_l2 [mf],std_error,samples,batches,corr_u_first_zero [L]\n";
+const CSV_HEADER: &str = "run,model,L/l,rods,level,growth_phase,growth_rate [mf],growth_t0 [mf],growth_t1 [mf],r_squared,growth_factor,theory_rate [mf],rotational_diffusion [beta],theory_rate_d_r [mf],saturated_from [mf],mean_u_l2 [mf],std_error,samples,batches,corr_u_first_zero [L]\n";
 
 const MD_HEADER: &str = "# Series summary\n\nOne row per run, mean-field units. Growth: the least-squares rate of ln ||u||_2 over the growth phase (docs/MODEL.md §6), with its window, R^2 and growth factor; theory: the box's linear theory (Re sigma of the lowest mode, docs/MODEL.md §5b) for particles, without diffusion and with the rotational diffusion d_r (1/beta) measured in the run from <p(t).p(0)> over its first half; M3 for the continuum. Saturated norm: the time average from the later of the growth phase's end and half the run, to its end; standard error from batch means over up to 10 contiguous blocks (samples within a block are correlated; blocks are taken as independent).\n\n| run | L/l | rods | level | growth rate (window, R^2, grown by) | theory | saturated ||u||_2 | samples | first zero of Corr[u] (L) |\n|---|---|---|---|---|---|---|---|---|\n";
 
 /// What a row says about the run's model and its theory.
 struct RunColumns {
+    /// The run directory's name (a scene's member name).
+    run: String,
     model: &'static str,
     /// `L/l`; NaN for the continuum.
     box_length: f64,
@@ -32,8 +34,13 @@ struct RunColumns {
 
 impl RunColumns {
     fn of(c: &NormCurve) -> Self {
+        let run = c.run.file_name().map_or_else(
+            || c.run.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
         match &c.particle {
             Some(p) => Self {
+                run,
                 model: "particle",
                 box_length: p.box_length,
                 rods: p.rods.to_string(),
@@ -43,6 +50,7 @@ impl RunColumns {
                 theory_with_diffusion: p.box_theory_dr.map_or(f64::NAN, |s| s.re),
             },
             None => Self {
+                run,
                 model: "meanfield",
                 box_length: f64::NAN,
                 rods: "-".to_string(),
@@ -101,6 +109,7 @@ pub(crate) fn write_series(
 fn csv_row(columns: &RunColumns, s: &NormStatistics, zero: f64) -> String {
     let (g, grew) = s.fit_or_nan();
     let RunColumns {
+        run,
         model,
         box_length: l,
         rods,
@@ -111,7 +120,7 @@ fn csv_row(columns: &RunColumns, s: &NormStatistics, zero: f64) -> String {
     } = columns;
     let w = &s.average;
     format!(
-        "{model},{l},{rods},{level},{grew},{:e},{:e},{:e},{},{},{theory:e},{d_r:e},{theory_dr:e},{:e},{:e},{:e},{},{},{zero:e}\n",
+        "{run},{model},{l},{rods},{level},{grew},{:e},{:e},{:e},{},{},{theory:e},{d_r:e},{theory_dr:e},{:e},{:e},{:e},{},{},{zero:e}\n",
         g.rate,
         g.t0,
         g.t1,
