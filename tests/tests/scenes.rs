@@ -118,6 +118,15 @@ fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
         "{:?}",
         again.runs
     );
+    // The device is not a setting of the physics: the same scene on the GPU (`motile run
+    // --device gpu`) finds its runs done, as a run begun on one device resumes on the other.
+    let mut on_gpu = s.clone();
+    for (_, cfg) in &mut on_gpu.runs {
+        cfg.set_device(motile_experiments::run::Device::Gpu);
+    }
+    let again = run_scene(&on_gpu, &out, &[], false, &mut |_| {}).unwrap();
+    assert!(again.runs.iter().all(|r| r.action == "done already"));
+    compare_from_compact_products(&out, &["particle", "meanfield"]);
     // Other settings in the same place are refused, and the run is left as it was.
     if let RunConfig::Particle(c) = &mut s.runs[0].1 {
         c.seed = 2;
@@ -145,6 +154,63 @@ fn the_demo_scene_shortened_runs_end_to_end_and_resumes_by_skipping() {
         err.contains("holds a particle run with other settings"),
         "{err}"
     );
+}
+
+/// The scene's runs filed as the series harvest files them (config, time series and the
+/// scene's compare/ products, no snapshots) compare to the same rows and curves, bit for bit, as
+/// the run directories; a series table's rows for other runs join `series.csv`.
+fn compare_from_compact_products(scene_out: &std::path::Path, members: &[&str]) {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut compact = Vec::new();
+    for m in members {
+        let d = tmp.path().join(m);
+        std::fs::create_dir_all(d.join("compare")).unwrap();
+        for f in ["config.toml", "timeseries.csv"] {
+            std::fs::copy(scene_out.join(m).join(f), d.join(f)).unwrap();
+        }
+        for e in std::fs::read_dir(scene_out.join("compare")).unwrap() {
+            let p = e.unwrap().path();
+            std::fs::copy(&p, d.join("compare").join(p.file_name().unwrap())).unwrap();
+        }
+        compact.push(d);
+    }
+    let full = std::fs::read_to_string(scene_out.join("compare/series.csv")).unwrap();
+    let header = full.lines().next().unwrap();
+    let earlier = tmp.path().join("table.csv");
+    let other = "L99,particle,99,606095,sbt-explicit,false,1e-2,0e0,1e2,0.5,2,1e-1,6e-3,2e-2,6.4e1,5e-3,3e-4,301,10,4.8e-1";
+    std::fs::write(&earlier, format!("{header}\n{other}\n")).unwrap();
+    let out = tmp.path().join("compare");
+    motile_experiments::report::compare::compare_with_table(&compact, &out, Some(&earlier))
+        .unwrap();
+    let got = std::fs::read_to_string(out.join("series.csv")).unwrap();
+    assert_eq!(got, format!("{full}{other}\n"), "series rows differ");
+    for f in [
+        "velocity_correlation.csv",
+        "trajectories.csv",
+        "order_correlations.csv",
+        "correlation_lengths.csv",
+    ] {
+        let (a, b) = (
+            std::fs::read_to_string(scene_out.join("compare").join(f)).unwrap(),
+            std::fs::read_to_string(out.join(f)).unwrap(),
+        );
+        // correlation_lengths.csv names each run by its directory: compare the rest.
+        let strip = |t: &str| -> Vec<String> {
+            t.lines()
+                .map(|l| l.split_once(",\"").map_or(l, |(_, rest)| rest).to_string())
+                .collect()
+        };
+        assert_eq!(strip(&a), strip(&b), "{f} differs");
+    }
+    assert!(out.join("saturated_norm.svg").exists());
+    // A file that is not a series table is refused by name.
+    let err = motile_experiments::report::compare::compare_with_table(
+        &compact,
+        &tmp.path().join("again"),
+        Some(&compact[0].join("timeseries.csv")),
+    )
+    .unwrap_err();
+    assert!(format!("{err:#}").contains("not a series table"), "{err:#}");
 }
 
 /// A tiny dilute box (40 slender-body rods) stepped by `dt` to `t_end`, for the study tests.

@@ -8,6 +8,7 @@
 //! already in those units.
 
 use crate::io::write_atomic;
+use crate::report::compact;
 use crate::report::compare_figures::CompareFigures;
 use crate::report::curves::{
     AnalysisWindow, CorrCurve, CorrelationLength, NormCurve, NormStatistics, RunAnalysis,
@@ -45,6 +46,17 @@ pub struct CompareReport {
 /// when all of it succeeded: a comparison that fails (a damaged snapshot, an unreadable run)
 /// leaves nothing under the final names.
 pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
+    compare_with_table(runs, out, None)
+}
+
+/// [`compare`], with the rows of an earlier series table (`table`, e.g. the gallery's
+/// `paper_dilute_series.csv`) for runs not given here added to `series.csv` and to the
+/// saturated norm's chart: members whose run directories are elsewhere still count.
+pub fn compare_with_table(
+    runs: &[PathBuf],
+    out: &Path,
+    table: Option<&Path>,
+) -> anyhow::Result<CompareReport> {
     if runs.is_empty() {
         bail!("compare: give at least one run directory");
     }
@@ -59,7 +71,7 @@ pub fn compare(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
         .with_context(|| format!("{}: cannot create", parent.display()))?;
     let stage = parent.join(format!(".{name}.partial-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&stage);
-    let result = compare_into(runs, &stage).and_then(|report| {
+    let result = compare_into(runs, table, &stage).and_then(|report| {
         std::fs::create_dir_all(out)
             .with_context(|| format!("{}: cannot create", out.display()))?;
         for entry in std::fs::read_dir(&stage)? {
@@ -85,7 +97,11 @@ const SUMMARY_NOTE: &str = "\nTime averages are over each run's saturated state:
 /// [`compare`] writing straight into `out`: each run opened once, its norm curve and statistics
 /// derived, then the norm's files, its snapshots' analysis, the correlation and series tables
 /// and the figures.
-fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
+fn compare_into(
+    runs: &[PathBuf],
+    earlier: Option<&Path>,
+    out: &Path,
+) -> anyhow::Result<CompareReport> {
     let (opened, curves) = open_runs(runs)?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let statistics: Vec<NormStatistics> = curves.iter().map(NormStatistics::of).collect();
@@ -94,8 +110,9 @@ fn compare_into(runs: &[PathBuf], out: &Path) -> anyhow::Result<CompareReport> {
     write_norm_chart(&curves, out)?;
     let analyses = analyse_runs(&opened, &curves, &statistics)?;
     table.push_str(&write_correlation_lengths(&curves, &analyses, out)?);
+    write_order_correlations(&curves, &analyses, out)?;
     let corr_u_zeros: Vec<f64> = analyses.iter().map(first_zero_of_u).collect();
-    write_series(&curves, &statistics, &corr_u_zeros, out)?;
+    write_series(&curves, &statistics, &corr_u_zeros, earlier, out)?;
     table.push_str(SUMMARY_NOTE);
     write_atomic(&out.join("summary.md"), table.as_bytes())?;
     let figures = CompareFigures::collect(&curves, analyses);
@@ -141,7 +158,7 @@ fn write_summary(
     out: &Path,
 ) -> anyhow::Result<String> {
     let mut md = String::from(
-        "| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth phase (t) | growth rate over the phase (peak local rate), mean-field units | R^2, grew by | linear theory (M3) |\n|---|---|---|---|---|---|---|---|---|\n",
+        "| run | averaging window (t, mean-field units) | time-averaged velocity norm (mean-field units) | standard error | samples | growth phase (t) | growth rate over the phase (peak local rate), mean-field units | R^2, grew by | the continuum's linear theory at the run's zeta (M3; the particle box theory is in series.md) |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut csv = String::from(
         "run,label,t0,t1,mean_u_l2,std_error,samples,growth_phase,growth_t0,growth_t1,growth_rate,growth_rate_std_error,peak_rate,r_squared,growth_factor,theory_rate\n",
@@ -320,7 +337,16 @@ fn analyse_runs(
                 t_start: own_time(c, s.saturated_from),
                 slice_at: common.is_finite().then(|| own_time(c, common)),
             };
-            analyse(run, &window)
+            if compact::is_compact(run) {
+                compact::read_analysis(run, &c.label)
+            } else if run.snapshot_paths.is_empty() {
+                anyhow::bail!(
+                    "{}: no snapshots, and no compare/ products to draw the run from",
+                    run.path().display()
+                )
+            } else {
+                analyse(run, &window)
+            }
         })
         .collect()
 }
@@ -364,6 +390,24 @@ fn write_correlation_lengths(
     }
     write_atomic(&out.join("correlation_lengths.csv"), csv.as_bytes())?;
     Ok(md)
+}
+
+/// `order_correlations.csv`: each run's time-averaged order-parameter correlations,
+/// normalised at 0, against `r / L` (what a comparison drawn from compact products reads back).
+fn write_order_correlations(
+    curves: &[NormCurve],
+    analyses: &[RunAnalysis],
+    out: &Path,
+) -> anyhow::Result<()> {
+    let mut csv = String::from("label,field,r/L,Corr/Corr(0) [1]\n");
+    for (c, a) in curves.iter().zip(analyses) {
+        for o in &a.order {
+            for (r, v) in &o.points {
+                writeln!(csv, "\"{}\",{},{r:e},{v:e}", c.label, o.field).expect("string");
+            }
+        }
+    }
+    write_atomic(&out.join("order_correlations.csv"), csv.as_bytes()).map_err(anyhow::Error::from)
 }
 
 /// The first zero of a run's time-averaged Corr[u] (`r / L`); NaN without one.

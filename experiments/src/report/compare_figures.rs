@@ -200,7 +200,8 @@ fn ballistic(trajectories: &[TrajectoryCurve]) -> Series {
     }
 }
 
-/// `velocity_correlation.{csv,png,svg}`: each run's time-averaged Corr[u], mean-field units.
+/// `velocity_correlation.{csv,png,svg}`: each run's time-averaged Corr[u], mean-field units;
+/// `velocity_correlation_normalised.{png,svg}`: the same divided by its value at 0.
 fn write_velocity_correlation(correlations: &[CorrCurve], out: &Path) -> anyhow::Result<()> {
     let mut csv = String::from("label,r/L,Corr[u] [(L |sigma_a|/mu)^2]\n");
     for c in correlations {
@@ -220,6 +221,28 @@ fn write_velocity_correlation(correlations: &[CorrCurve], out: &Path) -> anyhow:
                 .map(|c| Series {
                     label: c.label.clone(),
                     points: c.r.iter().copied().zip(c.value.iter().copied()).collect(),
+                })
+                .collect(),
+        },
+    )?;
+    // The shapes side by side: a particle run's flow is far weaker than the continuum's.
+    line_chart(
+        &out.join("velocity_correlation_normalised"),
+        &Chart {
+            title: "Time-averaged velocity autocorrelation, normalised at r = 0",
+            x_label: "r / L",
+            y_label: "Corr[u](r) / Corr[u](0)",
+            series: correlations
+                .iter()
+                .filter(|c| c.value.first().is_some_and(|v| *v > 0.0))
+                .map(|c| Series {
+                    label: c.label.clone(),
+                    points: c
+                        .r
+                        .iter()
+                        .zip(&c.value)
+                        .map(|(r, v)| (*r, v / c.value[0]))
+                        .collect(),
                 })
                 .collect(),
         },

@@ -110,12 +110,18 @@ fn particle_curve(
     // Near-field encounters and contacts turn rods as a rotational diffusion would: measured
     // from <p(t).p(0)> over the first half of the run (before a saturated flow adds its own
     // turning), and the theory with it.
-    let rotational_diffusion = rotational_diffusion_of(&run.snapshot_paths, 0.5 * t_end_own)?;
+    let label = format!(
+        "particle L/l = {}, nu = {:.3} ({})",
+        units.box_length, units.nu, config.hydrodynamics
+    );
+    let rotational_diffusion = if crate::report::compact::is_compact(run) {
+        let samples = crate::report::compact::orientation_samples(run, &label)?;
+        diffusive_rate(&log_samples(&samples, 0.5 * t_end_own), 0.5 * t_end_own)
+    } else {
+        rotational_diffusion_of(&run.snapshot_paths, 0.5 * t_end_own)?
+    };
     Ok(NormCurve {
-        label: format!(
-            "particle L/l = {}, nu = {:.3} ({})",
-            units.box_length, units.nu, config.hydrodynamics
-        ),
+        label,
         run: run.path().into(),
         t,
         u,
@@ -588,7 +594,7 @@ pub fn rotational_diffusion(dir: &Path, t1: f64) -> anyhow::Result<Option<f64>> 
 /// [`rotational_diffusion`] of the rods in the snapshot files `paths` (in order).
 fn rotational_diffusion_of(paths: &[PathBuf], t1: f64) -> anyhow::Result<Option<f64>> {
     let mut first: Option<Vec<[f64; 3]>> = None;
-    let mut points = Vec::new();
+    let mut samples = Vec::new();
     for p in paths {
         let Snapshot::Particle(s) = crate::io::snapshot::read_snapshot(p)? else {
             continue;
@@ -598,11 +604,18 @@ fn rotational_diffusion_of(paths: &[PathBuf], t1: f64) -> anyhow::Result<Option<
         }
         let p0 = first.get_or_insert_with(|| s.orientations.clone());
         let c = motile_analysis::stats::orientation_autocorrelation(p0, &s.orientations);
-        if c > 0.0 {
-            points.push((s.time, c.ln()));
-        }
+        samples.push((s.time, c));
     }
-    Ok(diffusive_rate(&points, t1))
+    Ok(diffusive_rate(&log_samples(&samples, t1), t1))
+}
+
+/// `(t, ln C)` of the positive samples `(t, C)` with `t <= t1`.
+fn log_samples(samples: &[(f64, f64)], t1: f64) -> Vec<(f64, f64)> {
+    samples
+        .iter()
+        .filter(|(t, c)| *t <= t1 + 1e-9 && *c > 0.0)
+        .map(|(t, c)| (*t, c.ln()))
+        .collect()
 }
 
 /// The `d_r` of `(t, ln C)` samples over `[0, t1]` as [`rotational_diffusion`] defines it.

@@ -3,6 +3,7 @@
 
 pub mod accuracy;
 pub mod analyze;
+pub(crate) mod compact;
 pub mod compare;
 pub(crate) mod compare_figures;
 pub mod curves;

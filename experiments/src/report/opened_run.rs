@@ -99,7 +99,12 @@ impl OpenedRun {
             }
             other => bail!("{}: cannot compare a run of kind `{other}`", run.display()),
         };
-        let snapshot_paths = dir.snapshot_paths()?;
+        // A run filed without its snapshots (its compact products) has no snapshots folder.
+        let snapshot_paths = if run.join("snapshots").exists() {
+            dir.snapshot_paths()?
+        } else {
+            Vec::new()
+        };
         Ok(Self {
             dir,
             model,

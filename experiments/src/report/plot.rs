@@ -469,8 +469,8 @@ pub fn semilog_chart(
     chart: &Chart,
     dashed: &[(Series, usize)],
 ) -> Result<(), crate::io::IoError> {
-    // Less than a decade and a half of data reads better on a linear axis (a log axis labels
-    // only its decades).
+    // Less than a decade and a half of data without reference lines reads better on a linear
+    // axis.
     let ys: Vec<f64> = chart
         .series
         .iter()
@@ -479,7 +479,8 @@ pub fn semilog_chart(
         .collect();
     let lo = ys.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = ys.iter().copied().fold(0.0, f64::max);
-    let wide = hi / lo >= 30.0;
+    // Exponential reference lines (a growth theory) read as lines only on a log axis.
+    let wide = hi / lo >= 30.0 || !dashed.is_empty();
     if !wide {
         return render(
             stem,

@@ -78,12 +78,14 @@ pub(crate) fn write_series(
     curves: &[NormCurve],
     statistics: &[NormStatistics],
     corr_u_zeros: &[f64],
+    table: Option<&Path>,
     out: &Path,
 ) -> anyhow::Result<()> {
     let mut csv = String::from(CSV_HEADER);
     let mut md = String::from(MD_HEADER);
     let mut points = Vec::new();
     let mut continuum = Vec::new();
+    let names: Vec<String> = curves.iter().map(|c| RunColumns::of(c).run).collect();
     for ((c, s), &zero) in curves.iter().zip(statistics).zip(corr_u_zeros) {
         let columns = RunColumns::of(c);
         csv.push_str(&csv_row(&columns, s, zero));
@@ -98,11 +100,24 @@ pub(crate) fn write_series(
             None => continuum.push((c.label.clone(), s.average.mean)),
         }
     }
+    if let Some(path) = table {
+        for row in read_table(path, &names)? {
+            csv.push_str(&row.line);
+            csv.push('\n');
+            match row.point {
+                TablePoint::Particle(p) => points.push(p),
+                TablePoint::Continuum(mean) => {
+                    continuum.push((format!("continuum, run {} (table)", row.run), mean))
+                }
+            }
+        }
+    }
     write_atomic(&out.join("series.csv"), csv.as_bytes())?;
     write_atomic(&out.join("series.md"), md.as_bytes())?;
     if points.is_empty() {
         return Ok(());
     }
+    points.sort_by(|a, b| a.box_length.total_cmp(&b.box_length));
     write_saturated_norm(&points, &continuum, out)
 }
 
@@ -180,6 +195,71 @@ fn md_row(c: &NormCurve, columns: &RunColumns, s: &NormStatistics, zero: f64) ->
             format!("{zero:.3}")
         }
     )
+}
+
+/// A row of an earlier series table (`--table`): its text and what the saturated-norm chart
+/// draws of it.
+struct TableRow {
+    run: String,
+    line: String,
+    point: TablePoint,
+}
+
+/// What a table row adds to the saturated-norm chart.
+enum TablePoint {
+    Particle(SaturatedPoint),
+    Continuum(f64),
+}
+
+/// The rows of the series table at `path` (a `series.csv` written by `motile compare`, such as
+/// the gallery's) whose runs are not among `compared`.
+fn read_table(path: &Path, compared: &[String]) -> anyhow::Result<Vec<TableRow>> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
+    let mut lines = text.lines();
+    if lines.next() != Some(CSV_HEADER.trim_end()) {
+        anyhow::bail!(
+            "{}: not a series table (its header is not `{}`)",
+            path.display(),
+            CSV_HEADER.trim_end()
+        );
+    }
+    let mut rows = Vec::new();
+    for (k, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let f: Vec<&str> = line.split(',').collect();
+        let num = |i: usize| -> anyhow::Result<f64> {
+            f.get(i).and_then(|v| v.parse::<f64>().ok()).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "{}: row {}: field {} is not a number",
+                    path.display(),
+                    k + 2,
+                    i + 1
+                )
+            })
+        };
+        let run = f[0].to_string();
+        if compared.contains(&run) {
+            continue;
+        }
+        let point = if f.get(1) == Some(&"particle") {
+            let (l, rods) = (num(2)?, num(3)?);
+            let d_r = num(12)?;
+            TablePoint::Particle(SaturatedPoint {
+                box_length: l,
+                mean: num(15)?,
+                nu: rods / (l * l * l),
+                rotational_diffusion: (!d_r.is_nan()).then_some(d_r),
+            })
+        } else {
+            TablePoint::Continuum(num(15)?)
+        };
+        rows.push(TableRow {
+            run,
+            line: line.to_string(),
+            point,
+        });
+    }
+    Ok(rows)
 }
 
 /// `saturated_norm.{png,svg}`: the particle runs' saturated norms against `L/l`, the
