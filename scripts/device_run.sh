@@ -36,8 +36,11 @@
 #            series, lowest modes, log, analysis; no snapshots or checkpoints), the comparison of
 #            the members run here (compare/: series.csv rows, curves, figures) and series.log;
 #            `bash scripts/series_harvest.sh series.tgz` files them into docs/gallery/.
-#            SERIES_SCENE, SERIES_MEMBERS, SERIES_CSV, SERIES_DEVICE and MOTILE_BIN change them
-#            (the test suite runs it on the host emulation with a small scene).
+#            Where no member fits, the first that does not runs for the time left as a
+#            measurement (MEMBER-partial: its time series and log, whose last lines split the
+#            wall time; SERIES_MEASURE=0 turns this off). SERIES_SCENE, SERIES_MEMBERS,
+#            SERIES_CSV, SERIES_DEVICE and MOTILE_BIN change them (the test suite runs it on
+#            the host emulation with a small scene).
 #   all      parity, bench (every target case, in two parts), runs and science in one command
 #            of at most 8 minutes: each phase under its own time limit (timeout), so a slow
 #            phase cannot hide the others' results; 8 files in $OUT (device.txt, parity.txt,
@@ -210,6 +213,8 @@ case "${1:-}" in
     rm -rf "$D"
     mkdir -p "$D" "$R"
     start=$(date +%s)
+    ran=""
+    measured=""
     log() { echo "$(($(date +%s) - start)) s: $*" | tee -a "$D/series.log"; }
     for m in ${SERIES_MEMBERS:-L75 L100 L150 L175 mf128 mf256}; do
       if grep -q "^$m," "$CSV" 2>/dev/null; then
@@ -226,9 +231,26 @@ case "${1:-}" in
       # The estimate (steps, analysis and comparison), 20% over, and half a minute of set-up.
       need=$((est * 6 / 5 + 30))
       if [ "$need" -gt "$left" ]; then
+        if [ -z "$measured" ] && [ -z "$ran" ] && [ "$left" -gt 120 ] \
+          && [ "${SERIES_MEASURE:-1}" = 1 ]; then
+          # Nothing fits: the first member that does not is run for the time left as a
+          # measurement (its steps/s and the log's split of the wall time come back as
+          # MEMBER-partial; no row), so that each GPU at hand says where the time goes.
+          log "$m: does not fit (estimated $est s, $left s left): run for $((left - 60)) s to measure it"
+          measured=1
+          timeout $((left - 60)) "$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" \
+            --out "$R" >"$D/$m.txt" 2>&1
+          log "$m: measurement stopped ($?)"
+          mkdir -p "$D/$m-partial"
+          for f in config.toml timeseries.csv modes.csv run.log; do
+            cp "$R/$m/$f" "$D/$m-partial/" 2>/dev/null
+          done
+          continue
+        fi
         log "$m: not started (estimated $est s, needs $need s, $left s left)"
         continue
       fi
+      ran=1
       log "$m: starting (estimated $est s, $left s left)"
       t0=$(date +%s)
       # SIGTERM when the time is up: the run stops at a step boundary with a checkpoint.

@@ -22,6 +22,12 @@ for f in c n Q; do copy runs/paper-dilute/compare/correlation_$f paper_dilute_co
 copy runs/paper-dilute/compare/msd paper_dilute_msd
 copy runs/paper-dilute/compare/velocity_slice paper_dilute_velocity_slice png
 copy runs/paper-dilute/compare/series paper_dilute_series csv
+# The series grown on GPU nodes, drawn from the members' compact products (docs/gallery/paper-dilute/)
+# with the table's other rows: `motile compare docs/gallery/paper-dilute/L75
+# docs/gallery/paper-dilute/mf128 --table docs/gallery/paper_dilute_series.csv --out runs/paper-dilute-series`.
+for f in velocity_norm saturated_norm velocity_correlation_normalised orientation msd; do
+  copy runs/paper-dilute-series/$f paper_dilute_series_$f
+done
 copy runs/fidelity/pair_fidelity pair_fidelity
 copy runs/onset-0.625/onset onset_0.625
 copy runs/onset-0.625/onset_frequency onset_0.625_frequency

@@ -33,7 +33,7 @@ const PARTICLE: [(&str, u64); 15] = [
     ("snapshots/snap_000000.h5", 0x91dccf280beaf970),
     ("snapshots/snap_000001.h5", 0x20c72be061520fc2),
     ("snapshots/snap_000002.h5", 0xdaee224a53fa003f),
-    ("timeseries.csv", 0xbf13aaf454245ab2),
+    ("timeseries.csv", 0x62af50562d656047),
     ("vtk/rods_000000.vtp", 0x8748c0f8b5e80b72),
     ("vtk/rods_000001.vtp", 0x5743968c092134b2),
     ("vtk/rods_000002.vtp", 0x9bf88dc555aacd8e),

@@ -113,9 +113,11 @@ fn analyze_handles_a_hydrodynamic_run_whose_first_snapshot_has_no_flow() {
         .iter()
         .position(|t| (t - t_an[1]).abs() < 1e-9)
         .unwrap();
+    // The run's norm comes from a transform at 1e-4 (the time series' tolerance), the
+    // analysis's at 1e-6: they agree to the first.
     let rel = (run_norm[k] - u[1]).abs() / u[1];
     assert!(
-        rel < 1e-6,
+        rel < 1e-4,
         "analysis {} vs run {} at t = {}: rel {rel:e}",
         u[1],
         run_norm[k],
@@ -199,9 +201,10 @@ fn compare_puts_particle_and_mean_field_runs_in_one_unit_system() {
             um * um
         })
         .collect();
+    // The time series' norms come from a transform at 1e-4: their squares within twice it.
     let expect = 0.5 * (sq[0] + sq[1]);
     assert!(
-        (corr0 - expect).abs() < 1e-6 * expect,
+        (corr0 - expect).abs() < 2e-4 * expect,
         "Corr[u](0) {corr0} vs {expect}"
     );
     assert!(out.join("velocity_correlation.png").exists());

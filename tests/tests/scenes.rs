@@ -402,3 +402,35 @@ diagnostic_interval = 1.0
         "{lines:?}"
     );
 }
+
+/// The GPU estimates of the `paper-dilute` members grow with the member's size, and are
+/// within 30% of the wall times measured on an H200 node for the members run there (the
+/// scene run with its analysis and comparison: L75 582 s, mf128 94 s).
+#[test]
+fn gpu_estimates_grow_with_size_and_match_the_members_run() {
+    let scene = load_scene("paper-dilute").unwrap();
+    let of = |name: &str| {
+        let (_, cfg) = scene.runs.iter().find(|(n, _)| n == name).unwrap();
+        motile_experiments::campaign::estimate::gpu_estimate(cfg).seconds()
+    };
+    let particle: Vec<f64> = ["L50", "L75", "L100", "L150", "L175"]
+        .iter()
+        .map(|m| of(m))
+        .collect();
+    assert!(
+        particle.windows(2).all(|w| w[1] > w[0]),
+        "not monotone: {particle:?}"
+    );
+    let continuum: Vec<f64> = ["mf64", "mf128", "mf256"].iter().map(|m| of(m)).collect();
+    assert!(
+        continuum.windows(2).all(|w| w[1] > w[0]),
+        "not monotone: {continuum:?}"
+    );
+    for (member, measured) in [("L75", 582.0), ("mf128", 94.0)] {
+        let e = of(member);
+        assert!(
+            (e / measured - 1.0).abs() <= 0.3,
+            "{member}: estimated {e:.0} s, measured {measured} s"
+        );
+    }
+}

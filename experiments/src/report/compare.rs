@@ -337,7 +337,7 @@ fn analyse_runs(
                 t_start: own_time(c, s.saturated_from),
                 slice_at: common.is_finite().then(|| own_time(c, common)),
             };
-            if compact::is_compact(run) {
+            if crate::report::products::is_compact(run) {
                 compact::read_analysis(run, &c.label)
             } else if run.snapshot_paths.is_empty() {
                 anyhow::bail!(

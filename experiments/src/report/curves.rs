@@ -114,8 +114,8 @@ fn particle_curve(
         "particle L/l = {}, nu = {:.3} ({})",
         units.box_length, units.nu, config.hydrodynamics
     );
-    let rotational_diffusion = if crate::report::compact::is_compact(run) {
-        let samples = crate::report::compact::orientation_samples(run, &label)?;
+    let rotational_diffusion = if crate::report::products::is_compact(run) {
+        let samples = crate::report::products::orientation_samples(run, &label)?;
         diffusive_rate(&log_samples(&samples, 0.5 * t_end_own), 0.5 * t_end_own)
     } else {
         rotational_diffusion_of(&run.snapshot_paths, 0.5 * t_end_own)?

@@ -9,4 +9,5 @@ pub(crate) mod compare_figures;
 pub mod curves;
 pub mod opened_run;
 pub mod plot;
+pub(crate) mod products;
 pub(crate) mod series;

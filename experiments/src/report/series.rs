@@ -6,7 +6,7 @@
 
 use crate::io::write_atomic;
 use crate::report::curves::{NormCurve, NormStatistics};
-use crate::report::plot::{Chart, Series, line_chart};
+use crate::report::plot::{Series, log_chart};
 use motile_particle::model::linear_theory::onset_box;
 use motile_particle::model::units::DEFAULT_DIAMETER;
 use std::path::Path;
@@ -287,12 +287,13 @@ fn write_saturated_norm(
         .flatten();
     let x_lo = onset.map_or(x_lo, |o| o.min(x_lo)) * 0.9;
     let x_hi = onset_dr.map_or(x_hi, |(_, o)| o.max(x_hi)) * 1.1;
-    let y_hi = points
+    // Log axes: the particles' norms sit an order of magnitude below the continuum's.
+    let means = points
         .iter()
         .map(|p| p.mean)
-        .chain(continuum.iter().map(|c| c.1))
-        .fold(0.0, f64::max)
-        * 1.2;
+        .chain(continuum.iter().map(|c| c.1));
+    let y_hi = means.clone().fold(0.0, f64::max) * 1.5;
+    let y_lo = means.fold(f64::INFINITY, f64::min) / 1.5;
     let mut series = vec![Series {
         label: format!("particles, nu = {nu:.3}"),
         points: points.iter().map(|p| (p.box_length, p.mean)).collect(),
@@ -305,7 +306,7 @@ fn write_saturated_norm(
     }
     let onset_line = |label: String, o: f64| Series {
         label,
-        points: vec![(o, 0.0), (o, y_hi)],
+        points: vec![(o, y_lo), (o, y_hi)],
     };
     if let Some(o) = onset {
         series.push(onset_line(
@@ -319,14 +320,17 @@ fn write_saturated_norm(
             o,
         ));
     }
-    line_chart(
+    let labels: Vec<(f64, f64, String)> = points
+        .iter()
+        .map(|p| (p.box_length, p.mean, format!("{:.2e}", p.mean)))
+        .collect();
+    log_chart(
         &out.join("saturated_norm"),
-        &Chart {
-            title: "Saturated velocity norm against the box (time average), mean-field units",
-            x_label: "L / l",
-            y_label: "time-averaged ||u||_2 [L |sigma_a|/mu]",
-            series,
-        },
+        "Saturated velocity norm against the box (time average), mean-field units",
+        "L / l",
+        "time-averaged ||u||_2 [L |sigma_a|/mu]",
+        &series,
+        &labels,
     )?;
     Ok(())
 }

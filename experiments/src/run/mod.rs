@@ -142,6 +142,11 @@ pub trait RunModel: Sized {
     ) -> anyhow::Result<Self>;
     /// Lines for the log once the run directory exists (what the run is, how it started).
     fn notes(&mut self) -> Vec<String>;
+    /// Where this invocation's wall time went, for the log when it ends or is stopped (none
+    /// by default).
+    fn wall_note(&self) -> Option<String> {
+        None
+    }
     /// Whether a time-series row of an earlier invocation is kept on resume (rows after the
     /// checkpoint's time are written again).
     fn keeps_row(&self, row: &[f64]) -> bool;
@@ -327,9 +332,13 @@ fn drive<M: RunModel>(
     let t0 = Instant::now();
     let mut last_ckpt = Instant::now();
     let wall = model.checkpoint_policy().1;
+    // Wall seconds spent writing checkpoints (said in the log's last line).
+    let mut checkpoint_seconds = 0.0;
     while !model.finished() {
         if model.checkpoint_due_before_step() {
+            let started = Instant::now();
             write_regular(&model, run)?;
+            checkpoint_seconds += started.elapsed().as_secs_f64();
             last_ckpt = Instant::now();
         }
         if let Err(f) = model.step(&mut io) {
@@ -341,10 +350,15 @@ fn drive<M: RunModel>(
             || stop.is_some()
             || last_ckpt.elapsed().as_secs_f64() >= wall
         {
+            let started = Instant::now();
             let path = write_regular(&model, run)?;
+            checkpoint_seconds += started.elapsed().as_secs_f64();
             last_ckpt = Instant::now();
             if let Some(signal) = stop {
                 io.bar.abandon();
+                if let Some(note) = model.wall_note() {
+                    run.log(&note)?;
+                }
                 let at = format!("step {} (t = {:.4})", model.steps(), model.time());
                 run.log(&format!("stopped by signal {signal} at {at}"))?;
                 return Err(checkpoint::Interrupted {
@@ -370,9 +384,14 @@ fn drive<M: RunModel>(
         }
     }
     io.bar.finish();
+    if model.steps() > start_steps
+        && let Some(note) = model.wall_note()
+    {
+        run.log(&note)?;
+    }
     let seconds = t0.elapsed().as_secs_f64();
     run.log(&format!(
-        "finished at step {} (t = {}) in {seconds:.1} s",
+        "finished at step {} (t = {}) in {seconds:.1} s (checkpoints {checkpoint_seconds:.1} s)",
         model.steps(),
         model.time()
     ))?;

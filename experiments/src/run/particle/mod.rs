@@ -16,7 +16,7 @@ mod state;
 
 pub use config::*;
 pub use outputs::{COLUMNS, mode_columns};
-use outputs::{lowest_modes, series_row, velocity_norms, write_snapshot};
+use outputs::{flow_diagnostics, series_row, write_snapshot};
 pub use ranked::follow;
 pub use state::*;
 
@@ -90,6 +90,32 @@ pub struct ParticleModel {
     /// `modes.csv` (with `lowest_modes`): loaded at the first step of an invocation, rows
     /// after the state it starts from dropped (they are written again).
     modes: Option<TimeSeries>,
+    /// Where this invocation's wall time went (logged at its end).
+    spent: WallShares,
+}
+
+/// Wall seconds of an invocation's steps with their outputs, and of the outputs alone.
+#[derive(Clone, Copy, Debug, Default)]
+struct WallShares {
+    /// The steps with their outputs (checkpoints not included: the run loop writes them).
+    total: f64,
+    /// The time series' rows: the flow's norms, the lowest modes, the CSV files.
+    diagnostics: f64,
+    /// Snapshots (HDF5 and VTK) with the downloads and point forces they need.
+    snapshots: f64,
+}
+
+impl WallShares {
+    /// One line for the log.
+    fn describe(&self) -> String {
+        format!(
+            "wall time of the steps with their outputs {:.1} s: stepping {:.1} s, diagnostics {:.1} s (flow norms, lowest modes, time series), snapshots {:.1} s",
+            self.total,
+            self.total - self.diagnostics - self.snapshots,
+            self.diagnostics,
+            self.snapshots
+        )
+    }
 }
 
 impl std::fmt::Debug for ParticleModel {
@@ -180,6 +206,7 @@ impl ParticleModel {
                 Vec::new()
             },
             modes: None,
+            spent: WallShares::default(),
         })
     }
 
@@ -374,6 +401,44 @@ impl run::RunModel for ParticleModel {
     }
 
     fn step(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
+        let started = Instant::now();
+        let stepped = self.step_and_outputs(io);
+        self.spent.total += started.elapsed().as_secs_f64();
+        stepped
+    }
+
+    fn checkpoint_due_after_step(&self) -> bool {
+        self.step.is_multiple_of(self.every.2) || self.step == self.total
+    }
+
+    fn finish(
+        &mut self,
+        _io: &mut run::RunIo,
+        _took_steps: bool,
+    ) -> Result<bool, run::StepFailure> {
+        Ok(false)
+    }
+
+    fn wall_note(&self) -> Option<String> {
+        Some(self.spent.describe())
+    }
+
+    fn write_checkpoint(&self, path: &Path) -> anyhow::Result<()> {
+        self.checkpoint_to(path)
+    }
+
+    fn write_last_good(&self, path: &Path) -> anyhow::Result<()> {
+        self.before
+            .as_ref()
+            .context("no failed step: nothing to save as the last good state")?
+            .write(path)?;
+        Ok(())
+    }
+}
+
+impl ParticleModel {
+    /// One step and the outputs due after it (the host's step, the ranks' or the device's).
+    fn step_and_outputs(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
         let step = self.step + 1;
         let cfg = &self.cfg;
         // One process keeps the state before the step; ranks keep theirs and give it back on
@@ -389,7 +454,7 @@ impl run::RunModel for ParticleModel {
                 &self.rods,
                 &self.stepper,
                 self.step,
-                self.time(),
+                run::RunModel::time(self),
             )),
             Some(_)
                 if cfg.hydrodynamics.has_flow()
@@ -439,23 +504,29 @@ impl run::RunModel for ParticleModel {
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
             let c = &report.contact;
-            let norms = match &before {
-                Some(b) => velocity_norms(&self.stepper, &b.rods)?,
-                None => (0.0, 0.0),
+            let started = Instant::now();
+            let diagnosed = match &before {
+                Some(b) => Some(flow_diagnostics(
+                    &self.stepper,
+                    &b.rods,
+                    t,
+                    self.cfg.lowest_modes,
+                )?),
+                None => None,
             };
+            let norms = diagnosed.as_ref().map_or((0.0, 0.0), |d| d.norms);
             io.push_row(series_row(t, rate, &report, norms))?;
             io.bar.set_message(format!(
                 "t = {t:.3}, {rate:.1} steps/s, {} contacts, max overlap {:.1e}",
                 c.active, report.max_overlap
             ));
-            if self.cfg.lowest_modes
-                && let Some(b) = &before
-            {
-                let row = lowest_modes(&self.stepper, &b.rods, t);
+            if let Some(row) = diagnosed.and_then(|d| d.modes) {
                 self.push_modes(io, row)?;
             }
+            self.spent.diagnostics += started.elapsed().as_secs_f64();
         }
         if step.is_multiple_of(snap) {
+            let started = Instant::now();
             let kin = match synced {
                 Some(k) => k,
                 None => self.sync()?,
@@ -475,31 +546,8 @@ impl run::RunModel for ParticleModel {
                 forces,
                 &mut self.pvd,
             )?;
+            self.spent.snapshots += started.elapsed().as_secs_f64();
         }
-        Ok(())
-    }
-
-    fn checkpoint_due_after_step(&self) -> bool {
-        self.step.is_multiple_of(self.every.2) || self.step == self.total
-    }
-
-    fn finish(
-        &mut self,
-        _io: &mut run::RunIo,
-        _took_steps: bool,
-    ) -> Result<bool, run::StepFailure> {
-        Ok(false)
-    }
-
-    fn write_checkpoint(&self, path: &Path) -> anyhow::Result<()> {
-        self.checkpoint_to(path)
-    }
-
-    fn write_last_good(&self, path: &Path) -> anyhow::Result<()> {
-        self.before
-            .as_ref()
-            .context("no failed step: nothing to save as the last good state")?
-            .write(path)?;
         Ok(())
     }
 }
@@ -595,13 +643,13 @@ impl ParticleModel {
         }
         self.warn_accuracy(io, step, &report)?;
         // What the outputs need of the state before the step, then the state after it.
-        let norms = if flow && step.is_multiple_of(diag) {
-            velocity_norms(&self.stepper, &self.rods)?
-        } else {
-            (0.0, 0.0)
-        };
-        let modes = (flow && self.cfg.lowest_modes && step.is_multiple_of(diag))
-            .then(|| lowest_modes(&self.stepper, &self.rods, t));
+        let started = Instant::now();
+        let diagnosed = (flow && step.is_multiple_of(diag))
+            .then(|| flow_diagnostics(&self.stepper, &self.rods, t, self.cfg.lowest_modes))
+            .transpose()?;
+        let norms = diagnosed.as_ref().map_or((0.0, 0.0), |d| d.norms);
+        let modes = diagnosed.and_then(|d| d.modes);
+        self.spent.diagnostics += started.elapsed().as_secs_f64();
         let forces = (flow && step.is_multiple_of(snap))
             .then(|| {
                 self.stepper.mobility().force_density().map(|fd| {
@@ -617,6 +665,7 @@ impl ParticleModel {
                 .expect("a device step without a device");
             d.download(&mut self.rods)?;
         }
+        let started = Instant::now();
         if step.is_multiple_of(diag) {
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
@@ -630,7 +679,9 @@ impl ParticleModel {
         if let Some(row) = modes {
             self.push_modes(io, row)?;
         }
+        self.spent.diagnostics += started.elapsed().as_secs_f64();
         if step.is_multiple_of(snap) {
+            let started = Instant::now();
             let kin = self.sync()?;
             write_snapshot(
                 &self.cfg,
@@ -641,6 +692,7 @@ impl ParticleModel {
                 forces,
                 &mut self.pvd,
             )?;
+            self.spent.snapshots += started.elapsed().as_secs_f64();
         }
         Ok(())
     }

@@ -79,36 +79,60 @@ pub fn mode_columns() -> Vec<String> {
     c
 }
 
-/// A row of `modes.csv` at time `t` from the force density of the state `at`.
-pub(super) fn lowest_modes(stepper: &Stepper, at: &RodSet, t: f64) -> Vec<f64> {
-    let mut row = vec![t];
-    match stepper.mobility().force_density() {
-        Some(fd) => {
-            let (points, forces) = fd.point_forces(at, &at.orientations());
-            for u in velocity_modes(&points, &forces, at.box_length, VISCOSITY, &LOWEST_MODES) {
-                for c in u {
-                    row.extend([c.re, c.im]);
-                }
-            }
-        }
-        None => row.extend([0.0; 18]),
-    }
-    row
+/// The NUFFT tolerance of the flow's norms in the time series: the norm's relative error stays
+/// near it (1.4e-6 measured at 1e-4 on 1e6 force-free points, against 4e-7 at 1e-6) while the
+/// transform takes half the time, and the statistics drawn from the norm carry standard errors
+/// of a few percent. `motile analyze` recomputes it from snapshots at 1e-6.
+pub(super) const NORM_TOLERANCE: f64 = 1e-4;
+
+/// What a diagnostic step records of the flow of the state `at`: its norms (all analysis modes
+/// and the box-scale ones, units of `beta L`) and, where asked, the row of `modes.csv` at `t`.
+pub(super) struct FlowDiagnostics {
+    /// `(||u||_2, box-scale ||u||_2)`; zero for models without flow.
+    pub(super) norms: (f64, f64),
+    /// The lowest modes' row, where asked.
+    pub(super) modes: Option<Vec<f64>>,
 }
 
-/// `||u||_2 / (beta L)` of the step's force density (docs/MODEL.md §5, §6: the velocity spectrum on
-/// `floor(L/2)` modes per dimension, doublet neglected); 0 for models without flow.
-/// The flow's volume-averaged L2 norm from the velocity spectrum of the force density, over
-/// the analysis modes and over the box-scale modes alone (every `|m_i| <= 1`: wavelengths of
-/// one box and more, where the instability begins), both in units of `beta L`.
-pub(super) fn velocity_norms(stepper: &Stepper, at: &RodSet) -> anyhow::Result<(f64, f64)> {
+/// The flow's diagnostics of the state `at` from its force density, the point forces computed
+/// once for the norms and the lowest modes (docs/MODEL.md §5, §6: the velocity spectrum on
+/// `floor(L/2)` modes per dimension, doublet neglected).
+pub(super) fn flow_diagnostics(
+    stepper: &Stepper,
+    at: &RodSet,
+    t: f64,
+    modes: bool,
+) -> anyhow::Result<FlowDiagnostics> {
     let Some(fd) = stepper.mobility().force_density() else {
-        return Ok((0.0, 0.0));
+        return Ok(FlowDiagnostics {
+            norms: (0.0, 0.0),
+            modes: modes.then(|| {
+                let mut row = vec![t];
+                row.extend([0.0; 18]);
+                row
+            }),
+        });
     };
     let (points, forces) = fd.point_forces(at, &at.orientations());
-    let l = at.box_length;
+    let norms = velocity_norms(&points, &forces, at.box_length)?;
+    let modes = modes.then(|| {
+        let mut row = vec![t];
+        for u in velocity_modes(&points, &forces, at.box_length, VISCOSITY, &LOWEST_MODES) {
+            for c in u {
+                row.extend([c.re, c.im]);
+            }
+        }
+        row
+    });
+    Ok(FlowDiagnostics { norms, modes })
+}
+
+/// The flow's volume-averaged L2 norm from the velocity spectrum of the point forces, over
+/// the analysis modes and over the box-scale modes alone (every `|m_i| <= 1`: wavelengths of
+/// one box and more, where the instability begins), both in units of `beta L`.
+fn velocity_norms(points: &[[f64; 3]], forces: &[[f64; 3]], l: f64) -> anyhow::Result<(f64, f64)> {
     let modes = CorrelationOptions::default().modes_for(l);
-    let spectrum = velocity_spectrum(&points, &forces, l, VISCOSITY, modes, 1e-6)?;
+    let spectrum = velocity_spectrum(points, forces, l, VISCOSITY, modes, NORM_TOLERANCE)?;
     let power = spectrum.power();
     let box_scale: f64 = power
         .iter()
