@@ -162,7 +162,8 @@ fn resident_anchor(level: Hydrodynamics) -> (usize, f64) {
 /// 16 threads, the rods downloaded for them), snapshots included: the `paper-dilute` L75
 /// member's whole run on an H200 (263 672 rods, 1 054 688 points, a diagnostic every 10 steps,
 /// the norms' transform then at 1e-6) took 74.9 ms per step against the `sbt-explicit`
-/// anchor's 19.3 ms at that size. An upper bound since the norms' transform runs at 1e-4.
+/// anchor's 19.3 ms at that size. An upper bound since the norms' transform runs at 1e-4 and
+/// beside the next steps.
 const DIAGNOSTIC_SECONDS_PER_POINT: f64 = 5.27e-7;
 
 /// Seconds of the analysis and comparison per rod and snapshot (the L75 member: 133 s for

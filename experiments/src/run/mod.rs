@@ -147,6 +147,12 @@ pub trait RunModel: Sized {
     fn wall_note(&self) -> Option<String> {
         None
     }
+    /// Write the outputs of steps taken whose computation is still running (a resident
+    /// step's diagnostics): called before every checkpoint, at the end and on a failure or a
+    /// stop, so the run directory holds every row up to the state a checkpoint keeps.
+    fn settle(&mut self, _io: &mut RunIo) -> anyhow::Result<()> {
+        Ok(())
+    }
     /// Whether a time-series row of an earlier invocation is kept on resume (rows after the
     /// checkpoint's time are written again).
     fn keeps_row(&self, row: &[f64]) -> bool;
@@ -337,12 +343,19 @@ fn drive<M: RunModel>(
     while !model.finished() {
         if model.checkpoint_due_before_step() {
             let started = Instant::now();
+            model.settle(&mut io)?;
             write_regular(&model, run)?;
             checkpoint_seconds += started.elapsed().as_secs_f64();
             last_ckpt = Instant::now();
         }
         if let Err(f) = model.step(&mut io) {
             io.bar.abandon();
+            // The rows of the steps before the failure are written (or said lost).
+            if let Err(e) = model.settle(&mut io) {
+                run.log(&format!(
+                    "the outputs of the last good steps were not written: {e:#}"
+                ))?;
+            }
             return Err(failed(&model, run, f));
         }
         let stop = checkpoint::stop_requested();
@@ -351,6 +364,7 @@ fn drive<M: RunModel>(
             || last_ckpt.elapsed().as_secs_f64() >= wall
         {
             let started = Instant::now();
+            model.settle(&mut io)?;
             let path = write_regular(&model, run)?;
             checkpoint_seconds += started.elapsed().as_secs_f64();
             last_ckpt = Instant::now();
@@ -373,6 +387,7 @@ fn drive<M: RunModel>(
         io.bar.set_position(model.progress().2);
         report_progress(model.progress().2, len, model.time());
     }
+    model.settle(&mut io)?;
     match model.finish(&mut io, model.steps() > start_steps) {
         Ok(true) => {
             write_regular(&model, run)?;

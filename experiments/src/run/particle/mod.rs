@@ -16,7 +16,10 @@ mod state;
 
 pub use config::*;
 pub use outputs::{COLUMNS, mode_columns};
-use outputs::{flow_diagnostics, series_row, write_snapshot};
+use outputs::{
+    FlowDiagnostics, diagnostics_of, flow_diagnostics, point_forces_of, series_row, set_norms,
+    write_snapshot,
+};
 pub use ranked::follow;
 pub use state::*;
 
@@ -92,6 +95,8 @@ pub struct ParticleModel {
     modes: Option<TimeSeries>,
     /// Where this invocation's wall time went (logged at its end).
     spent: WallShares,
+    /// The resident step's last diagnostic, its transform still running ([`Self::settle_diagnostics`]).
+    pending: Option<PendingDiagnostics>,
 }
 
 /// Wall seconds of an invocation's steps with their outputs, and of the outputs alone.
@@ -207,6 +212,7 @@ impl ParticleModel {
             },
             modes: None,
             spent: WallShares::default(),
+            pending: None,
         })
     }
 
@@ -423,6 +429,10 @@ impl run::RunModel for ParticleModel {
         Some(self.spent.describe())
     }
 
+    fn settle(&mut self, io: &mut run::RunIo) -> anyhow::Result<()> {
+        self.settle_diagnostics(io)
+    }
+
     fn write_checkpoint(&self, path: &Path) -> anyhow::Result<()> {
         self.checkpoint_to(path)
     }
@@ -436,7 +446,42 @@ impl run::RunModel for ParticleModel {
     }
 }
 
+/// A time-series row whose flow diagnostics are still being computed on a host thread (the
+/// resident step: the device steps on meanwhile).
+struct PendingDiagnostics {
+    /// The row, its norms zero until the job ends.
+    row: Vec<f64>,
+    /// The flow's diagnostics; `None` for models without flow.
+    job: Option<std::thread::JoinHandle<anyhow::Result<FlowDiagnostics>>>,
+}
+
 impl ParticleModel {
+    /// Write the pending diagnostic's rows (time series, lowest modes), waiting for its
+    /// transform: before the next diagnostic, a checkpoint, the end or a failure, so the files
+    /// hold every row up to the state a checkpoint keeps.
+    fn settle_diagnostics(&mut self, io: &mut run::RunIo) -> anyhow::Result<()> {
+        let Some(PendingDiagnostics { mut row, job }) = self.pending.take() else {
+            return Ok(());
+        };
+        let started = Instant::now();
+        let modes = match job {
+            Some(job) => {
+                let d = job
+                    .join()
+                    .map_err(|_| anyhow::anyhow!("the flow diagnostics' thread panicked"))??;
+                set_norms(&mut row, d.norms);
+                d.modes
+            }
+            None => None,
+        };
+        io.push_row(row)?;
+        if let Some(m) = modes {
+            self.push_modes(io, m)?;
+        }
+        self.spent.diagnostics += started.elapsed().as_secs_f64();
+        Ok(())
+    }
+
     /// One step and the outputs due after it (the host's step, the ranks' or the device's).
     fn step_and_outputs(&mut self, io: &mut run::RunIo) -> Result<(), run::StepFailure> {
         let step = self.step + 1;
@@ -642,22 +687,20 @@ impl ParticleModel {
             }
         }
         self.warn_accuracy(io, step, &report)?;
-        // What the outputs need of the state before the step, then the state after it.
+        // What the outputs need of the state before the step (its point forces), then the
+        // state after it.
         let started = Instant::now();
-        let diagnosed = (flow && step.is_multiple_of(diag))
-            .then(|| flow_diagnostics(&self.stepper, &self.rods, t, self.cfg.lowest_modes))
-            .transpose()?;
-        let norms = diagnosed.as_ref().map_or((0.0, 0.0), |d| d.norms);
-        let modes = diagnosed.and_then(|d| d.modes);
-        self.spent.diagnostics += started.elapsed().as_secs_f64();
-        let forces = (flow && step.is_multiple_of(snap))
-            .then(|| {
-                self.stepper.mobility().force_density().map(|fd| {
-                    let (points, forces) = fd.point_forces(&self.rods, &self.rods.orientations());
-                    PointForces { points, forces }
-                })
-            })
+        let (at_diag, at_snap) = (step.is_multiple_of(diag), step.is_multiple_of(snap));
+        let point_forces = (flow && (at_diag || at_snap))
+            .then(|| point_forces_of(&self.stepper, &self.rods))
             .flatten();
+        let (for_diagnostics, forces) = match (at_diag, at_snap) {
+            (true, true) => (point_forces.clone(), point_forces),
+            (true, false) => (point_forces, None),
+            (false, _) => (None, point_forces),
+        };
+        let box_length = self.rods.box_length;
+        self.spent.diagnostics += started.elapsed().as_secs_f64();
         if flow && !resident_flow {
             let d = self
                 .device
@@ -665,21 +708,27 @@ impl ParticleModel {
                 .expect("a device step without a device");
             d.download(&mut self.rods)?;
         }
-        let started = Instant::now();
-        if step.is_multiple_of(diag) {
+        if at_diag {
+            // The previous diagnostic's rows first; this one's transform runs on a host thread
+            // while the device takes the next steps.
+            self.settle_diagnostics(io)?;
+            let started = Instant::now();
             let rate = self.window.1 as f64 / self.window.0.elapsed().as_secs_f64().max(1e-9);
             self.window = (Instant::now(), 0);
             let c = &report.contact;
-            io.push_row(series_row(t, rate, &report, norms))?;
             io.bar.set_message(format!(
                 "t = {t:.3}, {rate:.1} steps/s (GPU), {} contacts, max overlap {:.1e}",
                 c.active, report.max_overlap
             ));
+            let modes = self.cfg.lowest_modes;
+            self.pending = Some(PendingDiagnostics {
+                row: series_row(t, rate, &report, (0.0, 0.0)),
+                job: for_diagnostics.map(|pf| {
+                    std::thread::spawn(move || diagnostics_of(&pf, box_length, t, modes))
+                }),
+            });
+            self.spent.diagnostics += started.elapsed().as_secs_f64();
         }
-        if let Some(row) = modes {
-            self.push_modes(io, row)?;
-        }
-        self.spent.diagnostics += started.elapsed().as_secs_f64();
         if step.is_multiple_of(snap) {
             let started = Instant::now();
             let kin = self.sync()?;

@@ -51,14 +51,14 @@ pub(super) fn series_row(t: f64, rate: f64, report: &StepReport, norms: (f64, f6
         report.polar_order,
         report.hydro.gmres_iterations as f64,
         report.hydro.gmres_residual,
-        norms.0,
+        norms.0, // NORM_COLUMN
         report.max_speed,
         report.max_rotation_rate,
         report.correction_active as f64,
         report.projections as f64,
         report.hydro.sum_error_ratio,
         report.hydro.sum_level as f64,
-        norms.1,
+        norms.1, // BOX_NORM_COLUMN
     ]
 }
 
@@ -103,21 +103,39 @@ pub(super) fn flow_diagnostics(
     t: f64,
     modes: bool,
 ) -> anyhow::Result<FlowDiagnostics> {
-    let Some(fd) = stepper.mobility().force_density() else {
-        return Ok(FlowDiagnostics {
+    match point_forces_of(stepper, at) {
+        Some(pf) => diagnostics_of(&pf, at.box_length, t, modes),
+        None => Ok(FlowDiagnostics {
             norms: (0.0, 0.0),
             modes: modes.then(|| {
                 let mut row = vec![t];
                 row.extend([0.0; 18]);
                 row
             }),
-        });
-    };
+        }),
+    }
+}
+
+/// The point forces of the state `at` (its force density at the quadrature points); `None`
+/// for models without flow.
+pub(super) fn point_forces_of(stepper: &Stepper, at: &RodSet) -> Option<PointForces> {
+    let fd = stepper.mobility().force_density()?;
     let (points, forces) = fd.point_forces(at, &at.orientations());
-    let norms = velocity_norms(&points, &forces, at.box_length)?;
+    Some(PointForces { points, forces })
+}
+
+/// The flow's norms (and, where asked, the lowest modes' row at `t`) of point forces in a box
+/// of side `l`: a function of its inputs alone, so that it can run beside the next steps.
+pub(super) fn diagnostics_of(
+    pf: &PointForces,
+    l: f64,
+    t: f64,
+    modes: bool,
+) -> anyhow::Result<FlowDiagnostics> {
+    let norms = velocity_norms(&pf.points, &pf.forces, l)?;
     let modes = modes.then(|| {
         let mut row = vec![t];
-        for u in velocity_modes(&points, &forces, at.box_length, VISCOSITY, &LOWEST_MODES) {
+        for u in velocity_modes(&pf.points, &pf.forces, l, VISCOSITY, &LOWEST_MODES) {
             for c in u {
                 row.extend([c.re, c.im]);
             }
@@ -126,6 +144,16 @@ pub(super) fn flow_diagnostics(
     });
     Ok(FlowDiagnostics { norms, modes })
 }
+
+/// Put the flow's norms into a time-series row made by [`series_row`].
+pub(super) fn set_norms(row: &mut [f64], norms: (f64, f64)) {
+    row[NORM_COLUMN] = norms.0;
+    row[BOX_NORM_COLUMN] = norms.1;
+}
+
+/// Where [`series_row`] puts `velocity_norm` and `velocity_norm_box`.
+const NORM_COLUMN: usize = 11;
+const BOX_NORM_COLUMN: usize = 18;
 
 /// The flow's volume-averaged L2 norm from the velocity spectrum of the point forces, over
 /// the analysis modes and over the box-scale modes alone (every `|m_i| <= 1`: wavelengths of
@@ -194,4 +222,18 @@ pub(super) fn write_snapshot(
         write_pvd(&run.path().join("rods.pvd"), pvd)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_norms_go_into_their_columns() {
+        assert!(COLUMNS[NORM_COLUMN].starts_with("velocity_norm ["));
+        assert!(COLUMNS[BOX_NORM_COLUMN].starts_with("velocity_norm_box ["));
+        let mut row = vec![0.0; COLUMNS.len()];
+        set_norms(&mut row, (1.0, 2.0));
+        assert_eq!((row[NORM_COLUMN], row[BOX_NORM_COLUMN]), (1.0, 2.0));
+    }
 }
