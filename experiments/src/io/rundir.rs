@@ -183,10 +183,23 @@ pub fn parse_run_config<C: serde::de::DeserializeOwned>(
     path: &Path,
     validate: impl Fn(&C) -> Result<(), String>,
 ) -> anyhow::Result<C> {
+    parse_run_config_with(text, path, |_: &mut C, _: &toml::Table| {}, validate)
+}
+
+/// [`parse_run_config`], with `defaults` adjusting the defaults of keys the text leaves out to
+/// the values it gives (`(config, the text's table)`), before validation: a default never
+/// contradicts what the user wrote.
+pub fn parse_run_config_with<C: serde::de::DeserializeOwned>(
+    text: &str,
+    path: &Path,
+    defaults: impl Fn(&mut C, &toml::Table),
+    validate: impl Fn(&C) -> Result<(), String>,
+) -> anyhow::Result<C> {
     let mut table: toml::Table =
         toml::from_str(text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     table.remove("motile");
-    let cfg: C = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
+    let given = table.clone();
+    let mut cfg: C = serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
         |e: serde_path_to_error::Error<toml::de::Error>| {
             let at = e.path().to_string();
             let message = with_suggestion(e.inner().message());
@@ -200,6 +213,7 @@ pub fn parse_run_config<C: serde::de::DeserializeOwned>(
             }
         },
     )?;
+    defaults(&mut cfg, &given);
     validate(&cfg).map_err(|e| {
         // Validation messages start with the key: `contact.margin = 0.001 is ...`.
         let key = e.split(" = ").next().unwrap_or_default();

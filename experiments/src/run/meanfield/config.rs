@@ -1,7 +1,7 @@
 //! The mean-field run's config (`config.toml`): every key with its default and allowed range,
 //! validated with messages that name the field.
 
-use crate::io::rundir::parse_run_config;
+use crate::io::rundir::parse_run_config_with;
 use crate::run::Device;
 use motile_meanfield::control::StepControl;
 use motile_meanfield::initial::Perturbation;
@@ -294,5 +294,13 @@ impl MeanFieldRunConfig {
 
 /// Parse a mean-field `config.toml` (with or without the `[motile]` header).
 pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<MeanFieldRunConfig> {
-    parse_run_config(text, path, MeanFieldRunConfig::validate)
+    parse_run_config_with(text, path, modes_from_grid, MeanFieldRunConfig::validate)
+}
+
+/// The perturbation's largest wavenumber left to its default (4) is never above what the
+/// grid the config gives resolves (grid/3, the 2/3 rule): `grid = 8` alone runs, with modes 1-2.
+fn modes_from_grid(c: &mut MeanFieldRunConfig, given: &toml::Table) {
+    if !given.contains_key("mode_max") {
+        c.mode_max = c.mode_max.min(c.grid / 3).max(c.mode_min);
+    }
 }

@@ -1,7 +1,7 @@
 //! The particle run's config (`config.toml`): every key with its default and allowed range,
 //! validated with messages that name the field; the mobility it selects.
 
-use crate::io::rundir::{parse_run_config, range};
+use crate::io::rundir::{parse_run_config_with, range};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
@@ -426,7 +426,32 @@ impl ParticleRunConfig {
 
 /// Parse a `config.toml` (with or without the `[motile]` header table).
 pub fn parse_config(text: &str, path: &Path) -> anyhow::Result<ParticleRunConfig> {
-    parse_run_config(text, path, ParticleRunConfig::validate).map(|c| c.resolved())
+    parse_run_config_with(text, path, intervals_from_dt, ParticleRunConfig::validate)
+        .map(|c| c.resolved())
+}
+
+/// An output interval left to its default is never shorter than the step the config gives
+/// (`dt = 0.05` without `diagnostic_interval` writes a row every step, not an error about a
+/// key the user never wrote), nor the contact margin below what that step needs.
+fn intervals_from_dt(c: &mut ParticleRunConfig, given: &toml::Table) {
+    let dt = c.dt;
+    for (key, value) in [
+        ("diagnostic_interval", &mut c.diagnostic_interval),
+        ("snapshot_interval", &mut c.snapshot_interval),
+        ("checkpoint_interval", &mut c.checkpoint_interval),
+    ] {
+        if !given.contains_key(key) && *value < dt {
+            *value = dt;
+        }
+    }
+    // The contact margin likewise: at least the 2.5 U dt the validation asks of it (U = 1).
+    let margin_given = given
+        .get("contact")
+        .and_then(|c| c.as_table())
+        .is_some_and(|c| c.contains_key("margin"));
+    if !margin_given && c.contact.margin < 2.5 * dt {
+        c.contact.margin = 2.5 * dt;
+    }
 }
 
 /// The mobility of one rank's part of a box shared by several: the dipole and slender-body
