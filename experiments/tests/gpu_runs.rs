@@ -579,3 +579,41 @@ fn the_series_harvest_runs_the_missing_members_on_the_emulated_gpu() {
         "snapshots or checkpoints came back: {large:?}"
     );
 }
+
+/// A run whose measured GPU memory need exceeds what it may use is refused before its first
+/// step, with the figures, and writes no time series; a limit that is not a number is named.
+#[test]
+fn a_run_that_would_not_fit_the_gpu_memory_is_refused_with_the_figures() {
+    if !emulation_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = sbt_config(tmp.path(), 0.02);
+    let run = |limit: &str, out: &str| {
+        Command::new(env!("CARGO_BIN_EXE_motile"))
+            .args(["particle", "run", cfg.to_str().unwrap(), "--out"])
+            .arg(tmp.path().join(out))
+            .args(["--device", "gpu", "--threads", "1"])
+            .env("MOTILE_GPU_BACKEND", "emulation")
+            .env("MOTILE_GPU_MEMORY_LIMIT", limit)
+            .output()
+            .unwrap()
+    };
+    let o = run("1000", "small");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "ran within 1000 bytes");
+    assert!(
+        err.contains("GB of GPU memory") && err.contains("16 rods x 6520 bytes"),
+        "{err}"
+    );
+    assert!(!tmp.path().join("small/timeseries.csv").exists());
+    let o = run("lots", "named");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("MOTILE_GPU_MEMORY_LIMIT = \"lots\""),
+        "{err}"
+    );
+    // Enough memory: the run goes.
+    let o = run("100000000000", "enough");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -107,6 +107,9 @@ pub struct GpuEstimate {
     pub steps: u64,
     /// Seconds of the analysis and comparison after the steps.
     pub analysis_seconds: f64,
+    /// Bytes of GPU memory at the step's peak (measured per rod or grid point, with the
+    /// context).
+    pub memory_bytes: f64,
     /// Where the step's time comes from.
     pub how: &'static str,
 }
@@ -131,13 +134,14 @@ impl GpuEstimate {
             String::new()
         };
         format!(
-            "on a GPU about {:.4} s/step ({:.4} of it diagnostics) x {}{} steps = {:.0} s, then {:.0} s of analysis: {total:.0} s in all{human} ({})",
+            "on a GPU about {:.4} s/step ({:.4} of it diagnostics) x {}{} steps = {:.0} s, then {:.0} s of analysis: {total:.0} s in all{human}, {:.2} GB of GPU memory ({})",
             self.step_seconds,
             self.output_seconds,
             if self.steps_at_least() { ">= " } else { "" },
             self.steps,
             self.step_total(),
             self.analysis_seconds,
+            self.memory_bytes / 1e9,
             self.how
         )
     }
@@ -198,6 +202,7 @@ pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
                 output_seconds,
                 steps: (c.t_end / c.dt - 1e-9).ceil() as u64,
                 analysis_seconds: ANALYSIS_SECONDS_PER_ROD_SNAPSHOT * rods as f64 * snapshots,
+                memory_bytes: c.gpu_memory().bytes(),
                 how: "the resident step's measured rate on an H100 and the diagnostics' on an H200, scaled as N log N; BENCHMARKS.md",
             }
         }
@@ -211,6 +216,8 @@ pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
                 analysis_seconds: MEANFIELD_ANALYSIS_SECONDS_PER_POINT_SNAPSHOT
                     * points as f64
                     * snapshots,
+                // The 256^3 step's 9.89 GB on the H100 (docs/gpu.md), per grid point.
+                memory_bytes: 589.0 * points as f64,
                 how: "the mf128 member's whole run on an H200, scaled as N log N; at least this many steps (the CFL condition may shorten the step)",
             }
         }

@@ -99,7 +99,7 @@ impl CompareFigures {
         if !self.panels.is_empty() {
             heatmaps(
                 &out.join("velocity_slice"),
-                "|u| on the plane z = 0 at the latest time all runs reached, mean-field units",
+                "|u| on z = 0, mean-field units, at the time in each caption",
                 "|u| [L |sigma_a|/mu]",
                 &self.panels,
             )?;

@@ -4,15 +4,42 @@
 use motile_particle::model::rods::RodSet;
 use motile_particle::step::contact::{ContactParams, WarmStart};
 
+use super::config::GpuMemoryNeed;
+
 pub(crate) use motile_particle::step::gpu::DeviceStepper;
 
 /// The device stepper for `rods` (`MOTILE_GPU_BACKEND` says which device, CUDA by default):
 /// an error, never a CPU fallback, where there is none.
+/// Checked before the first step allocates its buffers (only the rods are on the device by
+/// then): a run whose measured need ([`GpuMemoryNeed`]) exceeds the device's free memory, or
+/// `MOTILE_GPU_MEMORY_LIMIT` bytes where that is set (a shared GPU; the host emulation), is
+/// refused with the figures.
 pub(crate) fn open(
     rods: &RodSet,
     contact: &ContactParams,
     warm: &WarmStart,
+    need: GpuMemoryNeed,
 ) -> anyhow::Result<DeviceStepper> {
-    DeviceStepper::new(crate::run::gpu_backend()?, rods, contact.clone(), warm)
-        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))
+    let stepper = DeviceStepper::new(crate::run::gpu_backend()?, rods, contact.clone(), warm)
+        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?;
+    let device = stepper
+        .memory()
+        .map_err(|e| anyhow::anyhow!("device = \"gpu\": {e}"))?
+        .map(|(used, total)| (total.saturating_sub(used), total));
+    need.check(device, gpu_memory_limit()?)?;
+    Ok(stepper)
+}
+
+/// `MOTILE_GPU_MEMORY_LIMIT`: bytes of GPU memory a run may assume, below the device's free
+/// memory (a GPU shared with other work; on the host emulation, the memory the checks see).
+/// `None` where unset; a value that is not a whole number of bytes is an error naming it.
+fn gpu_memory_limit() -> anyhow::Result<Option<usize>> {
+    match std::env::var("MOTILE_GPU_MEMORY_LIMIT") {
+        Err(_) => Ok(None),
+        Ok(v) => v.trim().parse().map(Some).map_err(|_| {
+            anyhow::anyhow!(
+                "MOTILE_GPU_MEMORY_LIMIT = {v:?}: expected a whole number of bytes (e.g. 40000000000)"
+            )
+        }),
+    }
 }

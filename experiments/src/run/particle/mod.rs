@@ -171,6 +171,7 @@ impl ParticleModel {
                 &rods,
                 &cfg.contact,
                 &stepper.warm_start().to_vec(),
+                cfg.gpu_memory(),
             )?)
         } else {
             None

@@ -99,6 +99,12 @@ impl DeviceStepper {
         })
     }
 
+    /// `(bytes in use, total bytes)` of the device's memory (all processes), or `None` on the
+    /// host emulation.
+    pub fn memory(&self) -> Result<Option<(usize, usize)>, GpuError> {
+        self.gpu.dev.memory()
+    }
+
     /// The last step's positive multipliers by pair, sorted: the warm start a checkpoint
     /// keeps (the CPU stepper's form).
     pub fn warm_start(&self) -> Result<WarmStart, GpuError> {
