@@ -179,8 +179,8 @@ const ANALYSIS_SECONDS_PER_ROD_SNAPSHOT: f64 = 1.63e-5;
 const MEANFIELD_ANALYSIS_SECONDS_PER_POINT_SNAPSHOT: f64 = 2.1e-6;
 
 /// `cfg`'s cost on a GPU from measured rates: a particle run's step from its level's resident
-/// step ([`resident_anchor`]) and its diagnostics from the L75 member's whole run
-/// ([`DIAGNOSTIC_SECONDS_PER_POINT`]); a mean-field run from the mf128 member's whole run on
+/// step (`resident_anchor`) and its diagnostics from the L75 member's whole run
+/// (`DIAGNOSTIC_SECONDS_PER_POINT`); a mean-field run from the mf128 member's whole run on
 /// an H200 (3 760 steps in 53.4 s, 14.2 ms per step at 128^3); each scaled as `N log N` (the
 /// diagnostics as the points), then the analysis by its snapshots.
 pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
