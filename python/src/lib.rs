@@ -145,7 +145,7 @@ fn drive<T: Send + 'static>(
             && let Err(e) = cb.call1(py, (p, l, t))
         {
             // A failing callback stops the run like an interrupt, then its error is raised.
-            checkpoint::request_stop(2);
+            checkpoint::request_stop(checkpoint::STOP_BY_CALLER);
             pending = Some(e);
         }
         if finished {
@@ -168,7 +168,16 @@ fn drive<T: Send + 'static>(
         if let Err(r) = &result {
             // The checkpoint the stop wrote, for the interrupt's message.
             if e.is_instance_of::<PyKeyboardInterrupt>(py) {
-                return Err(PyKeyboardInterrupt::new_err(format!("{r:#}")));
+                let said = match r.downcast_ref::<checkpoint::Interrupted>() {
+                    Some(i) => format!(
+                        "interrupted at {}; checkpoint written to {}. Continue with motile.resume({:?})",
+                        i.at,
+                        i.checkpoint.display(),
+                        i.run_dir.display().to_string()
+                    ),
+                    None => format!("{r:#}"),
+                };
+                return Err(PyKeyboardInterrupt::new_err(said));
             }
         }
         return Err(e);

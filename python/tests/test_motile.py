@@ -234,7 +234,8 @@ def test_interrupted_run_resumes_to_the_same_result(runs, tmp_path):
             timer = threading.Timer(0.0, _thread.interrupt_main)
             timer.start()
 
-    with pytest.raises(KeyboardInterrupt, match="checkpoint"):
+    # The message says how to continue from Python, not from a shell.
+    with pytest.raises(KeyboardInterrupt, match=r"checkpoint.*motile\.resume\("):
         motile.run("particle", cfg, out, progress=progress)
     status = motile.open(out).status
     assert status["state"] == "resumable", status
@@ -255,6 +256,11 @@ def test_failing_progress_callback_stops_the_run_with_its_error(tmp_path):
     with pytest.raises(RuntimeError, match="callback broke"):
         motile.run("meanfield", MEANFIELD, tmp_path / "r", progress=progress)
     assert motile.open(tmp_path / "r").status["state"] in ("resumable", "empty")
+    # The log says who stopped it (no signal was sent).
+    log = (tmp_path / "r" / "run.log").read_text()
+    assert "signal" not in log, log
+    if "stopped" in log:
+        assert "at the caller's request" in log, log
 
 
 # --- run directories --------------------------------------------------------------------------

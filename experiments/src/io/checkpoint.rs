@@ -159,6 +159,10 @@ pub fn install_signal_handlers() -> std::io::Result<()> {
     Ok(())
 }
 
+/// The "signal" of a stop the embedding program asked for (the Python module, when a progress
+/// callback raised): the log says so instead of naming a signal.
+pub const STOP_BY_CALLER: i32 = 1 << 16;
+
 /// Ask running loops to stop at the next step boundary with a checkpoint, as `signal` would
 /// (for callers that handle interrupts themselves, such as the Python module, instead of
 /// installing the signal handlers).

@@ -253,6 +253,17 @@ fn line_of_key(text: &str, key: &str) -> Option<usize> {
 /// closest valid key (edit distance), e.g. "unknown key `zetta`; did you mean `zeta`?".
 fn with_suggestion(message: &str) -> String {
     let Some(rest) = message.strip_prefix("unknown field `") else {
+        // A negative count: the allowed range, not the type's name.
+        if let Some(v) = message
+            .strip_prefix("invalid value: integer `")
+            .and_then(|r| r.split_once('`'))
+            .map(|(v, _)| v)
+            .filter(|v| v.starts_with('-'))
+        {
+            return format!(
+                "{v} is outside the allowed range: a whole number >= 0 (docs/config.md gives each key's range)"
+            );
+        }
         // Serde's Rust type names in the words of a config file.
         return message
             .replace("expected f64", "expected a number")

@@ -374,7 +374,11 @@ fn drive<M: RunModel>(
                     run.log(&note)?;
                 }
                 let at = format!("step {} (t = {:.4})", model.steps(), model.time());
-                run.log(&format!("stopped by signal {signal} at {at}"))?;
+                if signal == checkpoint::STOP_BY_CALLER {
+                    run.log(&format!("stopped at {at} at the caller's request"))?;
+                } else {
+                    run.log(&format!("stopped by signal {signal} at {at}"))?;
+                }
                 return Err(checkpoint::Interrupted {
                     signal,
                     at,
