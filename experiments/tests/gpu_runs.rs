@@ -578,6 +578,57 @@ fn the_series_harvest_runs_the_missing_members_on_the_emulated_gpu() {
         large.is_empty(),
         "snapshots or checkpoints came back: {large:?}"
     );
+    file_the_harvest(&out.join("series.tgz"), &rows, tmp.path());
+}
+
+/// `scripts/series_harvest.sh` files an archive's finished members into a gallery: their rows
+/// appended to the table (a member already there left as it is), their compact products under
+/// `paper-dilute/MEMBER/`; filing the same archive again adds nothing.
+fn file_the_harvest(archive: &Path, rows: &str, tmp: &Path) {
+    let gallery = tmp.join("gallery");
+    std::fs::create_dir_all(&gallery).unwrap();
+    let header = rows.lines().next().unwrap();
+    let table = gallery.join("paper_dilute_series.csv");
+    std::fs::write(&table, format!("{header}\nL9,particle,9\n")).unwrap();
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/series_harvest.sh");
+    let file = || {
+        let o = Command::new("bash")
+            .arg(script)
+            .arg(archive)
+            .arg(&gallery)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let said = file();
+    assert!(
+        said.contains("L8: filed") && said.contains("mf8: filed"),
+        "{said}"
+    );
+    let filed = std::fs::read_to_string(&table).unwrap();
+    let names: Vec<&str> = filed
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(names, ["L9", "L8", "mf8"], "{filed}");
+    for f in [
+        "L8/timeseries.csv",
+        "L8/compare/series.csv",
+        "mf8/config.toml",
+    ] {
+        assert!(
+            gallery.join("paper-dilute").join(f).is_file(),
+            "{f} not filed"
+        );
+    }
+    let again = file();
+    assert!(
+        again.contains("L8: in ") && again.contains("already"),
+        "{again}"
+    );
+    assert_eq!(std::fs::read_to_string(&table).unwrap(), filed);
 }
 
 /// A run whose measured GPU memory need exceeds what it may use is refused before its first
