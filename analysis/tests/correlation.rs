@@ -311,3 +311,53 @@ fn direct_velocity_modes_are_the_spectrum_at_those_modes() {
         }
     }
 }
+
+/// The run's time-series norms use the spectrum at 1e-4 (`experiments` `NORM_TOLERANCE`): on
+/// force-free (swimmer-like) pairs, the L2 norm over all modes and over the box-scale modes
+/// (every |m_i| <= 1) are within 1e-4 of the direct sums over every mode.
+#[test]
+fn the_norms_at_1e_4_match_the_direct_sums_on_force_free_pairs() {
+    let (l, mu, modes, tol) = (7.0, 1.0, 8usize, 1e-4);
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut y = Vec::new();
+    let mut f = Vec::new();
+    for _ in 0..800 {
+        let x: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.0..l));
+        let p: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        y.push(x);
+        f.push(p);
+        y.push(std::array::from_fn(|d| (x[d] + 0.5 * p[d]).rem_euclid(l)));
+        f.push(p.map(|v| -v));
+    }
+    let spec = velocity_spectrum(&y, &f, l, mu, modes, tol).unwrap();
+    let all: Vec<[i64; 3]> = (0..modes.pow(3))
+        .map(|idx| {
+            [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+                .map(|i| motile_analysis::nufft::mode_of(i, modes))
+        })
+        .collect();
+    let direct = velocity_modes(&y, &f, l, mu, &all);
+    let power = |u: &[num_complex::Complex64; 3]| -> f64 {
+        (0..3).map(|d| spec.weights[d] * u[d].norm_sqr()).sum()
+    };
+    let box_scale = |m: &[i64; 3]| m.iter().all(|c| c.abs() <= 1);
+    let fast_power = spec.power();
+    let (mut d_all, mut d_box, mut f_all, mut f_box) = (0.0, 0.0, 0.0, 0.0);
+    for (k, (m, u)) in all.iter().zip(&direct).enumerate() {
+        d_all += power(u);
+        f_all += fast_power[k];
+        if box_scale(m) {
+            d_box += power(u);
+            f_box += fast_power[k];
+        }
+    }
+    for (what, fast, direct) in [("all modes", f_all, d_all), ("box scale", f_box, d_box)] {
+        let e = (fast.sqrt() / direct.sqrt() - 1.0).abs();
+        assert!(
+            e <= tol,
+            "{what}: norm {} against direct {} ({e:.1e})",
+            fast.sqrt(),
+            direct.sqrt()
+        );
+    }
+}

@@ -105,6 +105,8 @@ pub struct GpuEstimate {
     pub output_seconds: f64,
     /// Steps of the run (a lower bound for mean-field runs).
     pub steps: u64,
+    /// Whether `steps` is a lower bound (the CFL condition may shorten a mean-field step).
+    pub steps_at_least: bool,
     /// Seconds of the analysis and comparison after the steps.
     pub analysis_seconds: f64,
     /// Bytes of GPU memory at the step's peak (measured per rod or grid point, with the
@@ -137,17 +139,13 @@ impl GpuEstimate {
             "on a GPU about {:.4} s/step ({:.4} of it diagnostics) x {}{} steps = {:.0} s, then {:.0} s of analysis: {total:.0} s in all{human}, {:.2} GB of GPU memory ({})",
             self.step_seconds,
             self.output_seconds,
-            if self.steps_at_least() { ">= " } else { "" },
+            if self.steps_at_least { ">= " } else { "" },
             self.steps,
             self.step_total(),
             self.analysis_seconds,
             self.memory_bytes / 1e9,
             self.how
         )
-    }
-
-    fn steps_at_least(&self) -> bool {
-        self.how.contains("at least")
     }
 }
 
@@ -186,7 +184,7 @@ const MEANFIELD_ANALYSIS_SECONDS_PER_POINT_SNAPSHOT: f64 = 2.1e-6;
 pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
     match cfg {
         RunConfig::Particle(c) => {
-            let rods = particle_size(c);
+            let rods = c.rod_count();
             let (anchor_rods, anchor_seconds) = resident_anchor(c.hydrodynamics);
             let step = anchor_seconds * nlogn_ratio(rods, anchor_rods);
             let points = (rods * c.hydro.quadrature_points) as f64;
@@ -201,6 +199,7 @@ pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
                 step_seconds: step + output_seconds,
                 output_seconds,
                 steps: (c.t_end / c.dt - 1e-9).ceil() as u64,
+                steps_at_least: false,
                 analysis_seconds: ANALYSIS_SECONDS_PER_ROD_SNAPSHOT * rods as f64 * snapshots,
                 memory_bytes: c.gpu_memory().bytes(),
                 how: "the resident step's measured rate on an H100 and the diagnostics' on an H200, scaled as N log N; BENCHMARKS.md",
@@ -213,6 +212,7 @@ pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
                 step_seconds: 0.0142 * nlogn_ratio(points, 128usize.pow(3)),
                 output_seconds: 0.0,
                 steps: meanfield_steps(c),
+                steps_at_least: true,
                 analysis_seconds: MEANFIELD_ANALYSIS_SECONDS_PER_POINT_SNAPSHOT
                     * points as f64
                     * snapshots,
@@ -222,12 +222,6 @@ pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
             }
         }
     }
-}
-
-/// A particle run's rods.
-fn particle_size(c: &ParticleRunConfig) -> usize {
-    c.rods
-        .unwrap_or((c.volume_fraction * c.box_length.powi(3)).round() as usize)
 }
 
 /// A mean-field run's steps at its largest step (at most `dt_max` and a tenth of the
@@ -290,9 +284,7 @@ where
 }
 
 fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<CostEstimate> {
-    let size = c
-        .rods
-        .unwrap_or((c.volume_fraction * c.box_length.powi(3)).round() as usize);
+    let size = c.rod_count();
     let mut proxy = c.clone();
     let from_file = !matches!(c.initial.as_str(), "random" | "perturbation");
     if size > PROXY_RODS && !from_file {
@@ -300,9 +292,7 @@ fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<Co
         proxy.box_length = c.box_length * shrink;
         proxy.rods = c.rods.map(|_| PROXY_RODS);
     }
-    let measured_size = proxy
-        .rods
-        .unwrap_or((proxy.volume_fraction * proxy.box_length.powi(3)).round() as usize);
+    let measured_size = proxy.rod_count();
     proxy.snapshot_interval = 1e5;
     proxy.checkpoint_interval = 1e5;
     proxy.vtk = false;

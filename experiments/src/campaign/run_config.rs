@@ -44,8 +44,7 @@ impl RunConfig {
             RunConfig::Particle(c) => {
                 format!(
                     "particle, {} rods, L/l = {}, nu = {}, {}, dt = {}, t_end = {}",
-                    c.rods
-                        .unwrap_or((c.volume_fraction * c.box_length.powi(3)).round() as usize),
+                    c.rod_count(),
                     c.box_length,
                     c.volume_fraction,
                     c.hydrodynamics,

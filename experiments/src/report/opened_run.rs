@@ -61,9 +61,7 @@ impl ParticleUnits {
     /// The units of a particle run's config.
     pub fn of(config: &ParticleRunConfig) -> Self {
         let l = config.box_length;
-        let rods = config
-            .rods
-            .unwrap_or((config.volume_fraction * l * l * l).round() as usize);
+        let rods = config.rod_count();
         let nu = rods as f64 / (l * l * l);
         Self {
             box_length: l,

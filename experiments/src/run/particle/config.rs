@@ -479,12 +479,16 @@ impl ParticleRunConfig {
         ((interval / self.dt).round() as u64).max(1)
     }
 
+    /// Rods: `rods`, or `round(nu L^3)` where it is left out.
+    pub fn rod_count(&self) -> usize {
+        self.rods
+            .unwrap_or((self.volume_fraction * self.box_length.powi(3)).round() as usize)
+    }
+
     /// The GPU memory a resident run of this config needs ([`GpuMemoryNeed`]).
     pub fn gpu_memory(&self) -> GpuMemoryNeed {
         GpuMemoryNeed {
-            rods: self
-                .rods
-                .unwrap_or((self.volume_fraction * self.box_length.powi(3)).round() as usize),
+            rods: self.rod_count(),
             per_rod: match self.hydrodynamics {
                 Hydrodynamics::Sbt => 6_520.0,
                 _ => 2_212.0,

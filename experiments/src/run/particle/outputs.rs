@@ -79,10 +79,11 @@ pub fn mode_columns() -> Vec<String> {
     c
 }
 
-/// The NUFFT tolerance of the flow's norms in the time series: the norm's relative error stays
-/// near it (1.4e-6 measured at 1e-4 on 1e6 force-free points, against 4e-7 at 1e-6) while the
-/// transform takes half the time, and the statistics drawn from the norm carry standard errors
-/// of a few percent. `motile analyze` recomputes it from snapshots at 1e-6.
+/// The NUFFT tolerance of the flow's norms in the time series: the norms stay within it of the
+/// direct sums on force-free pairs (analysis/tests/correlation.rs), the transform at the L75
+/// member's size takes 1.8x less time than at 1e-6 (BENCHMARKS.md, NUFFT), and the statistics
+/// drawn from the norm carry standard errors of a few percent. `motile analyze` recomputes it
+/// from snapshots at 1e-6.
 pub(super) const NORM_TOLERANCE: f64 = 1e-4;
 
 /// What a diagnostic step records of the flow of the state `at`: its norms (all analysis modes

@@ -285,9 +285,7 @@ fn read_checkpoint(path: &Path, diameter: f64) -> anyhow::Result<ParticleCheckpo
 /// `initial`.
 pub fn initial_rods(cfg: &ParticleRunConfig) -> anyhow::Result<RodSet> {
     if cfg.initial == "perturbation" {
-        let n = cfg
-            .rods
-            .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
+        let n = cfg.rod_count();
         let field = PerturbationField::new(&cfg.perturbation.perturbation());
         let peak = field.max_norm();
         if peak >= 2.0 / 15.0 {
@@ -307,9 +305,7 @@ pub fn initial_rods(cfg: &ParticleRunConfig) -> anyhow::Result<RodSet> {
         )?);
     }
     if cfg.initial == "random" {
-        let n = cfg
-            .rods
-            .unwrap_or((cfg.volume_fraction * cfg.box_length.powi(3)).round() as usize);
+        let n = cfg.rod_count();
         Ok(random_nonoverlapping(
             n,
             cfg.box_length,
