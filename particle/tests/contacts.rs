@@ -235,6 +235,23 @@ fn dense_problem(r: &RodSet, cons: &[Constraint], dt: f64) -> (Vec<Vec<f64>>, Ve
 
 #[test]
 fn bbpgd_agrees_with_projected_gauss_seidel() {
+    solver_agrees_with_projected_gauss_seidel(ContactParams::default(), "BBPGD");
+}
+
+/// APGD from BBPGD's first step (`stall_iterations = 0`), as where BBPGD stalls on dense
+/// problems, reaches the same multipliers.
+#[test]
+fn apgd_agrees_with_projected_gauss_seidel() {
+    let params = ContactParams {
+        stall_iterations: 0,
+        ..Default::default()
+    };
+    solver_agrees_with_projected_gauss_seidel(params, "APGD");
+}
+
+/// The solver with `settings` (tolerance and cap tightened) against projected Gauss-Seidel on
+/// the dense problem of a small cluster.
+fn solver_agrees_with_projected_gauss_seidel(settings: ContactParams, method: &str) {
     // A small cluster: 6 rods converging on a point, a few contacts, a positive definite A.
     let dirs: [Vec3; 6] = [
         [1.0, 0.0, 0.0],
@@ -287,7 +304,7 @@ fn bbpgd_agrees_with_projected_gauss_seidel() {
     let params = ContactParams {
         tolerance: 1e-13,
         max_iterations: 100_000,
-        ..Default::default()
+        ..settings
     };
     let mut solver = ContactSolver::default();
     let free_w = vec![[0.0; 3]; 6];
@@ -314,9 +331,14 @@ fn bbpgd_agrees_with_projected_gauss_seidel() {
         report.active >= 2,
         "want several active contacts: {report:?}"
     );
+    assert_eq!(
+        report.accelerated > 0,
+        params.stall_iterations == 0,
+        "{method}: APGD iterations only where asked for: {report:?}"
+    );
     assert!(
         err < 1e-8,
-        "BBPGD {lam:?} vs PGS {lam_pgs:?}: max difference {err:.2e}"
+        "{method} {lam:?} vs PGS {lam_pgs:?}: max difference {err:.2e}"
     );
     for k in 0..m {
         let g: f64 = q[k] + (0..m).map(|j| a[k][j] * lam[j]).sum::<f64>();

@@ -36,7 +36,7 @@ use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::SWIM_SPEED;
 use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH};
 use motile_particle::step::constraints::constraints;
-use motile_particle::step::contact::{ContactParams, WarmStart};
+use motile_particle::step::contact::{Constraint, ContactParams, WarmStart};
 use motile_particle::step::contact::{ContactProblem, ContactSolver};
 use motile_particle::step::gpu::GpuStep;
 use motile_particle::step::gpu::{DeviceContactProblem, DeviceStepper};
@@ -259,7 +259,6 @@ fn check_solver(dev: &GpuStep, tol: f64) {
         })
         .collect();
     let drag = LocalDrag::new(DEFAULT_DIAMETER);
-    let params = ContactParams::default();
     let on_device = dev.upload_rods(&rods).unwrap();
     let device_pairs = dev
         .build(
@@ -283,6 +282,33 @@ fn check_solver(dev: &GpuStep, tol: f64) {
         drag: drag.coefficients(),
         dt,
     };
+    // BBPGD, then APGD from BBPGD's first step (where BBPGD stalls on dense problems).
+    let apgd = ContactParams {
+        stall_iterations: 0,
+        ..ContactParams::default()
+    };
+    for (method, params) in [("BBPGD", ContactParams::default()), ("APGD", apgd)] {
+        check_solve(
+            dev,
+            problem,
+            (&cons, &p, &free_v, &free_w),
+            &params,
+            tol,
+            method,
+        );
+    }
+}
+
+/// One problem of [`check_solver`] on the device and the CPU, cold and warm.
+fn check_solve(
+    dev: &GpuStep,
+    problem: DeviceContactProblem<'_>,
+    (cons, p, free_v, free_w): (&[Constraint], &[Vec3], &[Vec3], &[Vec3]),
+    params: &ContactParams,
+    tol: f64,
+    method: &str,
+) {
+    let (drag, dt) = (LocalDrag::new(DEFAULT_DIAMETER), problem.dt);
     let mut cold: Vec<f64> = Vec::new();
     for warm in [false, true] {
         let initial: Vec<f64> = if warm {
@@ -293,18 +319,23 @@ fn check_solver(dev: &GpuStep, tol: f64) {
         let (want, want_report) = ContactSolver::default()
             .solve(
                 ContactProblem {
-                    cons: &cons,
-                    p: &p,
-                    free_v: &free_v,
-                    free_w: &free_w,
+                    cons,
+                    p,
+                    free_v,
+                    free_w,
                     mobility: &drag,
                     dt,
                 },
-                &params,
+                params,
                 &initial,
             )
             .unwrap();
-        let (got, got_report) = dev.solve_contacts(problem, &params, &initial).unwrap();
+        let (got, got_report) = dev.solve_contacts(problem, params, &initial).unwrap();
+        assert_eq!(
+            want_report.accelerated > 0,
+            params.stall_iterations == 0,
+            "{method}, warm {warm}: APGD iterations only where asked for: {want_report:?}"
+        );
         assert!(
             want_report.active > 50,
             "too few active contacts to test: {want_report:?}"
@@ -318,15 +349,15 @@ fn check_solver(dev: &GpuStep, tol: f64) {
             / scale_l;
         assert!(
             worst <= tol,
-            "warm {warm}: multipliers differ by {worst:.1e} of the largest (bound {tol:.0e}); \
-             device {got_report:?}, CPU {want_report:?}"
+            "{method}, warm {warm}: multipliers differ by {worst:.1e} of the largest (bound \
+             {tol:.0e}); device {got_report:?}, CPU {want_report:?}"
         );
         if tol == 0.0 {
-            assert_eq!(got_report, want_report, "warm {warm}: reports");
+            assert_eq!(got_report, want_report, "{method}, warm {warm}: reports");
         }
         eprintln!(
-            "contact solver (warm start {warm}): {} constraints, {} active, {} iterations, \
-             residual {:.1e}; multipliers within {worst:.1e}",
+            "contact solver {method} (warm start {warm}): {} constraints, {} active, {} \
+             iterations, residual {:.1e}; multipliers within {worst:.1e}",
             want_report.constraints,
             want_report.active,
             want_report.iterations,

@@ -28,7 +28,7 @@ const PARTICLE: [(&str, u64); 15] = [
     ("checkpoints/ckpt_000000005.h5.crc32", 0x1364faa84b7da4cd),
     ("checkpoints/ckpt_000000010.h5", 0x53944958b5d02841),
     ("checkpoints/ckpt_000000010.h5.crc32", 0x5439f79be40bed36),
-    ("config.toml", 0x23477c946a5ffba7),
+    ("config.toml", 0xb84911c243ac9dd7),
     ("rods.pvd", 0xdd3f77050fe4c5f7),
     ("snapshots/snap_000000.h5", 0x91dccf280beaf970),
     ("snapshots/snap_000001.h5", 0x20c72be061520fc2),

@@ -275,6 +275,57 @@ extern "C" __global__ void solver_stats(const double* lam, const double* lam_new
     }
 }
 
+// APGD's per chunk c, in order: max |min(x_new, g_new)| and the sum of (y - x_new)(x_new - x)
+// (2 values at 2 c): apgd_stats' partials.
+extern "C" __global__ void solver_apgd_stats(const double* x, const double* x_new,
+                                             const double* y, const double* g_new,
+                                             double* partial, int m, int chunk) {
+    __shared__ double sh_mn[FOLD_THREADS], sh_up[FOLD_THREADS];
+    int c = blockIdx.x, t = threadIdx.x;
+    if ((long long)c * chunk >= m) return; // the whole block
+    int hi = (c + 1) * chunk < m ? (c + 1) * chunk : m;
+    double a0 = 0.0, a1 = 0.0;
+    for (int k0 = c * chunk; k0 < hi; k0 += FOLD_THREADS) {
+        int k = k0 + t;
+        if (k < hi) {
+            double xn = x_new[k];
+            sh_mn[t] = fabs(fmin(xn, g_new[k]));
+            sh_up[t] = (y[k] - xn) * (xn - x[k]);
+        }
+        __syncthreads();
+        if (t == 0) {
+            int len = hi - k0 < FOLD_THREADS ? hi - k0 : FOLD_THREADS;
+            for (int u = 0; u < len; ++u) {
+                a0 = fmax(a0, sh_mn[u]);
+                a1 += sh_up[u];
+            }
+        }
+        __syncthreads();
+    }
+    if (t == 0) {
+        partial[2 * c] = a0;
+        partial[2 * c + 1] = a1;
+    }
+}
+
+// APGD's extrapolated point and its gradient: y = x_new + beta (x_new - x), gy likewise from
+// the gradients (A is linear).
+extern "C" __global__ void solver_extrapolate(const double* x_new, const double* x,
+                                              const double* g_new, const double* g, double* y,
+                                              double* gy, int m, double beta) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    y[k] = x_new[k] + beta * (x_new[k] - x[k]);
+    gy[k] = g_new[k] + beta * (g_new[k] - g[k]);
+}
+
+// out = a / d: the power iteration's normalisation.
+extern "C" __global__ void solver_scale(const double* a, double* out, int m, double d) {
+    int k = blockIdx.x * blockDim.x + threadIdx.x;
+    if (k >= m) return;
+    out[k] = a[k] / d;
+}
+
 // Per chunk: the sums of a a and a b in order from -0.0 (det_sum's partials), at 2 c.
 extern "C" __global__ void solver_dots(const double* a, const double* b, double* partial, int m,
                                        int chunk) {

@@ -239,6 +239,37 @@ motile_gpu::kernels! {
         chunk: i32,
     }
 
+    /// APGD's residual and restart test per chunk.
+    pub(crate) struct SolverApgdStats = "solver_apgd_stats" {
+        x: &'a Buffer<f64>,
+        x_new: &'a Buffer<f64>,
+        y: &'a Buffer<f64>,
+        g_new: &'a Buffer<f64>,
+        partial: &'a mut Buffer<f64>,
+        m: i32,
+        chunk: i32,
+    }
+
+    /// APGD's extrapolated point and its gradient.
+    pub(crate) struct SolverExtrapolate = "solver_extrapolate" {
+        x_new: &'a Buffer<f64>,
+        x: &'a Buffer<f64>,
+        g_new: &'a Buffer<f64>,
+        g: &'a Buffer<f64>,
+        y: &'a mut Buffer<f64>,
+        gy: &'a mut Buffer<f64>,
+        m: i32,
+        beta: f64,
+    }
+
+    /// `out = a / d`.
+    pub(crate) struct SolverScale = "solver_scale" {
+        a: &'a Buffer<f64>,
+        out: &'a mut Buffer<f64>,
+        m: i32,
+        d: f64,
+    }
+
     /// `a.a` and `a.b` per chunk.
     pub(crate) struct SolverDots = "solver_dots" {
         a: &'a Buffer<f64>,

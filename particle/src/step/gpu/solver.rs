@@ -14,11 +14,15 @@
 use super::contacts::DeviceConstraints;
 use super::device::{GpuStep, int};
 use super::signatures::{
-    SolverAxes, SolverConstraints, SolverDots, SolverGp, SolverIndexCount, SolverIndexOrder,
-    SolverIndexScatter, SolverProject, SolverQ, SolverRods, SolverStats,
+    SolverApgdStats, SolverAxes, SolverConstraints, SolverDots, SolverExtrapolate, SolverGp,
+    SolverIndexCount, SolverIndexOrder, SolverIndexScatter, SolverProject, SolverQ, SolverRods,
+    SolverScale, SolverStats,
 };
 use super::update::DeviceRods;
-use crate::step::contact::{ContactError, ContactParams, ContactReport, next_step};
+use crate::step::contact::{
+    ContactError, ContactParams, ContactReport, LIPSCHITZ_MARGIN, Momentum, POWER_ITERATIONS,
+    Stall, next_step,
+};
 use motile_gpu::{Buffer, GpuError};
 
 // The fold kernels (solver_stats, solver_dots, step_stats) stage FOLD_THREADS = 256 elements
@@ -99,6 +103,17 @@ pub(super) struct Solved<'a> {
     g: Buffer,
     iterations: usize,
     residual: f64,
+    /// Of the iterations, APGD's.
+    accelerated: usize,
+}
+
+/// What the iterations of a solve reached: the multipliers with their gradient, the
+/// iterations (of them APGD's) and the residual.
+struct Iterated {
+    multipliers: Multipliers,
+    iterations: usize,
+    accelerated: usize,
+    residual: f64,
 }
 
 impl Solved<'_> {
@@ -143,6 +158,7 @@ impl GpuStep {
                 constraints: s.prob.cons.len,
                 active,
                 iterations: s.iterations,
+                accelerated: s.accelerated,
                 residual: s.residual,
                 predicted_overlap,
             },
@@ -163,14 +179,19 @@ impl GpuStep {
         let mut prob = self.problem(&problem)?;
         let q = self.rate_offsets(&problem)?;
         let start = self.start(&mut prob, &q, initial)?;
-        let (Multipliers { lam, g }, iterations, residual) =
-            self.iterate(&mut prob, &q, start, params)?;
+        let Iterated {
+            multipliers: Multipliers { lam, g },
+            iterations,
+            accelerated,
+            residual,
+        } = self.iterate(&mut prob, &q, start, params)?;
         Ok(Some(Solved {
             prob,
             lam,
             g,
             iterations,
             residual,
+            accelerated,
         }))
     }
 
@@ -319,25 +340,31 @@ impl GpuStep {
     }
 
     /// The Barzilai-Borwein projected gradient iterations from `start` until the residual
-    /// meets the tolerance: the multipliers with their gradient, the iterations and the
-    /// residual.
+    /// meets the tolerance, handing over to APGD where they stall (the CPU's rule).
     fn iterate(
         &self,
         prob: &mut Problem<'_>,
         q: &Buffer,
         start: Multipliers,
         params: &ContactParams,
-    ) -> Result<(Multipliers, usize, f64), DeviceContactError> {
+    ) -> Result<Iterated, DeviceContactError> {
         let Multipliers { mut lam, mut g } = start;
         let (dev, m) = (&self.dev, prob.cons.len);
         let mi = int(m, "constraints")?;
         let mut partial = dev.zeros::<f64>(4 * m.div_ceil(CHUNK))?;
         let mut res = self.stats(&lam, &lam, &g, &g, &mut partial, m)?[0];
         let mut iterations = 0;
+        let done = |lam, g, iterations, residual| Iterated {
+            multipliers: Multipliers { lam, g },
+            iterations,
+            accelerated: 0,
+            residual,
+        };
         if res <= params.tolerance {
-            return Ok((Multipliers { lam, g }, iterations, res));
+            return Ok(done(lam, g, iterations, res));
         }
         let mut alpha = self.first_step(prob, &lam, &g, &mut partial)?;
+        let mut stall = Stall::new(res, params);
         let mut lam_new = dev.zeros::<f64>(m)?;
         let mut g_new = dev.zeros::<f64>(m)?;
         loop {
@@ -365,9 +392,163 @@ impl GpuStep {
             std::mem::swap(&mut g, &mut g_new);
             match next_step(alpha, iterations, res, [ss, sy, yy], params)? {
                 Some(a) => alpha = a,
-                None => return Ok((Multipliers { lam, g }, iterations, res)),
+                None => return Ok(done(lam, g, iterations, res)),
+            }
+            if stall.stalled(iterations, res) {
+                return self.accelerate(prob, q, Multipliers { lam, g }, params, iterations);
             }
         }
+    }
+
+    /// APGD from `start` where BBPGD stalled after `done` iterations (the CPU's `accelerate`).
+    fn accelerate(
+        &self,
+        prob: &mut Problem<'_>,
+        q: &Buffer,
+        start: Multipliers,
+        params: &ContactParams,
+        done: usize,
+    ) -> Result<Iterated, DeviceContactError> {
+        let (dev, m) = (&self.dev, prob.cons.len);
+        let mi = int(m, "constraints")?;
+        let nchunks = m.div_ceil(CHUNK);
+        let mut partial = dev.zeros::<f64>(4 * nchunks)?;
+        let step = 1.0 / (LIPSCHITZ_MARGIN * self.largest_eigenvalue(prob, &mut partial)?);
+        let Multipliers {
+            lam: mut x,
+            g: mut gx,
+        } = start;
+        let (mut y, mut gy) = (dev.zeros::<f64>(m)?, dev.zeros::<f64>(m)?);
+        dev.copy((&x, 0), (&mut y, 0), m)?;
+        dev.copy((&gx, 0), (&mut gy, 0), m)?;
+        let (mut xn, mut gn) = (dev.zeros::<f64>(m)?, dev.zeros::<f64>(m)?);
+        let mut momentum = Momentum::new();
+        let mut iterations = done;
+        loop {
+            iterations += 1;
+            // SAFETY: thread k < m reads y[k], gy[k] and writes xn[k] (m each).
+            unsafe {
+                dev.launch(
+                    m,
+                    SolverProject {
+                        lam: &y,
+                        g: &gy,
+                        lam_new: &mut xn,
+                        m: mi,
+                        alpha: step,
+                    },
+                )?;
+            }
+            self.apply(prob, &xn, Some(q), &mut gn)?;
+            // SAFETY: block c < ceil(m / CHUNK) (FOLD_THREADS threads) reads the four vectors
+            // at c CHUNK..min((c + 1) CHUNK, m) (m each) and writes partial[2 c..2 c + 2]
+            // (4 ceil(m / CHUNK) allocated).
+            unsafe {
+                dev.launch(
+                    nchunks * motile_gpu::THREADS as usize,
+                    SolverApgdStats {
+                        x: &x,
+                        x_new: &xn,
+                        y: &y,
+                        g_new: &gn,
+                        partial: &mut partial,
+                        m: mi,
+                        chunk: CHUNK as i32,
+                    },
+                )?;
+            }
+            let part = dev.download_range(&partial, 0, 2 * nchunks)?;
+            let [residual, uphill] = part
+                .chunks(2)
+                .fold([0.0f64; 2], |acc, a| [acc[0].max(a[0]), acc[1] + a[1]]);
+            if !residual.is_finite() {
+                return Err(ContactError::NonFinite(iterations).into());
+            }
+            if residual <= params.tolerance {
+                return Ok(Iterated {
+                    multipliers: Multipliers { lam: xn, g: gn },
+                    iterations,
+                    accelerated: iterations - done,
+                    residual,
+                });
+            }
+            if iterations >= params.max_iterations {
+                return Err(ContactError::NoConvergence {
+                    iterations,
+                    residual,
+                    tolerance: params.tolerance,
+                }
+                .into());
+            }
+            let beta = momentum.beta(uphill);
+            // SAFETY: thread k < m reads xn, x, gn, gx at k and writes y[k], gy[k] (m each).
+            unsafe {
+                dev.launch(
+                    m,
+                    SolverExtrapolate {
+                        x_new: &xn,
+                        x: &x,
+                        g_new: &gn,
+                        g: &gx,
+                        y: &mut y,
+                        gy: &mut gy,
+                        m: mi,
+                        beta,
+                    },
+                )?;
+            }
+            std::mem::swap(&mut x, &mut xn);
+            std::mem::swap(&mut gx, &mut gn);
+        }
+    }
+
+    /// The largest eigenvalue of `A` by power iteration from the uniform vector (the CPU's
+    /// `largest_eigenvalue`).
+    fn largest_eigenvalue(
+        &self,
+        prob: &mut Problem<'_>,
+        partial: &mut Buffer,
+    ) -> Result<f64, GpuError> {
+        let (dev, m) = (&self.dev, prob.cons.len);
+        let (mi, nchunks) = (int(m, "constraints")?, m.div_ceil(CHUNK));
+        let mut v = dev.upload(&vec![1.0 / (m as f64).sqrt(); m])?;
+        let mut av = dev.zeros::<f64>(m)?;
+        let mut estimate = 0.0;
+        for _ in 0..POWER_ITERATIONS {
+            self.apply(prob, &v, None, &mut av)?;
+            // SAFETY: block c < ceil(m / CHUNK) reads a = b = av at c CHUNK..min((c + 1)
+            // CHUNK, m) and writes partial[2 c..2 c + 2] (4 ceil(m / CHUNK) allocated).
+            unsafe {
+                dev.launch(
+                    nchunks * motile_gpu::THREADS as usize,
+                    SolverDots {
+                        a: &av,
+                        b: &av,
+                        partial,
+                        m: mi,
+                        chunk: CHUNK as i32,
+                    },
+                )?;
+            }
+            let part = dev.download_range(partial, 0, 2 * nchunks)?;
+            estimate = part.iter().step_by(2).sum::<f64>().sqrt();
+            if !(estimate > 0.0 && estimate.is_finite()) {
+                return Ok(1.0);
+            }
+            // SAFETY: thread k < m reads av[k] and writes v[k] (m each).
+            unsafe {
+                dev.launch(
+                    m,
+                    SolverScale {
+                        a: &av,
+                        out: &mut v,
+                        m: mi,
+                        d: estimate,
+                    },
+                )?;
+            }
+        }
+        Ok(estimate)
     }
 
     /// The first step length, Cauchy's: `gp.gp / gp.A gp` for the projected gradient `gp` of
