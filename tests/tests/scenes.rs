@@ -17,7 +17,7 @@ fn every_builtin_scene_parses_and_states_its_level() {
     }
     let err = format!("{:#}", load_scene("no-such-scene").unwrap_err());
     assert!(
-        err.contains("demo, dilute, paper-dilute, concentrated, meanfield"),
+        err.contains("demo, dilute, paper-dilute, concentrated, paper-concentrated, meanfield"),
         "{err}"
     );
 }
@@ -215,13 +215,18 @@ fn compare_from_compact_products(scene_out: &std::path::Path, members: &[&str]) 
 
 /// A tiny dilute box (40 slender-body rods) stepped by `dt` to `t_end`, for the study tests.
 fn tiny_scene(dt: f64, t_end: f64) -> motile_experiments::campaign::scene::Scene {
+    tiny_scene_at(0.625, dt, t_end)
+}
+
+/// A tiny box (L/l = 4, slender-body rods) at volume fraction `nu`.
+fn tiny_scene_at(nu: f64, dt: f64, t_end: f64) -> motile_experiments::campaign::scene::Scene {
     parse_scene(
         &format!(
             r#"
 [scene]
 name = "tiny"
 version = 1
-description = "a tiny dilute box for the study test"
+description = "a tiny box for the study tests"
 level = "slender-body theory"
 cost = "seconds"
 
@@ -230,7 +235,7 @@ name = "p"
 model = "particle"
 [run.config]
 box_length = 4.0
-volume_fraction = 0.625
+volume_fraction = {nu}
 dt = {dt}
 t_end = {t_end}
 hydrodynamics = "sbt"
@@ -252,7 +257,7 @@ fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
         values,
         t_end: None,
         accuracy: 0.5,
-        run: None,
+        ..Default::default()
     };
     let report = study(&scene, &opts, dir.path(), &mut |_| {}).unwrap();
     let p = &report.points;
@@ -303,7 +308,7 @@ fn a_hydrodynamics_study_keeps_the_level_without_flow_off_its_chart() {
         values: Some(vec!["none".to_string(), "dipole".to_string()]),
         t_end: None,
         accuracy: 1e-2,
-        run: None,
+        ..Default::default()
     };
     let report = study(&scene, &opts, dir.path(), &mut |_| {}).unwrap();
     let p = &report.points;
@@ -333,6 +338,65 @@ fn a_hydrodynamics_study_keeps_the_level_without_flow_off_its_chart() {
     assert!(
         !svg.contains("\nnone\n"),
         "the chart shows the level without flow"
+    );
+}
+
+/// On statistics (`--statistics-from`), a study compares levels on what the concentrated
+/// figures use, each with its noise; `motile compare` of its runs tables the same statistics.
+#[test]
+fn a_statistics_study_compares_levels_on_what_the_figures_use() {
+    use motile_experiments::campaign::study::{StudyOptions, study};
+    let scene = tiny_scene_at(5.0, 0.02, 4.0);
+    let dir = tempfile::tempdir().unwrap();
+    let opts = StudyOptions {
+        knob: "hydrodynamics".into(),
+        values: Some(vec!["dipole".to_string()]),
+        accuracy: 0.5,
+        statistics_from: Some(0.8),
+        ..Default::default()
+    };
+    let report = study(&scene, &opts, dir.path(), &mut |_| {}).unwrap();
+    let [dipole, sbt] = &report.points[..] else {
+        panic!("two settings: {}", report.markdown)
+    };
+    let (s, errors) = sbt.statistics.expect("the reference's statistics");
+    assert!(sbt.reference && errors == [0.0; 4], "{}", report.markdown);
+    assert!(
+        s.norm.value > 0.0
+            && s.decorrelation_rate.value > 0.0
+            && s.msd.value > 0.0
+            && s.snapshots == 9,
+        "statistics over t = 0.8-4 from snapshots every 0.4: {s:?}"
+    );
+    let (_, e) = dipole.statistics.expect("the dipole level's statistics");
+    assert_eq!(dipole.error, e.iter().copied().fold(0.0, f64::max));
+    assert!(
+        report
+            .markdown
+            .contains("Statistics over t = 0.8-4 (1/beta)")
+            && report.markdown.contains("| dipole | "),
+        "{}",
+        report.markdown
+    );
+    let csv = std::fs::read_to_string(dir.path().join("study_hydrodynamics.csv")).unwrap();
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .contains("decorrelation_rate [beta]")
+    );
+    // The comparison of the two runs tables their statistics over each run's later half.
+    let runs: Vec<_> = ["dipole", "sbt"]
+        .iter()
+        .map(|v| dir.path().join("runs").join(format!("hydrodynamics_{v}")))
+        .collect();
+    let out = dir.path().join("compare");
+    motile_experiments::report::compare::compare(&runs, &out).unwrap();
+    let table = std::fs::read_to_string(out.join("particle_statistics.csv")).unwrap();
+    assert_eq!(table.lines().count(), 3, "{table}");
+    assert!(
+        table.contains("hydrodynamics_sbt,5,4,320,sbt,2,4,"),
+        "{table}"
     );
 }
 

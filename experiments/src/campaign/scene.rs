@@ -35,7 +35,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The scenes shipped with motile: `(name, TOML text)`.
-pub const BUILTIN: [(&str, &str); 5] = [
+pub const BUILTIN: [(&str, &str); 6] = [
     ("demo", include_str!("../../scenes/demo.toml")),
     ("dilute", include_str!("../../scenes/dilute.toml")),
     (
@@ -45,6 +45,10 @@ pub const BUILTIN: [(&str, &str); 5] = [
     (
         "concentrated",
         include_str!("../../scenes/concentrated.toml"),
+    ),
+    (
+        "paper-concentrated",
+        include_str!("../../scenes/paper-concentrated.toml"),
     ),
     ("meanfield", include_str!("../../scenes/meanfield.toml")),
 ];

@@ -17,6 +17,7 @@ use crate::campaign::scene::Scene;
 use crate::io::rundir::TimeSeries;
 use crate::io::write_atomic;
 use crate::report::plot::{Series, log_chart};
+use crate::report::statistics::{Estimate, RunStatistics, StatisticsWindow};
 use crate::run::meanfield::{self, MeanFieldRunConfig};
 use crate::run::particle::{self, ParticleRunConfig};
 use anyhow::{Context, bail};
@@ -65,6 +66,9 @@ pub struct StudyPoint {
     /// Whether the run has a flow: a run without one (`hydrodynamics = "none"`) has error 1
     /// by construction, listed in the table and left off the chart.
     pub has_flow: bool,
+    /// With `--statistics-from`: the run's statistics over the window, and each one's relative
+    /// difference from the reference's (the error is their largest).
+    pub statistics: Option<(RunStatistics, [f64; 4])>,
 }
 
 /// What a study found.
@@ -152,6 +156,8 @@ struct Outcome {
     u: Vec<f64>,
     /// Particle runs: the rods' start and end positions.
     rods: Option<RodPositions>,
+    /// With a statistics window: the run's statistics over it.
+    statistics: Option<RunStatistics>,
 }
 
 /// What a study sweeps.
@@ -167,6 +173,26 @@ pub struct StudyOptions {
     pub accuracy: f64,
     /// The scene run to sweep (default: its first run of the knob's model).
     pub run: Option<String>,
+    /// Particle knobs: compare on statistics over `[from, t_end]` instead of pathwise (the
+    /// time-averaged norm, the orientation decorrelation rate, the MSD at a lag, the first zero
+    /// of Corr[Q]); snapshots every 0.4/beta.
+    pub statistics_from: Option<f64>,
+    /// The reference setting (default: the knob's).
+    pub reference: Option<String>,
+}
+
+/// The window of a study on statistics from `from` to `t_end`: decorrelation fitted over lags
+/// 1 to 8/beta and the MSD at 4/beta, each at most a quarter of the window (so that both halves
+/// of the window measure them).
+pub fn statistics_window(from: f64, t_end: f64) -> StatisticsWindow {
+    let quarter = 0.25 * (t_end - from);
+    StatisticsWindow {
+        t0: from,
+        t1: t_end,
+        fit_from: 1.0f64.min(0.25 * quarter),
+        fit_to: 8.0f64.min(quarter),
+        msd_lag: 4.0f64.min(quarter),
+    }
 }
 
 /// One setting of the knob, its run's config built and checked.
@@ -195,18 +221,40 @@ pub fn study(
     out: &Path,
     event: &mut dyn FnMut(&str),
 ) -> anyhow::Result<StudyReport> {
-    let knob = knob(&opts.knob)?;
+    let mut knob = knob(&opts.knob)?;
+    if let Some(r) = &opts.reference {
+        // Once per study: the knob's reference names the one asked for everywhere.
+        knob.reference = Box::leak(r.clone().into_boxed_str());
+    }
     let accuracy = opts.accuracy;
     if !(accuracy > 0.0 && accuracy < 1.0) {
         bail!("--accuracy = {accuracy} is outside the allowed range (0, 1)");
     }
     let base = base_run(scene, opts, knob)?;
+    let window = match (opts.statistics_from, &base) {
+        (None, _) => None,
+        (Some(from), RunConfig::Particle(c)) => {
+            let t_end = opts.t_end.unwrap_or(c.t_end);
+            if !(from >= 0.0 && from < t_end) {
+                bail!(
+                    "--statistics-from = {from} is outside the allowed range [0, {t_end}) (the window's end)"
+                );
+            }
+            Some(statistics_window(from, t_end))
+        }
+        (Some(_), RunConfig::MeanField(_)) => {
+            bail!(
+                "--statistics-from applies to particle knobs; {} is a mean-field knob",
+                knob.name
+            )
+        }
+    };
     // Every setting's config is built and checked before anything is written.
     let settings = plan(&base, opts, knob)?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let runs: Vec<SettingRun> = settings
         .into_iter()
-        .map(|setting| run_setting(setting, knob, out, event))
+        .map(|setting| run_setting(setting, (knob, window), out, event))
         .collect::<anyhow::Result<_>>()?;
     let points = study_points(&runs, knob)?;
     let cheapest = points
@@ -257,7 +305,7 @@ fn plan(base: &RunConfig, opts: &StudyOptions, knob: Knob) -> anyhow::Result<Vec
         .chain([(knob.reference.to_string(), true)]);
     settings
         .map(|(value, reference)| {
-            let config = setting_config(base, opts.t_end, knob, &value)?;
+            let config = setting_config(base, (opts.t_end, opts.statistics_from), knob, &value)?;
             Ok(Setting {
                 value,
                 reference,
@@ -271,7 +319,7 @@ fn plan(base: &RunConfig, opts: &StudyOptions, knob: Knob) -> anyhow::Result<Vec
 /// with the knob set to `value`.
 fn setting_config(
     base: &RunConfig,
-    t_end: Option<f64>,
+    (t_end, statistics): (Option<f64>, Option<f64>),
     knob: Knob,
     value: &str,
 ) -> anyhow::Result<RunConfig> {
@@ -280,7 +328,13 @@ fn setting_config(
             let mut c = c.clone();
             c.t_end = t_end.unwrap_or(c.t_end);
             c.vtk = false;
-            c.snapshot_interval = c.t_end;
+            // Statistics read snapshots every 0.4/beta (a whole number of steps for every dt
+            // swept); pathwise errors need none but the last.
+            c.snapshot_interval = if statistics.is_some() {
+                0.4f64.min(c.t_end)
+            } else {
+                c.t_end
+            };
             c.checkpoint_interval = c.t_end;
             // Diagnostics every 0.2/beta: a whole number of steps for every dt swept.
             c.diagnostic_interval = 0.2f64.min(c.t_end);
@@ -301,7 +355,7 @@ fn setting_config(
 /// Run one setting into `out/runs/<knob>_<value>` (an earlier run there removed), timed.
 fn run_setting(
     setting: Setting,
-    knob: Knob,
+    (knob, window): (Knob, Option<StatisticsWindow>),
     out: &Path,
     event: &mut dyn FnMut(&str),
 ) -> anyhow::Result<SettingRun> {
@@ -316,6 +370,14 @@ fn run_setting(
     let t0 = std::time::Instant::now();
     let outcome = run_outcome(&setting.config, &dir);
     let seconds = t0.elapsed().as_secs_f64();
+    // The statistics read the snapshots after the timing.
+    let outcome = outcome.and_then(|o| match window {
+        Some(w) => Ok(Outcome {
+            statistics: Some(RunStatistics::of(&dir, &w)?),
+            ..o
+        }),
+        None => Ok(o),
+    });
     event(&format!(
         "{} = {}{}: {:.1} s{}",
         knob.name,
@@ -353,6 +415,7 @@ fn run_outcome(config: &RunConfig, dir: &Path) -> anyhow::Result<Outcome> {
                         start,
                         end: s.rods.unwrapped(),
                     }),
+                    statistics: None,
                 })
             })
         }
@@ -362,6 +425,7 @@ fn run_outcome(config: &RunConfig, dir: &Path) -> anyhow::Result<Outcome> {
                 .column("u_l2 [L |sigma_a|/mu]")
                 .unwrap_or_default(),
             rods: None,
+            statistics: None,
         }),
     }
 }
@@ -394,6 +458,21 @@ fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoin
                     (e, ep, None)
                 }
             };
+            let statistics = match (&run.outcome, &reference_outcome.statistics) {
+                (
+                    Ok(Outcome {
+                        statistics: Some(s),
+                        ..
+                    }),
+                    Some(r),
+                ) => Some((*s, statistics_errors(s, r))),
+                _ => None,
+            };
+            // On statistics, the error is the largest relative difference of the four.
+            let error = match &statistics {
+                Some((_, e)) => e.iter().copied().fold(0.0, f64::max),
+                None => error,
+            };
             let has_flow = match &run.outcome {
                 Ok(o) => o.u.iter().any(|&u| u.is_finite() && u != 0.0),
                 Err(_) => true,
@@ -406,6 +485,7 @@ fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoin
                 reference: run.setting.reference,
                 failure,
                 has_flow,
+                statistics,
             })
         })
         .collect()
@@ -413,17 +493,20 @@ fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoin
 
 /// `study_<knob>.csv`.
 fn write_csv(points: &[StudyPoint], knob: Knob, out: &Path) -> anyhow::Result<()> {
-    let mut csv = String::from("value,reference,wall_seconds,error,position_error,failure\n");
+    let mut csv = String::from(
+        "value,reference,wall_seconds,error,position_error,failure,norm [beta L],norm_spread,decorrelation_rate [beta],rate_spread,msd [l^2],msd_spread,corr_q_zero [l],zero_spread\n",
+    );
     for p in points {
         writeln!(
             csv,
-            "{},{},{:.3},{:e},{:e},\"{}\"",
+            "{},{},{:.3},{:e},{:e},\"{}\",{}",
             p.value,
             p.reference,
             p.seconds,
             p.error,
             p.position_error,
-            p.failure.clone().unwrap_or_default().replace('"', "'")
+            p.failure.clone().unwrap_or_default().replace('"', "'"),
+            statistics_columns(p.statistics.as_ref().map(|s| &s.0))
         )
         .expect("string");
     }
@@ -451,7 +534,11 @@ fn write_markdown(
         ..
     } = knob;
     let (t_end, accuracy) = (opts.t_end, opts.accuracy);
-    let what = "max over the window of |Delta ||u||_2(t)| / max ||u||_2";
+    let what = if opts.statistics_from.is_some() {
+        "the largest relative difference of the four statistics below"
+    } else {
+        "max over the window of |Delta ||u||_2(t)| / max ||u||_2"
+    };
     let window = match base {
         RunConfig::Particle(c) => format!("t = 0 to {} (1/beta)", t_end.unwrap_or(c.t_end)),
         RunConfig::MeanField(c) => format!("t = 0 to {} (mu/|sigma_a|)", t_end.unwrap_or(c.t_end)),
@@ -487,8 +574,66 @@ fn write_markdown(
         )
         .expect("string");
     }
+    if let Some(w) = opts
+        .statistics_from
+        .map(|from| statistics_window(from, t_end.unwrap_or_else(|| base_t_end(base))))
+    {
+        md.push_str(&statistics_table(points, name, &w));
+    }
     write_atomic(&out.join(format!("study_{name}.md")), md.as_bytes())?;
     Ok(md)
+}
+
+/// The base run's end time.
+fn base_t_end(base: &RunConfig) -> f64 {
+    match base {
+        RunConfig::Particle(c) => c.t_end,
+        RunConfig::MeanField(c) => c.t_end,
+    }
+}
+
+/// A CSV row's statistics columns (NaN without statistics).
+fn statistics_columns(s: Option<&RunStatistics>) -> String {
+    let nan = Estimate {
+        value: f64::NAN,
+        spread: f64::NAN,
+    };
+    let all = s.map_or([nan; 4], |s| {
+        [s.norm, s.decorrelation_rate, s.msd, s.corr_zeros[2]]
+    });
+    all.iter()
+        .map(|e| format!("{:e},{:e}", e.value, e.spread))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// The statistics of each setting and their relative differences from the reference's.
+fn statistics_table(points: &[StudyPoint], name: &str, w: &StatisticsWindow) -> String {
+    let mut md = format!(
+        "\nStatistics over t = {}-{} (1/beta), each +- half the difference between the window's halves (the norm: +- its batch-means standard error); in brackets the relative difference from the reference's. Decorrelation rate: -d ln <p(t0 + tau).p(t0)>/d tau over tau = {}-{}/beta; MSD at tau = {}/beta; Corr[Q]'s first zero of its time average.\n\n| {name} | ||u||_2 (beta L) | decorrelation rate (beta) | MSD (l^2) | Corr[Q] zero (l) | largest difference |\n|---|---|---|---|---|---|\n",
+        w.t0, w.t1, w.fit_from, w.fit_to, w.msd_lag
+    );
+    for p in points {
+        let Some((s, e)) = &p.statistics else {
+            continue;
+        };
+        let cell = |x: &Estimate, e: f64| {
+            format!("{:.4e} +- {:.1e} [{:.1}%]", x.value, x.spread, 100.0 * e)
+        };
+        writeln!(
+            md,
+            "| {}{} | {} | {} | {} | {} | {:.1}% |",
+            p.value,
+            if p.reference { " (reference)" } else { "" },
+            cell(&s.norm, e[0]),
+            cell(&s.decorrelation_rate, e[1]),
+            cell(&s.msd, e[2]),
+            cell(&s.corr_zeros[2], e[3]),
+            100.0 * p.error
+        )
+        .expect("string");
+    }
+    md
 }
 
 /// `study_<knob>.{png,svg}`: error against wall time of the charted settings (with a flow, a
@@ -548,11 +693,30 @@ fn write_chart(
             "wall time [s] ({} worker thread(s))",
             rayon::current_num_threads()
         ),
-        &format!("error vs {name} = {reference} [1]"),
+        &if points.iter().any(|p| p.statistics.is_some()) {
+            format!("largest difference of the statistics vs {name} = {reference} [1]")
+        } else {
+            format!("error vs {name} = {reference} [1]")
+        },
         &series,
         &labels,
     )?;
     Ok(())
+}
+
+/// Each statistic's relative difference from the reference's: the norm, the decorrelation
+/// rate, the MSD and Corr[Q]'s zero (NaN compares as 1: a statistic a run could not measure).
+fn statistics_errors(s: &RunStatistics, r: &RunStatistics) -> [f64; 4] {
+    let rel = |a: f64, b: f64| {
+        let e = (a - b).abs() / b.abs();
+        if e.is_finite() { e } else { 1.0 }
+    };
+    [
+        rel(s.norm.value, r.norm.value),
+        rel(s.decorrelation_rate.value, r.decorrelation_rate.value),
+        rel(s.msd.value, r.msd.value),
+        rel(s.corr_zeros[2].value, r.corr_zeros[2].value),
+    ]
 }
 
 fn error_against(o: &Outcome, r: &Outcome) -> anyhow::Result<(f64, f64)> {

@@ -29,6 +29,15 @@ pub struct StudyArgs {
     /// The scene run to sweep [default: its first run of the knob's model].
     #[arg(long)]
     pub run: Option<String>,
+    /// Compare on statistics over [FROM, t_end] (1/beta) instead of pathwise: the
+    /// time-averaged velocity norm, the orientation decorrelation rate, the MSD at a lag and the
+    /// first zero of Corr[Q] (particle knobs; for contact-driven runs, which do not converge
+    /// pathwise).
+    #[arg(long, value_name = "FROM")]
+    pub statistics_from: Option<f64>,
+    /// The reference setting [default: the knob's].
+    #[arg(long)]
+    pub reference: Option<String>,
     /// Output directory.
     #[arg(long, default_value = "runs/study")]
     pub out: PathBuf,
@@ -54,6 +63,8 @@ pub fn run(a: StudyArgs) -> anyhow::Result<()> {
         t_end: a.t_end,
         accuracy: a.accuracy,
         run: a.run,
+        statistics_from: a.statistics_from,
+        reference: a.reference,
     };
     let report = study(&s, &opts, &a.out, &mut |line| println!("{line}"))?;
     println!("{}", report.markdown);

@@ -11,3 +11,5 @@ pub mod opened_run;
 pub mod plot;
 pub(crate) mod products;
 pub(crate) mod series;
+pub mod statistics;
+pub mod trajectory_series;

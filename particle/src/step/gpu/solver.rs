@@ -25,8 +25,9 @@ use crate::step::contact::{
 };
 use motile_gpu::{Buffer, GpuError};
 
-// The fold kernels (solver_stats, solver_dots, step_stats) stage FOLD_THREADS = 256 elements
-// per round in shared memory, one per thread of a block: every launch has that many.
+// The fold kernels (solver_stats, solver_apgd_stats, solver_dots, step_stats) stage
+// FOLD_THREADS = 256 elements per round in shared memory, one per thread of a block: every
+// launch has that many.
 const _: () = assert!(motile_gpu::THREADS == 256);
 
 /// The CPU's reduction chunk, so the device's partial sums are the CPU's.

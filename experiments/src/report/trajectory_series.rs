@@ -1,0 +1,301 @@
+//! The particle runs' statistics table of `motile compare` (`particle_statistics.{csv,md}`):
+//! one row per particle run with snapshots, over the later half of the run (the paper averages
+//! its concentrated runs over t = 100-200/beta): the time-averaged velocity norm with its
+//! standard error, the orientation decorrelation rate, the MSD at a stated lag and the first
+//! zeros of Corr[c], Corr[n] and Corr[Q] in l and in L ([`RunStatistics`]); and, with two or
+//! more concentrated boxes (nu > 1), the time-averaged norm against L/l on log-log axes with
+//! its fitted power law and the line l/L the paper finds (`norm_scaling.{png,svg}`).
+
+use crate::io::write_atomic;
+use crate::report::opened_run::OpenedRun;
+use crate::report::plot::{Series, log_chart};
+use crate::report::statistics::{Estimate, RunStatistics, StatisticsWindow};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The lag of the MSD column (1/beta).
+pub const MSD_LAG: f64 = 4.0;
+
+const CSV_HEADER: &str = "run,nu,L/l,rods,level,t0 [1/beta],t1 [1/beta],snapshots,mean_u_l2 [beta L],std_error,decorrelation_rate [beta],rate_spread,msd_lag [1/beta],msd [l^2],msd_spread,corr_c_zero [l],corr_n_zero [l],corr_q_zero [l],corr_q_zero_spread [l],corr_c_zero [L],corr_n_zero [L],corr_q_zero [L]\n";
+
+/// One particle run's row.
+struct Row {
+    run: String,
+    nu: f64,
+    box_length: f64,
+    rods: usize,
+    level: String,
+    window: StatisticsWindow,
+    stats: RunStatistics,
+}
+
+/// The window of a run ending at `t_end`: its later half, the decorrelation fitted over lags
+/// 1-8/beta and the MSD at [`MSD_LAG`] (each at most a quarter of the window).
+fn later_half(t_end: f64) -> StatisticsWindow {
+    let (t0, t1) = (0.5 * t_end, t_end);
+    let quarter = 0.25 * (t1 - t0);
+    StatisticsWindow {
+        t0,
+        t1,
+        fit_from: 1.0f64.min(0.25 * quarter),
+        fit_to: 8.0f64.min(quarter),
+        msd_lag: MSD_LAG.min(quarter),
+    }
+}
+
+/// `particle_statistics.{csv,md}` of the particle runs among `opened` that have snapshots
+/// (none: nothing written), and `norm_scaling.{png,svg}` where two or more are concentrated.
+pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> anyhow::Result<()> {
+    let mut rows = Vec::new();
+    for run in opened {
+        let Some((config, _)) = run.particle() else {
+            continue;
+        };
+        if run.snapshot_paths.len() < 4 {
+            continue;
+        }
+        let t_end = run.column("t [1/beta]")?.last().copied().unwrap_or(0.0);
+        let window = later_half(t_end);
+        rows.push(Row {
+            run: run.path().file_name().map_or_else(
+                || run.path().display().to_string(),
+                |n| n.to_string_lossy().into(),
+            ),
+            nu: config.volume_fraction,
+            box_length: config.box_length,
+            rods: config.rod_count(),
+            level: config.hydrodynamics.to_string(),
+            window,
+            stats: RunStatistics::of(run.path(), &window)?,
+        });
+    }
+    if rows.is_empty() {
+        return Ok(());
+    }
+    write_atomic(&out.join("particle_statistics.csv"), csv(&rows).as_bytes())?;
+    write_atomic(
+        &out.join("particle_statistics.md"),
+        markdown(&rows).as_bytes(),
+    )?;
+    let concentrated: Vec<&Row> = rows.iter().filter(|r| r.nu > 1.0).collect();
+    if concentrated.len() >= 2 {
+        write_norm_scaling(&concentrated, out)?;
+    }
+    Ok(())
+}
+
+fn csv(rows: &[Row]) -> String {
+    let mut s = String::from(CSV_HEADER);
+    for r in rows {
+        let z = r.stats.corr_zeros;
+        writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{:e},{:e},{:e},{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+            r.run,
+            r.nu,
+            r.box_length,
+            r.rods,
+            r.level,
+            r.window.t0,
+            r.window.t1,
+            r.stats.snapshots,
+            r.stats.norm.value,
+            r.stats.norm.spread,
+            r.stats.decorrelation_rate.value,
+            r.stats.decorrelation_rate.spread,
+            r.window.msd_lag,
+            r.stats.msd.value,
+            r.stats.msd.spread,
+            z[0].value,
+            z[1].value,
+            z[2].value,
+            z[2].spread,
+            z[0].value / r.box_length,
+            z[1].value / r.box_length,
+            z[2].value / r.box_length,
+        )
+        .expect("string");
+    }
+    s
+}
+
+fn markdown(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "# Particle runs' statistics\n\nEach run over the later half of its time (the paper averages its concentrated runs over t = 100-200/beta), in particle units. ||u||_2: time average with its batch-means standard error. Decorrelation rate: -d ln <p(t0 + tau).p(t0)>/d tau, least squares over the lags tau in the window's fit range, averaged over origins t0. MSD at the stated lag, averaged over origins. Zeros: first zero of each time-averaged correlation, on 2 L/l Fourier modes per axis (16-64). +-: half the difference between the window's halves.\n\n| run | nu | L/l | rods | level | window (1/beta) | ||u||_2 (beta L) | decorrelation rate (beta) | MSD (l^2) at lag | zeros of Corr[c], Corr[n], Corr[Q] (l) | Corr[Q] zero (L) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let pm = |e: &Estimate| format!("{:.4} +- {:.4}", e.value, e.spread);
+    for r in rows {
+        let z = r.stats.corr_zeros;
+        writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {}-{} | {:.4e} +- {:.1e} | {} | {} at {} | {:.2}, {:.2}, {} | {:.3} |",
+            r.run,
+            r.nu,
+            r.box_length,
+            r.rods,
+            r.level,
+            r.window.t0,
+            r.window.t1,
+            r.stats.norm.value,
+            r.stats.norm.spread,
+            pm(&r.stats.decorrelation_rate),
+            pm(&r.stats.msd),
+            r.window.msd_lag,
+            z[0].value,
+            z[1].value,
+            pm(&z[2]),
+            z[2].value / r.box_length,
+        )
+        .expect("string");
+    }
+    s
+}
+
+/// A power law `y = a x^p` fitted by least squares in logs: the exponent with its standard
+/// error (from the residuals; NaN with two points) and the prefactor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PowerLaw {
+    /// The exponent `p`.
+    pub exponent: f64,
+    /// Its standard error.
+    pub std_error: f64,
+    /// The prefactor `a`.
+    pub prefactor: f64,
+}
+
+/// [`PowerLaw`] through `points` (positive `x`, `y`); `None` with fewer than two distinct `x`.
+pub fn fit_power_law(points: &[(f64, f64)]) -> Option<PowerLaw> {
+    let logs: Vec<(f64, f64)> = points
+        .iter()
+        .filter(|(x, y)| *x > 0.0 && *y > 0.0)
+        .map(|(x, y)| (x.ln(), y.ln()))
+        .collect();
+    if logs.len() < 2 {
+        return None;
+    }
+    let n = logs.len() as f64;
+    let (mx, my) = logs
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    let sxx: f64 = logs.iter().map(|(x, _)| (x - mx).powi(2)).sum();
+    let sxy: f64 = logs.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+    if sxx <= 0.0 {
+        return None;
+    }
+    let p = sxy / sxx;
+    let ssr: f64 = logs
+        .iter()
+        .map(|(x, y)| (y - my - p * (x - mx)).powi(2))
+        .sum();
+    let std_error = if logs.len() > 2 {
+        (ssr / (n - 2.0) / sxx).sqrt()
+    } else {
+        f64::NAN
+    };
+    Some(PowerLaw {
+        exponent: p,
+        std_error,
+        prefactor: (my - p * mx).exp(),
+    })
+}
+
+/// `norm_scaling.{png,svg}`: the time-averaged norm against L/l with its fitted power law and
+/// the line l/L through the smallest box's point.
+fn write_norm_scaling(rows: &[&Row], out: &Path) -> anyhow::Result<()> {
+    let points: Vec<(f64, f64)> = rows
+        .iter()
+        .map(|r| (r.box_length, r.stats.norm.value))
+        .collect();
+    let (lo, hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| {
+        (a.min(p.0), b.max(p.0))
+    });
+    let mut series = vec![Series {
+        label: "time-averaged ||u||_2 (later half of each run)".into(),
+        points: points.clone(),
+    }];
+    let mut title = "Concentrated runs: velocity norm against box size".to_string();
+    if let Some(fit) = fit_power_law(&points) {
+        series.push(Series {
+            label: format!("fit: (L/l)^({:.2} +- {:.2})", fit.exponent, fit.std_error),
+            points: [lo, hi]
+                .iter()
+                .map(|&x| (x, fit.prefactor * x.powf(fit.exponent)))
+                .collect(),
+        });
+        title = format!(
+            "{title}: exponent {:.2} +- {:.2} (paper: -1)",
+            fit.exponent, fit.std_error
+        );
+    }
+    let first = points
+        .iter()
+        .copied()
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .expect("two points");
+    series.push(Series {
+        label: "l/L through the smallest box".into(),
+        points: [lo, hi]
+            .iter()
+            .map(|&x| (x, first.1 * first.0 / x))
+            .collect(),
+    });
+    let labels: Vec<(f64, f64, String)> = rows
+        .iter()
+        .map(|r| (r.box_length, r.stats.norm.value, r.run.clone()))
+        .collect();
+    log_chart(
+        &out.join("norm_scaling"),
+        &title,
+        "L/l [1]",
+        "time-averaged ||u||_2 [beta L]",
+        &series,
+        &labels,
+    )?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_power_law_is_fitted_exactly_and_scatter_gives_its_error() {
+        let exact: Vec<(f64, f64)> = [8.0, 11.0, 16.0]
+            .iter()
+            .map(|&x: &f64| (x, 0.7 * x.powf(-1.0)))
+            .collect();
+        let fit = fit_power_law(&exact).unwrap();
+        assert!(
+            (fit.exponent + 1.0).abs() < 1e-12
+                && fit.std_error < 1e-12
+                && (fit.prefactor - 0.7).abs() < 1e-12,
+            "{fit:?}"
+        );
+        // One point off by a factor e^0.1 in y: the residuals give the standard error of the
+        // slope, sqrt(SSR / (n - 2) / Sxx), computed here by hand for three points.
+        let mut scattered = exact.clone();
+        scattered[1].1 *= 0.1f64.exp();
+        let fit = fit_power_law(&scattered).unwrap();
+        let x: Vec<f64> = scattered.iter().map(|p| p.0.ln()).collect();
+        let y: Vec<f64> = scattered.iter().map(|p| p.1.ln()).collect();
+        let (mx, my) = (x.iter().sum::<f64>() / 3.0, y.iter().sum::<f64>() / 3.0);
+        let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
+        let slope: f64 = x
+            .iter()
+            .zip(&y)
+            .map(|(a, b)| (a - mx) * (b - my))
+            .sum::<f64>()
+            / sxx;
+        let ssr: f64 = x
+            .iter()
+            .zip(&y)
+            .map(|(a, b)| (b - my - slope * (a - mx)).powi(2))
+            .sum();
+        assert!((fit.exponent - slope).abs() < 1e-12, "{fit:?}");
+        assert!(
+            (fit.std_error - (ssr / sxx).sqrt()).abs() < 1e-12,
+            "{fit:?}"
+        );
+        assert!(fit_power_law(&[(8.0, 1.0), (8.0, 2.0)]).is_none());
+    }
+}
