@@ -28,18 +28,21 @@
 #            L/l = 50 (the resident rows print steps/s, bytes in use per rod and the breakdown)
 #   meanfield  the paper's mean-field case at 128^3 to t = 128 on the GPU
 #   scaling  the thread-scaling table at 1, 2, 4, 8, 16 threads (SCALING_ARGS passed on)
-#   series   the paper's dilute series, grown a few members at a time: the members of the
-#            paper-dilute scene not yet in docs/gallery/paper_dilute_series.csv, in the order
-#            L75, L100, L150, L175, mf128, mf256, each resident on the GPU under the time left
+#   series   the paper's series, grown a few members at a time: first the members of the
+#            paper-concentrated scene not yet in docs/gallery/paper_concentrated_series.csv (L16,
+#            L24, L32), then those of paper-dilute not yet in docs/gallery/paper_dilute_series.csv
+#            (L75, L100, L150, L175, mf128, mf256), each resident on the GPU under the time left
 #            (SERIES_LIMIT seconds in all, default 540); a member whose estimate does not fit is
-#            not started. Into $OUT/series.tgz: each member's compact products (config, time
-#            series, lowest modes, log, analysis; no snapshots or checkpoints), the comparison of
-#            the members run here (compare/: series.csv rows, curves, figures) and series.log;
-#            `bash scripts/series_harvest.sh series.tgz` files them into docs/gallery/.
+#            not started. Into $OUT/series-concentrated.tgz and $OUT/series.tgz: each member's
+#            compact products (config, time series, lowest modes, log, analysis; no snapshots or
+#            checkpoints), the comparison of the members run here (compare/: series.csv and
+#            particle_statistics.csv rows, curves, figures), and series.log;
+#            `bash scripts/series_harvest.sh ARCHIVE` files each into docs/gallery/.
 #            Where no member fits, the first that does not runs for the time left as a
 #            measurement (MEMBER-partial: its time series and log, whose last lines split the
-#            wall time; SERIES_MEASURE=0 turns this off). SERIES_SCENE, SERIES_MEMBERS,
-#            SERIES_CSV, SERIES_DEVICE and MOTILE_BIN change them (the test suite runs it on
+#            wall time; SERIES_MEASURE=0 turns this off). SERIES_CONCENTRATED_MEMBERS,
+#            SERIES_MEMBERS, SERIES_DEVICE and MOTILE_BIN change them; SERIES_SCENE (with
+#            SERIES_MEMBERS and SERIES_CSV) runs one scene alone (the test suite runs it so on
 #            the host emulation with a small scene).
 #   all      parity, bench (every target case, in two parts), runs and science in one command
 #            of at most 8 minutes: each phase under its own time limit (timeout), so a slow
@@ -61,6 +64,83 @@ if [ ! -f "$OUT/device.txt" ]; then
   { nvidia-smi -L; nvidia-smi --query-gpu=name,memory.total,clocks.max.sm --format=csv
     nproc; echo "ldd motile:"; ldd "$MOTILE"; "$MOTILE" --version; } >"$OUT/device.txt" 2>&1
 fi
+
+# One stage of the series phase: the members MEMBERS of scene S not yet in table CSV, run in
+# RS under the time left (globals LIMIT, start, ran, measured, log), their compact products
+# and the comparison into $OUT/NAME.tgz.
+grow_series() {
+  local S="$1" CSV="$2" MEMBERS="$3" NAME="$4" RS="$5"
+  local D="$RS-products"
+  rm -rf "$D"
+  mkdir -p "$D" "$RS"
+  # A built-in scene's name tells series_harvest.sh which table the rows go to.
+  case "$S" in
+    */* | *.toml) ;;
+    *) echo "$S" >"$D/scene_name" ;;
+  esac
+  for m in $MEMBERS; do
+    if grep -q "^$m," "$CSV" 2>/dev/null; then
+      log "$m: in $CSV already"
+      continue
+    fi
+    left=$((LIMIT - ($(date +%s) - start)))
+    said=$("$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" --dry-run --estimate 2>&1)
+    est=$(echo "$said" | sed -n 's/.*: \([0-9]*\) s in all.*/\1/p' | head -1)
+    if [ -z "$est" ]; then
+      log "$m: no estimate: $(echo "$said" | tail -1)"
+      continue
+    fi
+    # The estimate (steps, analysis and comparison), 20% over, and half a minute of set-up.
+    need=$((est * 6 / 5 + 30))
+    if [ "$need" -gt "$left" ]; then
+      if [ -z "$measured" ] && [ -z "$ran" ] && [ "$left" -gt 120 ] \
+        && [ "${SERIES_MEASURE:-1}" = 1 ]; then
+        # Nothing fits: the first member that does not is run for the time left as a
+        # measurement (its steps/s and the log's split of the wall time come back as
+        # MEMBER-partial; no row), so that each GPU at hand says where the time goes.
+        log "$m: does not fit (estimated $est s, $left s left): run for $((left - 60)) s to measure it"
+        measured=1
+        timeout $((left - 60)) "$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" \
+          --out "$RS" >"$D/$m.txt" 2>&1
+        log "$m: measurement stopped ($?)"
+        mkdir -p "$D/$m-partial"
+        for f in config.toml timeseries.csv modes.csv run.log; do
+          cp "$RS/$m/$f" "$D/$m-partial/" 2>/dev/null
+        done
+        continue
+      fi
+      log "$m: not started (estimated $est s, needs $need s, $left s left)"
+      continue
+    fi
+    ran=1
+    log "$m: starting (estimated $est s, $left s left)"
+    t0=$(date +%s)
+    # SIGTERM when the time is up: the run stops at a step boundary with a checkpoint.
+    timeout "$left" "$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" --out "$RS" \
+      >"$D/$m.txt" 2>&1
+    rc=$?
+    log "$m: exit $rc after $(($(date +%s) - t0)) s"
+    grep -E "steps, .* s \(with analysis\)|^motile: error|^Error" "$D/$m.txt" | tail -3
+    # The compact products (what is committed); the snapshots and checkpoints stay here.
+    mkdir -p "$D/$m/analysis"
+    for f in config.toml timeseries.csv modes.csv run.log; do
+      cp "$RS/$m/$f" "$D/$m/" 2>/dev/null
+    done
+    cp "$RS/$m"/analysis/*.csv "$RS/$m"/analysis/*.toml "$RS/$m"/analysis/*.svg "$D/$m/analysis/" \
+      2>/dev/null
+    [ "$rc" = 0 ] || mv "$D/$m" "$D/$m-partial"
+  done
+  # The last comparison covers every member run here.
+  if [ -d "$RS/compare" ]; then
+    rm -rf "$D/compare"
+    cp -r "$RS/compare" "$D/compare"
+  fi
+  cp "$RS/scene.md" "$D/" 2>/dev/null
+  cp "$R/series.log" "$D/" 2>/dev/null
+  tar czf "$OUT/$NAME.tgz" -C "$D" .
+  cat "$D/compare/series.csv" 2>/dev/null
+}
+
 case "${1:-}" in
   parity)
     export MOTILE_REQUIRE_GPU=1
@@ -203,81 +283,29 @@ case "${1:-}" in
     tail -5 "$OUT/meanfield.txt"
     ;;
   series)
-    S="${SERIES_SCENE:-paper-dilute}"
-    CSV="${SERIES_CSV:-docs/gallery/paper_dilute_series.csv}"
     LIMIT="${SERIES_LIMIT:-540}"
     R="${SERIES_DIR:-/tmp/motile-series}"
-    # The products are gathered on the node and come back as one archive (the device tool
-    # brings back a few files, not a tree).
-    D="$R-products"
-    rm -rf "$D"
-    mkdir -p "$D" "$R"
     start=$(date +%s)
     ran=""
     measured=""
-    log() { echo "$(($(date +%s) - start)) s: $*" | tee -a "$D/series.log"; }
-    for m in ${SERIES_MEMBERS:-L75 L100 L150 L175 mf128 mf256}; do
-      if grep -q "^$m," "$CSV" 2>/dev/null; then
-        log "$m: in $CSV already"
-        continue
-      fi
-      left=$((LIMIT - ($(date +%s) - start)))
-      said=$("$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" --dry-run --estimate 2>&1)
-      est=$(echo "$said" | sed -n 's/.*: \([0-9]*\) s in all.*/\1/p' | head -1)
-      if [ -z "$est" ]; then
-        log "$m: no estimate: $(echo "$said" | tail -1)"
-        continue
-      fi
-      # The estimate (steps, analysis and comparison), 20% over, and half a minute of set-up.
-      need=$((est * 6 / 5 + 30))
-      if [ "$need" -gt "$left" ]; then
-        if [ -z "$measured" ] && [ -z "$ran" ] && [ "$left" -gt 120 ] \
-          && [ "${SERIES_MEASURE:-1}" = 1 ]; then
-          # Nothing fits: the first member that does not is run for the time left as a
-          # measurement (its steps/s and the log's split of the wall time come back as
-          # MEMBER-partial; no row), so that each GPU at hand says where the time goes.
-          log "$m: does not fit (estimated $est s, $left s left): run for $((left - 60)) s to measure it"
-          measured=1
-          timeout $((left - 60)) "$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" \
-            --out "$R" >"$D/$m.txt" 2>&1
-          log "$m: measurement stopped ($?)"
-          mkdir -p "$D/$m-partial"
-          for f in config.toml timeseries.csv modes.csv run.log; do
-            cp "$R/$m/$f" "$D/$m-partial/" 2>/dev/null
-          done
-          continue
-        fi
-        log "$m: not started (estimated $est s, needs $need s, $left s left)"
-        continue
-      fi
-      ran=1
-      log "$m: starting (estimated $est s, $left s left)"
-      t0=$(date +%s)
-      # SIGTERM when the time is up: the run stops at a step boundary with a checkpoint.
-      timeout "$left" "$MOTILE" run "$S" --only "$m" --device "${SERIES_DEVICE:-gpu}" --out "$R" \
-        >"$D/$m.txt" 2>&1
-      rc=$?
-      log "$m: exit $rc after $(($(date +%s) - t0)) s"
-      grep -E "steps, .* s \(with analysis\)|^motile: error|^Error" "$D/$m.txt" | tail -3
-      # The compact products (what is committed); the snapshots and checkpoints stay here.
-      mkdir -p "$D/$m/analysis"
-      for f in config.toml timeseries.csv modes.csv run.log; do
-        cp "$R/$m/$f" "$D/$m/" 2>/dev/null
-      done
-      cp "$R/$m"/analysis/*.csv "$R/$m"/analysis/*.toml "$R/$m"/analysis/*.svg "$D/$m/analysis/" \
-        2>/dev/null
-      [ "$rc" = 0 ] || mv "$D/$m" "$D/$m-partial"
-    done
-    # The last comparison covers every member run here.
-    if [ -d "$R/compare" ]; then
-      rm -rf "$D/compare"
-      cp -r "$R/compare" "$D/compare"
+    # The log of every stage; each stage's products are gathered on the node and come back as
+    # one archive (the device tool brings back a few files, not a tree).
+    mkdir -p "$R"
+    rm -f "$R/series.log"
+    log() { echo "$(($(date +%s) - start)) s: $*" | tee -a "$R/series.log"; }
+    if [ -n "${SERIES_SCENE:-}" ]; then
+      grow_series "$SERIES_SCENE" "${SERIES_CSV:-docs/gallery/paper_dilute_series.csv}" \
+        "${SERIES_MEMBERS:-L75 L100 L150 L175 mf128 mf256}" series "$R"
+    else
+      # The concentrated members first: each fits a command by its estimate, while the dilute
+      # members left (L/l >= 100) do not and would only be measured.
+      grow_series paper-concentrated docs/gallery/paper_concentrated_series.csv \
+        "${SERIES_CONCENTRATED_MEMBERS:-L16 L24 L32}" series-concentrated "$R/concentrated"
+      grow_series paper-dilute docs/gallery/paper_dilute_series.csv \
+        "${SERIES_MEMBERS:-L75 L100 L150 L175 mf128 mf256}" series "$R/dilute"
     fi
-    cp "$R/scene.md" "$D/" 2>/dev/null
     log "done"
-    tar czf "$OUT/series.tgz" -C "$D" .
-    cp "$D/series.log" "$OUT/"
-    cat "$D/compare/series.csv" 2>/dev/null
+    cp "$R/series.log" "$OUT/"
     ;;
   all)
     # Limits in seconds (sum 480 s, 8 minutes); the CPU sides of the largest cases left

@@ -286,7 +286,7 @@ fn forced_divergence_ends_with_the_structured_error_and_a_usable_checkpoint() {
         (
             "particle",
             "p.toml",
-            "contact solver (BBPGD) did not converge",
+            "contact solver (BBPGD, then APGD where it stalls) did not converge",
         ),
         (
             "meanfield",

@@ -498,3 +498,70 @@ fn gpu_estimates_grow_with_size_and_match_the_members_run() {
         );
     }
 }
+
+/// `scripts/series_harvest.sh` files a concentrated archive (its `scene_name` says
+/// paper-concentrated) into its own table, made with the archive's header where there is none,
+/// and its products under `paper-concentrated/MEMBER/`; filing it again adds nothing.
+#[test]
+fn the_concentrated_harvest_files_its_rows_into_its_own_table() {
+    use std::process::Command;
+    let tmp = tempfile::tempdir().unwrap();
+    let src = tmp.path().join("archive");
+    let header = "run,nu,L/l,rods,level";
+    let row = "L16,5,16,20480,sbt";
+    std::fs::create_dir_all(src.join("compare")).unwrap();
+    std::fs::create_dir_all(src.join("L16/analysis")).unwrap();
+    std::fs::write(src.join("scene_name"), "paper-concentrated\n").unwrap();
+    std::fs::write(
+        src.join("compare/particle_statistics.csv"),
+        format!("{header}\n{row}\n"),
+    )
+    .unwrap();
+    std::fs::write(src.join("compare/series.csv"), "run,model\nL16,particle\n").unwrap();
+    std::fs::write(src.join("L16/config.toml"), "box_length = 16.0\n").unwrap();
+    std::fs::write(src.join("L16/analysis/correlations.csv"), "r,c\n").unwrap();
+    let archive = tmp.path().join("series-concentrated.tgz");
+    assert!(
+        Command::new("tar")
+            .arg("czf")
+            .arg(&archive)
+            .arg("-C")
+            .arg(&src)
+            .arg(".")
+            .status()
+            .unwrap()
+            .success()
+    );
+    let gallery = tmp.path().join("gallery");
+    std::fs::create_dir_all(&gallery).unwrap();
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/series_harvest.sh");
+    for pass in 0..2 {
+        let o = Command::new("bash")
+            .arg(script)
+            .arg(&archive)
+            .arg(&gallery)
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            o.status.success(),
+            "{said}{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let table = std::fs::read_to_string(gallery.join("paper_concentrated_series.csv")).unwrap();
+        assert_eq!(table, format!("{header}\n{row}\n"), "pass {pass}: {said}");
+        assert!(
+            said.contains(if pass == 0 { "L16: filed" } else { "L16: in " }),
+            "pass {pass}: {said}"
+        );
+    }
+    for f in [
+        "config.toml",
+        "analysis/correlations.csv",
+        "compare/particle_statistics.csv",
+    ] {
+        let p = gallery.join("paper-concentrated/L16").join(f);
+        assert!(p.is_file(), "{} missing", p.display());
+    }
+    assert!(!gallery.join("paper_dilute_series.csv").exists());
+}

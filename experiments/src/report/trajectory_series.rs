@@ -3,7 +3,7 @@
 //! its concentrated runs over t = 100-200/beta): the time-averaged velocity norm with its
 //! standard error, the orientation decorrelation rate, the MSD at a stated lag and the first
 //! zeros of Corr[c], Corr[n] and Corr[Q] in l and in L ([`RunStatistics`]); and, with two or
-//! more concentrated boxes (nu > 1), the time-averaged norm against L/l on log-log axes with
+//! more concentrated boxes of different sizes (nu > 1), the time-averaged norm against L/l on log-log axes with
 //! its fitted power law and the line l/L the paper finds (`norm_scaling.{png,svg}`).
 
 use crate::io::write_atomic;
@@ -44,7 +44,8 @@ fn later_half(t_end: f64) -> StatisticsWindow {
 }
 
 /// `particle_statistics.{csv,md}` of the particle runs among `opened` that have snapshots
-/// (none: nothing written), and `norm_scaling.{png,svg}` where two or more are concentrated.
+/// (none: nothing written), and `norm_scaling.{png,svg}` where concentrated ones have two or
+/// more box sizes.
 pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     for run in opened {
@@ -78,7 +79,10 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
         markdown(&rows).as_bytes(),
     )?;
     let concentrated: Vec<&Row> = rows.iter().filter(|r| r.nu > 1.0).collect();
-    if concentrated.len() >= 2 {
+    let mut boxes: Vec<f64> = concentrated.iter().map(|r| r.box_length).collect();
+    boxes.sort_by(f64::total_cmp);
+    boxes.dedup();
+    if boxes.len() >= 2 {
         write_norm_scaling(&concentrated, out)?;
     }
     Ok(())

@@ -147,7 +147,7 @@ pub struct ContactReport {
 pub enum ContactError {
     /// The iteration cap was reached.
     #[error(
-        "contact solver (BBPGD) did not converge: residual {residual:.3e} after {iterations} iterations (tolerance {tolerance:.1e})"
+        "contact solver (BBPGD, then APGD where it stalls) did not converge: residual {residual:.3e} after {iterations} iterations (tolerance {tolerance:.1e})"
     )]
     NoConvergence {
         /// Iterations done.
