@@ -175,7 +175,7 @@ pub struct StudyOptions {
     pub run: Option<String>,
     /// Particle knobs: compare on statistics over `[from, t_end]` instead of pathwise (the
     /// time-averaged norm, the orientation decorrelation rate, the MSD at a lag, the first zero
-    /// of Corr[Q]); snapshots every 0.4/beta.
+    /// of `Corr[Q]`); snapshots every 0.4/beta.
     pub statistics_from: Option<f64>,
     /// The reference setting (default: the knob's).
     pub reference: Option<String>,
@@ -705,7 +705,7 @@ fn write_chart(
 }
 
 /// Each statistic's relative difference from the reference's: the norm, the decorrelation
-/// rate, the MSD and Corr[Q]'s zero (NaN compares as 1: a statistic a run could not measure).
+/// rate, the MSD and `Corr[Q]`'s zero (NaN compares as 1: a statistic a run could not measure).
 fn statistics_errors(s: &RunStatistics, r: &RunStatistics) -> [f64; 4] {
     let rel = |a: f64, b: f64| {
         let e = (a - b).abs() / b.abs();

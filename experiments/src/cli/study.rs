@@ -31,7 +31,7 @@ pub struct StudyArgs {
     pub run: Option<String>,
     /// Compare on statistics over [FROM, t_end] (1/beta) instead of pathwise: the
     /// time-averaged velocity norm, the orientation decorrelation rate, the MSD at a lag and the
-    /// first zero of Corr[Q] (particle knobs; for contact-driven runs, which do not converge
+    /// first zero of `Corr[Q]` (particle knobs; for contact-driven runs, which do not converge
     /// pathwise).
     #[arg(long, value_name = "FROM")]
     pub statistics_from: Option<f64>,

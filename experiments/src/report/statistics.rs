@@ -1,6 +1,6 @@
 //! The statistics a particle run's figures are read from, over a time window: the
 //! time-averaged velocity norm, the rate at which orientations decorrelate, the mean squared
-//! displacement at a fixed lag and the first zero of the time-averaged Corr[Q]. Contact-driven
+//! displacement at a fixed lag and the first zero of the time-averaged `Corr[Q]`. Contact-driven
 //! runs (nu = 5) do not converge pathwise in any setting (the `dt` study of the `concentrated`
 //! scene), so settings are compared on these, each with an uncertainty from the spread between
 //! the window's two halves.
@@ -51,7 +51,7 @@ pub struct RunStatistics {
     pub decorrelation_rate: Estimate,
     /// `<|x(t0 + lag) - x(t0)|^2>` averaged over origins (l^2).
     pub msd: Estimate,
-    /// First zeros of the time-averaged Corr[c], Corr[n] and Corr[Q] (l), in that order.
+    /// First zeros of the time-averaged `Corr[c]`, `Corr[n]` and `Corr[Q]` (l), in that order.
     pub corr_zeros: [Estimate; 3],
     /// Snapshots in the window.
     pub snapshots: usize,
@@ -206,7 +206,7 @@ fn msd_at(snaps: &[&ParticleSnapshot], lag: f64) -> f64 {
     .unwrap_or(f64::NAN)
 }
 
-/// The first zeros (l) of Corr[c], Corr[n] and Corr[Q] averaged over `snaps`, on `modes`
+/// The first zeros (l) of `Corr[c]`, `Corr[n]` and `Corr[Q]` averaged over `snaps`, on `modes`
 /// modes per axis (NaN where one does not cross zero, or without snapshots).
 fn corr_zeros(snaps: &[&ParticleSnapshot], modes: usize) -> anyhow::Result<[f64; 3]> {
     let opts = CorrelationOptions {

@@ -2,9 +2,10 @@
 //! one row per particle run with snapshots, over the later half of the run (the paper averages
 //! its concentrated runs over t = 100-200/beta): the time-averaged velocity norm with its
 //! standard error, the orientation decorrelation rate, the MSD at a stated lag and the first
-//! zeros of Corr[c], Corr[n] and Corr[Q] in l and in L ([`RunStatistics`]); and, with two or
-//! more concentrated boxes of different sizes (nu > 1), the time-averaged norm against L/l on log-log axes with
-//! its fitted power law and the line l/L the paper finds (`norm_scaling.{png,svg}`).
+//! zeros of `Corr[c]`, `Corr[n]` and `Corr[Q]` in l and in L ([`RunStatistics`]); and, with
+//! concentrated boxes (nu > 1) of two or more sizes, the time-averaged norm against L/l on
+//! log-log axes with its fitted power law and the line l/L the paper finds
+//! (`norm_scaling.{png,svg}`).
 
 use crate::io::write_atomic;
 use crate::report::opened_run::OpenedRun;

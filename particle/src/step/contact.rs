@@ -17,11 +17,11 @@
 //! complementarity residual `max_alpha |min(lambda, A lambda + q)|` (a length) is below the
 //! tolerance. BBPGD is fast on most problems but stalls on some dense ones (nu = 5: its
 //! residual creeping from 6e-6 to 5e-6 over 1 500 iterations): when its best residual has not
-//! halved in [`ContactParams::stall_iterations`] iterations, the solve goes on from where BBPGD stopped with
-//! Nesterov's accelerated projected gradient (APGD: a fixed step `1/L` from a power-iteration
-//! estimate of `A`'s largest eigenvalue, restarted where the momentum points uphill, as
-//! O'Donoghue and Candes do), whose convergence does not depend on the spectrum's spread the
-//! way BB's does. Products with `D` go through a per-rod list of constraints in a fixed order and
+//! halved in [`ContactParams::stall_iterations`] iterations, the solve goes on from where
+//! BBPGD stopped with Nesterov's accelerated projected gradient (APGD: a fixed step `1/L` from
+//! a power-iteration estimate of `A`'s largest eigenvalue, restarted where the momentum points
+//! uphill, as O'Donoghue and Candes do), whose convergence does not depend on the spectrum's
+//! spread the way BB's does. Products with `D` go through a per-rod list of constraints in a fixed order and
 //! every reduction is summed in fixed chunks, so results are bit-identical for any thread count.
 
 use crate::hydro::mobility::Mobility;
