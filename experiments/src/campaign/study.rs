@@ -17,7 +17,7 @@ use crate::campaign::scene::Scene;
 use crate::io::rundir::TimeSeries;
 use crate::io::write_atomic;
 use crate::report::plot::{Series, log_chart};
-use crate::report::statistics::{Estimate, RunStatistics, StatisticsWindow};
+use crate::report::statistics::{Estimate, MIN_SNAPSHOTS, RunStatistics, StatisticsWindow};
 use crate::run::meanfield::{self, MeanFieldRunConfig};
 use crate::run::particle::{self, ParticleRunConfig};
 use anyhow::{Context, bail};
@@ -372,10 +372,18 @@ fn run_setting(
     let seconds = t0.elapsed().as_secs_f64();
     // The statistics read the snapshots after the timing.
     let outcome = outcome.and_then(|o| match window {
-        Some(w) => Ok(Outcome {
-            statistics: Some(RunStatistics::of(&dir, &w)?),
-            ..o
-        }),
+        Some(w) => match RunStatistics::of(&dir, &w)? {
+            Some(s) => Ok(Outcome {
+                statistics: Some(s),
+                ..o
+            }),
+            None => bail!(
+                "{}: fewer than {MIN_SNAPSHOTS} snapshots in t = {}-{}; the statistics need more",
+                dir.display(),
+                w.t0,
+                w.t1
+            ),
+        },
         None => Ok(o),
     });
     event(&format!(

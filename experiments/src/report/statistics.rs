@@ -7,7 +7,7 @@
 
 use crate::io::rundir::{RunDir, TimeSeries};
 use crate::io::snapshot::{ParticleSnapshot, Snapshot, read_snapshot};
-use anyhow::{Context, bail};
+use anyhow::Context;
 use motile_analysis::correlation::{
     CorrelationOptions, OrderParameter, RadialCorrelation, particle_coefficients,
 };
@@ -16,6 +16,9 @@ use motile_analysis::stats::{
     window_average,
 };
 use std::path::Path;
+
+/// The fewest snapshots in a window that the statistics are taken from.
+pub const MIN_SNAPSHOTS: usize = 4;
 
 /// Where the statistics are taken: the window `[t0, t1]` (1/beta), the lags of the
 /// orientation fit `[fit_from, fit_to]` and the MSD's lag (1/beta).
@@ -58,19 +61,14 @@ pub struct RunStatistics {
 }
 
 impl RunStatistics {
-    /// The statistics of the particle run in `dir` over `window`.
-    pub fn of(dir: &Path, window: &StatisticsWindow) -> anyhow::Result<Self> {
+    /// The statistics of the particle run in `dir` over `window`; `None` where the window
+    /// holds fewer than [`MIN_SNAPSHOTS`] snapshots.
+    pub fn of(dir: &Path, window: &StatisticsWindow) -> anyhow::Result<Option<Self>> {
         let run = RunDir::open(dir)?;
         let ts = TimeSeries::read(&dir.join("timeseries.csv"))?;
         let snaps = window_snapshots(&run, window)?;
-        if snaps.len() < 4 {
-            bail!(
-                "{}: {} snapshots in t = {}-{}; the statistics need at least 4",
-                dir.display(),
-                snaps.len(),
-                window.t0,
-                window.t1
-            );
+        if snaps.len() < MIN_SNAPSHOTS {
+            return Ok(None);
         }
         let mid = 0.5 * (window.t0 + window.t1);
         let halves = |f: &dyn Fn(f64, f64) -> f64| {
@@ -101,7 +99,7 @@ impl RunStatistics {
             value: all[k],
             spread: 0.5 * (a[k] - b[k]).abs(),
         });
-        Ok(Self {
+        Ok(Some(Self {
             norm: Estimate {
                 value: average.mean,
                 spread: average.std_error,
@@ -110,7 +108,7 @@ impl RunStatistics {
             msd: halves(&|lo, hi| msd_at(&pick(lo, hi), window.msd_lag)),
             corr_zeros,
             snapshots: snaps.len(),
-        })
+        }))
     }
 }
 

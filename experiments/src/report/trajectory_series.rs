@@ -10,7 +10,7 @@
 use crate::io::write_atomic;
 use crate::report::opened_run::OpenedRun;
 use crate::report::plot::{Series, log_chart};
-use crate::report::statistics::{Estimate, RunStatistics, StatisticsWindow};
+use crate::report::statistics::{Estimate, MIN_SNAPSHOTS, RunStatistics, StatisticsWindow};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -44,8 +44,8 @@ fn later_half(t_end: f64) -> StatisticsWindow {
     }
 }
 
-/// `particle_statistics.{csv,md}` of the particle runs among `opened` that have snapshots
-/// (none: nothing written), and `norm_scaling.{png,svg}` where concentrated ones have two or
+/// `particle_statistics.{csv,md}` of the particle runs among `opened` with at least
+/// [`MIN_SNAPSHOTS`] snapshots in their later half (none: nothing written), and `norm_scaling.{png,svg}` where concentrated ones have two or
 /// more box sizes.
 pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> anyhow::Result<()> {
     let mut rows = Vec::new();
@@ -53,11 +53,15 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
         let Some((config, _)) = run.particle() else {
             continue;
         };
-        if run.snapshot_paths.len() < 4 {
+        if run.snapshot_paths.len() < MIN_SNAPSHOTS {
             continue;
         }
         let t_end = run.column("t [1/beta]")?.last().copied().unwrap_or(0.0);
         let window = later_half(t_end);
+        // A run with too few snapshots in its later half has no row.
+        let Some(stats) = RunStatistics::of(run.path(), &window)? else {
+            continue;
+        };
         rows.push(Row {
             run: run.path().file_name().map_or_else(
                 || run.path().display().to_string(),
@@ -68,7 +72,7 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
             rods: config.rod_count(),
             level: config.hydrodynamics.to_string(),
             window,
-            stats: RunStatistics::of(run.path(), &window)?,
+            stats,
         });
     }
     if rows.is_empty() {
