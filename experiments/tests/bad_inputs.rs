@@ -26,6 +26,7 @@ fn write_fixtures(dir: &Path) {
         forces: None,
         kinematics: None,
     };
+    snap.write(&dir.join("box10.h5")).unwrap();
     let path = dir.join("truncated.h5");
     snap.write(&path).unwrap();
     let bytes = std::fs::read(&path).unwrap();
@@ -87,6 +88,12 @@ fn every_bad_input_in_the_table_gets_its_message() {
                     "--out".into(),
                     format!("out_{num}"),
                 ]
+            }
+            "particle dry run" | "meanfield dry run" => {
+                let file = format!("case_{num}.toml");
+                std::fs::write(dir.path().join(&file), input).unwrap();
+                let model = kind.split(' ').next().unwrap();
+                vec![model.into(), "run".into(), file, "--dry-run".into()]
             }
             "command line" => input.split_whitespace().map(String::from).collect(),
             other => panic!("row {num}: unknown kind '{other}'"),

@@ -1,6 +1,7 @@
 //! Cross-crate validation of motile: the tests in `tests/` check the models against each other
 //! and against references. This library holds helpers they share.
 
+use std::path::Path;
 use std::process::Command;
 
 /// Whether `python3` with h5py and numpy is available. When `MOTILE_REQUIRE_H5PY=1` (set by
@@ -32,4 +33,19 @@ pub fn run_python(script: &str, args: &[&str]) -> String {
     );
     assert!(out.status.success(), "python failed:\n{text}");
     text
+}
+
+/// Copy the directory `from` to `to`, recursively (a committed run directory into a test's
+/// temporary one).
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let dest = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &dest);
+        } else {
+            std::fs::copy(&p, &dest).unwrap();
+        }
+    }
 }

@@ -4,6 +4,7 @@
 pub mod demo;
 pub mod estimate;
 pub mod fidelity;
+pub mod mutation;
 pub mod onset;
 pub mod run_config;
 pub mod scene;

@@ -49,13 +49,15 @@ pub fn device_help() -> String {
 }
 
 /// The config of a run command: parsed from `path` (or the defaults), file names in it made
-/// relative to the config file's folder (`resolve`), printed and `None` on a dry run.
+/// relative to the config file's folder (`resolve`), checked as the run checks it before its
+/// first step (`check`: ranges, memory, the files it reads), printed and `None` on a dry run.
 fn resolve_config<C: Default + serde::Serialize>(
     path: &Option<PathBuf>,
     dry_run: bool,
     parse: impl Fn(&str, &Path) -> anyhow::Result<C>,
     resolve: impl Fn(&mut C, &Path),
     overrides: impl Fn(&mut C),
+    check: impl Fn(&C) -> anyhow::Result<()>,
 ) -> anyhow::Result<Option<C>> {
     let mut cfg = match path {
         Some(p) => {
@@ -68,6 +70,7 @@ fn resolve_config<C: Default + serde::Serialize>(
         None => C::default(),
     };
     overrides(&mut cfg);
+    check(&cfg)?;
     if dry_run {
         print!("{}", toml::to_string_pretty(&cfg)?);
         return Ok(None);
@@ -88,13 +91,16 @@ pub fn particle(a: RunArgs) -> anyhow::Result<()> {
                 c.device = d;
             }
         },
+        // The override is checked with the rest (the GPU step needs a box of at least 3
+        // contact reaches).
+        |c| {
+            c.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
+            crate::run::particle::preflight(c)
+        },
     )?
     else {
         return Ok(());
     };
-    // The override is checked with the rest (the GPU step needs a box of at least 3 contact
-    // reaches).
-    cfg.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
     let out = a.out.context("--out DIR is required to run")?;
     let s = run_particle(&cfg, &out, progress())?;
     println!(
@@ -121,6 +127,7 @@ pub fn meanfield(a: RunArgs) -> anyhow::Result<()> {
                 c.device = d;
             }
         },
+        crate::run::meanfield::preflight,
     )?
     else {
         return Ok(());

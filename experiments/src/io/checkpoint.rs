@@ -223,6 +223,7 @@ impl<'a> H5Reader<'a> {
             .root()
             .attrs()
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        crate::io::format::check_hdf5(&attrs, path)?;
         Ok(Self { path, file, attrs })
     }
 

@@ -1,9 +1,11 @@
 //! Files: run directories ([`rundir`]), verified checkpoints ([`checkpoint`]), HDF5 snapshots
-//! ([`snapshot`]), VTK for ParaView ([`vtk`]), and atomic output (here): every file is written
+//! ([`snapshot`]), VTK for ParaView ([`vtk`]), the formats' version ([`format`]), and atomic
+//! output (here): every file is written
 //! to a temporary sibling, flushed to disk, and renamed over the target, so a killed run leaves
 //! either the old file or the new one, never a truncated one.
 
 pub mod checkpoint;
+pub mod format;
 pub mod rundir;
 pub mod snapshot;
 pub mod vtk;
@@ -11,6 +13,7 @@ pub mod vtk;
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Errors of run-directory input and output. Each names the file.
 #[derive(Debug, thiserror::Error)]
@@ -57,8 +60,39 @@ pub(crate) fn fs_err(path: &Path) -> impl FnOnce(std::io::Error) -> IoError + '_
     }
 }
 
+/// Bytes [`write_atomic`] may still write before it fails as a full disk would
+/// (`u64::MAX`: no limit); set by [`fail_writes_after`].
+static WRITE_BUDGET: AtomicU64 = AtomicU64::new(u64::MAX);
+
+/// Fault injection for the fault tests: from now on, [`write_atomic`] in this process fails
+/// as a full disk would (`StorageFull`, after writing part of the file) once `bytes` more
+/// bytes have been written; `None` lifts the limit. Process-wide: a test that sets it runs
+/// alone in its test binary.
+pub fn fail_writes_after(bytes: Option<u64>) {
+    WRITE_BUDGET.store(bytes.unwrap_or(u64::MAX), Ordering::SeqCst);
+}
+
+/// Write `bytes` to the open temporary `f`, within the injected budget.
+fn write_within_budget(f: &mut fs::File, bytes: &[u8]) -> std::io::Result<()> {
+    let budget = WRITE_BUDGET.load(Ordering::SeqCst);
+    if budget == u64::MAX {
+        return f.write_all(bytes);
+    }
+    let allowed = budget.min(bytes.len() as u64);
+    WRITE_BUDGET.store(budget - allowed, Ordering::SeqCst);
+    f.write_all(&bytes[..allowed as usize])?;
+    if allowed < bytes.len() as u64 {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::StorageFull,
+            "No space left on device (injected)",
+        ));
+    }
+    Ok(())
+}
+
 /// Write `bytes` to `path` atomically (temporary file in the same directory, fsync, rename,
-/// fsync of the directory).
+/// fsync of the directory). A write that fails (a full disk) removes its temporary and
+/// leaves the file at `path` as it was; the error names `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
     let dir = path
         .parent()
@@ -70,10 +104,19 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    {
-        let mut f = fs::File::create(&tmp).map_err(fs_err(&tmp))?;
-        f.write_all(bytes).map_err(fs_err(&tmp))?;
-        f.sync_all().map_err(fs_err(&tmp))?;
+    let written = fs::File::create(&tmp).and_then(|mut f| {
+        write_within_budget(&mut f, bytes)?;
+        f.sync_all()
+    });
+    if let Err(source) = written {
+        let _ = fs::remove_file(&tmp);
+        return Err(IoError::Fs {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(
+                source.kind(),
+                format!("not written ({source}); the file under this name, if any, is unchanged"),
+            ),
+        });
     }
     fs::rename(&tmp, path).map_err(fs_err(path))?;
     // Make the rename itself durable; not all filesystems allow opening a directory.

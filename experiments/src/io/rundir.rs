@@ -28,6 +28,14 @@ pub struct RunHeader {
     pub model: String,
     /// Random seed.
     pub seed: u64,
+    /// The run directory's format version ([`crate::io::format`]); absent (read as 1) in
+    /// runs written before formats were versioned.
+    #[serde(default = "first_format")]
+    pub format_version: u64,
+}
+
+fn first_format() -> u64 {
+    1
 }
 
 #[derive(Serialize)]
@@ -56,6 +64,7 @@ impl RunDir {
             version: env!("CARGO_PKG_VERSION").into(),
             model: model.into(),
             seed,
+            format_version: crate::io::format::FORMAT_VERSION,
         };
         let text = toml::to_string_pretty(&ConfigFile {
             motile: &header,
@@ -71,7 +80,8 @@ impl RunDir {
         })
     }
 
-    /// Open an existing run directory.
+    /// Open an existing run directory of a format version this motile reads (a header that
+    /// does not parse is left to the config's reader, which names the line).
     pub fn open(root: &Path) -> Result<Self, IoError> {
         if !root.join("config.toml").is_file() {
             return Err(IoError::Content {
@@ -79,9 +89,17 @@ impl RunDir {
                 message: "not a motile run directory (no config.toml)".into(),
             });
         }
-        Ok(Self {
+        let dir = Self {
             root: root.to_path_buf(),
-        })
+        };
+        if let Ok(h) = dir.header() {
+            crate::io::format::check(
+                Some(h.format_version),
+                &h.version,
+                &root.join("config.toml"),
+            )?;
+        }
+        Ok(dir)
     }
 
     /// Delete temporary files a killed writer left behind (`.NAME.PID.tmp`, never a final
@@ -415,6 +433,21 @@ impl TimeSeries {
                         i + 2,
                         row.len(),
                         columns.len()
+                    ),
+                });
+            }
+            // Times are finite and increase down the file: rows out of order or repeated are
+            // a damaged or hand-edited file, which a comparison would draw as a wrong curve.
+            let (t, before) = (
+                row[0],
+                rows.last().map_or(f64::NEG_INFINITY, |r: &Vec<f64>| r[0]),
+            );
+            if !(t.is_finite() && t > before) {
+                return Err(IoError::Content {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "line {}: time {t} does not follow the previous row's {before}: the times must be finite and increasing",
+                        i + 2
                     ),
                 });
             }

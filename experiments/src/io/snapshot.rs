@@ -3,8 +3,9 @@
 //! Layout (all lengths in rod lengths `l` for particle runs and box lengths `L` for mean-field
 //! runs, times in the model's own unit; see docs/run-directory.md):
 //!
-//! Particle snapshot, root attributes `kind = "particle"`, `time`, `step`, `box_length`,
-//! `motile_version`; datasets `positions (N, 3)`, `orientations (N, 3)` (unit vectors),
+//! Every snapshot carries `format_version` and `motile_version` ([`crate::io::format`]).
+//!
+//! Particle snapshot, root attributes `kind = "particle"`, `time`, `step`, `box_length`; datasets `positions (N, 3)`, `orientations (N, 3)` (unit vectors),
 //! `image_counts (N, 3)` (int64, periodic images crossed: unwrapped = position + L * count),
 //! and optionally `force_points (P, 3)` with `point_forces (P, 3)`: quadrature points on the rods
 //! and the weighted force densities `f(s_j) w_j` there (what the velocity spectrum needs), and
@@ -14,7 +15,7 @@
 //! `grid`; datasets `Q (6, n, n, n)` with components `xx, xy, xz, yy, yz, zz` and
 //! `u (3, n, n, n)`, indexed `[component, z, y, x]` (x fastest).
 
-use crate::io::{IoError, write_atomic};
+use crate::io::{IoError, format, write_atomic};
 use hdf5_pure::{AttrValue, File, FileBuilder};
 use std::collections::HashMap;
 use std::path::Path;
@@ -100,10 +101,6 @@ fn flat3<T: Copy>(v: &[[T; 3]]) -> Vec<T> {
     v.iter().flat_map(|a| a.iter().copied()).collect()
 }
 
-fn version() -> AttrValue {
-    AttrValue::VarLenString(env!("CARGO_PKG_VERSION").into())
-}
-
 impl ParticleSnapshot {
     /// Write atomically to `path`.
     pub fn write(&self, path: &Path) -> Result<(), IoError> {
@@ -113,7 +110,7 @@ impl ParticleSnapshot {
         b.set_attr("time", AttrValue::F64(self.time));
         b.set_attr("step", AttrValue::U64(self.step));
         b.set_attr("box_length", AttrValue::F64(self.box_length));
-        b.set_attr("motile_version", version());
+        format::stamp(&mut b);
         b.create_dataset("positions")
             .with_f64_data(&flat3(&self.positions))
             .with_shape(&[n, 3]);
@@ -162,7 +159,7 @@ impl FieldSnapshot {
         b.set_attr("step", AttrValue::U64(self.step));
         b.set_attr("box_length", AttrValue::F64(self.box_length));
         b.set_attr("grid", AttrValue::U64(n));
-        b.set_attr("motile_version", version());
+        format::stamp(&mut b);
         let q: Vec<f64> = self.q.iter().flatten().copied().collect();
         let u: Vec<f64> = self.u.iter().flatten().copied().collect();
         b.create_dataset("Q")
@@ -246,6 +243,7 @@ pub fn read_snapshot(path: &Path) -> Result<Snapshot, IoError> {
         return Err(h5err(path, "no such file"));
     }
     let (file, attrs, kind) = open_snapshot(path)?;
+    format::check_hdf5(&attrs, path)?;
     let header = read_header(&attrs, path)?;
     match kind.as_str() {
         "particle" => read_particle(&file, header, path).map(Snapshot::Particle),

@@ -141,11 +141,34 @@ impl OpenedRun {
         self.series.columns.iter().any(|c| c.starts_with(prefix))
     }
 
-    /// Read every snapshot, in order.
+    /// Read every snapshot, in order; each must be of the run's model and box (a particle
+    /// run's box side, a mean-field run's grid), or the run directory holds another run's files.
     pub fn snapshots(&self) -> Result<Vec<Snapshot>, IoError> {
         self.snapshot_paths
             .iter()
-            .map(|p| read_snapshot(p))
+            .map(|p| {
+                let s = read_snapshot(p)?;
+                let mismatch = match (&s, &self.model) {
+                    (Snapshot::Particle(s), OpenedModel::Particle { config, .. }) => {
+                        (s.box_length != config.box_length).then(|| {
+                            format!(
+                                "box_length {} (config.toml: {})",
+                                s.box_length, config.box_length
+                            )
+                        })
+                    }
+                    (Snapshot::Field(s), OpenedModel::MeanField(config)) => (s.grid != config.grid)
+                        .then(|| format!("grid {} (config.toml: {})", s.grid, config.grid)),
+                    _ => Some("a snapshot of the other model".into()),
+                };
+                match mismatch {
+                    Some(m) => Err(IoError::Content {
+                        path: p.clone(),
+                        message: format!("not a snapshot of this run: {m}"),
+                    }),
+                    None => Ok(s),
+                }
+            })
             .collect()
     }
 }

@@ -17,6 +17,7 @@
 
 pub mod failure;
 pub mod meanfield;
+pub mod memory;
 pub mod particle;
 pub mod ranks;
 
@@ -54,7 +55,7 @@ impl std::fmt::Display for Device {
 use crate::io::checkpoint::{self, LAST_GOOD};
 use crate::io::rundir::{RunDir, TimeSeries, read_run_config};
 use crate::run::failure::{FailureKind, RunFailure};
-use anyhow::bail;
+use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -209,7 +210,7 @@ pub fn start<M: RunModel>(
         run.log(&line)?;
     }
     let ts = TimeSeries::new(M::columns());
-    drive(model, &run, ts, progress, true)
+    drive(model, &run, ts, progress, None)
 }
 
 /// Continue the run in `out` from its newest valid checkpoint (or its last good state).
@@ -222,7 +223,18 @@ pub fn resume<M: RunModel>(out: &Path, progress: bool) -> anyhow::Result<(M, Loo
         run.log(&line)?;
     }
     let path = out.join("timeseries.csv");
-    let mut ts = TimeSeries::read(&path).unwrap_or_else(|_| TimeSeries::new(M::columns()));
+    // A run killed before its first row has no time series; a damaged one is refused, not
+    // silently restarted.
+    let mut ts = if path.exists() {
+        TimeSeries::read(&path).with_context(|| {
+            format!(
+                "resuming {}: move the damaged time series aside to restart it at the checkpoint",
+                out.display()
+            )
+        })?
+    } else {
+        TimeSeries::new(M::columns())
+    };
     if ts.columns != M::columns() {
         bail!(
             "{}: its columns ({}) are not the ones this version writes ({}); move it aside to resume (the time series then restarts at the checkpoint)",
@@ -238,7 +250,7 @@ pub fn resume<M: RunModel>(out: &Path, progress: bool) -> anyhow::Result<(M, Loo
         model.steps(),
         model.time()
     ))?;
-    drive(model, &run, ts, progress, false)
+    drive(model, &run, ts, progress, Some(&ckpt))
 }
 
 /// What a progress observer is told after each step: `(position, length, model time)` in the
@@ -274,6 +286,50 @@ fn write_regular<M: RunModel>(model: &M, run: &RunDir) -> anyhow::Result<PathBuf
     checkpoint::prune(&dir, model.checkpoint_policy().0);
     checkpoint::remove(&dir.join(LAST_GOOD));
     Ok(path)
+}
+
+/// An output that could not be written (a full disk) stops the run: say from where it
+/// resumes. Atomic writes leave every file under its final name whole.
+fn write_failed(run: &RunDir, e: anyhow::Error) -> anyhow::Error {
+    let dir = run.path().join("checkpoints");
+    let newest = checkpoint::newest_first(&dir)
+        .into_iter()
+        .find(|p| checkpoint::verify(p).is_ok());
+    let next = match newest {
+        Some(p) => format!(
+            "its newest intact checkpoint is {}: `motile resume {}` continues from it once the disk has room",
+            p.display(),
+            run.path().display()
+        ),
+        None => "it has no checkpoint yet: start it again once the disk has room".into(),
+    };
+    let _ = run.log(&format!("stopped: an output could not be written: {e:#}"));
+    e.context(format!(
+        "the run stopped because an output could not be written; {next}"
+    ))
+}
+
+/// The error of a step that failed: an output not written ([`write_failed`]), or the step
+/// itself ([`failed`]). `resumed_from` is the checkpoint this invocation resumed from when
+/// the step was its first: a regular checkpoint that cannot take one step may be a damaged
+/// file (the state before a failed step, last_good.h5, is expected to fail again).
+fn step_failed<M: RunModel>(
+    model: &M,
+    run: &RunDir,
+    f: StepFailure,
+    resumed_from: Option<&Path>,
+) -> anyhow::Error {
+    if let StepFailure::Io(e) = f {
+        return write_failed(run, e);
+    }
+    let e = failed(model, run, f);
+    match resumed_from.filter(|c| c.file_name().is_some_and(|n| n != checkpoint::LAST_GOOD)) {
+        Some(ckpt) => e.context(format!(
+            "the first step after resuming from {} failed (the checkpoint may be damaged or written by another version of motile)",
+            ckpt.display()
+        )),
+        None => e,
+    }
 }
 
 /// The error of a failed step: the state before it saved, the failure logged.
@@ -316,8 +372,9 @@ fn drive<M: RunModel>(
     run: &RunDir,
     timeseries: TimeSeries,
     progress: bool,
-    fresh: bool,
+    resumed_from: Option<&Path>,
 ) -> anyhow::Result<(M, LoopSummary)> {
+    let fresh = resumed_from.is_none();
     let (template, len, pos) = model.progress();
     let bar = if progress {
         ProgressBar::new(len)
@@ -331,8 +388,8 @@ fn drive<M: RunModel>(
         timeseries,
         bar,
     };
-    if fresh && model.begin(&mut io)? {
-        write_regular(&model, run)?;
+    if fresh && model.begin(&mut io).map_err(|e| write_failed(run, e))? {
+        write_regular(&model, run).map_err(|e| write_failed(run, e))?;
     }
     let start_steps = model.steps();
     let t0 = Instant::now();
@@ -343,8 +400,8 @@ fn drive<M: RunModel>(
     while !model.finished() {
         if model.checkpoint_due_before_step() {
             let started = Instant::now();
-            model.settle(&mut io)?;
-            write_regular(&model, run)?;
+            model.settle(&mut io).map_err(|e| write_failed(run, e))?;
+            write_regular(&model, run).map_err(|e| write_failed(run, e))?;
             checkpoint_seconds += started.elapsed().as_secs_f64();
             last_ckpt = Instant::now();
         }
@@ -356,7 +413,8 @@ fn drive<M: RunModel>(
                     "the outputs of the last good steps were not written: {e:#}"
                 ))?;
             }
-            return Err(failed(&model, run, f));
+            let first = model.steps() == start_steps;
+            return Err(step_failed(&model, run, f, resumed_from.filter(|_| first)));
         }
         let stop = checkpoint::stop_requested();
         if model.checkpoint_due_after_step()
@@ -364,8 +422,8 @@ fn drive<M: RunModel>(
             || last_ckpt.elapsed().as_secs_f64() >= wall
         {
             let started = Instant::now();
-            model.settle(&mut io)?;
-            let path = write_regular(&model, run)?;
+            model.settle(&mut io).map_err(|e| write_failed(run, e))?;
+            let path = write_regular(&model, run).map_err(|e| write_failed(run, e))?;
             checkpoint_seconds += started.elapsed().as_secs_f64();
             last_ckpt = Instant::now();
             if let Some(signal) = stop {
@@ -391,15 +449,16 @@ fn drive<M: RunModel>(
         io.bar.set_position(model.progress().2);
         report_progress(model.progress().2, len, model.time());
     }
-    model.settle(&mut io)?;
+    model.settle(&mut io).map_err(|e| write_failed(run, e))?;
     match model.finish(&mut io, model.steps() > start_steps) {
         Ok(true) => {
-            write_regular(&model, run)?;
+            write_regular(&model, run).map_err(|e| write_failed(run, e))?;
         }
         Ok(false) => {}
         Err(f) => {
             io.bar.abandon();
-            return Err(failed(&model, run, f));
+            let first = model.steps() == start_steps;
+            return Err(step_failed(&model, run, f, resumed_from.filter(|_| first)));
         }
     }
     io.bar.finish();

@@ -12,6 +12,43 @@ use crate::solver::params::{SYM, sym_index};
 /// contraction's parallel loop: fixed, so results do not depend on the thread count.
 const BLOCK: usize = 512;
 
+/// How far a Q field (six components, grid values) is from being an orientation tensor: the
+/// smallest trace (the concentration, positive in any state) and the smallest eigenvalue of
+/// `Q / tr Q` over the grid (at least 0 for a distribution of directions; a run stops below
+/// its `realizability_limit`). NaN values give NaN.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Realizability {
+    /// Smallest `tr Q`.
+    pub min_trace: f64,
+    /// Smallest eigenvalue of `Q / tr Q`.
+    pub min_eigenvalue: f64,
+}
+
+impl Realizability {
+    /// Of the grid values `q`.
+    pub fn of(q: &[Vec<f64>; 6]) -> Self {
+        let mut out = Self {
+            min_trace: f64::INFINITY,
+            min_eigenvalue: f64::INFINITY,
+        };
+        for p in 0..q[0].len() {
+            let a: Sym3 = std::array::from_fn(|i| std::array::from_fn(|j| q[sym_index(i, j)][p]));
+            let c = a[0][0] + a[1][1] + a[2][2];
+            if !(c > 0.0 && a.iter().flatten().all(|v| v.is_finite())) {
+                let bad = if c.is_nan() { f64::NAN } else { c.min(0.0) };
+                return Self {
+                    min_trace: bad,
+                    min_eigenvalue: f64::NAN,
+                };
+            }
+            let (w, _) = sym3_eigen_sorted(&a.map(|row| row.map(|v| v / c)));
+            out.min_trace = out.min_trace.min(c);
+            out.min_eigenvalue = out.min_eigenvalue.min(w[2]);
+        }
+        out
+    }
+}
+
 /// The closure at every grid point, for one Q: the lab-frame fourth moment `c S_ijkl`
 /// (`c = tr Q`) as a symmetric 6x6 matrix over the stored components (21 numbers per point),
 /// so each contraction with a new `E` is one small matrix-vector product.

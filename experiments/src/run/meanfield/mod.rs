@@ -21,8 +21,11 @@ use crate::io::rundir::{RunDir, TimeSeries};
 use crate::io::snapshot::FieldSnapshot;
 use crate::run;
 use crate::run::Device;
+use crate::run::memory::HostMemoryNeed;
+use anyhow::{Context, bail};
 use motile_meanfield::closure::BinghamClosure;
 use motile_meanfield::control::StepControl;
+use motile_meanfield::solver::closure_field::Realizability;
 use motile_meanfield::solver::grid::SpectralGrid;
 use motile_meanfield::solver::params::{MeanFieldError, MeanFieldParams, SYM};
 use motile_meanfield::solver::rhs::{MeanFieldRhs, RhsEval};
@@ -116,6 +119,26 @@ pub fn run_meanfield(
 ) -> anyhow::Result<MeanFieldSummary> {
     let (model, s) = run::start::<MeanFieldModel>(cfg, out, progress)?;
     model.summary(s)
+}
+
+/// What a run checks before it allocates or writes anything, and all `--dry-run` checks
+/// beyond the config's ranges: the memory its grid needs on this machine (on the CPU), and
+/// the snapshot it starts from (read and validated).
+pub fn preflight(cfg: &MeanFieldRunConfig) -> anyhow::Result<()> {
+    check_memory(cfg)?;
+    if cfg.initial == "snapshot" {
+        initial_state(cfg).with_context(|| format!("`snapshot` = {:?}", cfg.snapshot))?;
+    }
+    Ok(())
+}
+
+fn check_memory(cfg: &MeanFieldRunConfig) -> anyhow::Result<()> {
+    if cfg.device == Device::Cpu {
+        HostMemoryNeed::meanfield(cfg.grid)
+            .check(crate::run::memory::available())
+            .map_err(|e| anyhow::anyhow!("config: grid = {}: {e}", cfg.grid))?;
+    }
+    Ok(())
 }
 
 /// Continue a mean-field run from its newest checkpoint.
@@ -294,6 +317,7 @@ impl run::RunModel for MeanFieldModel {
     }
 
     fn new(cfg: &MeanFieldRunConfig) -> anyhow::Result<Self> {
+        check_memory(cfg)?;
         // The initial state (and any file it comes from) is checked before anything is written.
         let q0 = initial_state(cfg)?;
         let grid = SpectralGrid::new(cfg.grid);
@@ -322,7 +346,40 @@ impl run::RunModel for MeanFieldModel {
         cfg: &MeanFieldRunConfig,
         path: &Path,
     ) -> anyhow::Result<MeanFieldCheckpoint> {
-        read_checkpoint(path, cfg.grid)
+        let c = read_checkpoint(path, cfg.grid)?;
+        // The next output times lie within an interval (and a step) of the checkpoint's time.
+        let k = &c.clock;
+        for (name, next, interval) in [
+            ("next_diag", k.next_diag, cfg.diagnostic_interval),
+            ("next_snap", k.next_snap, cfg.snapshot_interval),
+            ("next_ckpt", k.next_ckpt, cfg.checkpoint_interval),
+        ] {
+            let reach = interval + cfg.dt_max + 1e-9 * c.t.max(1.0);
+            if !(next >= c.t - reach && next <= c.t.max(cfg.t_end) + reach) {
+                bail!(
+                    "{}: damaged or not written by motile: clock's {name} = {next} is not within an interval ({interval}) of the checkpoint's time {}",
+                    path.display(),
+                    c.t
+                );
+            }
+        }
+        let grid = SpectralGrid::new(cfg.grid);
+        let states = [Some(&c.q_hat), c.history.as_ref().map(|h| &h.q_hat)];
+        for (name, q_hat) in ["q_hat", "prev_q_hat"].iter().zip(states) {
+            let Some(q_hat) = q_hat else { continue };
+            let q: [Vec<f64>; 6] = std::array::from_fn(|k| grid.inverse(&q_hat[k]));
+            let r = Realizability::of(&q);
+            if !(r.min_trace > 0.0 && r.min_eigenvalue >= cfg.realizability_limit) {
+                bail!(
+                    "{}: damaged or not written by motile: dataset '{name}' is no orientation tensor field (smallest tr Q {:.3e}, must be positive; smallest eigenvalue of Q/tr Q {:.3e}, realizability_limit {})",
+                    path.display(),
+                    r.min_trace,
+                    r.min_eigenvalue,
+                    cfg.realizability_limit
+                );
+            }
+        }
+        Ok(c)
     }
 
     fn from_checkpoint(

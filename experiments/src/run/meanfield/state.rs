@@ -171,6 +171,7 @@ pub(super) fn write_checkpoint(
         AttrValue::VarLenString("meanfield_checkpoint".into()),
     );
     b.set_attr("time", AttrValue::F64(stepper.t));
+    crate::io::format::stamp(&mut b);
     b.set_attr("grid", AttrValue::U64(n as u64));
     b.set_attr(
         "spectral_layout",
@@ -234,20 +235,62 @@ pub(super) fn read_checkpoint(path: &Path, n: usize) -> anyhow::Result<MeanField
             path.display()
         );
     }
+    let damaged = |what: String| {
+        anyhow::anyhow!(
+            "{}: damaged or not written by motile: {what}",
+            path.display()
+        )
+    };
+    let finite = |name: &str, v: &[f64], len: usize| {
+        if v.len() != len {
+            return Err(damaged(format!(
+                "dataset '{name}' holds {} values, not {len}",
+                v.len()
+            )));
+        }
+        match v.iter().position(|x| !x.is_finite()) {
+            Some(i) => Err(damaged(format!("dataset '{name}' value {i} is {}", v[i]))),
+            None => Ok(()),
+        }
+    };
+    finite("q_hat", &q, 12 * n3)?;
+    finite("u_hat", &u, 6 * n3)?;
     let history = if f.has("prev_dt") {
+        let (prev_q, prev_nl) = (f.f64s("prev_q_hat")?, f.f64s("prev_nonlinear")?);
+        finite("prev_q_hat", &prev_q, 12 * n3)?;
+        finite("prev_nonlinear", &prev_nl, 12 * n3)?;
+        let dt = f.f64s("prev_dt")?;
+        if !(dt.len() == 1 && dt[0].is_finite() && dt[0] > 0.0) {
+            return Err(damaged(format!("prev_dt {dt:?}")));
+        }
         Some(History {
-            q_hat: complex_unflat::<6>(&f.f64s("prev_q_hat")?, n3),
-            nonlinear: complex_unflat::<6>(&f.f64s("prev_nonlinear")?, n3),
-            dt: f.f64s("prev_dt")?[0],
+            q_hat: complex_unflat::<6>(&prev_q, n3),
+            nonlinear: complex_unflat::<6>(&prev_nl, n3),
+            dt: dt[0],
         })
     } else {
         None
     };
+    let clock = f.f64s("clock")?;
+    finite("clock", &clock, CLOCK_FIELDS.len())?;
+    let whole = |v: f64| v >= 0.0 && v.fract() == 0.0 && v < 2f64.powi(53);
+    let sane = t.is_finite()
+        && t >= 0.0
+        && clock[0] > 0.0
+        && clock[1] >= 0.0
+        && whole(clock[5])
+        && whole(clock[6]);
+    if !sane {
+        return Err(damaged(format!(
+            "time {t}, clock {} = {clock:?} (steps must be positive, counters whole)",
+            CLOCK_FIELDS.join(", ")
+        )));
+    }
     Ok(MeanFieldCheckpoint {
         t,
         q_hat: complex_unflat::<6>(&q, n3),
         history,
         u_hat: complex_unflat::<3>(&u, n3),
-        clock: Clock::from_slice(&f.f64s("clock")?),
+        clock: Clock::from_slice(&clock),
     })
 }

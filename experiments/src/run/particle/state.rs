@@ -32,7 +32,15 @@ pub fn load_configuration(
         .is_some_and(|e| e == "h5")
     {
         match read_snapshot(path)? {
-            Snapshot::Particle(s) => (s.positions, s.orientations, s.box_length),
+            Snapshot::Particle(s) if (s.box_length - box_length).abs() <= 1e-9 * box_length => {
+                (s.positions, s.orientations, box_length)
+            }
+            Snapshot::Particle(s) => bail!(
+                "{}: a snapshot of a box of side {} l, the config's box_length is {box_length}: set box_length = {} to start from it",
+                path.display(),
+                s.box_length,
+                s.box_length
+            ),
             Snapshot::Field(_) => bail!(
                 "{}: a mean-field snapshot, not a particle configuration",
                 path.display()
@@ -99,7 +107,14 @@ pub fn load_configuration(
     let rods = RodSet {
         box_length: l,
         diameter,
-        q: p.iter().map(|p| quat_from_axis(*p)).collect(),
+        // Orientations are accepted within 1e-8 (HDF5) or 1e-6 (text) of unit length and
+        // normalised here, so that the rods' quaternions are unit to round-off.
+        q: p.iter()
+            .map(|p| {
+                let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                quat_from_axis(p.map(|c| c / n))
+            })
+            .collect(),
         image: vec![[0; 3]; x.len()],
         x: wrapped,
     };
@@ -181,6 +196,7 @@ fn write_checkpoint(
         AttrValue::VarLenString("particle_checkpoint".into()),
     );
     b.set_attr("step", AttrValue::U64(step));
+    crate::io::format::stamp(&mut b);
     b.set_attr("time", AttrValue::F64(time));
     b.set_attr("box_length", AttrValue::F64(rods.box_length));
     let flat = |v: &[[f64; 3]]| v.iter().flatten().copied().collect::<Vec<f64>>();
@@ -254,10 +270,11 @@ fn read_checkpoint(path: &Path, diameter: f64) -> anyhow::Result<ParticleCheckpo
             path.display()
         );
     }
+    let index = |v: i64| u32::try_from(v).unwrap_or(u32::MAX);
     let warm = pairs
         .chunks_exact(2)
         .zip(lambda)
-        .map(|(p, l)| ((p[0] as u32, p[1] as u32), l))
+        .map(|(p, l)| ((index(p[0]), index(p[1])), l))
         .collect();
     // Absent in checkpoints of runs without hydrodynamics written before it existed.
     let hydro = if f.has("gmres_warm_start") {
@@ -267,18 +284,88 @@ fn read_checkpoint(path: &Path, diameter: f64) -> anyhow::Result<ParticleCheckpo
     };
     // Absent in checkpoints written before the accuracy contract: the sum starts at level 0.
     let sum_state = if f.has("sum_state") {
-        f.i64s("sum_state")?.into_iter().map(|v| v as u32).collect()
+        f.i64s("sum_state")?
+            .into_iter()
+            .map(|v| u32::try_from(v).map_err(|_| damaged(path, format!("sum_state value {v}"))))
+            .collect::<anyhow::Result<_>>()?
     } else {
         Vec::new()
     };
-    Ok(ParticleCheckpoint {
+    let c = ParticleCheckpoint {
         rods,
         contact_warm_start: warm,
         gmres_warm_start: hydro,
         sum_state,
         step,
         time,
-    })
+    };
+    c.check_values(path)?;
+    Ok(c)
+}
+
+fn damaged(path: &Path, what: String) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{}: damaged or not written by motile: {what}",
+        path.display()
+    )
+}
+
+/// Largest image counter a checkpoint may hold: a rod that crossed the box 2^40 times.
+const MAX_IMAGE: i64 = 1 << 40;
+
+impl ParticleCheckpoint {
+    /// What every checkpoint motile writes satisfies: a positive box, finite centres within a
+    /// box length of it, unit quaternions (to 1e-10 in |q|^2), image counters below 2^40,
+    /// warm-start pairs of two different rods with finite, non-negative multipliers, a finite
+    /// GMRES warm start, a finite non-negative time. A file that breaks one is refused by name
+    /// before the run uses it.
+    fn check_values(&self, path: &Path) -> anyhow::Result<()> {
+        let (rods, l) = (&self.rods, self.rods.box_length);
+        if !(l.is_finite() && l > 0.0) {
+            return Err(damaged(path, format!("box_length {l}")));
+        }
+        if !(self.time.is_finite() && self.time >= 0.0) {
+            return Err(damaged(path, format!("time {}", self.time)));
+        }
+        if rods.is_empty() {
+            return Err(damaged(path, "no rods".into()));
+        }
+        for i in 0..rods.len() {
+            let (x, q) = (rods.x[i], rods.q[i]);
+            if !x.iter().all(|v| v.is_finite() && (-l..2.0 * l).contains(v)) {
+                return Err(damaged(path, format!("rod {i} at {x:?}, box [0, {l})^3")));
+            }
+            let norm2: f64 = q.iter().map(|v| v * v).sum();
+            let unit = (norm2 - 1.0).abs() <= 1e-10;
+            if !unit {
+                return Err(damaged(
+                    path,
+                    format!("rod {i}'s quaternion {q:?} is not a unit one"),
+                ));
+            }
+            if rods.image[i].iter().any(|v| v.abs() > MAX_IMAGE) {
+                return Err(damaged(
+                    path,
+                    format!("rod {i}'s image counters {:?}", rods.image[i]),
+                ));
+            }
+        }
+        let n = rods.len() as u32;
+        if let Some(((a, b), w)) = self
+            .contact_warm_start
+            .iter()
+            .find(|((a, b), w)| a >= &n || b >= &n || a == b || !(w.is_finite() && *w >= 0.0))
+        {
+            return Err(damaged(
+                path,
+                format!("warm-start pair ({a}, {b}) with multiplier {w} among {n} rods"),
+            ));
+        }
+        if let Some(v) = self.gmres_warm_start.iter().find(|v| !v.is_finite()) {
+            return Err(damaged(path, format!("gmres_warm_start holds {v}")));
+        }
+        Ok(())
+    }
 }
 
 /// The rods a run starts from: random (seeded), drawn from a perturbation, or read from
