@@ -329,7 +329,7 @@ class RunDirectory:
         return self.read_csv("timeseries.csv")
 
     def read_csv(self, file: str) -> TimeSeries:
-        """Another CSV file of the run, such as ``modes.csv``."""
+        """Another CSV file of the run, such as ``analysis/correlations.csv``."""
         return TimeSeries(*self._inner.read_csv(file))
 
     @property

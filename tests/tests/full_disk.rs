@@ -158,10 +158,10 @@ fn a_full_disk_stops_runs_and_comparisons_cleanly_and_resumable() {
         fail_writes_after(Some(cut));
         let r = compare(&runs, &out);
         fail_writes_after(None);
-        let msg = format!(
-            "{:#}",
-            r.err().expect("a comparison that fills the disk stops")
-        );
+        let Err(e) = r else {
+            panic!("compare, cut {cut}: a comparison that fills the disk stops");
+        };
+        let msg = format!("{e:#}");
         assert!(
             msg.contains("No space left on device"),
             "compare, cut {cut}: {msg}"

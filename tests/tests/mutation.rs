@@ -134,6 +134,26 @@ fn defects_found_by_earlier_campaigns_are_refused_by_name() {
             "gmres_warm_start",
         ),
         (
+            "a GMRES warm start of -1.6e306: the fast sum refined its grid without end (hung)",
+            Family::ParticleCheckpoint,
+            edited(
+                &seeds,
+                Family::ParticleCheckpoint,
+                set("gmres_warm_start", 12, -1.6e306),
+            ),
+            "its forces overflow it",
+        ),
+        (
+            "a GMRES warm start of 8.2e107: a rod moved 1e100 box lengths, wrapped one box per turn (hung)",
+            Family::ParticleCheckpoint,
+            edited(
+                &seeds,
+                Family::ParticleCheckpoint,
+                set("gmres_warm_start", 249, 8.2e107),
+            ),
+            "crosses the box in one step",
+        ),
+        (
             "Q's mean set negative: the fixed point failed without naming the file",
             Family::MeanFieldCheckpoint,
             edited(&seeds, Family::MeanFieldCheckpoint, set("q_hat", 0, -1e3)),

@@ -565,3 +565,30 @@ fn the_concentrated_harvest_files_its_rows_into_its_own_table() {
     }
     assert!(!gallery.join("paper_dilute_series.csv").exists());
 }
+
+/// Every TOML example in the docs parses as what it shows (a scene file with `[scene]`),
+/// so that none can go stale.
+#[test]
+fn the_docs_toml_examples_parse() {
+    let docs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs");
+    let mut checked = 0;
+    for e in std::fs::read_dir(&docs).unwrap() {
+        let path = e.unwrap().path();
+        if path.extension().is_none_or(|x| x != "md") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        for block in text.split("```toml\n").skip(1) {
+            let toml = block.split("```").next().unwrap();
+            assert!(
+                toml.contains("[scene]"),
+                "{}: a TOML example of an unknown kind:\n{toml}",
+                path.display()
+            );
+            parse_scene(toml, &path.display().to_string())
+                .unwrap_or_else(|e| panic!("{}: {e:#}\n{toml}", path.display()));
+            checked += 1;
+        }
+    }
+    assert!(checked >= 1, "no TOML example found in {}", docs.display());
+}

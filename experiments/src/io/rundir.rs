@@ -417,6 +417,9 @@ impl TimeSeries {
             .split(',')
             .map(|s| s.to_string())
             .collect();
+        let timed = columns
+            .first()
+            .is_some_and(|c| c == "t" || c.starts_with("t ["));
         let mut rows = Vec::new();
         for (i, line) in lines.enumerate() {
             let row: Result<Vec<f64>, _> =
@@ -436,13 +439,14 @@ impl TimeSeries {
                     ),
                 });
             }
-            // Times are finite and increase down the file: rows out of order or repeated are
-            // a damaged or hand-edited file, which a comparison would draw as a wrong curve.
+            // Times (a first column `t [unit]`) are finite and increase down the file: rows out
+            // of order or repeated are a damaged or hand-edited file, which a comparison would
+            // draw as a wrong curve.
             let (t, before) = (
                 row[0],
                 rows.last().map_or(f64::NEG_INFINITY, |r: &Vec<f64>| r[0]),
             );
-            if !(t.is_finite() && t > before) {
+            if timed && !(t.is_finite() && t > before) {
                 return Err(IoError::Content {
                     path: path.to_path_buf(),
                     message: format!(

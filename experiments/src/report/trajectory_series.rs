@@ -160,50 +160,74 @@ fn markdown(rows: &[Row]) -> String {
     s
 }
 
-/// A power law `y = a x^p` fitted by least squares in logs: the exponent with its standard
-/// error (from the residuals; NaN with two points) and the prefactor.
+/// A power law `y = a x^p` fitted by least squares in logs, each point weighted by its
+/// standard error where all have one: the exponent with its standard error and the prefactor.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PowerLaw {
     /// The exponent `p`.
     pub exponent: f64,
-    /// Its standard error.
+    /// Its standard error: the larger of what the points' standard errors give
+    /// (`1/sqrt(Sxx_w)`, so two points have one) and what the scatter about the line gives
+    /// (`sqrt(chi^2 / (n - 2) / Sxx_w)`, from three points); NaN where neither exists.
     pub std_error: f64,
     /// The prefactor `a`.
     pub prefactor: f64,
 }
 
+/// A point to fit: `y` at `x` with `y`'s standard error `sy` (0 where it has none).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measured {
+    /// Abscissa (positive).
+    pub x: f64,
+    /// Value (positive).
+    pub y: f64,
+    /// Standard error of `y`.
+    pub sy: f64,
+}
+
 /// [`PowerLaw`] through `points` (positive `x`, `y`); `None` with fewer than two distinct `x`.
-pub fn fit_power_law(points: &[(f64, f64)]) -> Option<PowerLaw> {
-    let logs: Vec<(f64, f64)> = points
-        .iter()
-        .filter(|(x, y)| *x > 0.0 && *y > 0.0)
-        .map(|(x, y)| (x.ln(), y.ln()))
-        .collect();
-    if logs.len() < 2 {
+pub fn fit_power_law(points: &[Measured]) -> Option<PowerLaw> {
+    let kept: Vec<&Measured> = points.iter().filter(|p| p.x > 0.0 && p.y > 0.0).collect();
+    if kept.len() < 2 {
         return None;
     }
-    let n = logs.len() as f64;
-    let (mx, my) = logs
+    // ln y's standard error is sy / y; without one for every point, equal weights.
+    let weighted = kept.iter().all(|p| p.sy > 0.0 && p.sy.is_finite());
+    let logs: Vec<(f64, f64, f64)> = kept
         .iter()
-        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
-    let sxx: f64 = logs.iter().map(|(x, _)| (x - mx).powi(2)).sum();
-    let sxy: f64 = logs.iter().map(|(x, y)| (x - mx) * (y - my)).sum();
+        .map(|p| {
+            let w = if weighted { (p.y / p.sy).powi(2) } else { 1.0 };
+            (p.x.ln(), p.y.ln(), w)
+        })
+        .collect();
+    let sw: f64 = logs.iter().map(|l| l.2).sum();
+    let (mx, my) = logs.iter().fold((0.0, 0.0), |(a, b), (x, y, w)| {
+        (a + w * x / sw, b + w * y / sw)
+    });
+    let sxx: f64 = logs.iter().map(|(x, _, w)| w * (x - mx).powi(2)).sum();
+    let sxy: f64 = logs.iter().map(|(x, y, w)| w * (x - mx) * (y - my)).sum();
     if sxx <= 0.0 {
         return None;
     }
     let p = sxy / sxx;
-    let ssr: f64 = logs
+    let chi2: f64 = logs
         .iter()
-        .map(|(x, y)| (y - my - p * (x - mx)).powi(2))
+        .map(|(x, y, w)| w * (y - my - p * (x - mx)).powi(2))
         .sum();
-    let std_error = if logs.len() > 2 {
-        (ssr / (n - 2.0) / sxx).sqrt()
+    let n = logs.len() as f64;
+    let scatter = if logs.len() > 2 {
+        (chi2 / (n - 2.0) / sxx).sqrt()
+    } else {
+        f64::NAN
+    };
+    let measured = if weighted {
+        sxx.recip().sqrt()
     } else {
         f64::NAN
     };
     Some(PowerLaw {
         exponent: p,
-        std_error,
+        std_error: measured.max(scatter),
         prefactor: (my - p * mx).exp(),
     })
 }
@@ -211,10 +235,15 @@ pub fn fit_power_law(points: &[(f64, f64)]) -> Option<PowerLaw> {
 /// `norm_scaling.{png,svg}`: the time-averaged norm against L/l with its fitted power law and
 /// the line l/L through the smallest box's point.
 fn write_norm_scaling(rows: &[&Row], out: &Path) -> anyhow::Result<()> {
-    let points: Vec<(f64, f64)> = rows
+    let measured: Vec<Measured> = rows
         .iter()
-        .map(|r| (r.box_length, r.stats.norm.value))
+        .map(|r| Measured {
+            x: r.box_length,
+            y: r.stats.norm.value,
+            sy: r.stats.norm.spread,
+        })
         .collect();
+    let points: Vec<(f64, f64)> = measured.iter().map(|m| (m.x, m.y)).collect();
     let (lo, hi) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| {
         (a.min(p.0), b.max(p.0))
     });
@@ -223,7 +252,7 @@ fn write_norm_scaling(rows: &[&Row], out: &Path) -> anyhow::Result<()> {
         points: points.clone(),
     }];
     let mut title = "Concentrated runs: velocity norm against box size".to_string();
-    if let Some(fit) = fit_power_law(&points) {
+    if let Some(fit) = fit_power_law(&measured) {
         series.push(Series {
             label: format!("fit: (L/l)^({:.2} +- {:.2})", fit.exponent, fit.std_error),
             points: [lo, hi]
@@ -269,9 +298,13 @@ mod tests {
 
     #[test]
     fn a_power_law_is_fitted_exactly_and_scatter_gives_its_error() {
-        let exact: Vec<(f64, f64)> = [8.0, 11.0, 16.0]
+        let exact: Vec<Measured> = [8.0, 11.0, 16.0]
             .iter()
-            .map(|&x: &f64| (x, 0.7 * x.powf(-1.0)))
+            .map(|&x: &f64| Measured {
+                x,
+                y: 0.7 * x.powf(-1.0),
+                sy: 0.0,
+            })
             .collect();
         let fit = fit_power_law(&exact).unwrap();
         assert!(
@@ -283,10 +316,10 @@ mod tests {
         // One point off by a factor e^0.1 in y: the residuals give the standard error of the
         // slope, sqrt(SSR / (n - 2) / Sxx), computed here by hand for three points.
         let mut scattered = exact.clone();
-        scattered[1].1 *= 0.1f64.exp();
+        scattered[1].y *= 0.1f64.exp();
         let fit = fit_power_law(&scattered).unwrap();
-        let x: Vec<f64> = scattered.iter().map(|p| p.0.ln()).collect();
-        let y: Vec<f64> = scattered.iter().map(|p| p.1.ln()).collect();
+        let x: Vec<f64> = scattered.iter().map(|p| p.x.ln()).collect();
+        let y: Vec<f64> = scattered.iter().map(|p| p.y.ln()).collect();
         let (mx, my) = (x.iter().sum::<f64>() / 3.0, y.iter().sum::<f64>() / 3.0);
         let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
         let slope: f64 = x
@@ -305,6 +338,33 @@ mod tests {
             (fit.std_error - (ssr / sxx).sqrt()).abs() < 1e-12,
             "{fit:?}"
         );
-        assert!(fit_power_law(&[(8.0, 1.0), (8.0, 2.0)]).is_none());
+        let at = |x, y| Measured { x, y, sy: 0.0 };
+        assert!(fit_power_law(&[at(8.0, 1.0), at(8.0, 2.0)]).is_none());
+    }
+
+    #[test]
+    fn two_points_with_standard_errors_give_the_propagated_error() {
+        // Slope ln(y2/y1)/ln(x2/x1); its error sqrt((s1/y1)^2 + (s2/y2)^2) / ln(x2/x1).
+        let pts = [
+            Measured {
+                x: 6.0,
+                y: 0.0718,
+                sy: 0.00088,
+            },
+            Measured {
+                x: 8.0,
+                y: 0.0658,
+                sy: 0.0011,
+            },
+        ];
+        let fit = fit_power_law(&pts).unwrap();
+        let dx = (8.0f64 / 6.0).ln();
+        let slope = (0.0658f64 / 0.0718).ln() / dx;
+        let err = ((0.00088f64 / 0.0718).powi(2) + (0.0011f64 / 0.0658).powi(2)).sqrt() / dx;
+        assert!(
+            (fit.exponent - slope).abs() < 1e-12,
+            "{fit:?} against {slope}"
+        );
+        assert!((fit.std_error - err).abs() < 1e-12, "{fit:?} against {err}");
     }
 }

@@ -467,7 +467,7 @@ impl SharedEwald {
             let internal = self.refine.internal_tolerance(self.tol);
             let prm = EwaldParams::choose_within(internal, total, l, outputs, pair_cost, reach);
             let (out, estimates, ratio) = attempt(&prm, internal)?;
-            if self.refine.accept(self.tol, ratio, false) {
+            if self.refine.accept(self.tol, ratio, false)? {
                 let accepted = Accepted {
                     internal,
                     level: self.refine.level,

@@ -94,7 +94,7 @@ pub enum GmresError<E> {
         iterations: usize,
     },
     /// The operator failed.
-    #[error("operator failed inside GMRES")]
+    #[error("operator failed inside GMRES: {0}")]
     Operator(E),
 }
 

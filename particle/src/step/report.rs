@@ -85,8 +85,11 @@ pub enum StepError {
     /// The hydrodynamic solve failed.
     #[error(transparent)]
     Hydrodynamics(#[from] crate::hydro::mobility::MobilityError),
-    /// A velocity or position became NaN or infinite.
-    #[error("rod {0} has a non-finite velocity or position")]
+    /// A velocity or position became NaN or infinite, or a velocity would carry a rod across
+    /// the box in one step.
+    #[error(
+        "rod {0} has a non-finite velocity or position, or one that crosses the box in one step"
+    )]
     NonFinite(usize),
     /// A step shared by several ranks with a mobility that is not shared yet.
     #[error(

@@ -485,9 +485,13 @@ impl Stepper {
     /// with their owners' velocities.
     fn advance(&self, rods: &mut RodSet, dt: f64, part: Part<'_>) -> Result<(), StepError> {
         let (vel, ang) = (&self.velocities.v, &self.velocities.w);
+        // A rod that would cross the box in one step has a runaway velocity (and its
+        // wrap-around would take as many turns as the box lengths it crosses).
+        let l = rods.box_length;
+        let runaway = |r: usize| vel[r].iter().any(|c| c.abs() * dt >= l);
         let bad = (0..part.halo.owned)
             .into_par_iter()
-            .filter(|&r| !(vel[r].iter().chain(&ang[r]).all(|c| c.is_finite())))
+            .filter(|&r| !(vel[r].iter().chain(&ang[r]).all(|c| c.is_finite())) || runaway(r))
             .map(|r| global_id(part, r))
             .min();
         let (found, first) = max_with_key(
@@ -498,7 +502,6 @@ impl Stepper {
         if found > 0.0 {
             return Err(StepError::NonFinite(first[0] as usize));
         }
-        let l = rods.box_length;
         rods.x
             .par_iter_mut()
             .zip(rods.image.par_iter_mut())

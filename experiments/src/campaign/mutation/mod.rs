@@ -5,8 +5,11 @@
 //! file, accepted but inconsistent, a panic, or a hang (past the time limit). Input `i` of a
 //! family is reproducible from `(seed, family, i)` alone.
 
+pub mod family;
 pub mod mutate;
 pub mod readers;
+
+pub use family::{Family, Outcome};
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -15,129 +18,6 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-/// A kind of file and the reader it goes to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Family {
-    /// A particle run config, to `motile particle run --dry-run`.
-    ParticleConfig,
-    /// A mean-field run config, to `motile meanfield run --dry-run`.
-    MeanFieldConfig,
-    /// A scene file, to `motile run SCENE --dry-run`.
-    Scene,
-    /// A particle snapshot, as a particle run's `initial` state.
-    ParticleSnapshot,
-    /// A mean-field snapshot, as a mean-field run's `snapshot` state.
-    FieldSnapshot,
-    /// A particle checkpoint (with a matching checksum), to `motile resume`.
-    ParticleCheckpoint,
-    /// A mean-field checkpoint (with a matching checksum), to `motile resume`.
-    MeanFieldCheckpoint,
-    /// A run's `timeseries.csv`, to `motile compare`/`analyze` opening the run.
-    RunDirectory,
-    /// A run's `config.toml` (its `[motile]` header and resolved config), likewise.
-    RunConfig,
-}
-
-impl Family {
-    /// Every family.
-    pub const ALL: [Family; 9] = [
-        Family::ParticleConfig,
-        Family::MeanFieldConfig,
-        Family::Scene,
-        Family::ParticleSnapshot,
-        Family::FieldSnapshot,
-        Family::ParticleCheckpoint,
-        Family::MeanFieldCheckpoint,
-        Family::RunDirectory,
-        Family::RunConfig,
-    ];
-
-    /// Its name on the command line and in tables.
-    pub fn name(self) -> &'static str {
-        match self {
-            Family::ParticleConfig => "particle-config",
-            Family::MeanFieldConfig => "meanfield-config",
-            Family::Scene => "scene",
-            Family::ParticleSnapshot => "particle-snapshot",
-            Family::FieldSnapshot => "meanfield-snapshot",
-            Family::ParticleCheckpoint => "particle-checkpoint",
-            Family::MeanFieldCheckpoint => "meanfield-checkpoint",
-            Family::RunDirectory => "run-timeseries",
-            Family::RunConfig => "run-config",
-        }
-    }
-
-    /// The reader, as a user reaches it.
-    pub fn reader(self) -> &'static str {
-        match self {
-            Family::ParticleConfig => "`particle run CONFIG --dry-run`",
-            Family::MeanFieldConfig => "`meanfield run CONFIG --dry-run`",
-            Family::Scene => "`run SCENE.toml --dry-run`",
-            Family::ParticleSnapshot => "particle run, `initial = FILE`",
-            Family::FieldSnapshot => "meanfield run, `snapshot = FILE`",
-            Family::ParticleCheckpoint | Family::MeanFieldCheckpoint => "`resume RUN_DIR`",
-            Family::RunDirectory | Family::RunConfig => "`compare`/`analyze` opening the run",
-        }
-    }
-
-    fn is_text(self) -> bool {
-        matches!(
-            self,
-            Family::ParticleConfig
-                | Family::MeanFieldConfig
-                | Family::Scene
-                | Family::RunDirectory
-                | Family::RunConfig
-        )
-    }
-}
-
-/// How a reader met one damaged file.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Outcome {
-    /// Refused with a message naming the file.
-    ClearError,
-    /// Accepted, and what it accepted is consistent.
-    Accepted,
-    /// Refused with a message that does not name the file.
-    UnclearError,
-    /// Accepted, but what it accepted is inconsistent.
-    Inconsistent,
-    /// The reader panicked.
-    Panic,
-    /// The reader did not return within the time limit.
-    Hang,
-}
-
-impl Outcome {
-    /// Every outcome, in table order.
-    pub const ALL: [Outcome; 6] = [
-        Outcome::ClearError,
-        Outcome::Accepted,
-        Outcome::UnclearError,
-        Outcome::Inconsistent,
-        Outcome::Panic,
-        Outcome::Hang,
-    ];
-
-    /// Its column heading.
-    pub fn name(self) -> &'static str {
-        match self {
-            Outcome::ClearError => "clear error",
-            Outcome::Accepted => "accepted, consistent",
-            Outcome::UnclearError => "error not naming the file",
-            Outcome::Inconsistent => "accepted, inconsistent",
-            Outcome::Panic => "panic",
-            Outcome::Hang => "hang",
-        }
-    }
-
-    /// Whether it is a defect.
-    pub fn is_defect(self) -> bool {
-        !matches!(self, Outcome::ClearError | Outcome::Accepted)
-    }
-}
 
 /// What a campaign runs.
 #[derive(Clone, Debug)]
@@ -231,7 +111,8 @@ impl CampaignReport {
     }
 }
 
-/// Run a campaign: make the seed runs, then damage and read `per_family` inputs of each family.
+/// Run a campaign: make the seed runs, then damage and read `per_family` inputs of each family
+/// (fewer where a hang ends the family).
 pub fn run_campaign(
     opts: &CampaignOptions,
     mut on_row: impl FnMut(&FamilyCounts),
@@ -293,9 +174,12 @@ fn run_family(
                 input,
             });
         }
-        if outcome != Outcome::Hang {
-            let _ = std::fs::remove_dir_all(&work);
+        // A hung reader keeps its thread, and whatever it holds (the thread pool, locks): the
+        // family's later inputs would wait on it, so a hang ends the family.
+        if outcome == Outcome::Hang {
+            break;
         }
+        let _ = std::fs::remove_dir_all(&work);
     }
     Ok(FamilyCounts {
         family,

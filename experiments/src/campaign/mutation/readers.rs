@@ -4,7 +4,7 @@
 //! accepted, and then whether what it accepted is consistent (checked on the result, not on
 //! the reader's own say-so).
 
-use super::Family;
+use super::family::Family;
 use crate::campaign::scene::{self, parse_scene};
 use crate::io::checkpoint::write_verified;
 use crate::report::opened_run::OpenedRun;

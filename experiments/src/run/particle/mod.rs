@@ -26,10 +26,8 @@ pub use state::*;
 use crate::io::rundir::TimeSeries;
 use crate::io::snapshot::{Kinematics, PointForces};
 use crate::run;
-use crate::run::memory::{self, HostMemoryNeed};
 use crate::run::particle::ranked::Ranked;
 use anyhow::{Context, bail};
-use motile_particle::model::init::overlapping_pairs;
 use motile_particle::model::rods::RodSet;
 use motile_particle::step::contact::WarmStart;
 use motile_particle::step::report::{StepError, StepReport};
@@ -58,32 +56,6 @@ pub fn run_particle(
 ) -> anyhow::Result<RunSummary> {
     let (model, s) = run::start::<ParticleModel>(&cfg.resolved(), out, progress)?;
     Ok(model.summary(&s))
-}
-
-/// What a run checks before it allocates or writes anything, and all `--dry-run` checks
-/// beyond the config's ranges: the memory a generated start needs on this machine, and the
-/// file a start from a file reads (read and validated).
-pub fn preflight(cfg: &ParticleRunConfig) -> anyhow::Result<()> {
-    check_memory(cfg)?;
-    if !generated(cfg) {
-        initial_rods(cfg).with_context(|| format!("`initial` = {:?}", cfg.initial))?;
-    }
-    Ok(())
-}
-
-fn generated(cfg: &ParticleRunConfig) -> bool {
-    cfg.initial == "random" || cfg.initial == "perturbation"
-}
-
-/// A generated start of more rods than this machine's memory holds is refused (one process on
-/// the CPU; under MPI each rank holds a share, on a GPU the device's own check applies).
-fn check_memory(cfg: &ParticleRunConfig) -> anyhow::Result<()> {
-    if generated(cfg) && cfg.device == run::Device::Cpu && run::ranks::world().is_none() {
-        HostMemoryNeed::particle(cfg.rod_count())
-            .check(memory::available())
-            .map_err(|e| anyhow::anyhow!("config: {} rods: {e}", cfg.rod_count()))?;
-    }
-    Ok(())
 }
 
 /// Continue a run from its newest checkpoint.
@@ -361,26 +333,7 @@ impl run::RunModel for ParticleModel {
 
     fn read_checkpoint(cfg: &ParticleRunConfig, path: &Path) -> anyhow::Result<Self::Checkpoint> {
         let c = ParticleCheckpoint::read(path, cfg.diameter)?;
-        let l = c.rods.box_length;
-        if (l - cfg.box_length).abs() > 1e-12 * cfg.box_length {
-            bail!(
-                "{}: a checkpoint of a box of side {l} l, the run's config.toml says box_length = {}",
-                path.display(),
-                cfg.box_length
-            );
-        }
-        // A run's own checkpoints overlap by at most contact.overlap_tolerance.
-        let bad = overlapping_pairs(&c.rods, cfg.contact.overlap_tolerance);
-        if let Some(&(i, j, dist)) = bad.first() {
-            bail!(
-                "{}: damaged or not written by motile: rods {i} and {j} overlap by {:.2e} (centreline distance {dist:.4} < diameter {}), more than contact.overlap_tolerance = {}; {} such pairs in all",
-                path.display(),
-                cfg.diameter - dist,
-                cfg.diameter,
-                cfg.contact.overlap_tolerance,
-                bad.len()
-            );
-        }
+        c.check_for(cfg, path)?;
         Ok(c)
     }
 

@@ -4,6 +4,8 @@
 use super::config::ParticleRunConfig;
 use crate::io::snapshot::{Snapshot, read_snapshot};
 use crate::io::{IoError, checkpoint};
+use crate::run;
+use crate::run::memory::{self, HostMemoryNeed};
 use anyhow::{Context, bail};
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_meanfield::initial::PerturbationField;
@@ -408,4 +410,58 @@ pub fn initial_rods(cfg: &ParticleRunConfig) -> anyhow::Result<RodSet> {
             cfg.contact.overlap_tolerance,
         )
     }
+}
+
+impl ParticleCheckpoint {
+    /// Whether it belongs to a run of `cfg`: the config's box, and no two rods overlapping by
+    /// more than contact.overlap_tolerance (a run's own checkpoints never do).
+    pub(super) fn check_for(&self, cfg: &ParticleRunConfig, path: &Path) -> anyhow::Result<()> {
+        let l = self.rods.box_length;
+        if (l - cfg.box_length).abs() > 1e-12 * cfg.box_length {
+            bail!(
+                "{}: a checkpoint of a box of side {l} l, the run's config.toml says box_length = {}",
+                path.display(),
+                cfg.box_length
+            );
+        }
+        // A run's own checkpoints overlap by at most contact.overlap_tolerance.
+        let bad = overlapping_pairs(&self.rods, cfg.contact.overlap_tolerance);
+        if let Some(&(i, j, dist)) = bad.first() {
+            bail!(
+                "{}: damaged or not written by motile: rods {i} and {j} overlap by {:.2e} (centreline distance {dist:.4} < diameter {}), more than contact.overlap_tolerance = {}; {} such pairs in all",
+                path.display(),
+                cfg.diameter - dist,
+                cfg.diameter,
+                cfg.contact.overlap_tolerance,
+                bad.len()
+            );
+        }
+        Ok(())
+    }
+}
+
+/// What a run checks before it allocates or writes anything, and all `--dry-run` checks
+/// beyond the config's ranges: the memory a generated start needs on this machine, and the
+/// file a start from a file reads (read and validated).
+pub fn preflight(cfg: &ParticleRunConfig) -> anyhow::Result<()> {
+    check_memory(cfg)?;
+    if !generated(cfg) {
+        initial_rods(cfg).with_context(|| format!("`initial` = {:?}", cfg.initial))?;
+    }
+    Ok(())
+}
+
+fn generated(cfg: &ParticleRunConfig) -> bool {
+    cfg.initial == "random" || cfg.initial == "perturbation"
+}
+
+/// A generated start of more rods than this machine's memory holds is refused (one process on
+/// the CPU; under MPI each rank holds a share, on a GPU the device's own check applies).
+pub(super) fn check_memory(cfg: &ParticleRunConfig) -> anyhow::Result<()> {
+    if generated(cfg) && cfg.device == run::Device::Cpu && run::ranks::world().is_none() {
+        HostMemoryNeed::particle(cfg.rod_count())
+            .check(memory::available())
+            .map_err(|e| anyhow::anyhow!("config: {} rods: {e}", cfg.rod_count()))?;
+    }
+    Ok(())
 }

@@ -184,7 +184,7 @@ impl SpectralEwald {
     }
 
     /// After an attempt: whether it stands (see [`Refinement::accept`]).
-    fn accept(&mut self, ratio: f64) -> bool {
+    fn accept(&mut self, ratio: f64) -> Result<bool, SumError> {
         self.refine.accept(self.tol, ratio, self.fixed.is_some())
     }
 
@@ -470,7 +470,7 @@ impl PeriodicStokes for SpectralEwald {
                 0.0,
             );
             let ratio = est.max_relative.max(est.l2_relative) / self.tol;
-            if self.accept(ratio) {
+            if self.accept(ratio)? {
                 self.record(internal, attempts, vec![est]);
                 return Ok(u);
             }
@@ -517,7 +517,7 @@ impl PeriodicStokes for SpectralEwald {
                 |parts| parts,
                 n,
             );
-            if self.accept(ratio) {
+            if self.accept(ratio)? {
                 self.record(internal, attempts, estimates);
                 return Ok(field);
             }

@@ -37,7 +37,16 @@ impl Refinement {
     /// After an attempt with worst estimate/bound ratio `ratio`: `true` if it stands (met,
     /// nothing finer to try, or `fixed` parameters), else the level rises by the half decades
     /// missing.
-    pub(crate) fn accept(&mut self, tol: f64, ratio: f64, fixed: bool) -> bool {
+    pub(crate) fn accept(&mut self, tol: f64, ratio: f64, fixed: bool) -> Result<bool, SumError> {
+        // An estimate that is not a number is not an error a finer grid reduces: the sum
+        // overflowed (inputs far beyond any physical force), and refining would only grow
+        // the grid, one level per attempt. (An infinite ratio, a vanishing output under a
+        // non-zero estimate, goes to the finest level at once, as before.)
+        if ratio.is_nan() {
+            return Err(SumError::Input(format!(
+                "the sum's error estimate is {ratio} of its tolerance: its forces overflow it"
+            )));
+        }
         let max = Self::max_level(tol);
         if fixed || ratio <= 1.0 || self.level >= max {
             if ratio <= 0.1 {
@@ -49,12 +58,12 @@ impl Refinement {
             } else {
                 self.calm = 0;
             }
-            return true;
+            return Ok(true);
         }
         let steps = (2.0 * ratio.log10()).ceil().max(1.0) as u32;
         self.level = (self.level + steps).min(max);
         self.calm = 0;
-        false
+        Ok(false)
     }
 
     /// As a checkpoint keeps it.
@@ -79,4 +88,25 @@ pub(crate) fn check_tolerance(tol: f64) -> Result<(), SumError> {
         )));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_nan_estimate_is_an_error_and_an_infinite_one_goes_to_the_finest_level() {
+        let tol = 1e-4;
+        let mut r = Refinement::default();
+        let e = r.accept(tol, f64::NAN, false).unwrap_err().to_string();
+        assert!(e.contains("overflow"), "{e}");
+        assert_eq!(r, Refinement::default(), "the level is left as it was");
+        assert!(!r.accept(tol, f64::INFINITY, false).unwrap());
+        assert_eq!(r.level, Refinement::max_level(tol));
+        assert!(
+            r.accept(tol, f64::INFINITY, false).unwrap(),
+            "nothing finer to try"
+        );
+        assert!(r.accept(tol, 0.5, false).unwrap());
+    }
 }

@@ -108,7 +108,7 @@ impl SpectralEwald {
                 fourier: t0.elapsed().as_secs_f64(),
                 ..SumTiming::default()
             };
-            if self.accept(ratio) {
+            if self.accept(ratio)? {
                 self.record(internal, attempts, estimates);
                 return Ok(ResidentField {
                     u: res.u,
@@ -182,7 +182,7 @@ impl SpectralEwald {
                 fourier: t0.elapsed().as_secs_f64(),
                 ..SumTiming::default()
             };
-            if self.accept(ratio) {
+            if self.accept(ratio)? {
                 self.record(internal, attempts, vec![est]);
                 return Ok(u);
             }
