@@ -1,5 +1,5 @@
 //! Files: run directories ([`rundir`]), verified checkpoints ([`checkpoint`]), HDF5 snapshots
-//! ([`snapshot`]), VTK for ParaView ([`vtk`]), the formats' version ([`format`]), and atomic
+//! ([`snapshot`]), VTK for ParaView ([`vtk`]), the formats' version ([`mod@format`]), and atomic
 //! output (here): every file is written
 //! to a temporary sibling, flushed to disk, and renamed over the target, so a killed run leaves
 //! either the old file or the new one, never a truncated one.

@@ -28,7 +28,7 @@ pub struct RunHeader {
     pub model: String,
     /// Random seed.
     pub seed: u64,
-    /// The run directory's format version ([`crate::io::format`]); absent (read as 1) in
+    /// The run directory's format version ([`mod@crate::io::format`]); absent (read as 1) in
     /// runs written before formats were versioned.
     #[serde(default = "first_format")]
     pub format_version: u64,

@@ -3,7 +3,7 @@
 //! Layout (all lengths in rod lengths `l` for particle runs and box lengths `L` for mean-field
 //! runs, times in the model's own unit; see docs/run-directory.md):
 //!
-//! Every snapshot carries `format_version` and `motile_version` ([`crate::io::format`]).
+//! Every snapshot carries `format_version` and `motile_version` ([`mod@crate::io::format`]).
 //!
 //! Particle snapshot, root attributes `kind = "particle"`, `time`, `step`, `box_length`; datasets `positions (N, 3)`, `orientations (N, 3)` (unit vectors),
 //! `image_counts (N, 3)` (int64, periodic images crossed: unwrapped = position + L * count),
