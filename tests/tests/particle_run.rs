@@ -273,11 +273,13 @@ fn bad_initial_files_name_the_line_or_the_overlapping_pair() {
     )
     .unwrap();
     let snap = first.join("snapshots/snap_000000.h5");
-    let loaded = load_configuration(&snap, 99.0, 0.2, 5e-3).unwrap();
-    assert_eq!(
-        loaded.box_length, 6.0,
-        "the snapshot's box wins over the config's"
-    );
+    // Of its own box only: a run's config.toml describes its rods.
+    let e = load_configuration(&snap, 99.0, 0.2, 5e-3)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("set box_length = 6 to start from it"), "{e}");
+    let loaded = load_configuration(&snap, 6.0, 0.2, 5e-3).unwrap();
+    assert_eq!(loaded.box_length, 6.0);
     assert_eq!(loaded.len(), done.rods.len());
     let cfg = ParticleRunConfig {
         initial: snap.to_string_lossy().into_owned(),

@@ -16,7 +16,8 @@ pub struct RunArgs {
     /// Output run directory (not needed with --dry-run).
     #[arg(long, required_unless_present = "dry_run")]
     pub out: Option<PathBuf>,
-    /// Print the resolved config and exit.
+    /// Check the config as the run does before its first step (the ranges, the files its start
+    /// reads, the memory it needs), print the resolved config and exit.
     #[arg(long)]
     pub dry_run: bool,
     /// Where the step runs, overriding the config's `device` (cpu or gpu; [`device_help`]).
