@@ -96,6 +96,7 @@ impl Device {
         name: impl FnOnce() -> String,
         op: impl FnOnce() -> Result<R, GpuError>,
     ) -> Result<R, GpuError> {
+        crate::fault::unusable()?;
         crate::profile::timed(name, || self.wait(), op)
     }
 

@@ -24,6 +24,7 @@ impl Device {
         let blocks = u32::try_from(blocks)
             .map_err(|_| GpuError::Input(format!("{threads} threads for {name}")))?;
         let mut args = kernel.args();
+        crate::fault::on_launch(name)?;
         self.count(|c| {
             c.launches += 1;
             *c.by_kernel.entry(name).or_default() += 1;

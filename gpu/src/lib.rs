@@ -29,6 +29,9 @@
 //! launch with a wrong argument does not compile and a declaration that drifts from the source
 //! is refused.
 //!
+//! Device failures can be injected ([`inject_failure`], `MOTILE_GPU_INJECT_FAILURE`) to test
+//! what the code around the kernels does when a device fails mid-step.
+//!
 //! The only unsafe code of the crate is in the modules that load libraries and launch kernels;
 //! [`Device::launch`] itself is `unsafe`: nothing can check that a kernel indexes inside the
 //! buffers it is given.
@@ -39,6 +42,7 @@ mod counters;
 mod cuda;
 mod device;
 mod error;
+mod fault;
 mod fft;
 pub mod frontend;
 mod host;
@@ -50,6 +54,7 @@ pub use buffer::{Buffer, Element, check_len, live_bytes, peak_bytes, reset_peak}
 pub use counters::Counters;
 pub use device::{Backend, Device, open_or_skip, probe};
 pub use error::{DeviceInfo, GpuError, kernel_int};
+pub use fault::{Injection, inject_failure};
 pub use fft::{Direction, Fft3, fft_work_bytes};
 #[doc(hidden)]
 pub use kernel::Arg;

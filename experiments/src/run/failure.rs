@@ -3,6 +3,7 @@
 //! so callers such as the stability maps classify failures by variant, never by message text.
 
 use motile_meanfield::solver::params::MeanFieldError;
+use motile_particle::ewald::periodic::SumError;
 use motile_particle::hydro::mobility::MobilityError;
 use motile_particle::step::report::StepError;
 
@@ -33,6 +34,7 @@ impl From<&StepError> for FailureKind {
         match e {
             StepError::Contact(_) => Self::ContactSolver,
             StepError::Overlap { .. } => Self::Overlap,
+            StepError::Hydrodynamics(MobilityError::Sum(SumError::Device(_))) => Self::Device,
             StepError::Hydrodynamics(MobilityError::Gmres { .. } | MobilityError::Sum(_)) => {
                 Self::Hydrodynamics
             }

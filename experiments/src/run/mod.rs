@@ -291,22 +291,31 @@ fn write_regular<M: RunModel>(model: &M, run: &RunDir) -> anyhow::Result<PathBuf
 /// An output that could not be written (a full disk) stops the run: say from where it
 /// resumes. Atomic writes leave every file under its final name whole.
 fn write_failed(run: &RunDir, e: anyhow::Error) -> anyhow::Error {
-    let dir = run.path().join("checkpoints");
-    let newest = checkpoint::newest_first(&dir)
-        .into_iter()
-        .find(|p| checkpoint::verify(p).is_ok());
-    let next = match newest {
-        Some(p) => format!(
-            "its newest intact checkpoint is {}: `motile resume {}` continues from it once the disk has room",
-            p.display(),
-            run.path().display()
-        ),
-        None => "it has no checkpoint yet: start it again once the disk has room".into(),
-    };
+    let next = resume_from_newest(run, "once the disk has room");
     let _ = run.log(&format!("stopped: an output could not be written: {e:#}"));
     e.context(format!(
         "the run stopped because an output could not be written; {next}"
     ))
+}
+
+/// Where a run continues from when the state before its failure could not be kept: the
+/// checkpoint resume would take (an earlier failure's intact last good state, else the newest
+/// intact regular checkpoint), in words, with the command (`when`: the condition to meet first).
+fn resume_from_newest(run: &RunDir, when: &str) -> String {
+    let dir = run.path().join("checkpoints");
+    let mut candidates = checkpoint::newest_first(&dir);
+    candidates.insert(0, dir.join(LAST_GOOD));
+    let newest = candidates
+        .into_iter()
+        .find(|p| p.is_file() && checkpoint::verify(p).is_ok());
+    match newest {
+        Some(p) => format!(
+            "its newest intact checkpoint is {}: `motile resume {}` continues from it {when}",
+            p.display(),
+            run.path().display()
+        ),
+        None => format!("it has no checkpoint yet: start it again {when}"),
+    }
 }
 
 /// The error of a step that failed: an output not written ([`write_failed`]), or the step
@@ -348,7 +357,18 @@ fn failed<M: RunModel>(model: &M, run: &RunDir, f: StepFailure) -> anyhow::Error
         } => {
             let saved = run.path().join("checkpoints").join(LAST_GOOD);
             if let Err(w) = model.write_last_good(&saved) {
-                return anyhow::anyhow!("{what}; saving the state before it also failed: {w:#}");
+                // A device that failed may not give the state back; the checkpoints hold it.
+                let next = resume_from_newest(run, "(the steps since it are run again)");
+                let message =
+                    format!("{what}; the state before it could not be saved ({w:#}); {next}");
+                let _ = run.log(&message);
+                return RunFailure {
+                    kind,
+                    step,
+                    t,
+                    message,
+                }
+                .into();
             }
             let _ = run.log(&what);
             RunFailure {

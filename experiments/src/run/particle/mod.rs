@@ -27,7 +27,7 @@ use crate::io::rundir::TimeSeries;
 use crate::io::snapshot::{Kinematics, PointForces};
 use crate::run;
 use crate::run::particle::ranked::Ranked;
-use anyhow::{Context, bail};
+use anyhow::bail;
 use motile_particle::model::rods::RodSet;
 use motile_particle::step::contact::WarmStart;
 use motile_particle::step::report::{StepError, StepReport};
@@ -79,8 +79,9 @@ pub struct ParticleModel {
     /// The step shared among ranks (`mpirun`); `rods` and `stepper` are then rank 0's copies
     /// as of the last gather, and the stepper only lends its mobility.
     ranks: Option<Ranked>,
-    /// The state before a failed step (the last good state to save).
-    before: Option<ParticleCheckpoint>,
+    /// The state before a failed step (the last good state to save), or why it is lost (a
+    /// device that failed and could not give it back).
+    before: Option<Result<ParticleCheckpoint, String>>,
     /// The step resident on the GPU (`device = "gpu"`, [`ParticleRunConfig::resident`]): the
     /// rods live there and `rods` is their copy as of the last download (after every step at
     /// the levels with flow, whose sum needs them).
@@ -451,10 +452,11 @@ impl run::RunModel for ParticleModel {
     }
 
     fn write_last_good(&self, path: &Path) -> anyhow::Result<()> {
-        self.before
-            .as_ref()
-            .context("no failed step: nothing to save as the last good state")?
-            .write(path)?;
+        match &self.before {
+            None => bail!("no failed step: nothing to save as the last good state"),
+            Some(Err(lost)) => bail!("{lost}"),
+            Some(Ok(before)) => before.write(path)?,
+        }
         Ok(())
     }
 }
@@ -544,7 +546,7 @@ impl ParticleModel {
             }
             Ok(r) => r,
             Err(e) => {
-                self.before = Some(before.unwrap_or_else(|| self.checkpoint_now()));
+                self.before = Some(Ok(before.unwrap_or_else(|| self.checkpoint_now())));
                 let cfg = &self.cfg;
                 return Err(run::StepFailure::Step {
                     kind: (&e).into(),
@@ -669,19 +671,35 @@ impl ParticleModel {
             Err(e) => {
                 // The device keeps the state before a failed step; a step that failed before
                 // reaching it (the flow's sum) leaves the rods here as the last good state.
+                // A device that failed may not answer: then no state is kept here, and the
+                // loop names the newest checkpoint instead.
                 let mut rods = self.rods.clone();
-                if !matches!(e, StepError::Hydrodynamics(_)) {
-                    d.download_before(&mut rods)?;
+                let kept = if !matches!(e, StepError::Hydrodynamics(_)) {
+                    d.download_before(&mut rods)
                 } else if resident_flow {
                     // The flow's sum failed on the device, which kept the rods unmoved.
-                    d.download(&mut rods)?;
-                }
-                let mut before =
-                    ParticleCheckpoint::of(&rods, &self.stepper, self.step, self.step as f64 * dt);
-                // The multipliers of the step before the failed one (a failed step keeps them).
-                before.contact_warm_start = d.warm_start()?;
-                before.gmres_warm_start = self.stepper.mobility().current_warm_state()?;
-                self.before = Some(before);
+                    d.download(&mut rods)
+                } else {
+                    Ok(())
+                };
+                self.before = match kept.and_then(|()| d.warm_start()) {
+                    Ok(warm) => {
+                        let mut before = ParticleCheckpoint::of(
+                            &rods,
+                            &self.stepper,
+                            self.step,
+                            self.step as f64 * dt,
+                        );
+                        // The multipliers of the step before the failed one (a failed step
+                        // keeps them).
+                        before.contact_warm_start = warm;
+                        before.gmres_warm_start = self.stepper.mobility().current_warm_state()?;
+                        Some(Ok(before))
+                    }
+                    Err(lost) => Some(Err(format!(
+                        "the device did not give back the state before the step: {lost}"
+                    ))),
+                };
                 return Err(run::StepFailure::Step {
                     kind: (&e).into(),
                     step,
