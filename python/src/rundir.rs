@@ -167,7 +167,8 @@ impl RunDirectory {
 
     /// Whether the run `finished`, is `resumable` (stopped with a checkpoint), `failed` (with
     /// the saved state before the failed step and the reason from its log), or `empty`; with
-    /// the last time of its time series and its configured end time.
+    /// the time it reached (its time series' last row, or the checkpoint it resumes from where
+    /// that is later) and its configured end time.
     fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         let t_end = self
@@ -186,7 +187,18 @@ impl RunDirectory {
             .unwrap_or(f64::NAN);
         let ckpts = self.path.join("checkpoints");
         let failed = ckpts.join(checkpoint::LAST_GOOD).exists();
-        let has_checkpoint = !checkpoint::newest_first(&ckpts).is_empty();
+        let regular = checkpoint::newest_first(&ckpts);
+        let has_checkpoint = !regular.is_empty();
+        // The time reached: a run stopped between diagnostics is as far as the checkpoint it
+        // resumes from (the state before a failed step, else the newest regular one).
+        let saved = if failed {
+            Some(ckpts.join(checkpoint::LAST_GOOD))
+        } else {
+            regular.first().cloned()
+        };
+        let reached = saved
+            .and_then(|p| checkpoint::time_of(&p).ok())
+            .map_or(last, |t| if last.is_nan() { t } else { last.max(t) });
         let reason = std::fs::read_to_string(self.path.join("run.log"))
             .ok()
             .and_then(|log| {
@@ -205,7 +217,7 @@ impl RunDirectory {
             "empty"
         };
         d.set_item("state", state)?;
-        d.set_item("t", last)?;
+        d.set_item("t", reached)?;
         d.set_item("t_end", t_end)?;
         d.set_item("reason", if state == "finished" { None } else { reason })?;
         Ok(d)

@@ -263,6 +263,27 @@ def test_failing_progress_callback_stops_the_run_with_its_error(tmp_path):
         assert "at the caller's request" in log, log
 
 
+def test_a_callback_stop_between_diagnostics_keeps_the_time_reached(tmp_path):
+    """A callback that raises after t = 1.2 (diagnostics every 0.5) stops the run with a
+    checkpoint at the step it reached: status says what stopped it and that time (the
+    checkpoint's, later than the time series' last row), and the run resumes from it."""
+
+    def progress(p, n, t):
+        if t > 1.2:
+            raise RuntimeError("enough")
+
+    out = tmp_path / "r"
+    with pytest.raises(RuntimeError, match="enough"):
+        motile.run("meanfield", MEANFIELD, out, progress=progress)
+    status = motile.open(out).status
+    stopped = re.search(r"stopped at step \d+ \(t = ([0-9.]+)\) at the caller's request", status["reason"] or "")
+    assert status["state"] == "resumable" and stopped, status
+    assert status["t"] == pytest.approx(float(stopped.group(1)), abs=1e-4), status
+    assert status["t"] > motile.open(out).timeseries["t"][-1], status
+    motile.resume(out, progress=False)
+    assert motile.open(out).status == {"state": "finished", "t": 3.0, "t_end": 3.0, "reason": None}
+
+
 # --- run directories --------------------------------------------------------------------------
 
 

@@ -143,6 +143,11 @@ pub fn newest_first(dir: &Path) -> Vec<PathBuf> {
     v
 }
 
+/// The simulated time a checkpoint of either model holds (its root attribute `time`).
+pub fn time_of(path: &Path) -> anyhow::Result<f64> {
+    H5Reader::open(path)?.attr_f64("time")
+}
+
 static SIGNAL: OnceLock<Arc<AtomicUsize>> = OnceLock::new();
 
 /// SIGINT and SIGTERM set a flag (instead of killing the process) that running loops poll
