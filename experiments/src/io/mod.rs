@@ -64,6 +64,14 @@ pub(crate) fn fs_err(path: &Path) -> impl FnOnce(std::io::Error) -> IoError + '_
 /// (`u64::MAX`: no limit); set by [`fail_writes_after`].
 static WRITE_BUDGET: AtomicU64 = AtomicU64::new(u64::MAX);
 
+/// The error for a file whose content is not what motile writes: the file, and `what` in it.
+pub(crate) fn damaged(path: &Path, what: String) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{}: damaged or not written by motile: {what}",
+        path.display()
+    )
+}
+
 /// Fault injection for the fault tests: from now on, [`write_atomic`] in this process fails
 /// as a full disk would (`StorageFull`, after writing part of the file) once `bytes` more
 /// bytes have been written; `None` lifts the limit. Process-wide: a test that sets it runs

@@ -32,8 +32,7 @@ impl Realizability {
             min_eigenvalue: f64::INFINITY,
         };
         for p in 0..q[0].len() {
-            let a: Sym3 = std::array::from_fn(|i| std::array::from_fn(|j| q[sym_index(i, j)][p]));
-            let c = a[0][0] + a[1][1] + a[2][2];
+            let (c, a) = point(q, p);
             if !(c > 0.0 && a.iter().flatten().all(|v| v.is_finite())) {
                 let bad = if c.is_nan() { f64::NAN } else { c.min(0.0) };
                 return Self {
@@ -47,6 +46,12 @@ impl Realizability {
         }
         out
     }
+}
+
+/// `(tr Q, Q)` at grid point `p` of the grid values `q`.
+fn point(q: &[Vec<f64>; 6], p: usize) -> (f64, Sym3) {
+    let a: Sym3 = std::array::from_fn(|i| std::array::from_fn(|j| q[sym_index(i, j)][p]));
+    (a[0][0] + a[1][1] + a[2][2], a)
 }
 
 /// The closure at every grid point, for one Q: the lab-frame fourth moment `c S_ijkl`
@@ -153,12 +158,9 @@ impl ClosureField {
                     frames.clear();
                     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
                     for p in b * BLOCK..b * BLOCK + out.len() {
-                        let a: Sym3 =
-                            std::array::from_fn(|i| std::array::from_fn(|j| q[sym_index(i, j)][p]));
-                        let c = a[0][0] + a[1][1] + a[2][2];
-                        let an: Sym3 = a.map(|row| row.map(|v| v / c));
+                        let (c, a) = point(q, p);
                         // Largest eigenvalue first: the tables' most accurate order.
-                        let (w, r) = sym3_eigen_sorted(&an);
+                        let (w, r) = sym3_eigen_sorted(&a.map(|row| row.map(|v| v / c)));
                         lo = lo.min(w[2]);
                         hi = hi.max(w[0]);
                         mus.push(w);

@@ -235,12 +235,7 @@ pub(super) fn read_checkpoint(path: &Path, n: usize) -> anyhow::Result<MeanField
             path.display()
         );
     }
-    let damaged = |what: String| {
-        anyhow::anyhow!(
-            "{}: damaged or not written by motile: {what}",
-            path.display()
-        )
-    };
+    let damaged = |what: String| crate::io::damaged(path, what);
     let finite = |name: &str, v: &[f64], len: usize| {
         if v.len() != len {
             return Err(damaged(format!(

@@ -3,7 +3,7 @@
 
 use super::config::ParticleRunConfig;
 use crate::io::snapshot::{Snapshot, read_snapshot};
-use crate::io::{IoError, checkpoint};
+use crate::io::{IoError, checkpoint, damaged};
 use crate::run;
 use crate::run::memory::{self, HostMemoryNeed};
 use anyhow::{Context, bail};
@@ -121,16 +121,23 @@ pub fn load_configuration(
         x: wrapped,
     };
     // No two rods may overlap.
-    let bad = overlapping_pairs(&rods, overlap_tolerance);
-    if let Some(&(i, j, dist)) = bad.first() {
-        bail!(
-            "{}: rods {i} and {j} overlap by {:.2e} (centerline distance {dist:.4} < diameter {diameter}), more than contact.overlap_tolerance = {overlap_tolerance}; {} such pairs in all",
-            path.display(),
-            diameter - dist,
-            bad.len()
-        );
+    if let Err(e) = no_overlaps(&rods, diameter, overlap_tolerance) {
+        bail!("{}: {e}", path.display());
     }
     Ok(rods)
+}
+
+/// No two of `rods` (of `diameter`) overlap by more than `tolerance`, or which do, in words.
+fn no_overlaps(rods: &RodSet, diameter: f64, tolerance: f64) -> Result<(), String> {
+    let bad = overlapping_pairs(rods, tolerance);
+    match bad.first() {
+        None => Ok(()),
+        Some(&(i, j, dist)) => Err(format!(
+            "rods {i} and {j} overlap by {:.2e} (centreline distance {dist:.4} < diameter {diameter}), more than contact.overlap_tolerance = {tolerance}; {} such pairs in all",
+            diameter - dist,
+            bad.len()
+        )),
+    }
 }
 
 /// What a particle checkpoint holds: the rods (centres, quaternions, image counters), the step
@@ -305,13 +312,6 @@ fn read_checkpoint(path: &Path, diameter: f64) -> anyhow::Result<ParticleCheckpo
     Ok(c)
 }
 
-fn damaged(path: &Path, what: String) -> anyhow::Error {
-    anyhow::anyhow!(
-        "{}: damaged or not written by motile: {what}",
-        path.display()
-    )
-}
-
 /// Largest image counter a checkpoint may hold: a rod that crossed the box 2^40 times.
 const MAX_IMAGE: i64 = 1 << 40;
 
@@ -425,18 +425,8 @@ impl ParticleCheckpoint {
             );
         }
         // A run's own checkpoints overlap by at most contact.overlap_tolerance.
-        let bad = overlapping_pairs(&self.rods, cfg.contact.overlap_tolerance);
-        if let Some(&(i, j, dist)) = bad.first() {
-            bail!(
-                "{}: damaged or not written by motile: rods {i} and {j} overlap by {:.2e} (centreline distance {dist:.4} < diameter {}), more than contact.overlap_tolerance = {}; {} such pairs in all",
-                path.display(),
-                cfg.diameter - dist,
-                cfg.diameter,
-                cfg.contact.overlap_tolerance,
-                bad.len()
-            );
-        }
-        Ok(())
+        no_overlaps(&self.rods, cfg.diameter, cfg.contact.overlap_tolerance)
+            .map_err(|e| damaged(path, e))
     }
 }
 
