@@ -227,16 +227,19 @@ class TimeSeries(Mapping):
     numpy array, with :attr:`units` (column name to unit, e.g. ``"1/beta"``) and
     :attr:`columns` in file order."""
 
-    def __init__(self, names: Sequence[str], units: Sequence[str], columns: Sequence[np.ndarray]):
+    def __init__(self, names: Sequence[str], units: Sequence[str], columns: Sequence[np.ndarray],
+                 source: str = ""):
         self.columns = list(names)
         self.units = dict(zip(names, units))
         self._data = dict(zip(names, columns))
+        self._source = source
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
             return self._data[name]
         except KeyError:
-            raise KeyError(f"{name!r}: the columns are {', '.join(self.columns)}") from None
+            where = f"{self._source} has no column {name!r}" if self._source else f"no column {name!r}"
+            raise KeyError(f"{where}; its columns are {', '.join(self.columns)}") from None
 
     def __iter__(self):
         return iter(self.columns)
@@ -330,7 +333,7 @@ class RunDirectory:
 
     def read_csv(self, file: str) -> TimeSeries:
         """Another CSV file of the run, such as ``analysis/correlations.csv``."""
-        return TimeSeries(*self._inner.read_csv(file))
+        return TimeSeries(*self._inner.read_csv(file), source=os.path.join(self.path, file))
 
     @property
     def snapshots(self) -> _Snapshots:

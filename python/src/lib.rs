@@ -37,7 +37,7 @@ pub(crate) type Radial<'py> = (
 );
 
 pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
-    PyValueError::new_err(e.to_string())
+    PyValueError::new_err(format!("{e:#}"))
 }
 
 pub(crate) fn runtime_error(e: anyhow::Error) -> PyErr {

@@ -2,8 +2,11 @@
 
 use crate::{Columns, table_to_py, value_error};
 use motile_experiments::io::checkpoint;
-use motile_experiments::io::rundir::{RunDir, TimeSeries};
-use motile_experiments::io::snapshot::{Snapshot, read_snapshot};
+use motile_experiments::io::rundir::{RunDir, TimeSeries, read_run_config};
+use motile_experiments::io::snapshot::Snapshot;
+use motile_experiments::report::opened_run::SnapshotShape;
+use motile_experiments::run::meanfield::MeanFieldRunConfig;
+use motile_experiments::run::particle::ParticleRunConfig;
 use numpy::IntoPyArray;
 use numpy::ndarray::{Array2, Array4};
 use pyo3::prelude::*;
@@ -17,6 +20,8 @@ pub(crate) struct RunDirectory {
     model: String,
     config: toml::Table,
     snapshots: Vec<PathBuf>,
+    /// What its snapshots must match (the config's box or grid).
+    shape: SnapshotShape,
 }
 
 /// Open the run directory `path`.
@@ -24,6 +29,26 @@ pub(crate) struct RunDirectory {
 pub(crate) fn open(path: PathBuf) -> PyResult<RunDirectory> {
     let dir = RunDir::open(&path).map_err(value_error)?;
     let header = dir.header().map_err(value_error)?;
+    // The config as the model reads it (every key and range checked), so that a damaged file
+    // is refused by name here as by `motile compare`, not handed on as a dict.
+    let shape = match header.model.as_str() {
+        "particle" => SnapshotShape::Particle {
+            box_length: read_run_config(&path, ParticleRunConfig::validate)
+                .map_err(value_error)?
+                .box_length,
+        },
+        "meanfield" => SnapshotShape::MeanField {
+            grid: read_run_config(&path, MeanFieldRunConfig::validate)
+                .map_err(value_error)?
+                .grid,
+        },
+        other => {
+            return Err(value_error(format!(
+                "{}: a run of kind `{other}` (\"particle\" or \"meanfield\")",
+                path.join("config.toml").display()
+            )));
+        }
+    };
     let text = std::fs::read_to_string(path.join("config.toml")).map_err(value_error)?;
     let mut config: toml::Table = toml::from_str(&text).map_err(value_error)?;
     config.remove("motile");
@@ -33,6 +58,7 @@ pub(crate) fn open(path: PathBuf) -> PyResult<RunDirectory> {
         model: header.model,
         config,
         snapshots,
+        shape,
     })
 }
 
@@ -97,7 +123,10 @@ impl RunDirectory {
                 "snapshot {k}: the run has {n} snapshot(s)"
             )));
         }
-        let snap = read_snapshot(&self.snapshots[i as usize]).map_err(value_error)?;
+        let snap = self
+            .shape
+            .read(&self.snapshots[i as usize])
+            .map_err(value_error)?;
         let d = PyDict::new(py);
         let rows3 = |v: &[[f64; 3]]| -> PyResult<_> {
             Array2::from_shape_vec((v.len(), 3), v.as_flattened().to_vec())
@@ -161,7 +190,7 @@ impl RunDirectory {
     fn snapshot_times(&self) -> PyResult<Vec<f64>> {
         self.snapshots
             .iter()
-            .map(|p| read_snapshot(p).map(|s| s.time()).map_err(value_error))
+            .map(|p| self.shape.read(p).map(|s| s.time()).map_err(value_error))
             .collect()
     }
 

@@ -177,6 +177,38 @@ fn defects_found_by_earlier_campaigns_are_refused_by_name() {
             timeseries,
             "increasing",
         ),
+        (
+            "a force point at 6.6e286: check-accuracy measured NaN errors",
+            Family::RunSnapshot,
+            edited(
+                &seeds,
+                Family::RunSnapshot,
+                set("force_points", 61, 6.6e286),
+            ),
+            "force_points",
+        ),
+        (
+            "a point force of -4e307: check-accuracy measured NaN errors",
+            Family::RunSnapshot,
+            edited(&seeds, Family::RunSnapshot, set("point_forces", 27, -4e307)),
+            "overflow",
+        ),
+        (
+            "a snapshot's box_length 1e300: check-accuracy audited another box",
+            Family::RunSnapshot,
+            edited(&seeds, Family::RunSnapshot, |c| {
+                c.set_attr("box_length", AttrValue::F64(1e300))
+            }),
+            "box_length",
+        ),
+        (
+            "a snapshot's time NaN: check-accuracy reported t = NaN",
+            Family::RunSnapshot,
+            edited(&seeds, Family::RunSnapshot, |c| {
+                c.set_attr("time", AttrValue::F64(f64::NAN))
+            }),
+            "time NaN",
+        ),
     ];
     for (k, (what, family, bytes, phrase)) in cases.into_iter().enumerate() {
         let (_, name) = seeds.file(family).unwrap();

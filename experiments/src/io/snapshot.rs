@@ -287,7 +287,21 @@ fn open_snapshot(path: &Path) -> Result<(File, HashMap<String, AttrValue>, Strin
 /// The time, step and (positive) box side every snapshot carries.
 fn read_header(attrs: &HashMap<String, AttrValue>, path: &Path) -> Result<SnapshotHeader, IoError> {
     let time = attr_f64(attrs, "time", path)?;
-    let step = attr_f64(attrs, "step", path)? as u64;
+    let step = attr_f64(attrs, "step", path)?;
+    if !(time.is_finite()
+        && time >= 0.0
+        && step >= 0.0
+        && step < 2f64.powi(53)
+        && step.fract() == 0.0)
+    {
+        return Err(content(
+            path,
+            format!(
+                "time {time}, step {step}: a time must be finite and not negative, a step a whole number"
+            ),
+        ));
+    }
+    let step = step as u64;
     let box_length = attr_f64(attrs, "box_length", path)?;
     if !(box_length.is_finite() && box_length > 0.0) {
         return Err(content(
@@ -327,6 +341,20 @@ fn read_particle(
     let image_counts = read_image_counts(file, n, path)?;
     let forces = if file.dataset("force_points").is_ok() {
         let points = read_rows(file, "force_points", None, path)?;
+        // Points on rods whose centres are in the box: within half a rod length of it.
+        let l = header.box_length;
+        if let Some(i) = points
+            .iter()
+            .position(|x| x.iter().any(|&c| !(-1.0..=l + 1.0).contains(&c)))
+        {
+            return Err(content(
+                path,
+                format!(
+                    "dataset 'force_points': row {i} at {:?} lies more than a rod length outside the box [0, {l})^3",
+                    points[i]
+                ),
+            ));
+        }
         let forces = read_rows(file, "point_forces", Some(points.len()), path)?;
         Some(PointForces { points, forces })
     } else {

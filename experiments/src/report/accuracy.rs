@@ -158,8 +158,16 @@ pub fn audit(run_dir: &Path, snapshot: Option<usize>, targets: usize) -> anyhow:
         );
     }
     let (path, snap) = pick_snapshot(&run, snapshot)?;
+    let path_shown = path.clone();
     let tol = cfg.hydro.sum_tolerance;
     let l = snap.box_length;
+    if (l - cfg.box_length).abs() > 1e-12 * cfg.box_length {
+        bail!(
+            "{}: a snapshot of a box of side {l} l, the run's config.toml says box_length = {}",
+            path.display(),
+            cfg.box_length
+        );
+    }
     let mut fast = SpectralEwald::new(tol)?;
     match cfg.hydrodynamics {
         // Both sum the RPY flow of the snapshot's force densities at the rods' nodes.
@@ -169,11 +177,25 @@ pub fn audit(run_dir: &Path, snapshot: Option<usize>, targets: usize) -> anyhow:
         Hydrodynamics::Dipole => audit_dipole(path, &snap, cfg.diameter, targets, &mut fast),
         Hydrodynamics::None => unreachable!("refused above: no flow, no sums"),
     }
-    .map(|mut a| {
+    .and_then(|mut a| {
+        // Finite forces whose sums overflow (a damaged file): no error can be measured.
+        if let Some(r) = a
+            .rows
+            .iter()
+            .find(|r| !(r.max_relative.is_finite() && r.l2_relative.is_finite()))
+        {
+            bail!(
+                "the {} has no finite error (max-relative {}, relative L2 {}): its point forces overflow the sums",
+                r.quantity,
+                r.max_relative,
+                r.l2_relative
+            );
+        }
         a.tolerance = tol;
         a.direct_xi = direct_xi(a.targets, l);
-        a
+        Ok(a)
     })
+    .with_context(|| format!("auditing {}", path_shown.display()))
 }
 
 fn audit_sbt(

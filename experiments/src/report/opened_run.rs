@@ -144,31 +144,55 @@ impl OpenedRun {
     /// Read every snapshot, in order; each must be of the run's model and box (a particle
     /// run's box side, a mean-field run's grid), or the run directory holds another run's files.
     pub fn snapshots(&self) -> Result<Vec<Snapshot>, IoError> {
-        self.snapshot_paths
-            .iter()
-            .map(|p| {
-                let s = read_snapshot(p)?;
-                let mismatch = match (&s, &self.model) {
-                    (Snapshot::Particle(s), OpenedModel::Particle { config, .. }) => {
-                        (s.box_length != config.box_length).then(|| {
-                            format!(
-                                "box_length {} (config.toml: {})",
-                                s.box_length, config.box_length
-                            )
-                        })
-                    }
-                    (Snapshot::Field(s), OpenedModel::MeanField(config)) => (s.grid != config.grid)
-                        .then(|| format!("grid {} (config.toml: {})", s.grid, config.grid)),
-                    _ => Some("a snapshot of the other model".into()),
-                };
-                match mismatch {
-                    Some(m) => Err(IoError::Content {
-                        path: p.clone(),
-                        message: format!("not a snapshot of this run: {m}"),
-                    }),
-                    None => Ok(s),
-                }
-            })
-            .collect()
+        let shape = self.snapshot_shape();
+        self.snapshot_paths.iter().map(|p| shape.read(p)).collect()
+    }
+
+    /// What this run's snapshots must match.
+    pub fn snapshot_shape(&self) -> SnapshotShape {
+        match &self.model {
+            OpenedModel::Particle { config, .. } => SnapshotShape::Particle {
+                box_length: config.box_length,
+            },
+            OpenedModel::MeanField(config) => SnapshotShape::MeanField { grid: config.grid },
+        }
+    }
+}
+
+/// What a run's snapshots must match: its config's box (particle) or grid (mean field).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SnapshotShape {
+    /// A particle run of this box side.
+    Particle {
+        /// The config's `box_length`.
+        box_length: f64,
+    },
+    /// A mean-field run of this grid.
+    MeanField {
+        /// The config's `grid`.
+        grid: usize,
+    },
+}
+
+impl SnapshotShape {
+    /// The snapshot at `path`, refused by name where it is not one of this run's.
+    pub fn read(self, path: &Path) -> Result<Snapshot, IoError> {
+        let s = read_snapshot(path)?;
+        let mismatch = match (&s, self) {
+            (Snapshot::Particle(s), SnapshotShape::Particle { box_length }) => (s.box_length
+                != box_length)
+                .then(|| format!("box_length {} (config.toml: {box_length})", s.box_length)),
+            (Snapshot::Field(s), SnapshotShape::MeanField { grid }) => {
+                (s.grid != grid).then(|| format!("grid {} (config.toml: {grid})", s.grid))
+            }
+            _ => Some("a snapshot of the other model".into()),
+        };
+        match mismatch {
+            Some(m) => Err(IoError::Content {
+                path: path.to_path_buf(),
+                message: format!("not a snapshot of this run: {m}"),
+            }),
+            None => Ok(s),
+        }
     }
 }

@@ -22,11 +22,13 @@ pub enum Family {
     RunDirectory,
     /// A run's `config.toml` (its `[motile]` header and resolved config), likewise.
     RunConfig,
+    /// A snapshot in a particle run's directory, to `motile check-accuracy RUN_DIR`.
+    RunSnapshot,
 }
 
 impl Family {
     /// Every family.
-    pub const ALL: [Family; 9] = [
+    pub const ALL: [Family; 10] = [
         Family::ParticleConfig,
         Family::MeanFieldConfig,
         Family::Scene,
@@ -36,6 +38,7 @@ impl Family {
         Family::MeanFieldCheckpoint,
         Family::RunDirectory,
         Family::RunConfig,
+        Family::RunSnapshot,
     ];
 
     /// Its name on the command line and in tables.
@@ -50,6 +53,7 @@ impl Family {
             Family::MeanFieldCheckpoint => "meanfield-checkpoint",
             Family::RunDirectory => "run-timeseries",
             Family::RunConfig => "run-config",
+            Family::RunSnapshot => "run-snapshot",
         }
     }
 
@@ -63,6 +67,7 @@ impl Family {
             Family::FieldSnapshot => "meanfield run, `snapshot = FILE`",
             Family::ParticleCheckpoint | Family::MeanFieldCheckpoint => "`resume RUN_DIR`",
             Family::RunDirectory | Family::RunConfig => "`compare`/`analyze` opening the run",
+            Family::RunSnapshot => "`check-accuracy RUN_DIR --snapshot 1`",
         }
     }
 

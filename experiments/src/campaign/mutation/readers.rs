@@ -102,6 +102,10 @@ impl Seeds {
                 "timeseries.csv",
             ),
             Family::RunConfig => (read(self.particle_run.join("config.toml"))?, "config.toml"),
+            Family::RunSnapshot => (
+                read(self.particle_run.join("snapshots").join(AUDITED))?,
+                AUDITED,
+            ),
         })
     }
 }
@@ -143,6 +147,13 @@ pub fn read(family: Family, seeds: &Seeds, bytes: &[u8], work: &Path, name: &str
             Family::RunDirectory | Family::RunConfig => {
                 run_copy(&seeds.particle_run, bytes, work, name).and_then(|dir| opened_run(&dir))
             }
+            Family::RunSnapshot => run_copy(
+                &seeds.particle_run,
+                bytes,
+                work,
+                &format!("snapshots/{name}"),
+            )
+            .and_then(|dir| audited(&dir)),
         };
     outcome.unwrap_or_else(refused)
 }
@@ -308,6 +319,29 @@ fn meanfield_resume(dir: &Path) -> anyhow::Result<Verdict> {
             format!(
                 "resumed to t = {t} (t_end {}), last row {last:?}",
                 cfg.t_end
+            )
+        },
+    )))
+}
+
+/// The snapshot `check-accuracy --snapshot 1` audits.
+const AUDITED: &str = "snap_000001.h5";
+
+/// `motile check-accuracy RUN_DIR --snapshot 1` (16 targets): an audit accepted measures
+/// finite errors of every output against the direct sum.
+fn audited(dir: &Path) -> anyhow::Result<Verdict> {
+    let a = crate::report::accuracy::audit(dir, Some(1), 16)?;
+    let finite = a
+        .rows
+        .iter()
+        .all(|r| r.max_relative.is_finite() && r.l2_relative.is_finite());
+    Ok(Verdict::Accepted(check(
+        !a.rows.is_empty() && finite && a.time.is_finite(),
+        || {
+            format!(
+                "audit at t = {} with {} rows, errors finite: {finite}",
+                a.time,
+                a.rows.len()
             )
         },
     )))
