@@ -69,6 +69,31 @@ fn defects_found_by_earlier_campaigns_are_refused_by_name() {
         lines.swap(2, 3);
         lines.join("\n").into_bytes()
     };
+    let lines_of = |family: Family, edit: &dyn Fn(&mut Vec<String>)| {
+        let (bytes, _) = seeds.file(family).unwrap();
+        let mut lines: Vec<String> = std::str::from_utf8(&bytes)
+            .unwrap()
+            .lines()
+            .map(String::from)
+            .collect();
+        edit(&mut lines);
+        (lines.join("\n") + "\n").into_bytes()
+    };
+    let repeated_row = lines_of(Family::CompactTrajectories, &|l| {
+        let row = l[2].clone();
+        l.insert(3, row);
+    });
+    let negative_length = lines_of(Family::CompactLengths, &|l| {
+        let mut fields: Vec<String> = l[1].split(',').map(String::from).collect();
+        let k = fields.len() - 2;
+        fields[k] = "-1".into();
+        l[1] = fields.join(",");
+    });
+    let huge_box = lines_of(Family::SeriesTable, &|l| {
+        let mut fields: Vec<String> = l[1].split(',').map(String::from).collect();
+        fields[2] = "1e308".into();
+        l[1] = fields.join(",");
+    });
     // (what it was, family, file, the message's phrase)
     let cases: Vec<(&str, Family, Vec<u8>, &str)> = vec![
         (
@@ -208,6 +233,24 @@ fn defects_found_by_earlier_campaigns_are_refused_by_name() {
                 c.set_attr("time", AttrValue::F64(f64::NAN))
             }),
             "time NaN",
+        ),
+        (
+            "a compact run's MSD row repeated: drawn as given",
+            Family::CompactTrajectories,
+            repeated_row,
+            "increasing",
+        ),
+        (
+            "a compact run's correlation length -1: drawn as given",
+            Family::CompactLengths,
+            negative_length,
+            "correlation length -1",
+        ),
+        (
+            "a series table's L/l of 1e308: drawn at a density of 0",
+            Family::SeriesTable,
+            huge_box,
+            "L/l 1e308,",
         ),
     ];
     for (k, (what, family, bytes, phrase)) in cases.into_iter().enumerate() {

@@ -9,7 +9,7 @@ use crate::report::curves::{
     CorrCurve, CorrelationLength, OrderCorrelation, RunAnalysis, TrajectoryCurve,
 };
 use crate::report::opened_run::OpenedRun;
-use crate::report::products::{number, records_of};
+use crate::report::products::{check_curve, check_within, number, records_of};
 use anyhow::bail;
 
 /// The comparison's analysis of the run labelled `label`, from its compact products (no
@@ -29,16 +29,17 @@ pub(crate) fn read_analysis(run: &OpenedRun, label: &str) -> anyhow::Result<RunA
         .find_map(|part| part.split_once(" snapshot(s)").map(|(n, _)| n))
         .and_then(|n| n.trim().parse().ok())
         .unwrap_or(0);
+    let column = |k: usize| {
+        rows.iter()
+            .map(|r| number(r, k, &path))
+            .collect::<anyhow::Result<Vec<f64>>>()
+    };
+    let (r, value) = (column(1)?, column(2)?);
+    check_curve(&path, "r/L", &r, &[("Corr[u]", &value)])?;
     let corr_u = Some(CorrCurve {
         label: corr_label,
-        r: rows
-            .iter()
-            .map(|r| number(r, 1, &path))
-            .collect::<anyhow::Result<_>>()?,
-        value: rows
-            .iter()
-            .map(|r| number(r, 2, &path))
-            .collect::<anyhow::Result<_>>()?,
+        r,
+        value,
     });
     Ok(RunAnalysis {
         corr_u,
@@ -64,11 +65,29 @@ fn read_trajectory(run: &OpenedRun, label: &str) -> anyhow::Result<Option<Trajec
             .map(|r| number(r, k, &path))
             .collect::<anyhow::Result<Vec<f64>>>()
     };
+    let (t, msd, orientation) = (column(1)?, column(2)?, column(3)?);
+    check_curve(
+        &path,
+        "t",
+        &t,
+        &[
+            ("the MSD", &msd),
+            ("the orientation correlation", &orientation),
+        ],
+    )?;
+    check_within(&path, "the MSD", &msd, 0.0, f64::INFINITY)?;
+    check_within(
+        &path,
+        "the orientation correlation",
+        &orientation,
+        -1.0 - 1e-9,
+        1.0 + 1e-9,
+    )?;
     Ok(Some(TrajectoryCurve {
         label: label.to_string(),
-        t: column(1)?,
-        msd: column(2)?,
-        orientation: column(3)?,
+        t,
+        msd,
+        orientation,
     }))
 }
 
@@ -88,6 +107,15 @@ fn read_orders(run: &OpenedRun, label: &str) -> anyhow::Result<Vec<OrderCorrelat
             }),
         }
     }
+    for o in &orders {
+        let (r, v): (Vec<f64>, Vec<f64>) = o.points.iter().copied().unzip();
+        check_curve(
+            &path,
+            &format!("r/L of Corr[{}]", o.field),
+            &r,
+            &[("Corr", &v)],
+        )?;
+    }
     Ok(orders)
 }
 
@@ -97,10 +125,30 @@ fn read_lengths(run: &OpenedRun, label: &str) -> anyhow::Result<Vec<CorrelationL
     rows.iter()
         .filter(|r| r[1] == label)
         .map(|r| {
+            let length = number(r, 3, &path)?;
+            // NaN: the correlation has no zero.
+            if !(length.is_nan() || length.is_finite() && length > 0.0) {
+                bail!(
+                    "{}: correlation length {length} (a positive r/L, or NaN for none) in `{}`",
+                    path.display(),
+                    r.join(",")
+                );
+            }
             Ok(CorrelationLength {
                 field: r.get(2).cloned().unwrap_or_default(),
-                length: number(r, 3, &path)?,
+                length,
             })
         })
-        .collect()
+        .collect::<anyhow::Result<Vec<_>>>()
+        .and_then(|lengths| {
+            let fields: Vec<&str> = lengths.iter().map(|l| l.field.as_str()).collect();
+            match fields
+                .iter()
+                .enumerate()
+                .find(|(i, f)| fields[..*i].contains(f))
+            {
+                Some((_, f)) => bail!("{}: two correlation lengths of `{f}`", path.display()),
+                None => Ok(lengths),
+            }
+        })
 }

@@ -83,9 +83,72 @@ pub(crate) fn records_of(
 /// `<p(t).p(0)>` of the run labelled `label`, from its `trajectories.csv`: `(t, value)`.
 pub(crate) fn orientation_samples(run: &OpenedRun, label: &str) -> anyhow::Result<Vec<(f64, f64)>> {
     let (path, rows) = records_of(run, "trajectories.csv", label, 0)?;
-    rows.iter()
+    let samples: Vec<(f64, f64)> = rows
+        .iter()
         .map(|r| Ok((number(r, 1, &path)?, number(r, 3, &path)?)))
-        .collect()
+        .collect::<anyhow::Result<_>>()?;
+    let (t, c): (Vec<f64>, Vec<f64>) = samples.iter().copied().unzip();
+    check_curve(&path, "t", &t, &[("the orientation correlation", &c)])?;
+    check_within(
+        &path,
+        "the orientation correlation",
+        &c,
+        -1.0 - 1e-9,
+        1.0 + 1e-9,
+    )?;
+    Ok(samples)
+}
+
+/// A curve as `motile compare` writes it: `x` finite and strictly increasing, each of `ys`
+/// finite and of its length; else an error naming `path` and what is wrong.
+pub(crate) fn check_curve(
+    path: &Path,
+    x_name: &str,
+    x: &[f64],
+    ys: &[(&str, &[f64])],
+) -> anyhow::Result<()> {
+    if let Some(i) = (0..x.len()).find(|&i| !x[i].is_finite() || (i > 0 && x[i] <= x[i - 1])) {
+        anyhow::bail!(
+            "{}: {x_name} must be finite and increasing (written by motile compare), but value {} is {} after {}",
+            path.display(),
+            i + 1,
+            x[i],
+            if i > 0 { x[i - 1] } else { f64::NAN }
+        );
+    }
+    for (name, y) in ys {
+        if y.len() != x.len() {
+            anyhow::bail!(
+                "{}: {} values of {name} for {} of {x_name}",
+                path.display(),
+                y.len(),
+                x.len()
+            );
+        }
+        if let Some(i) = y.iter().position(|v| !v.is_finite()) {
+            anyhow::bail!("{}: {name} value {} is {}", path.display(), i + 1, y[i]);
+        }
+    }
+    Ok(())
+}
+
+/// Every value of `y` within `[lo, hi]`, else an error naming `path`.
+pub(crate) fn check_within(
+    path: &Path,
+    name: &str,
+    y: &[f64],
+    lo: f64,
+    hi: f64,
+) -> anyhow::Result<()> {
+    match y.iter().position(|v| !(lo..=hi).contains(v)) {
+        Some(i) => anyhow::bail!(
+            "{}: {name} value {} is {}, outside [{lo:.0}, {hi:.0}]",
+            path.display(),
+            i + 1,
+            y[i]
+        ),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]

@@ -64,11 +64,11 @@ impl RunColumns {
 }
 
 /// A particle run's saturated norm against its box.
-struct SaturatedPoint {
-    box_length: f64,
-    mean: f64,
-    nu: f64,
-    rotational_diffusion: Option<f64>,
+pub(crate) struct SaturatedPoint {
+    pub(crate) box_length: f64,
+    pub(crate) mean: f64,
+    pub(crate) nu: f64,
+    pub(crate) rotational_diffusion: Option<f64>,
 }
 
 /// The series summary (`series.csv`, `series.md`) of the runs' `curves` with their
@@ -199,21 +199,24 @@ fn md_row(c: &NormCurve, columns: &RunColumns, s: &NormStatistics, zero: f64) ->
 
 /// A row of an earlier series table (`--table`): its text and what the saturated-norm chart
 /// draws of it.
-struct TableRow {
-    run: String,
-    line: String,
-    point: TablePoint,
+pub(crate) struct TableRow {
+    pub(crate) run: String,
+    pub(crate) line: String,
+    pub(crate) point: TablePoint,
 }
 
 /// What a table row adds to the saturated-norm chart.
-enum TablePoint {
+pub(crate) enum TablePoint {
     Particle(SaturatedPoint),
     Continuum(f64),
 }
 
 /// The rows of the series table at `path` (a `series.csv` written by `motile compare`, such as
 /// the gallery's) whose runs are not among `compared`.
-fn read_table(path: &Path, compared: &[String]) -> anyhow::Result<Vec<TableRow>> {
+/// Each row has the header's fields, a run named once, and the values the chart draws in
+/// range (a positive box and saturated norm, a whole number of rods, a rotational diffusion
+/// not negative or NaN); else an error naming the file and row.
+pub(crate) fn read_table(path: &Path, compared: &[String]) -> anyhow::Result<Vec<TableRow>> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
     let mut lines = text.lines();
@@ -225,8 +228,18 @@ fn read_table(path: &Path, compared: &[String]) -> anyhow::Result<Vec<TableRow>>
         );
     }
     let mut rows = Vec::new();
+    let mut seen: Vec<String> = Vec::new();
+    let fields = CSV_HEADER.trim_end().split(',').count();
     for (k, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
         let f: Vec<&str> = line.split(',').collect();
+        let bad = |what: String| anyhow::anyhow!("{}: row {}: {what}", path.display(), k + 2);
+        if f.len() != fields {
+            return Err(bad(format!("{} fields, the header has {fields}", f.len())));
+        }
+        if seen.contains(&f[0].to_string()) {
+            return Err(bad(format!("run `{}` a second time", f[0])));
+        }
+        seen.push(f[0].to_string());
         let num = |i: usize| -> anyhow::Result<f64> {
             f.get(i).and_then(|v| v.parse::<f64>().ok()).ok_or_else(|| {
                 anyhow::anyhow!(
@@ -241,17 +254,35 @@ fn read_table(path: &Path, compared: &[String]) -> anyhow::Result<Vec<TableRow>>
         if compared.contains(&run) {
             continue;
         }
+        let mean = num(15)?;
+        if !(mean.is_finite() && mean > 0.0) {
+            return Err(bad(format!("mean_u_l2 {mean} (positive)")));
+        }
         let point = if f.get(1) == Some(&"particle") {
             let (l, rods) = (num(2)?, num(3)?);
             let d_r = num(12)?;
+            let nu = rods / (l * l * l);
+            if !(l.is_finite() && rods >= 1.0 && rods.fract() == 0.0 && nu.is_finite() && nu > 0.0)
+            {
+                return Err(bad(format!(
+                    "L/l {l:e}, rods {rods:e} (a box and whole rods of a finite, positive density)"
+                )));
+            }
+            if !(d_r.is_nan() || d_r.is_finite() && d_r >= 0.0) {
+                return Err(bad(format!(
+                    "rotational_diffusion {d_r} (not negative, or NaN)"
+                )));
+            }
             TablePoint::Particle(SaturatedPoint {
                 box_length: l,
-                mean: num(15)?,
-                nu: rods / (l * l * l),
+                mean,
+                nu,
                 rotational_diffusion: (!d_r.is_nan()).then_some(d_r),
             })
+        } else if f.get(1) == Some(&"meanfield") {
+            TablePoint::Continuum(mean)
         } else {
-            TablePoint::Continuum(num(15)?)
+            return Err(bad(format!("model `{}` (particle or meanfield)", f[1])));
         };
         rows.push(TableRow {
             run,

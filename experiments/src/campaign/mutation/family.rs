@@ -24,11 +24,22 @@ pub enum Family {
     RunConfig,
     /// A snapshot in a particle run's directory, to `motile check-accuracy RUN_DIR`.
     RunSnapshot,
+    /// A compact run's (`compare/` products, no snapshots) `velocity_correlation.csv`, to
+    /// `motile compare` reading it.
+    CompactCorrelation,
+    /// Its `trajectories.csv` (MSD, orientation correlation), likewise.
+    CompactTrajectories,
+    /// Its `order_correlations.csv`, likewise.
+    CompactOrders,
+    /// Its `correlation_lengths.csv`, likewise.
+    CompactLengths,
+    /// A series table (`series.csv`, as the gallery's), to `motile compare --table`.
+    SeriesTable,
 }
 
 impl Family {
     /// Every family.
-    pub const ALL: [Family; 10] = [
+    pub const ALL: [Family; 15] = [
         Family::ParticleConfig,
         Family::MeanFieldConfig,
         Family::Scene,
@@ -39,6 +50,11 @@ impl Family {
         Family::RunDirectory,
         Family::RunConfig,
         Family::RunSnapshot,
+        Family::CompactCorrelation,
+        Family::CompactTrajectories,
+        Family::CompactOrders,
+        Family::CompactLengths,
+        Family::SeriesTable,
     ];
 
     /// Its name on the command line and in tables.
@@ -54,6 +70,11 @@ impl Family {
             Family::RunDirectory => "run-timeseries",
             Family::RunConfig => "run-config",
             Family::RunSnapshot => "run-snapshot",
+            Family::CompactCorrelation => "compact-corr-u",
+            Family::CompactTrajectories => "compact-trajectories",
+            Family::CompactOrders => "compact-orders",
+            Family::CompactLengths => "compact-lengths",
+            Family::SeriesTable => "series-table",
         }
     }
 
@@ -68,6 +89,22 @@ impl Family {
             Family::ParticleCheckpoint | Family::MeanFieldCheckpoint => "`resume RUN_DIR`",
             Family::RunDirectory | Family::RunConfig => "`compare`/`analyze` opening the run",
             Family::RunSnapshot => "`check-accuracy RUN_DIR --snapshot 1`",
+            Family::CompactCorrelation
+            | Family::CompactTrajectories
+            | Family::CompactOrders
+            | Family::CompactLengths => "`compare` of a compact run (series products)",
+            Family::SeriesTable => "`compare --table FILE`",
+        }
+    }
+
+    /// The compact product a compact family damages.
+    pub(super) fn compact_file(self) -> Option<&'static str> {
+        match self {
+            Family::CompactCorrelation => Some("velocity_correlation.csv"),
+            Family::CompactTrajectories => Some("trajectories.csv"),
+            Family::CompactOrders => Some("order_correlations.csv"),
+            Family::CompactLengths => Some("correlation_lengths.csv"),
+            _ => None,
         }
     }
 
@@ -79,6 +116,11 @@ impl Family {
                 | Family::Scene
                 | Family::RunDirectory
                 | Family::RunConfig
+                | Family::CompactCorrelation
+                | Family::CompactTrajectories
+                | Family::CompactOrders
+                | Family::CompactLengths
+                | Family::SeriesTable
         )
     }
 }

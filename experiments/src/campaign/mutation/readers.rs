@@ -57,6 +57,9 @@ pub struct Seeds {
     pub particle_run: PathBuf,
     /// The mean-field seed run's directory.
     pub meanfield_run: PathBuf,
+    /// The particle seed run as the series harvest files it: config, time series and its
+    /// comparison's compact products, no snapshots.
+    pub compact_run: PathBuf,
 }
 
 impl Seeds {
@@ -70,9 +73,12 @@ impl Seeds {
         particle::run_particle(&p, &particle_run, false)?;
         let m = meanfield::parse_config(MEANFIELD_SEED, Path::new("seed-meanfield.toml"))?;
         meanfield::run_meanfield(&m, &meanfield_run, false)?;
+        let compact_run = dir.join("seed-compact");
+        compact_of(&particle_run, &compact_run)?;
         Ok(Self {
             particle_run,
             meanfield_run,
+            compact_run,
         })
     }
 
@@ -105,6 +111,17 @@ impl Seeds {
             Family::RunSnapshot => (
                 read(self.particle_run.join("snapshots").join(AUDITED))?,
                 AUDITED,
+            ),
+            Family::CompactCorrelation
+            | Family::CompactTrajectories
+            | Family::CompactOrders
+            | Family::CompactLengths => {
+                let name = family.compact_file().unwrap_or_default();
+                (read(self.compact_run.join("compare").join(name))?, name)
+            }
+            Family::SeriesTable => (
+                read(self.compact_run.join("compare").join("series.csv"))?,
+                "series.csv",
             ),
         })
     }
@@ -154,6 +171,13 @@ pub fn read(family: Family, seeds: &Seeds, bytes: &[u8], work: &Path, name: &str
                 &format!("snapshots/{name}"),
             )
             .and_then(|dir| audited(&dir)),
+            Family::CompactCorrelation
+            | Family::CompactTrajectories
+            | Family::CompactOrders
+            | Family::CompactLengths => {
+                compact_copy(&seeds.compact_run, bytes, work, name).and_then(|dir| compact(&dir))
+            }
+            Family::SeriesTable => write(work, name, bytes).and_then(|p| series_table(&p)),
         };
     outcome.unwrap_or_else(refused)
 }
@@ -322,6 +346,107 @@ fn meanfield_resume(dir: &Path) -> anyhow::Result<Verdict> {
             )
         },
     )))
+}
+
+/// `run` filed as the series harvest files a member into `compact`: its config, time series
+/// and what `motile compare` wrote of it.
+fn compact_of(run: &Path, compact: &Path) -> anyhow::Result<()> {
+    crate::io::remove_old_run(compact)?;
+    let products = compact.join("compare");
+    crate::report::compare::compare(&[run.to_path_buf()], &products)?;
+    for f in ["config.toml", "timeseries.csv"] {
+        std::fs::copy(run.join(f), compact.join(f))?;
+    }
+    Ok(())
+}
+
+/// A copy of the compact run `seed` with `bytes` as its product `name`.
+fn compact_copy(seed: &Path, bytes: &[u8], work: &Path, name: &str) -> anyhow::Result<PathBuf> {
+    let dir = work.join("run");
+    for sub in ["", "compare"] {
+        std::fs::create_dir_all(dir.join(sub))?;
+        for e in std::fs::read_dir(seed.join(sub))? {
+            let e = e?;
+            if e.file_type()?.is_file() {
+                std::fs::copy(e.path(), dir.join(sub).join(e.file_name()))?;
+            }
+        }
+    }
+    std::fs::write(dir.join("compare").join(name), bytes)?;
+    Ok(dir)
+}
+
+/// `motile compare` of a compact run, as far as it reads the products: the norm curve (the
+/// rotational diffusion from `trajectories.csv`) and the analysis. Accepted curves are finite
+/// with increasing abscissae, MSDs not negative, orientation correlations within [-1, 1],
+/// correlation lengths positive (or NaN: no zero).
+fn compact(dir: &Path) -> anyhow::Result<Verdict> {
+    let run = OpenedRun::open(dir)?;
+    let curve = crate::report::curves::norm_curve_of(&run)?;
+    let a = crate::report::compact::read_analysis(&run, &curve.label)?;
+    let increasing = |x: &[f64]| x.windows(2).all(|w| w[1] > w[0]);
+    let finite = |x: &[f64]| x.iter().all(|v| v.is_finite());
+    let mut bad = Vec::new();
+    if let Some(c) = &a.corr_u
+        && !(c.r.len() == c.value.len() && increasing(&c.r) && finite(&c.r) && finite(&c.value))
+    {
+        bad.push("Corr[u]");
+    }
+    if let Some(t) = &a.traj {
+        let same = t.t.len() == t.msd.len() && t.t.len() == t.orientation.len();
+        if !(same
+            && increasing(&t.t)
+            && finite(&t.t)
+            && t.msd.iter().all(|&m| m.is_finite() && m >= 0.0)
+            && t.orientation.iter().all(|o| o.abs() <= 1.0 + 1e-9))
+        {
+            bad.push("trajectories");
+        }
+    }
+    for o in &a.order {
+        let (r, v): (Vec<f64>, Vec<f64>) = o.points.iter().copied().unzip();
+        if !(increasing(&r) && finite(&r) && finite(&v)) {
+            bad.push("order correlations");
+        }
+    }
+    if a.lengths
+        .iter()
+        .any(|l| !(l.length.is_nan() || l.length > 0.0 && l.length.is_finite()))
+    {
+        bad.push("correlation lengths");
+    }
+    let diffusion = curve.particle.as_ref().and_then(|p| p.rotational_diffusion);
+    if diffusion.is_some_and(|d| !d.is_finite()) {
+        bad.push("rotational diffusion");
+    }
+    Ok(Verdict::Accepted(check(
+        bad.is_empty() && a.corr_u.is_some(),
+        || {
+            format!(
+                "accepted compact products with inconsistent {bad:?} (Corr[u] present: {})",
+                a.corr_u.is_some()
+            )
+        },
+    )))
+}
+
+/// `motile compare --table FILE`: rows accepted have positive norms, and particle rows a
+/// positive box and density and a rotational diffusion not negative (or none).
+fn series_table(path: &Path) -> anyhow::Result<Verdict> {
+    use crate::report::series::TablePoint;
+    let rows = crate::report::series::read_table(path, &[])?;
+    let bad = rows.iter().find(|r| match &r.point {
+        TablePoint::Particle(p) => {
+            !(p.box_length > 0.0 && p.nu > 0.0 && p.mean > 0.0 && p.mean.is_finite())
+                || p.rotational_diffusion
+                    .is_some_and(|d| !(d >= 0.0 && d.is_finite()))
+                || !p.nu.is_finite()
+        }
+        TablePoint::Continuum(mean) => !(mean.is_finite() && *mean > 0.0),
+    });
+    Ok(Verdict::Accepted(check(bad.is_none(), || {
+        format!("accepted row `{}`", bad.map_or("", |r| r.line.as_str()))
+    })))
 }
 
 /// The snapshot `check-accuracy --snapshot 1` audits.
