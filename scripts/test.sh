@@ -72,6 +72,7 @@ cargo test --release -p motile-particle --features gpu --test gpu_slender
 # step's against its design (the process's tally: the same bytes on the emulation as on CUDA;
 # a file of one test, as the tally is shared).
 cargo test --release -p motile-particle --features gpu --test gpu_memory
+cargo test --release -p motile-meanfield --features gpu --test gpu_memory
 # The GPU modules' own unit tests (kernel declarations against their sources, the kernels
 # compiled as CUDA device code, the spreaders' reach and work model), which the default build
 # leaves out with the feature.

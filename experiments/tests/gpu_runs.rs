@@ -744,7 +744,8 @@ fn file_the_harvest(archive: &Path, rows: &str, tmp: &Path) {
 }
 
 /// A run whose measured GPU memory need exceeds what it may use is refused before its first
-/// step, with the figures, and writes no time series; a limit that is not a number is named.
+/// step, with the figures, and writes no time series (a particle run and a mean-field run); a
+/// limit that is not a number is named.
 #[test]
 fn a_run_that_would_not_fit_the_gpu_memory_is_refused_with_the_figures() {
     if !emulation_available() {
@@ -779,4 +780,23 @@ fn a_run_that_would_not_fit_the_gpu_memory_is_refused_with_the_figures() {
     // Enough memory: the run goes.
     let o = run("100000000000", "enough");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // A mean-field run likewise, by its bytes per grid point, before its device is opened.
+    let mf = tmp.path().join("mf.toml");
+    std::fs::write(&mf, "grid = 16\nt_end = 0.1\n").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_motile"))
+        .args(["meanfield", "run", mf.to_str().unwrap(), "--out"])
+        .arg(tmp.path().join("mf"))
+        .args(["--device", "gpu", "--threads", "1"])
+        .env("MOTILE_GPU_BACKEND", "emulation")
+        .env("MOTILE_GPU_MEMORY_LIMIT", "100000000")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success()
+            && err.contains("4096 grid points x 600 bytes")
+            && err.contains("grid = 16"),
+        "{err}"
+    );
+    assert!(!tmp.path().join("mf/timeseries.csv").exists());
 }

@@ -58,9 +58,12 @@ pub(crate) fn probe() -> Result<DeviceInfo, GpuError> {
         return Err(GpuError::NoDevice("the driver reports no device".into()));
     }
     let ctx = CudaContext::new(0).map_err(|e| GpuError::NoDevice(format!("{e:?}")))?;
+    ctx.bind_to_thread().map_err(driver)?;
+    let (free_memory, _) = cudarc::driver::result::mem_get_info().map_err(driver)?;
     Ok(DeviceInfo {
         name: ctx.name().map_err(driver)?,
         memory: ctx.total_mem().map_err(driver)?,
+        free_memory,
         compute_capability: ctx.compute_capability().map_err(driver)?,
     })
 }

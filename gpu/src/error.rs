@@ -41,6 +41,8 @@ pub struct DeviceInfo {
     pub name: String,
     /// Its memory in bytes.
     pub memory: usize,
+    /// Its free memory in bytes when probed (all processes' use subtracted).
+    pub free_memory: usize,
     /// Compute capability (major, minor).
     pub compute_capability: (i32, i32),
 }

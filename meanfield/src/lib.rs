@@ -16,6 +16,14 @@ pub mod gpu;
 pub mod initial;
 pub mod solver;
 
+/// Device bytes per grid point at the GPU step's peak (state, history, velocity, the closure's
+/// per-point values and the transforms' buffers; tables and wavenumbers are small), measured
+/// on the host emulation's tally of device buffers at 12^3 and 20^3 (`tests/gpu_memory.rs`,
+/// feature `gpu`, which fails where the measured figure is not within 0.8-1 of this): what a
+/// run's memory check assumes. With the CUDA context (0.55 GB) it gives 10.6 GB at 256^3,
+/// against 9.89 GB in use measured on an H100 (docs/gpu.md): 7% to spare.
+pub const GPU_BYTES_PER_POINT: f64 = 600.0;
+
 /// What a user of the mean-field model needs, in one import: `use motile_meanfield::prelude::*;`.
 pub mod prelude {
     pub use crate::closure::BinghamClosure;

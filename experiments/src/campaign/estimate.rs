@@ -216,8 +216,7 @@ pub fn gpu_estimate(cfg: &RunConfig) -> GpuEstimate {
                 analysis_seconds: MEANFIELD_ANALYSIS_SECONDS_PER_POINT_SNAPSHOT
                     * points as f64
                     * snapshots,
-                // The 256^3 step's 9.89 GB on the H100 (docs/gpu.md), per grid point.
-                memory_bytes: 589.0 * points as f64,
+                memory_bytes: c.gpu_memory().bytes(),
                 how: "the mf128 member's whole run on an H200, scaled as N log N; at least this many steps (the CFL condition may shorten the step)",
             }
         }

@@ -1,5 +1,6 @@
-//! The host memory a run needs, and the check that refuses a run this machine cannot hold
-//! before it allocates (a run of 6e9 rods would otherwise abort inside the allocator).
+//! The host and GPU memory a run needs, and the checks that refuse a run this machine or its
+//! GPU cannot hold before it allocates (a run of 6e9 rods would otherwise abort inside the
+//! allocator).
 //!
 //! The needs are measured peaks (`/usr/bin/time -v`, maximum resident set, 5 steps, release
 //! build, x86_64): a particle run at `sbt` 5.6 kB per rod at nu = 5 (L/l 6 and 12) and 7.5 kB at
@@ -96,5 +97,84 @@ mod tests {
             HostMemoryNeed::meanfield(64).bytes(),
             50e6 + 1e3 * 262_144.0
         );
+    }
+}
+
+/// The CUDA context's bytes on the H100 before any buffer (BENCHMARKS.md, "Memory per rod").
+pub const CUDA_CONTEXT_BYTES: f64 = 0.55e9;
+
+/// The GPU memory a run needs at its step's peak: the CUDA context and a measured figure per
+/// rod or grid point (`ParticleRunConfig::gpu_memory`, `MeanFieldRunConfig::gpu_memory`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuMemoryNeed {
+    /// Rods or grid points.
+    pub items: usize,
+    /// What the items are ("rods", "grid points").
+    pub what: &'static str,
+    /// Bytes per item at the step's peak.
+    pub per_item: f64,
+    /// The context's bytes.
+    pub context: f64,
+}
+
+impl GpuMemoryNeed {
+    /// Bytes in all.
+    pub fn bytes(&self) -> f64 {
+        self.context + self.per_item * self.items as f64
+    }
+
+    /// Refuse a need above `device` (`(free, total)` bytes, `None` on the host emulation) or
+    /// `limit` bytes, with the figures.
+    pub fn check(
+        &self,
+        device: Option<(usize, usize)>,
+        limit: Option<usize>,
+    ) -> anyhow::Result<()> {
+        let free = match (device, limit) {
+            (Some((free, _)), Some(l)) => free.min(l),
+            (Some((free, _)), None) => free,
+            (None, Some(l)) => l,
+            (None, None) => return Ok(()),
+        };
+        let gb = |b: f64| b / 1e9;
+        if self.bytes() > free as f64 {
+            let of = device.map_or(" (MOTILE_GPU_MEMORY_LIMIT)".to_string(), |(f, t)| {
+                format!(
+                    " ({:.2} GB free of {:.2} GB{})",
+                    gb(f as f64),
+                    gb(t as f64),
+                    if limit.is_some() {
+                        ", MOTILE_GPU_MEMORY_LIMIT lower"
+                    } else {
+                        ""
+                    }
+                )
+            });
+            anyhow::bail!(
+                "device = \"gpu\": the run needs about {:.2} GB of GPU memory ({} {} x {:.0} bytes at the step's measured peak, and the context's {:.2} GB) but may use {:.2} GB{of}; use a smaller {}, a GPU with more memory, or device = \"cpu\"",
+                gb(self.bytes()),
+                self.items,
+                self.what,
+                self.per_item,
+                gb(self.context),
+                gb(free as f64),
+                if self.what == "rods" { "box" } else { "grid" }
+            );
+        }
+        Ok(())
+    }
+}
+
+/// `MOTILE_GPU_MEMORY_LIMIT`: bytes of GPU memory a run may assume, below the device's free
+/// memory (a GPU shared with other work; on the host emulation, the memory the checks see).
+/// `None` where unset; a value that is not a whole number of bytes is an error naming it.
+pub fn gpu_memory_limit() -> anyhow::Result<Option<usize>> {
+    match std::env::var("MOTILE_GPU_MEMORY_LIMIT") {
+        Err(_) => Ok(None),
+        Ok(v) => v.trim().parse().map(Some).map_err(|_| {
+            anyhow::anyhow!(
+                "MOTILE_GPU_MEMORY_LIMIT = {v:?}: expected a whole number of bytes (e.g. 40000000000)"
+            )
+        }),
     }
 }

@@ -3,6 +3,7 @@
 
 use crate::io::rundir::parse_run_config_with;
 use crate::run::Device;
+use crate::run::memory::{CUDA_CONTEXT_BYTES, GpuMemoryNeed};
 use motile_meanfield::control::StepControl;
 use motile_meanfield::initial::Perturbation;
 use motile_meanfield::solver::params::MeanFieldParams;
@@ -157,6 +158,17 @@ impl MeanFieldRunConfig {
             fixed_point_tolerance: self.fixed_point_tolerance,
             fixed_point_max_iterations: self.fixed_point_max_iterations,
             fixed_point_iterations: None,
+        }
+    }
+
+    /// The GPU memory a run of this config with `device = "gpu"` needs: the context and the
+    /// step's measured bytes per grid point ([`motile_meanfield::GPU_BYTES_PER_POINT`]).
+    pub fn gpu_memory(&self) -> GpuMemoryNeed {
+        GpuMemoryNeed {
+            items: self.grid.pow(3),
+            what: "grid points",
+            per_item: motile_meanfield::GPU_BYTES_PER_POINT,
+            context: CUDA_CONTEXT_BYTES,
         }
     }
 

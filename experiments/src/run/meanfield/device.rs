@@ -3,9 +3,22 @@
 //! CPU stepper's form only for snapshots, diagnostics and checkpoints.
 
 use super::step_error::EngineError;
+use crate::run::memory::{GpuMemoryNeed, gpu_memory_limit};
 use motile_meanfield::gpu::{GpuError, GpuMeanField};
 use motile_meanfield::solver::rhs::MeanFieldRhs;
 use motile_meanfield::solver::stepper::{MeanFieldStepReport, MeanFieldStepper};
+
+/// Refuse a run whose GPU memory need exceeds the device's free memory (CUDA; probed before
+/// anything is allocated) or `MOTILE_GPU_MEMORY_LIMIT` (also on the host emulation).
+pub(super) fn check_memory(need: GpuMemoryNeed) -> anyhow::Result<()> {
+    let device = match crate::run::gpu_backend()? {
+        motile_gpu::Backend::Cuda => motile_gpu::probe()
+            .ok()
+            .map(|info| (info.free_memory, info.memory)),
+        motile_gpu::Backend::HostEmulation => None,
+    };
+    need.check(device, gpu_memory_limit()?)
+}
 
 /// The GPU stepper of a mean-field run.
 pub(super) struct GpuEngine(GpuMeanField);

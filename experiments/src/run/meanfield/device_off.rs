@@ -5,6 +5,12 @@ use super::step_error::EngineError;
 use motile_meanfield::solver::rhs::MeanFieldRhs;
 use motile_meanfield::solver::stepper::{MeanFieldStepReport, MeanFieldStepper};
 
+/// Without a device only `MOTILE_GPU_MEMORY_LIMIT` can refuse a run's need (the run itself is
+/// refused when it opens the device).
+pub(super) fn check_memory(need: crate::run::memory::GpuMemoryNeed) -> anyhow::Result<()> {
+    need.check(None, crate::run::memory::gpu_memory_limit()?)
+}
+
 /// The GPU stepper of a mean-field run: none in this build.
 pub(super) enum GpuEngine {}
 

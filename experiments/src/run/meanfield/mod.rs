@@ -132,13 +132,14 @@ pub fn preflight(cfg: &MeanFieldRunConfig) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The host memory of a run on the CPU, the GPU memory of a run on the GPU (refused before
+/// anything is allocated, with the figures).
 fn check_memory(cfg: &MeanFieldRunConfig) -> anyhow::Result<()> {
-    if cfg.device == Device::Cpu {
-        HostMemoryNeed::meanfield(cfg.grid)
-            .check(crate::run::memory::available())
-            .map_err(|e| anyhow::anyhow!("config: grid = {}: {e}", cfg.grid))?;
-    }
-    Ok(())
+    let checked = match cfg.device {
+        Device::Cpu => HostMemoryNeed::meanfield(cfg.grid).check(crate::run::memory::available()),
+        Device::Gpu => device::check_memory(cfg.gpu_memory()),
+    };
+    checked.map_err(|e| anyhow::anyhow!("config: grid = {}: {e}", cfg.grid))
 }
 
 /// Continue a mean-field run from its newest checkpoint.

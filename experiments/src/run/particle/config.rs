@@ -2,6 +2,8 @@
 //! validated with messages that name the field; the mobility it selects.
 
 use crate::io::rundir::{parse_run_config_with, range};
+use crate::run::memory::CUDA_CONTEXT_BYTES;
+pub use crate::run::memory::GpuMemoryNeed;
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
@@ -133,67 +135,6 @@ impl Default for ParticleRunConfig {
             lowest_modes: false,
             contact: ContactParams::default(),
         }
-    }
-}
-
-/// The GPU memory a resident run needs at its step's peak, from the measured figures
-/// (BENCHMARKS.md, "Memory per rod"): the CUDA context, 0.55 GB on the H100, and per rod the
-/// level's peak (the dipole step 2 212 bytes at L/l = 100: its buffers 1 817 and the driver's
-/// pool 395; `sbt` 6 520 at L/l = 50, its GMRES vectors with it; `sbt-explicit` and `none`
-/// not measured, taken as the dipole step's, which sums as much).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GpuMemoryNeed {
-    /// Rods.
-    pub rods: usize,
-    /// Bytes per rod at the step's peak.
-    pub per_rod: f64,
-    /// The context's bytes.
-    pub context: f64,
-}
-
-impl GpuMemoryNeed {
-    /// Bytes in all.
-    pub fn bytes(&self) -> f64 {
-        self.context + self.per_rod * self.rods as f64
-    }
-
-    /// Refuse a need above `device` (`(free, total)` bytes, `None` on the host emulation) or
-    /// `limit` bytes, with the figures.
-    pub fn check(
-        &self,
-        device: Option<(usize, usize)>,
-        limit: Option<usize>,
-    ) -> anyhow::Result<()> {
-        let free = match (device, limit) {
-            (Some((free, _)), Some(l)) => free.min(l),
-            (Some((free, _)), None) => free,
-            (None, Some(l)) => l,
-            (None, None) => return Ok(()),
-        };
-        let gb = |b: f64| b / 1e9;
-        if self.bytes() > free as f64 {
-            let of = device.map_or(" (MOTILE_GPU_MEMORY_LIMIT)".to_string(), |(f, t)| {
-                format!(
-                    " ({:.2} GB free of {:.2} GB{})",
-                    gb(f as f64),
-                    gb(t as f64),
-                    if limit.is_some() {
-                        ", MOTILE_GPU_MEMORY_LIMIT lower"
-                    } else {
-                        ""
-                    }
-                )
-            });
-            anyhow::bail!(
-                "device = \"gpu\": the run needs about {:.2} GB of GPU memory ({} rods x {:.0} bytes at the step's measured peak, and the context's {:.2} GB) but may use {:.2} GB{of}; use a smaller box, a GPU with more memory, or device = \"cpu\"",
-                gb(self.bytes()),
-                self.rods,
-                self.per_rod,
-                gb(self.context),
-                gb(free as f64)
-            );
-        }
-        Ok(())
     }
 }
 
@@ -485,15 +426,20 @@ impl ParticleRunConfig {
             .unwrap_or((self.volume_fraction * self.box_length.powi(3)).round() as usize)
     }
 
-    /// The GPU memory a resident run of this config needs ([`GpuMemoryNeed`]).
+    /// The GPU memory a resident run of this config needs ([`GpuMemoryNeed`]), from the
+    /// measured figures (BENCHMARKS.md, "Memory per rod"): per rod the level's peak (the dipole
+    /// step 2 212 bytes at L/l = 100: its buffers 1 817 and the driver's pool 395; `sbt` 6 520
+    /// at L/l = 50, its GMRES vectors with it; `sbt-explicit` and `none` not measured, taken as
+    /// the dipole step's, which sums as much).
     pub fn gpu_memory(&self) -> GpuMemoryNeed {
         GpuMemoryNeed {
-            rods: self.rod_count(),
-            per_rod: match self.hydrodynamics {
+            items: self.rod_count(),
+            what: "rods",
+            per_item: match self.hydrodynamics {
                 Hydrodynamics::Sbt => 6_520.0,
                 _ => 2_212.0,
             },
-            context: 0.55e9,
+            context: CUDA_CONTEXT_BYTES,
         }
     }
 

@@ -4,7 +4,7 @@
 use motile_particle::model::rods::RodSet;
 use motile_particle::step::contact::{ContactParams, WarmStart};
 
-use super::config::GpuMemoryNeed;
+use crate::run::memory::{GpuMemoryNeed, gpu_memory_limit};
 
 pub(crate) use motile_particle::step::gpu::DeviceStepper;
 
@@ -28,18 +28,4 @@ pub(crate) fn open(
         .map(|(used, total)| (total.saturating_sub(used), total));
     need.check(device, gpu_memory_limit()?)?;
     Ok(stepper)
-}
-
-/// `MOTILE_GPU_MEMORY_LIMIT`: bytes of GPU memory a run may assume, below the device's free
-/// memory (a GPU shared with other work; on the host emulation, the memory the checks see).
-/// `None` where unset; a value that is not a whole number of bytes is an error naming it.
-fn gpu_memory_limit() -> anyhow::Result<Option<usize>> {
-    match std::env::var("MOTILE_GPU_MEMORY_LIMIT") {
-        Err(_) => Ok(None),
-        Ok(v) => v.trim().parse().map(Some).map_err(|_| {
-            anyhow::anyhow!(
-                "MOTILE_GPU_MEMORY_LIMIT = {v:?}: expected a whole number of bytes (e.g. 40000000000)"
-            )
-        }),
-    }
 }

@@ -47,7 +47,7 @@ pub(crate) fn open(
     _rods: &RodSet,
     _contact: &ContactParams,
     _warm: &WarmStart,
-    _need: super::config::GpuMemoryNeed,
+    _need: crate::run::memory::GpuMemoryNeed,
 ) -> anyhow::Result<DeviceStepper> {
     anyhow::bail!(
         "device = \"gpu\": this motile was built without GPU support; build it with `cargo install --path experiments --features gpu` (CUDA is loaded when a run starts: the build needs nothing but cargo)"
