@@ -6,7 +6,7 @@ shortenings that leave what the examples call unchanged:
 - `motile.run` runs each config as given, every key checked by the real parser, but to
   t_end = 5 dt (the examples ask for 40/beta and a 32^3 grid to the default end: minutes);
 - `motile.run_scene("demo", ...)` is checked by `motile run demo --dry-run` (the demo takes
-  about four minutes on 2 cores; tests/tests/main_job.rs runs it whole).
+  about four minutes on 2 cores; tests/tests/demo_physics.rs runs it whole).
 The run directories the examples open ("runs/demo/particle", "runs/demo/meanfield") are made
 first by short runs of the same kind, analysed as the demo's are. Where matplotlib is missing
 the worked example's plotting calls go to a stand-in (the motile calls still run).
