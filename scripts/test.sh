@@ -79,6 +79,7 @@ cargo test --release -p motile-meanfield --features gpu --test gpu_memory
 cargo test --release -p motile-particle --features gpu --lib gpu
 cargo test --release -p motile-meanfield --features gpu --lib gpu
 cargo test --release -p motile-experiments --features gpu --test gpu_runs
+cargo test --release -p motile-experiments --features gpu --test gpu_faults
 # The optional distributed particle run (feature mpi) needs OpenMPI and libclang to build; they
 # are installed when missing (Debian packages), then its tests run motile under mpirun on 1, 2
 # and 3 ranks (oversubscribed, one thread per rank) against one process.

@@ -3,6 +3,9 @@
 
 use std::path::Path;
 
+#[cfg(feature = "gpu")]
+pub mod emulated;
+
 /// Copy a run directory (files and folders, recursively).
 pub fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
