@@ -30,20 +30,6 @@ pub fn correlation_length(r: &[f64], c: &[f64]) -> Option<f64> {
     None
 }
 
-/// Half-width of a correlation function: the first `r` where it falls to half its value at the
-/// first sample (`r[0] = 0`), linearly interpolated between the bracketing samples; `None`
-/// where `c[0]` is not positive or it never falls that far. Unlike the first zero, it measures
-/// the correlation's core, not where its noisy tail first crosses zero.
-pub fn half_width(r: &[f64], c: &[f64]) -> Option<f64> {
-    let half = 0.5 * *c.first()?;
-    if half.is_nan() || half <= 0.0 {
-        return None;
-    }
-    (1..r.len().min(c.len()))
-        .find(|&i| c[i] <= half)
-        .map(|i| r[i - 1] + (r[i] - r[i - 1]) * (c[i - 1] - half) / (c[i - 1] - c[i]))
-}
-
 /// Mean of a sampled quantity over a time window, with a standard error.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WindowAverage {
@@ -484,19 +470,6 @@ mod tests {
                 "t = {t}: MSD {msd} vs v^2 t^2 = {exact}"
             );
         }
-    }
-
-    #[test]
-    fn half_width_interpolates_where_the_correlation_halves() {
-        // exp(-r / 0.3) halves at 0.3 ln 2; linear interpolation on a grid of 0.01 is within
-        // the curvature's h^2/8 |c''| / |c'| = 1.25e-5 / 0.3 of it.
-        let r: Vec<f64> = (0..100).map(|i| 0.01 * i as f64).collect();
-        let c: Vec<f64> = r.iter().map(|x| (-x / 0.3).exp()).collect();
-        let w = half_width(&r, &c).unwrap();
-        let exact = 0.3 * std::f64::consts::LN_2;
-        assert!((w - exact).abs() < 1e-4, "half-width {w} vs {exact}");
-        assert_eq!(half_width(&r, &vec![1.0; 100]), None);
-        assert_eq!(half_width(&r, &vec![-1.0; 100]), None);
     }
 
     #[test]

@@ -12,7 +12,7 @@ use motile_analysis::correlation::{
     CorrelationOptions, OrderParameter, RadialCorrelation, particle_coefficients,
 };
 use motile_analysis::stats::{
-    correlation_length, half_width, mean_squared_displacement, orientation_autocorrelation, unwrap,
+    correlation_length, mean_squared_displacement, orientation_autocorrelation, unwrap,
     window_average,
 };
 use std::path::Path;
@@ -56,9 +56,6 @@ pub struct RunStatistics {
     pub msd: Estimate,
     /// First zeros of the time-averaged `Corr[c]`, `Corr[n]` and `Corr[Q]` (l), in that order.
     pub corr_zeros: [Estimate; 3],
-    /// Half-widths (where each falls to half its value at 0) of the same correlations (l): the
-    /// rod-scale structure the paper's Fig. 5c-e collapse in r/l.
-    pub corr_half_widths: [Estimate; 3],
     /// Snapshots in the window.
     pub snapshots: usize,
 }
@@ -92,21 +89,16 @@ impl RunStatistics {
             snaps.iter().filter(|s| in_window(s, lo, hi)).collect()
         };
         let modes = rod_scale_modes(snaps[0].box_length);
-        let lengths = |lo: f64, hi: f64| corr_lengths(&pick(lo, hi), modes);
+        let zeros = |lo: f64, hi: f64| corr_zeros(&pick(lo, hi), modes);
         let (a, b, all) = (
-            lengths(window.t0, mid)?,
-            lengths(mid, window.t1)?,
-            lengths(window.t0, window.t1)?,
+            zeros(window.t0, mid)?,
+            zeros(mid, window.t1)?,
+            zeros(window.t0, window.t1)?,
         );
-        let estimates = |of: fn(&CorrLengths) -> [f64; 3]| {
-            let (a, b, all) = (of(&a), of(&b), of(&all));
-            [0, 1, 2].map(|k| Estimate {
-                value: all[k],
-                spread: 0.5 * (a[k] - b[k]).abs(),
-            })
-        };
-        let corr_zeros = estimates(|l| l.zeros);
-        let corr_half_widths = estimates(|l| l.half_widths);
+        let corr_zeros = [0, 1, 2].map(|k| Estimate {
+            value: all[k],
+            spread: 0.5 * (a[k] - b[k]).abs(),
+        });
         Ok(Some(Self {
             norm: Estimate {
                 value: average.mean,
@@ -115,7 +107,6 @@ impl RunStatistics {
             decorrelation_rate: halves(&|lo, hi| decorrelation_rate(&pick(lo, hi), window)),
             msd: halves(&|lo, hi| msd_at(&pick(lo, hi), window.msd_lag)),
             corr_zeros,
-            corr_half_widths,
             snapshots: snaps.len(),
         }))
     }
@@ -213,23 +204,14 @@ fn msd_at(snaps: &[&ParticleSnapshot], lag: f64) -> f64 {
     .unwrap_or(f64::NAN)
 }
 
-/// The lengths (l) of `Corr[c]`, `Corr[n]` and `Corr[Q]`, in that order, averaged over
-/// snapshots; NaN where one does not cross its level, or without snapshots.
-struct CorrLengths {
-    /// First zeros.
-    zeros: [f64; 3],
-    /// Half-widths.
-    half_widths: [f64; 3],
-}
-
-/// The [`CorrLengths`] of the correlations averaged over `snaps`, on `modes` modes per axis.
-fn corr_lengths(snaps: &[&ParticleSnapshot], modes: usize) -> anyhow::Result<CorrLengths> {
+/// The first zeros (l) of `Corr[c]`, `Corr[n]` and `Corr[Q]` averaged over `snaps`, on `modes`
+/// modes per axis (NaN where one does not cross zero, or without snapshots).
+fn corr_zeros(snaps: &[&ParticleSnapshot], modes: usize) -> anyhow::Result<[f64; 3]> {
     let opts = CorrelationOptions {
         modes: Some(modes),
         ..CorrelationOptions::default()
     };
     let mut zeros = [f64::NAN; 3];
-    let mut half_widths = [f64::NAN; 3];
     for (k, which) in [
         OrderParameter::Concentration,
         OrderParameter::Polarity,
@@ -254,10 +236,9 @@ fn corr_lengths(snaps: &[&ParticleSnapshot], modes: usize) -> anyhow::Result<Cor
         }
         if let Some(acc) = sum {
             zeros[k] = correlation_length(&acc.r, &acc.value).unwrap_or(f64::NAN);
-            half_widths[k] = half_width(&acc.r, &acc.value).unwrap_or(f64::NAN);
         }
     }
-    Ok(CorrLengths { zeros, half_widths })
+    Ok(zeros)
 }
 
 #[cfg(test)]

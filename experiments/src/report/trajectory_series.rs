@@ -17,7 +17,7 @@ use std::path::Path;
 /// The lag of the MSD column (1/beta).
 pub const MSD_LAG: f64 = 4.0;
 
-const CSV_HEADER: &str = "run,nu,L/l,rods,level,t0 [1/beta],t1 [1/beta],snapshots,mean_u_l2 [beta L],std_error,decorrelation_rate [beta],rate_spread,msd_lag [1/beta],msd [l^2],msd_spread,corr_c_zero [l],corr_n_zero [l],corr_q_zero [l],corr_q_zero_spread [l],corr_c_zero [L],corr_n_zero [L],corr_q_zero [L],corr_c_half [l],corr_n_half [l],corr_q_half [l],corr_q_half_spread [l]\n";
+const CSV_HEADER: &str = "run,nu,L/l,rods,level,t0 [1/beta],t1 [1/beta],snapshots,mean_u_l2 [beta L],std_error,decorrelation_rate [beta],rate_spread,msd_lag [1/beta],msd [l^2],msd_spread,corr_c_zero [l],corr_n_zero [l],corr_q_zero [l],corr_q_zero_spread [l],corr_c_zero [L],corr_n_zero [L],corr_q_zero [L]\n";
 
 /// One particle run's row.
 struct Row {
@@ -96,10 +96,10 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
 fn csv(rows: &[Row]) -> String {
     let mut s = String::from(CSV_HEADER);
     for r in rows {
-        let (z, h) = (r.stats.corr_zeros, r.stats.corr_half_widths);
+        let z = r.stats.corr_zeros;
         writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{:e},{:e},{:e},{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+            "{},{},{},{},{},{},{},{},{:e},{:e},{:e},{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
             r.run,
             r.nu,
             r.box_length,
@@ -122,10 +122,6 @@ fn csv(rows: &[Row]) -> String {
             z[0].value / r.box_length,
             z[1].value / r.box_length,
             z[2].value / r.box_length,
-            h[0].value,
-            h[1].value,
-            h[2].value,
-            h[2].spread,
         )
         .expect("string");
     }
@@ -134,14 +130,14 @@ fn csv(rows: &[Row]) -> String {
 
 fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
-        "# Particle runs' statistics\n\nEach run over the later half of its time (the paper averages its concentrated runs over t = 100-200/beta), in particle units. ||u||_2: time average with its batch-means standard error. Decorrelation rate: -d ln <p(t0 + tau).p(t0)>/d tau, least squares over the lags tau in the window's fit range, averaged over origins t0. MSD at the stated lag, averaged over origins. Zeros: first zero of each time-averaged correlation, on 2 L/l Fourier modes per axis (16-64). Half-widths: where each falls to half its value at r = 0, on the same modes (the rod-scale structure; the zeros sit in the noisy tail). +-: half the difference between the window's halves.\n\n| run | nu | L/l | rods | level | window (1/beta) | ||u||_2 (beta L) | decorrelation rate (beta) | MSD (l^2) at lag | zeros of Corr[c], Corr[n], Corr[Q] (l) | Corr[Q] zero (L) | half-widths of Corr[c], Corr[n], Corr[Q] (l) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "# Particle runs' statistics\n\nEach run over the later half of its time (the paper averages its concentrated runs over t = 100-200/beta), in particle units. ||u||_2: time average with its batch-means standard error. Decorrelation rate: -d ln <p(t0 + tau).p(t0)>/d tau, least squares over the lags tau in the window's fit range, averaged over origins t0. MSD at the stated lag, averaged over origins. Zeros: first zero of each time-averaged correlation, on 2 L/l Fourier modes per axis (16-64). +-: half the difference between the window's halves.\n\n| run | nu | L/l | rods | level | window (1/beta) | ||u||_2 (beta L) | decorrelation rate (beta) | MSD (l^2) at lag | zeros of Corr[c], Corr[n], Corr[Q] (l) | Corr[Q] zero (L) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let pm = |e: &Estimate| format!("{:.4} +- {:.4}", e.value, e.spread);
     for r in rows {
-        let (z, h) = (r.stats.corr_zeros, r.stats.corr_half_widths);
+        let z = r.stats.corr_zeros;
         writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {}-{} | {:.4e} +- {:.1e} | {} | {} at {} | {:.2}, {:.2}, {} | {:.3} | {:.3}, {:.3}, {} |",
+            "| {} | {} | {} | {} | {} | {}-{} | {:.4e} +- {:.1e} | {} | {} at {} | {:.2}, {:.2}, {} | {:.3} |",
             r.run,
             r.nu,
             r.box_length,
@@ -158,9 +154,6 @@ fn markdown(rows: &[Row]) -> String {
             z[1].value,
             pm(&z[2]),
             z[2].value / r.box_length,
-            h[0].value,
-            h[1].value,
-            pm(&h[2]),
         )
         .expect("string");
     }
