@@ -405,6 +405,7 @@ fn a_statistics_study_compares_levels_on_what_the_figures_use() {
 #[test]
 fn cost_estimates_time_steps_at_a_proxy_size_and_count_the_run() {
     use motile_experiments::campaign::estimate::{PROXY_RODS, estimate};
+    use motile_experiments::run::memory::HostMemoryNeed;
     let text = r#"
 [scene]
 name = "est"
@@ -449,7 +450,12 @@ diagnostic_interval = 1.0
         "{p:?}"
     );
     assert!(!dir.path().join("p").exists(), "scratch left behind");
+    // The memory the runs will be checked against: the measured figures per rod and point.
+    let host = |need: HostMemoryNeed| need.bytes();
+    assert_eq!(p.memory_bytes, host(HostMemoryNeed::particle(20_480)));
+    assert!(p.describe().contains("0.21 GB of memory"), "{}", p.describe());
     let m = estimate(&s.runs[1].1, &dir.path().join("m")).unwrap();
+    assert_eq!(m.memory_bytes, host(HostMemoryNeed::meanfield(16)));
     // dt = min(dt_max, diagnostic_interval / 10) = 0.1: at least 100 steps, timed at 16^3.
     assert_eq!((m.size, m.measured_size, m.steps), (4096, 4096, 100));
     assert!(m.steps_at_least && m.step_seconds > 0.0, "{m:?}");

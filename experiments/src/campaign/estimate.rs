@@ -7,6 +7,7 @@
 
 use crate::campaign::run_config::RunConfig;
 use crate::run::meanfield::{self, MeanFieldRunConfig};
+use crate::run::memory::HostMemoryNeed;
 use crate::run::particle::{self, ParticleRunConfig};
 use anyhow::Context;
 use motile_particle::model::level::Hydrodynamics;
@@ -39,6 +40,11 @@ pub struct CostEstimate {
     pub steps_at_least: bool,
     /// Seconds per step on a GPU and how they were estimated ([`gpu_estimate`]).
     pub gpu: Option<(f64, &'static str)>,
+    /// Bytes of host memory the run needs on the CPU ([`HostMemoryNeed`], what a run checks
+    /// against the machine before it allocates).
+    pub memory_bytes: f64,
+    /// Bytes of GPU memory the run needs on a GPU ([`gpu_estimate`]).
+    pub gpu_memory_bytes: Option<f64>,
 }
 
 impl CostEstimate {
@@ -58,20 +64,24 @@ impl CostEstimate {
             )
         };
         let gpu = self.gpu.map_or(String::new(), |(g, how)| {
+            let memory = self
+                .gpu_memory_bytes
+                .map_or(String::new(), |b| format!(", {:.2} GB of GPU memory", b / 1e9));
             format!(
-                "; on a GPU about {g:.3} s/step = {} ({how})",
+                "; on a GPU about {g:.3} s/step = {}{memory} ({how})",
                 human_duration(g * self.steps as f64)
             )
         });
         format!(
-            "{:.3} s/step at {} {}{scaled} x {}{} steps = {} on {} CPU threads{gpu}",
+            "{:.3} s/step at {} {}{scaled} x {}{} steps = {} on {} CPU threads, {:.2} GB of memory{gpu}",
             self.step_seconds,
             self.size,
             self.unit,
             if self.steps_at_least { ">= " } else { "" },
             self.steps,
             human_duration(self.seconds()),
-            rayon::current_num_threads()
+            rayon::current_num_threads(),
+            self.memory_bytes / 1e9
         )
     }
 }
@@ -243,6 +253,7 @@ pub fn estimate(cfg: &RunConfig, scratch: &Path) -> anyhow::Result<CostEstimate>
     let gpu = gpu_estimate(cfg);
     result.map(|e| CostEstimate {
         gpu: Some((gpu.step_seconds, gpu.how)),
+        gpu_memory_bytes: Some(gpu.memory_bytes),
         ..e
     })
 }
@@ -311,6 +322,8 @@ fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<Co
         steps: (c.t_end / c.dt - 1e-9).ceil() as u64,
         steps_at_least: false,
         gpu: None,
+        memory_bytes: HostMemoryNeed::particle(size).bytes(),
+        gpu_memory_bytes: None,
     })
 }
 
@@ -337,6 +350,8 @@ fn estimate_meanfield(c: &MeanFieldRunConfig, scratch: &Path) -> anyhow::Result<
         steps: meanfield_steps(c),
         steps_at_least: true,
         gpu: None,
+        memory_bytes: HostMemoryNeed::meanfield(c.grid).bytes(),
+        gpu_memory_bytes: None,
     })
 }
 
