@@ -453,7 +453,11 @@ diagnostic_interval = 1.0
     // The memory the runs will be checked against: the measured figures per rod and point.
     let host = |need: HostMemoryNeed| need.bytes();
     assert_eq!(p.memory_bytes, host(HostMemoryNeed::particle(20_480)));
-    assert!(p.describe().contains("0.21 GB of memory"), "{}", p.describe());
+    assert!(
+        p.describe().contains("0.21 GB of memory"),
+        "{}",
+        p.describe()
+    );
     let m = estimate(&s.runs[1].1, &dir.path().join("m")).unwrap();
     assert_eq!(m.memory_bytes, host(HostMemoryNeed::meanfield(16)));
     // dt = min(dt_max, diagnostic_interval / 10) = 0.1: at least 100 steps, timed at 16^3.

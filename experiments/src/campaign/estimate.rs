@@ -64,9 +64,9 @@ impl CostEstimate {
             )
         };
         let gpu = self.gpu.map_or(String::new(), |(g, how)| {
-            let memory = self
-                .gpu_memory_bytes
-                .map_or(String::new(), |b| format!(", {:.2} GB of GPU memory", b / 1e9));
+            let memory = self.gpu_memory_bytes.map_or(String::new(), |b| {
+                format!(", {:.2} GB of GPU memory", b / 1e9)
+            });
             format!(
                 "; on a GPU about {g:.3} s/step = {}{memory} ({how})",
                 human_duration(g * self.steps as f64)
