@@ -275,7 +275,7 @@ fn field_initial(path: PathBuf) -> anyhow::Result<Verdict> {
 /// before it was checksummed, or written by another version.
 fn checkpoint_run(seed: &Path, bytes: &[u8], work: &Path) -> anyhow::Result<PathBuf> {
     let dir = work.join("run");
-    copy_run(seed, &dir)?;
+    copy_run(seed, &dir, "snapshots")?;
     let name = oldest_checkpoint(seed)?;
     let ckpts = dir.join("checkpoints");
     std::fs::create_dir_all(&ckpts)?;
@@ -286,13 +286,14 @@ fn checkpoint_run(seed: &Path, bytes: &[u8], work: &Path) -> anyhow::Result<Path
 /// A copy of `seed` with `bytes` as its file `name`.
 fn run_copy(seed: &Path, bytes: &[u8], work: &Path, name: &str) -> anyhow::Result<PathBuf> {
     let dir = work.join("run");
-    copy_run(seed, &dir)?;
+    copy_run(seed, &dir, "snapshots")?;
     std::fs::write(dir.join(name), bytes)?;
     Ok(dir)
 }
 
-fn copy_run(seed: &Path, dir: &Path) -> anyhow::Result<()> {
-    for sub in ["", "snapshots"] {
+/// Copy the files of a run directory and of its sub-folder `sub` (snapshots, compare).
+fn copy_run(seed: &Path, dir: &Path, sub: &str) -> anyhow::Result<()> {
+    for sub in ["", sub] {
         std::fs::create_dir_all(dir.join(sub))?;
         for e in std::fs::read_dir(seed.join(sub))? {
             let e = e?;
@@ -363,15 +364,7 @@ fn compact_of(run: &Path, compact: &Path) -> anyhow::Result<()> {
 /// A copy of the compact run `seed` with `bytes` as its product `name`.
 fn compact_copy(seed: &Path, bytes: &[u8], work: &Path, name: &str) -> anyhow::Result<PathBuf> {
     let dir = work.join("run");
-    for sub in ["", "compare"] {
-        std::fs::create_dir_all(dir.join(sub))?;
-        for e in std::fs::read_dir(seed.join(sub))? {
-            let e = e?;
-            if e.file_type()?.is_file() {
-                std::fs::copy(e.path(), dir.join(sub).join(e.file_name()))?;
-            }
-        }
-    }
+    copy_run(seed, &dir, "compare")?;
     std::fs::write(dir.join("compare").join(name), bytes)?;
     Ok(dir)
 }

@@ -30,7 +30,7 @@ use crate::run::particle::ranked::Ranked;
 use anyhow::bail;
 use motile_particle::model::rods::RodSet;
 use motile_particle::step::contact::WarmStart;
-use motile_particle::step::report::{StepError, StepReport};
+use motile_particle::step::report::StepReport;
 use motile_particle::step::stepper::Stepper;
 use std::path::Path;
 use std::time::Instant;
@@ -669,37 +669,17 @@ impl ParticleModel {
         let report = match stepped {
             Ok(r) => r,
             Err(e) => {
-                // The device keeps the state before a failed step; a step that failed before
-                // reaching it (the flow's sum) leaves the rods here as the last good state.
-                // A device that failed may not answer: then no state is kept here, and the
-                // loop names the newest checkpoint instead.
-                let mut rods = self.rods.clone();
-                let kept = if !matches!(e, StepError::Hydrodynamics(_)) {
-                    d.download_before(&mut rods)
-                } else if resident_flow {
-                    // The flow's sum failed on the device, which kept the rods unmoved.
-                    d.download(&mut rods)
-                } else {
-                    Ok(())
-                };
-                self.before = match kept.and_then(|()| d.warm_start()) {
-                    Ok(warm) => {
-                        let mut before = ParticleCheckpoint::of(
-                            &rods,
-                            &self.stepper,
-                            self.step,
-                            self.step as f64 * dt,
-                        );
-                        // The multipliers of the step before the failed one (a failed step
-                        // keeps them).
-                        before.contact_warm_start = warm;
-                        before.gmres_warm_start = self.stepper.mobility().current_warm_state()?;
-                        Some(Ok(before))
-                    }
-                    Err(lost) => Some(Err(format!(
-                        "the device did not give back the state before the step: {lost}"
-                    ))),
-                };
+                self.before = state_before_failure(
+                    d,
+                    &e,
+                    FailedStep {
+                        rods: &self.rods,
+                        stepper: &self.stepper,
+                        step: self.step,
+                        dt,
+                        resident_flow,
+                    },
+                )?;
                 return Err(run::StepFailure::Step {
                     kind: (&e).into(),
                     step,

@@ -15,6 +15,7 @@ use motile_particle::model::init::{
 };
 use motile_particle::model::rods::RodSet;
 use motile_particle::step::contact::WarmStart;
+use motile_particle::step::report::StepError;
 use motile_particle::step::stepper::Stepper;
 use std::path::Path;
 
@@ -454,4 +455,49 @@ pub(super) fn check_memory(cfg: &ParticleRunConfig) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("config: {} rods: {e}", cfg.rod_count()))?;
     }
     Ok(())
+}
+
+/// What a failed device step leaves to resume from.
+pub(super) struct FailedStep<'a> {
+    /// The rods on the host (the state before the step where the flow's sum failed there).
+    pub rods: &'a RodSet,
+    pub stepper: &'a Stepper,
+    /// The last step completed.
+    pub step: u64,
+    pub dt: f64,
+    /// Whether the flow's sum runs on the device.
+    pub resident_flow: bool,
+}
+
+/// The state before a failed device step, with the multipliers of the step before it (a failed
+/// step keeps them). The device keeps the state before a failed step; a step that failed before
+/// reaching it (the flow's sum) leaves the rods on the host as the last good state. A device
+/// that failed may not answer: then no state is kept (`Some(Err)` says why), and the run names
+/// the newest checkpoint instead.
+pub(super) fn state_before_failure(
+    d: &mut super::device::DeviceStepper,
+    e: &StepError,
+    failed: FailedStep,
+) -> Result<Option<Result<ParticleCheckpoint, String>>, run::StepFailure> {
+    let mut rods = failed.rods.clone();
+    let kept = if !matches!(e, StepError::Hydrodynamics(_)) {
+        d.download_before(&mut rods)
+    } else if failed.resident_flow {
+        // The flow's sum failed on the device, which kept the rods unmoved.
+        d.download(&mut rods)
+    } else {
+        Ok(())
+    };
+    Ok(match kept.and_then(|()| d.warm_start()) {
+        Ok(warm) => {
+            let t = failed.step as f64 * failed.dt;
+            let mut before = ParticleCheckpoint::of(&rods, failed.stepper, failed.step, t);
+            before.contact_warm_start = warm;
+            before.gmres_warm_start = failed.stepper.mobility().current_warm_state()?;
+            Some(Ok(before))
+        }
+        Err(lost) => Some(Err(format!(
+            "the device did not give back the state before the step: {lost}"
+        ))),
+    })
 }
