@@ -68,13 +68,14 @@ impl CostEstimate {
                 format!(", {:.2} GB of GPU memory", b / 1e9)
             });
             format!(
-                "; on a GPU about {g:.3} s/step = {}{memory} ({how})",
+                "; on a GPU about {} s/step = {}{memory} ({how})",
+                significant(g),
                 human_duration(g * self.steps as f64)
             )
         });
         format!(
-            "{:.3} s/step at {} {}{scaled} x {}{} steps = {} on {} CPU threads, {:.2} GB of memory{gpu}",
-            self.step_seconds,
+            "{} s/step at {} {}{scaled} x {}{} steps = {} on {} CPU threads, {:.2} GB of memory{gpu}",
+            significant(self.step_seconds),
             self.size,
             self.unit,
             if self.steps_at_least { ">= " } else { "" },
@@ -86,9 +87,23 @@ impl CostEstimate {
     }
 }
 
-/// Seconds as "42 s", "12.5 min", "3.2 h" or "4.1 days".
+/// `x` to three significant figures, without an exponent ("0.659", "0.000214", "12.3").
+fn significant(x: f64) -> String {
+    let digits = if x > 0.0 && x.is_finite() {
+        (2 - x.log10().floor() as i32).max(0) as usize
+    } else {
+        3
+    };
+    format!("{x:.digits$}")
+}
+
+/// Seconds as "0.25 s", "4.2 s", "42 s", "12.5 min", "3.2 h" or "4.1 days".
 pub fn human_duration(s: f64) -> String {
-    if s < 120.0 {
+    if s < 1.0 {
+        format!("{s:.2} s")
+    } else if s < 10.0 {
+        format!("{s:.1} s")
+    } else if s < 120.0 {
         format!("{s:.0} s")
     } else if s < 7200.0 {
         format!("{:.1} min", s / 60.0)
@@ -364,9 +379,15 @@ mod tests {
         assert!((nlogn_ratio(1000, 1000) - 1.0).abs() < 1e-15);
         let r = nlogn_ratio(1_000_000, 1000);
         assert!((r - 2000.0).abs() < 1e-9, "{r}");
+        assert_eq!(human_duration(0.253), "0.25 s");
+        assert_eq!(human_duration(4.24), "4.2 s");
         assert_eq!(human_duration(42.0), "42 s");
         assert_eq!(human_duration(750.0), "12.5 min");
         assert_eq!(human_duration(3.0 * 3600.0), "3.0 h");
         assert_eq!(human_duration(4.0 * 86_400.0), "4.0 days");
+        assert_eq!(significant(0.6594), "0.659");
+        assert_eq!(significant(0.000_213_7), "0.000214");
+        assert_eq!(significant(12.34), "12.3");
+        assert_eq!(significant(1234.0), "1234");
     }
 }
