@@ -32,7 +32,7 @@ copy runs/fidelity/pair_fidelity pair_fidelity
 copy runs/onset-0.625/onset onset_0.625
 copy runs/onset-0.625/onset_frequency onset_0.625_frequency
 for L in 16 24 32; do copy runs/study-hydro-L$L/study_hydrodynamics study_hydrodynamics_L$L; done
-copy runs/study-dt-explicit/study_dt study_dt_explicit
+copy runs/study-dilute-dt/study_dt study_dt_paper_dilute
 copy runs/concentrated/compare/correlation_Q concentrated_correlation_Q
 copy runs/concentrated/compare/msd concentrated_msd
 copy runs/concentrated/compare/orientation concentrated_orientation

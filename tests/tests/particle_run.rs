@@ -138,7 +138,7 @@ fn bad_configs_name_the_field_and_the_range() {
     let cases = [
         (
             "dt = 0.5",
-            "dt = 0.5 is outside the allowed range (0, 0.05] (1/beta)",
+            "dt = 0.5 is outside the allowed range (0, 0.2] (1/beta)",
         ),
         (
             "box_length = -3",

@@ -263,6 +263,20 @@ fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
     let p = &report.points;
     assert_eq!(p.len(), 3);
     assert!(p[2].reference && p[2].value == "0.0025" && p[2].error == 0.0);
+    // The contact margin follows the step (2.5 U dt at least), the norm's history is the error.
+    let run = dir.path().join("runs").join("dt_0.04");
+    let cfg: motile_experiments::run::particle::ParticleRunConfig =
+        motile_experiments::io::rundir::read_run_config(
+            &run,
+            motile_experiments::run::particle::ParticleRunConfig::validate,
+        )
+        .unwrap();
+    assert!(cfg.contact.margin >= 0.1, "margin {}", cfg.contact.margin);
+    assert!(
+        p.iter().all(|q| q.history_error == q.error),
+        "{}",
+        report.markdown
+    );
     // Explicit Euler: the error against dt_ref halves with dt, (dt - dt_ref) ratio 0.0375/0.0175.
     let ratio = p[0].error / p[1].error;
     assert!(
@@ -370,6 +384,13 @@ fn a_statistics_study_compares_levels_on_what_the_figures_use() {
     );
     let (_, e) = dipole.statistics.expect("the dipole level's statistics");
     assert_eq!(dipole.error, e.iter().copied().fold(0.0, f64::max));
+    // The norm's history is compared pathwise beside the statistics.
+    assert!(
+        dipole.history_error > 0.0 && dipole.history_error < 1.0 && sbt.history_error == 0.0,
+        "norm history errors {} / {}",
+        dipole.history_error,
+        sbt.history_error
+    );
     assert!(
         report
             .markdown

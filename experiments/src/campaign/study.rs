@@ -56,6 +56,9 @@ pub struct StudyPoint {
     pub seconds: f64,
     /// Relative error against the reference (0 for the reference).
     pub error: f64,
+    /// The velocity norm's history against the reference's: max over the window of
+    /// |Delta ||u||_2(t)| / max ||u||_2 (the error itself where it is not on statistics).
+    pub history_error: f64,
     /// Particle knobs: RMS end-position difference over the RMS distance travelled;
     /// mean-field: NaN.
     pub position_error: f64,
@@ -120,7 +123,12 @@ fn set_particle(c: &mut ParticleRunConfig, knob: &str, v: &str) -> anyhow::Resul
         "sum_tolerance" => c.hydro.sum_tolerance = num()?,
         "quadrature_points" => c.hydro.quadrature_points = num()? as usize,
         "hydrodynamics" => c.hydrodynamics = v.parse()?,
-        "dt" => c.dt = num()?,
+        "dt" => {
+            c.dt = num()?;
+            // The contact margin follows the step where it must: at least the 2.5 U dt two
+            // rods can close in one step (the validation's bound).
+            c.contact.margin = c.contact.margin.max(2.5 * c.dt);
+        }
         _ => unreachable!("checked knob"),
     }
     c.validate()
@@ -459,7 +467,7 @@ fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoin
     };
     runs.iter()
         .map(|run| {
-            let (error, position_error, failure) = match &run.outcome {
+            let (history_error, position_error, failure) = match &run.outcome {
                 Err(e) => (f64::INFINITY, f64::INFINITY, Some(format!("{e:#}"))),
                 Ok(o) => {
                     let (e, ep) = error_against(o, reference_outcome)?;
@@ -479,7 +487,7 @@ fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoin
             // On statistics, the error is the largest relative difference of the four.
             let error = match &statistics {
                 Some((_, e)) => e.iter().copied().fold(0.0, f64::max),
-                None => error,
+                None => history_error,
             };
             let has_flow = match &run.outcome {
                 Ok(o) => o.u.iter().any(|&u| u.is_finite() && u != 0.0),
@@ -489,6 +497,7 @@ fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoin
                 value: run.setting.value.clone(),
                 seconds: run.seconds,
                 error,
+                history_error,
                 position_error,
                 reference: run.setting.reference,
                 failure,
@@ -502,16 +511,17 @@ fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoin
 /// `study_<knob>.csv`.
 fn write_csv(points: &[StudyPoint], knob: Knob, out: &Path) -> anyhow::Result<()> {
     let mut csv = String::from(
-        "value,reference,wall_seconds,error,position_error,failure,norm [beta L],norm_spread,decorrelation_rate [beta],rate_spread,msd [l^2],msd_spread,corr_q_zero [l],zero_spread\n",
+        "value,reference,wall_seconds,error,history_error,position_error,failure,norm [beta L],norm_spread,decorrelation_rate [beta],rate_spread,msd [l^2],msd_spread,corr_q_zero [l],zero_spread\n",
     );
     for p in points {
         writeln!(
             csv,
-            "{},{},{:.3},{:e},{:e},\"{}\",{}",
+            "{},{},{:.3},{:e},{:e},{:e},\"{}\",{}",
             p.value,
             p.reference,
             p.seconds,
             p.error,
+            p.history_error,
             p.position_error,
             p.failure.clone().unwrap_or_default().replace('"', "'"),
             statistics_columns(p.statistics.as_ref().map(|s| &s.0))
@@ -561,18 +571,19 @@ fn write_markdown(
         }
     };
     let mut md = format!(
-        "# Study: {name} ({model}, scene `{}`)\n\nBase: {}. Window {window}. Error: {what}, against the reference {name} = {reference}.\n\n{verdict}\n\n| {name} | wall time (s) | error | position error (particle) | note |\n|---|---|---|---|---|\n",
+        "# Study: {name} ({model}, scene `{}`)\n\nBase: {}. Window {window}. Error: {what}, against the reference {name} = {reference}.\n\n{verdict}\n\n| {name} | wall time (s) | error | norm history error | position error (particle) | note |\n|---|---|---|---|---|---|\n",
         scene.info.name,
         base.describe()
     );
     for p in points {
         writeln!(
             md,
-            "| {}{} | {:.2} | {:.2e} | {:.2e} | {} |",
+            "| {}{} | {:.2} | {:.2e} | {:.2e} | {:.2e} | {} |",
             p.value,
             if p.reference { " (reference)" } else { "" },
             p.seconds,
             p.error,
+            p.history_error,
             p.position_error,
             match (&p.failure, p.has_flow) {
                 (Some(f), _) => f.clone(),

@@ -27,7 +27,7 @@ pub struct ParticleRunConfig {
     /// Number of rods N for a random start; when set it replaces `volume_fraction`
     /// (nu = N / (L/l)^3 must still lie in (0, 6]). Default: unset.
     pub rods: Option<usize>,
-    /// Time step, 1/beta. Default 0.002; allowed (0, 0.05]. Larger steps leave larger
+    /// Time step, 1/beta. Default 0.002; allowed (0, 0.2]. Larger steps leave larger
     /// overlaps (of order (dt w)^2 l) and need a larger contact.margin.
     pub dt: f64,
     /// End time, 1/beta. Default 2.
@@ -341,7 +341,7 @@ impl ParticleRunConfig {
             true,
             "N l^3 / L^3",
         )?;
-        range("dt", self.dt, 0.0, 0.05, true, "1/beta")?;
+        range("dt", self.dt, 0.0, 0.2, true, "1/beta")?;
         if self.lowest_modes && !self.hydrodynamics.has_flow() {
             return Err(
                 "lowest_modes = true: the modes are those of the flow, and hydrodynamics = \"none\" has none"
