@@ -83,6 +83,50 @@ pub enum OrderParameter {
     Nematic,
 }
 
+impl OrderParameter {
+    /// What one rod's value adds to its field's power at every mode, times `N^2` (the `N`
+    /// rods' own terms add `self_power / N`): the sum over components, with their weights, of
+    /// its squared value: 1 for `c'` and `n`
+    /// (`|p| = 1`), 2/3 for `Q` (`|pp - I/3|^2`).
+    pub fn self_power(self) -> f64 {
+        match self {
+            OrderParameter::Concentration | OrderParameter::Polarity => 1.0,
+            OrderParameter::Nematic => 2.0 / 3.0,
+        }
+    }
+}
+
+/// The pair part of an order parameter's correlation from its spectrum of `rods` rods
+/// ([`particle_coefficients`]): the power without each rod's correlation with itself,
+/// `self_power / N` at every mode (the concentration's `k = 0` mode, which the fluctuation
+/// removes, stays 0). For the concentration this is `g(r) - 1`, the pair distribution seen at
+/// the modes' resolution (`L / modes`); for `n` and `Q` the pair distribution weighted by
+/// `p_i.p_j` and `Q_i:Q_j`. Unlike the correlation itself, whose rods' own term scales as
+/// `1/N` and dominates at `r = 0`, it does not depend on `N`: boxes of different sizes
+/// compare directly, at the same resolution in `l`.
+pub fn pair_correlation(
+    spec: &Spectrum,
+    which: OrderParameter,
+    rods: usize,
+    shell_width: Option<f64>,
+) -> RadialCorrelation {
+    let own = which.self_power() / rods.max(1) as f64;
+    let zero = zero_mode(spec.modes);
+    let power: Vec<f64> = spec
+        .power()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            if which == OrderParameter::Concentration && i == zero {
+                0.0
+            } else {
+                p - own
+            }
+        })
+        .collect();
+    radial_autocorrelation(&power, spec.modes, spec.box_length, shell_width)
+}
+
 /// Fourier coefficients of several fields, one mode array each, on a cube of `modes^3`
 /// modes (layout of [`crate::nufft`]), with a weight per component (2 for the off-diagonal
 /// components of a symmetric tensor, stored once).

@@ -361,3 +361,92 @@ fn the_norms_at_1e_4_match_the_direct_sums_on_force_free_pairs() {
         );
     }
 }
+
+/// The pair part of each order parameter's correlation against its direct twin: at every mode,
+/// the sum over distinct pairs `(1/N^2) sum_{i != j} f_i . f_j cos(k.(x_i - x_j))` (for Q the
+/// full contraction `Q_i : Q_j`, not the stored components' weights), radially averaged like
+/// the correlation; the concentration's k = 0 mode left out.
+#[test]
+fn pair_correlations_match_the_direct_sum_over_distinct_pairs() {
+    use motile_analysis::correlation::pair_correlation;
+    use motile_analysis::nufft::mode_of;
+    let (n, l, modes) = (40usize, 4.0, 6usize);
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let x: Vec<[f64; 3]> = (0..n)
+        .map(|_| [0; 3].map(|_| rng.random::<f64>() * l))
+        .collect();
+    let p: Vec<[f64; 3]> = (0..n)
+        .map(|_| {
+            let v = [0; 3].map(|_| rng.random::<f64>() - 0.5);
+            let norm = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+            v.map(|a| a / norm)
+        })
+        .collect();
+    let q = |v: &[f64; 3], a: usize, b: usize| v[a] * v[b] - if a == b { 1.0 / 3.0 } else { 0.0 };
+    let opts = CorrelationOptions {
+        modes: Some(modes),
+        shell_width: None,
+        tolerance: 1e-10,
+    };
+    for which in [
+        OrderParameter::Concentration,
+        OrderParameter::Polarity,
+        OrderParameter::Nematic,
+    ] {
+        let product = |i: usize, j: usize| -> f64 {
+            match which {
+                OrderParameter::Concentration => 1.0,
+                OrderParameter::Polarity => (0..3).map(|a| p[i][a] * p[j][a]).sum(),
+                OrderParameter::Nematic => (0..9)
+                    .map(|ab| q(&p[i], ab / 3, ab % 3) * q(&p[j], ab / 3, ab % 3))
+                    .sum(),
+            }
+        };
+        let power: Vec<f64> = (0..modes.pow(3))
+            .map(|idx| {
+                let m = [idx % modes, (idx / modes) % modes, idx / (modes * modes)]
+                    .map(|i| mode_of(i, modes) as f64);
+                if which == OrderParameter::Concentration && m == [0.0; 3] {
+                    return 0.0;
+                }
+                let mut sum = 0.0;
+                for i in 0..n {
+                    for j in (0..n).filter(|&j| j != i) {
+                        let phase: f64 = (0..3).map(|a| m[a] * (x[i][a] - x[j][a])).sum();
+                        sum += product(i, j) * (2.0 * PI * phase / l).cos();
+                    }
+                }
+                sum / (n * n) as f64
+            })
+            .collect();
+        let direct = motile_analysis::correlation::radial_autocorrelation(&power, modes, l, None);
+        let spec = particle_coefficients(&x, &p, l, which, &opts).unwrap();
+        let pair = pair_correlation(&spec, which, n, None);
+        let full = spec.correlation(None);
+        let scale = power.iter().map(|v| v.abs()).sum::<f64>();
+        let worst = pair
+            .value
+            .iter()
+            .zip(&direct.value)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "{which:?}: pair correlation vs direct pairs {:.2e} of {scale:.3e}",
+            worst / scale
+        );
+        assert!(
+            worst <= 1e-8 * scale,
+            "{which:?}: pair correlation off the direct sum by {worst:.3e} (scale {scale:.3e})"
+        );
+        // The rods' own term is what separates the two at r = 0.
+        let own = which.self_power() / n as f64;
+        let counted = modes.pow(3) - usize::from(which == OrderParameter::Concentration);
+        assert!(
+            (full.at_zero() - pair.at_zero() - own * counted as f64).abs() <= 1e-8 * scale,
+            "{which:?}: Corr(0) {} - pair(0) {} != own term {}",
+            full.at_zero(),
+            pair.at_zero(),
+            own * counted as f64
+        );
+    }
+}

@@ -419,6 +419,28 @@ fn a_statistics_study_compares_levels_on_what_the_figures_use() {
         table.contains("hydrodynamics_sbt,5,4,320,sbt,2,4,"),
         "{table}"
     );
+    // The concentrated runs' pair correlations: three fields per run against r in l (0.05 l
+    // apart, to L/2 = 2 l), finite, and a figure per field.
+    let pairs = std::fs::read_to_string(out.join("pair_correlations.csv")).unwrap();
+    for run in ["hydrodynamics_dipole", "hydrodynamics_sbt"] {
+        for field in ["c", "n", "Q"] {
+            let rows: Vec<Vec<f64>> = pairs
+                .lines()
+                .filter(|l| l.starts_with(&format!("\"{run}\",{field},")))
+                .map(|l| l.split(',').skip(2).map(|v| v.parse().unwrap()).collect())
+                .collect();
+            assert_eq!(rows.len(), 41, "{run} {field}: {} radii", rows.len());
+            assert!(
+                rows[0][0] == 0.0
+                    && (rows[40][0] - 2.0).abs() < 1e-9
+                    && rows.iter().all(|r| r[1].is_finite()),
+                "{run} {field}: {rows:?}"
+            );
+        }
+    }
+    for f in ["c", "n", "Q"] {
+        assert!(out.join(format!("pair_correlation_{f}.svg")).exists());
+    }
 }
 
 /// The cost estimate times real steps: a large particle run at a proxy size (same volume

@@ -453,14 +453,7 @@ fn rod_scale_correlations(
                 particle_coefficients(&p.positions, &p.orientations, p.box_length, which, &opts)?
                     .correlation(None);
             count += 1;
-            match &mut sum {
-                Some(acc) => acc
-                    .value
-                    .iter_mut()
-                    .zip(&corr.value)
-                    .for_each(|(a, v)| *a += v),
-                None => sum = Some(corr),
-            }
+            crate::report::statistics::add_to(&mut sum, corr);
         }
         if let Some(mut acc) = sum {
             acc.value.iter_mut().for_each(|v| *v /= count as f64);

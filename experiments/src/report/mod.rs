@@ -8,6 +8,7 @@ pub mod compare;
 pub(crate) mod compare_figures;
 pub mod curves;
 pub mod opened_run;
+pub(crate) mod pair_structure;
 pub mod plot;
 pub(crate) mod products;
 pub(crate) mod series;

@@ -9,7 +9,7 @@ use crate::io::rundir::{RunDir, TimeSeries};
 use crate::io::snapshot::{ParticleSnapshot, Snapshot, read_snapshot};
 use anyhow::Context;
 use motile_analysis::correlation::{
-    CorrelationOptions, OrderParameter, RadialCorrelation, particle_coefficients,
+    CorrelationOptions, OrderParameter, RadialCorrelation, pair_correlation, particle_coefficients,
 };
 use motile_analysis::stats::{
     correlation_length, mean_squared_displacement, orientation_autocorrelation, unwrap,
@@ -126,6 +126,66 @@ fn window_snapshots(run: &RunDir, w: &StatisticsWindow) -> anyhow::Result<Vec<Pa
     Ok(out)
 }
 
+/// The time-averaged pair correlations ([`pair_correlation`]: without each rod's correlation
+/// with itself) of `c`, `n` and `Q` of the particle run in `dir` over `window`, on
+/// [`pair_modes`] modes per axis (a resolution of l/4 in every box, so that boxes compare at
+/// the same resolution in `l`), against `r` in `l`: `(name, curve)`, empty without snapshots in
+/// the window.
+pub fn pair_correlations(
+    dir: &Path,
+    window: &StatisticsWindow,
+) -> anyhow::Result<Vec<(&'static str, RadialCorrelation)>> {
+    let snaps = window_snapshots(&RunDir::open(dir)?, window)?;
+    let Some(first) = snaps.first() else {
+        return Ok(Vec::new());
+    };
+    let opts = CorrelationOptions {
+        modes: Some(pair_modes(first.box_length)),
+        ..CorrelationOptions::default()
+    };
+    let mut out = Vec::new();
+    for (name, which) in [
+        ("c", OrderParameter::Concentration),
+        ("n", OrderParameter::Polarity),
+        ("Q", OrderParameter::Nematic),
+    ] {
+        let mut sum: Option<RadialCorrelation> = None;
+        for s in &snaps {
+            let spec =
+                particle_coefficients(&s.positions, &s.orientations, s.box_length, which, &opts)?;
+            add_to(
+                &mut sum,
+                pair_correlation(&spec, which, s.positions.len(), Some(PAIR_SHELL)),
+            );
+        }
+        if let Some(mut acc) = sum {
+            acc.value.iter_mut().for_each(|v| *v /= snaps.len() as f64);
+            out.push((name, acc));
+        }
+    }
+    Ok(out)
+}
+
+/// Add correlation `c` to the running sum `sum` (the first one starts it).
+pub(crate) fn add_to(sum: &mut Option<RadialCorrelation>, c: RadialCorrelation) {
+    match sum {
+        Some(acc) => acc
+            .value
+            .iter_mut()
+            .zip(&c.value)
+            .for_each(|(a, v)| *a += v),
+        None => *sum = Some(c),
+    }
+}
+
+/// The radial spacing of the pair correlations (l).
+const PAIR_SHELL: f64 = 0.05;
+
+/// Fourier modes per axis of the pair correlations: `4 L/l` (even), at most 128.
+pub fn pair_modes(box_length: f64) -> usize {
+    ((4.0 * box_length).round() as usize).clamp(8, 128) & !1
+}
+
 /// Fourier modes per axis that resolve the rod scale: `2 L/l`, between 16 and 64.
 fn rod_scale_modes(box_length: f64) -> usize {
     ((2.0 * box_length).round() as usize).clamp(16, 64)
@@ -225,14 +285,7 @@ fn corr_zeros(snaps: &[&ParticleSnapshot], modes: usize) -> anyhow::Result<[f64;
             let c =
                 particle_coefficients(&s.positions, &s.orientations, s.box_length, which, &opts)?
                     .correlation(None);
-            match &mut sum {
-                Some(acc) => acc
-                    .value
-                    .iter_mut()
-                    .zip(&c.value)
-                    .for_each(|(a, v)| *a += v),
-                None => sum = Some(c),
-            }
+            add_to(&mut sum, c);
         }
         if let Some(acc) = sum {
             zeros[k] = correlation_length(&acc.r, &acc.value).unwrap_or(f64::NAN);

@@ -9,6 +9,7 @@
 
 use crate::io::write_atomic;
 use crate::report::opened_run::OpenedRun;
+use crate::report::pair_structure::{PairRun, write_pair_correlations};
 use crate::report::plot::{Series, log_chart};
 use crate::report::statistics::{Estimate, MIN_SNAPSHOTS, RunStatistics, StatisticsWindow};
 use std::fmt::Write as _;
@@ -84,6 +85,20 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
         markdown(&rows).as_bytes(),
     )?;
     let concentrated: Vec<&Row> = rows.iter().filter(|r| r.nu > 1.0).collect();
+    // The concentrated runs' structure at the rod scale, in l.
+    let pair_runs: Vec<PairRun> = opened
+        .iter()
+        .filter_map(|run| {
+            let name = run.path().file_name()?.to_string_lossy().to_string();
+            let row = concentrated.iter().find(|r| r.run == name)?;
+            Some(PairRun {
+                label: name,
+                dir: run.path(),
+                window: row.window,
+            })
+        })
+        .collect();
+    write_pair_correlations(&pair_runs, out)?;
     let mut boxes: Vec<f64> = concentrated.iter().map(|r| r.box_length).collect();
     boxes.sort_by(f64::total_cmp);
     boxes.dedup();

@@ -1,0 +1,83 @@
+//! The concentrated runs' pair structure (compare's `pair_correlations.csv` and
+//! `pair_correlation_{c,n,Q}` figures): each run's time-averaged pair correlations of `c`, `n`
+//! and `Q` ([`pair_correlations`]: without each rod's correlation with itself) against `r` in
+//! rod lengths, at the same resolution (l/4) in every box, so that the curves of different
+//! boxes fall on one another where the rods, not the box, set the structure.
+
+use crate::io::write_atomic;
+use crate::report::plot::{Chart, Series, line_chart};
+use crate::report::statistics::{StatisticsWindow, pair_correlations};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// One run whose pair structure is drawn: its label, directory and window.
+pub(crate) struct PairRun<'a> {
+    /// Legend label (the run's name).
+    pub label: String,
+    /// The run directory.
+    pub dir: &'a Path,
+    /// The window the correlations are averaged over.
+    pub window: StatisticsWindow,
+}
+
+/// Write `pair_correlations.csv` (run, field, r in l, value) and one figure per field into
+/// `out`; nothing where no run has snapshots in its window.
+pub(crate) fn write_pair_correlations(runs: &[PairRun], out: &Path) -> anyhow::Result<()> {
+    let mut curves = Vec::new();
+    for run in runs {
+        let c = pair_correlations(run.dir, &run.window)?;
+        if !c.is_empty() {
+            curves.push((run, c));
+        }
+    }
+    if curves.is_empty() {
+        return Ok(());
+    }
+    let mut csv = String::from("run,field,r [l],pair correlation [1]\n");
+    for (run, fields) in &curves {
+        for (name, c) in fields {
+            for (r, v) in c.r.iter().zip(&c.value) {
+                writeln!(csv, "\"{}\",{name},{r:e},{v:e}", run.label).expect("string");
+            }
+        }
+    }
+    write_atomic(&out.join("pair_correlations.csv"), csv.as_bytes())?;
+    for (field, what, y_label) in [
+        ("c", "concentration: g(r) - 1", "g(r) - 1 [1]"),
+        (
+            "n",
+            "polarity: pairs weighted by p_i.p_j",
+            "pair Corr[n] [1]",
+        ),
+        (
+            "Q",
+            "nematic order: pairs weighted by Q_i:Q_j",
+            "pair Corr[Q] [1]",
+        ),
+    ] {
+        let series = curves
+            .iter()
+            .filter_map(|(run, fields)| {
+                let (_, c) = fields.iter().find(|(n, _)| *n == field)?;
+                Some(Series {
+                    label: format!(
+                        "{} (t = {}-{}/beta)",
+                        run.label, run.window.t0, run.window.t1
+                    ),
+                    points: c.r.iter().copied().zip(c.value.iter().copied()).collect(),
+                })
+            })
+            .collect();
+        let title = format!("Pair correlation of the {what}, at l/4 resolution");
+        line_chart(
+            &out.join(format!("pair_correlation_{field}")),
+            &Chart {
+                title: &title,
+                x_label: "r/l [1]",
+                y_label,
+                series,
+            },
+        )?;
+    }
+    Ok(())
+}
