@@ -46,6 +46,10 @@ for f in norm_scaling velocity_norm correlation_Q msd orientation; do
   copy runs/paper-concentrated/compare/$f paper_concentrated_$f
 done
 copy runs/paper-concentrated/compare/particle_statistics paper_concentrated_series csv
+for f in c n Q; do
+  copy runs/paper-concentrated/compare/pair_correlation_$f paper_concentrated_pair_correlation_$f
+done
+copy runs/paper-concentrated/compare/pair_correlations paper_concentrated_pair_correlations csv
 copy runs/stability/stability_particle stability_particle
 copy runs/stability/stability_meanfield stability_meanfield_D1e-4
 copy runs/stability_D1e-3/stability_meanfield stability_meanfield_D1e-3
