@@ -310,6 +310,28 @@ fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
     }
 }
 
+/// A dt study refuses, before it runs anything, a step its diagnostics (every 0.2/beta) would
+/// not fall on.
+#[test]
+fn a_dt_study_refuses_a_step_that_does_not_divide_its_diagnostic_interval() {
+    use motile_experiments::campaign::study::{StudyOptions, study};
+    let scene = tiny_scene(0.01, 0.4);
+    let dir = tempfile::tempdir().unwrap();
+    let opts = StudyOptions {
+        knob: "dt".into(),
+        values: Some(vec!["0.15".to_string()]),
+        accuracy: 0.5,
+        ..Default::default()
+    };
+    let err = study(&scene, &opts, dir.path(), &mut |_| {}).unwrap_err();
+    assert!(
+        format!("{err:#}").contains("study dt = 0.15")
+            && format!("{err:#}").contains("divides 0.2"),
+        "{err:#}"
+    );
+    assert!(!dir.path().join("runs").exists(), "a run was started");
+}
+
 /// A level without flow (`hydrodynamics = "none"`) has error 1 by construction: the study's
 /// table lists it with that note, its chart leaves it off and names the levels with a flow.
 #[test]

@@ -89,12 +89,15 @@ impl CostEstimate {
 
 /// `x` to three significant figures, without an exponent ("0.659", "0.000214", "12.3").
 fn significant(x: f64) -> String {
-    let digits = if x > 0.0 && x.is_finite() {
-        (2 - x.log10().floor() as i32).max(0) as usize
-    } else {
-        3
-    };
-    format!("{x:.digits$}")
+    if !(x > 0.0 && x.is_finite()) {
+        return format!("{x:.3}");
+    }
+    let digits = |x: f64| (2 - x.log10().floor() as i32).max(0) as usize;
+    let d = digits(x);
+    // Rounding may carry into the next decade (0.9996 -> 1.000): count from the rounded value.
+    let rounded: f64 = format!("{x:.d$}").parse().unwrap_or(x);
+    let d = digits(rounded).min(d);
+    format!("{rounded:.d$}")
 }
 
 /// Seconds as "0.25 s", "4.2 s", "42 s", "12.5 min", "3.2 h" or "4.1 days".
@@ -389,5 +392,6 @@ mod tests {
         assert_eq!(significant(0.000_213_7), "0.000214");
         assert_eq!(significant(12.34), "12.3");
         assert_eq!(significant(1234.0), "1234");
+        assert_eq!(significant(0.9996), "1.00");
     }
 }

@@ -188,8 +188,10 @@ fn point_config(opts: &OnsetOptions, nu: f64, l: f64, t_end: f64) -> ParticleRun
     if !opts.boxes.is_empty() {
         cfg.diagnostic_interval = (0.5 / opts.dt).round().max(1.0) * opts.dt;
     }
-    if let Some(m) = opts.contact_margin {
-        cfg.contact.margin = m;
+    match opts.contact_margin {
+        Some(m) => cfg.contact.margin = m,
+        // Left out, the margin follows the step where it must (2.5 U dt).
+        None => cfg.contact.margin = cfg.contact.margin.max(2.5 * opts.dt),
     }
     cfg.hydro.sum_tolerance = opts.sum_tolerance;
     cfg

@@ -203,6 +203,8 @@ pub fn particle_map(
             c.volume_fraction = nu;
             c.rods = None;
             c.dt = dt;
+            // The contact margin follows the step where it must (2.5 U dt).
+            c.contact.margin = c.contact.margin.max(2.5 * dt);
             c.vtk = false;
             c.snapshot_interval = c.t_end;
             c.checkpoint_interval = c.t_end;

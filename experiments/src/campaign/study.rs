@@ -125,6 +125,14 @@ fn set_particle(c: &mut ParticleRunConfig, knob: &str, v: &str) -> anyhow::Resul
         "hydrodynamics" => c.hydrodynamics = v.parse()?,
         "dt" => {
             c.dt = num()?;
+            // The study's diagnostics (every 0.2/beta) and statistics' snapshots (every
+            // 0.4/beta) must fall on whole steps.
+            let per = 0.2 / c.dt;
+            if (per - per.round()).abs() > 1e-9 * per {
+                anyhow::bail!(
+                    "study dt = {v}: the study's diagnostics every 0.2/beta need a whole number of steps; use a dt that divides 0.2 (0.2, 0.1, 0.05, 0.04, 0.025, 0.02, ...)"
+                );
+            }
             // The contact margin follows the step where it must: at least the 2.5 U dt two
             // rods can close in one step (the validation's bound).
             c.contact.margin = c.contact.margin.max(2.5 * c.dt);

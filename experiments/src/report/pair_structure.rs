@@ -1,8 +1,8 @@
 //! The concentrated runs' pair structure (compare's `pair_correlations.csv` and
 //! `pair_correlation_{c,n,Q}` figures): each run's time-averaged pair correlations of `c`, `n`
 //! and `Q` ([`pair_correlations`]: without each rod's correlation with itself) against `r` in
-//! rod lengths, at the same resolution (l/4) in every box, so that the curves of different
-//! boxes fall on one another where the rods, not the box, set the structure.
+//! rod lengths, at the same resolution (l/4 up to L/l = 32) in every box, so that the curves of
+//! different boxes fall on one another where the rods, not the box, set the structure.
 
 use crate::io::write_atomic;
 use crate::report::plot::{Chart, Series, line_chart};
@@ -59,16 +59,21 @@ pub(crate) fn write_pair_correlations(runs: &[PairRun], out: &Path) -> anyhow::R
             .iter()
             .filter_map(|(run, fields)| {
                 let (_, c) = fields.iter().find(|(n, _)| *n == field)?;
+                // The radii run to L/2 (in l): the resolution is L / modes.
+                let box_length = 2.0 * c.r.last().copied().unwrap_or(0.0);
                 Some(Series {
                     label: format!(
-                        "{} (t = {}-{}/beta)",
-                        run.label, run.window.t0, run.window.t1
+                        "{} (t = {}-{}/beta, resolution {:.2} l)",
+                        run.label,
+                        run.window.t0,
+                        run.window.t1,
+                        box_length / c.modes as f64
                     ),
                     points: c.r.iter().copied().zip(c.value.iter().copied()).collect(),
                 })
             })
             .collect();
-        let title = format!("Pair correlation of the {what}, at l/4 resolution");
+        let title = format!("Pair correlation of the {what}");
         line_chart(
             &out.join(format!("pair_correlation_{field}")),
             &Chart {

@@ -128,7 +128,7 @@ fn window_snapshots(run: &RunDir, w: &StatisticsWindow) -> anyhow::Result<Vec<Pa
 
 /// The time-averaged pair correlations ([`pair_correlation`]: without each rod's correlation
 /// with itself) of `c`, `n` and `Q` of the particle run in `dir` over `window`, on
-/// [`pair_modes`] modes per axis (a resolution of l/4 in every box, so that boxes compare at
+/// [`pair_modes`] modes per axis (a resolution of l/4 up to L/l = 32, so that boxes compare at
 /// the same resolution in `l`), against `r` in `l`: `(name, curve)`, empty without snapshots in
 /// the window.
 pub fn pair_correlations(
@@ -181,7 +181,8 @@ pub(crate) fn add_to(sum: &mut Option<RadialCorrelation>, c: RadialCorrelation) 
 /// The radial spacing of the pair correlations (l).
 const PAIR_SHELL: f64 = 0.05;
 
-/// Fourier modes per axis of the pair correlations: `4 L/l` (even), at most 128.
+/// Fourier modes per axis of the pair correlations: `4 L/l` (even), at most 128: a resolution of
+/// l/4 up to L/l = 32, coarser above (the figures' legends give each run's).
 pub fn pair_modes(box_length: f64) -> usize {
     ((4.0 * box_length).round() as usize).clamp(8, 128) & !1
 }

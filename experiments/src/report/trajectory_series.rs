@@ -50,6 +50,7 @@ fn later_half(t_end: f64) -> StatisticsWindow {
 /// more box sizes.
 pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> anyhow::Result<()> {
     let mut rows = Vec::new();
+    let mut pair_runs = Vec::new();
     for run in opened {
         let Some((config, _)) = run.particle() else {
             continue;
@@ -63,11 +64,19 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
         let Some(stats) = RunStatistics::of(run.path(), &window)? else {
             continue;
         };
+        let name: String = run.path().file_name().map_or_else(
+            || run.path().display().to_string(),
+            |n| n.to_string_lossy().into(),
+        );
+        if config.volume_fraction > 1.0 {
+            pair_runs.push(PairRun {
+                label: name.clone(),
+                dir: run.path(),
+                window,
+            });
+        }
         rows.push(Row {
-            run: run.path().file_name().map_or_else(
-                || run.path().display().to_string(),
-                |n| n.to_string_lossy().into(),
-            ),
+            run: name,
             nu: config.volume_fraction,
             box_length: config.box_length,
             rods: config.rod_count(),
@@ -86,18 +95,6 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
     )?;
     let concentrated: Vec<&Row> = rows.iter().filter(|r| r.nu > 1.0).collect();
     // The concentrated runs' structure at the rod scale, in l.
-    let pair_runs: Vec<PairRun> = opened
-        .iter()
-        .filter_map(|run| {
-            let name = run.path().file_name()?.to_string_lossy().to_string();
-            let row = concentrated.iter().find(|r| r.run == name)?;
-            Some(PairRun {
-                label: name,
-                dir: run.path(),
-                window: row.window,
-            })
-        })
-        .collect();
     write_pair_correlations(&pair_runs, out)?;
     let mut boxes: Vec<f64> = concentrated.iter().map(|r| r.box_length).collect();
     boxes.sort_by(f64::total_cmp);
