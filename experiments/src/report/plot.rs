@@ -259,11 +259,12 @@ where
     // Panels on the left, the shared colour bar (with its scale and unit) on the right.
     let width = root.dim_in_pixel().0;
     let (main, bar) = root.split_horizontally(width.saturating_sub(150));
+    // The scale and its unit on the bar's right, clear of the bar.
     let mut cb = ChartBuilder::on(&bar)
         .margin(10)
         .margin_top(40)
         .margin_bottom(45)
-        .y_label_area_size(95)
+        .right_y_label_area_size(95)
         .build_cartesian_2d(0.0..1.0, lo..(lo + span))
         .map_err(|e| e.to_string())?;
     cb.configure_mesh()
@@ -271,7 +272,8 @@ where
         .disable_x_axis()
         .y_desc(scale_label)
         .y_labels(6)
-        .y_label_formatter(&|v| format!("{v:.1e}"))
+        // A space between the tick mark and the number, which would otherwise read as a sign.
+        .y_label_formatter(&|v| format!("  {v:.1e}"))
         .label_style(("sans-serif", 12))
         .axis_desc_style(("sans-serif", 14))
         .draw()
