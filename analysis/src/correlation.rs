@@ -181,7 +181,7 @@ impl Spectrum {
 }
 
 /// Fourier coefficients of an order parameter of a configuration of `N` rods (centres `x`,
-/// unit orientations `p`) in a box of side `box_length`.
+/// unit orientations `p`) in a box of side `box_length`: [`ParticleSpectra`] for one parameter.
 pub fn particle_coefficients(
     x: &[[f64; 3]],
     p: &[[f64; 3]],
@@ -189,40 +189,109 @@ pub fn particle_coefficients(
     which: OrderParameter,
     opts: &CorrelationOptions,
 ) -> Result<Spectrum, NufftError> {
-    let modes = opts.modes_for(box_length);
-    let n = x.len();
-    let mut plan = NufftPlan::new([modes; 3], opts.tolerance)?;
-    plan.set_points(x, box_length)?;
-    let inv_n = 1.0 / n.max(1) as f64;
-    let (fields, weights): (Vec<Vec<Complex64>>, Vec<f64>) = match which {
-        OrderParameter::Concentration => (vec![vec![Complex64::new(inv_n, 0.0); n]], vec![1.0]),
-        OrderParameter::Polarity => return sampled_vector_coefficients(x, p, box_length, opts),
-        OrderParameter::Nematic => {
-            let mut f = Vec::new();
-            let mut w = Vec::new();
-            for (i, j) in SYM_PAIRS {
-                let iso = if i == j { 1.0 / 3.0 } else { 0.0 };
-                f.push(
-                    p.iter()
-                        .map(|q| Complex64::new((q[i] * q[j] - iso) * inv_n, 0.0))
-                        .collect(),
-                );
-                w.push(if i == j { 1.0 } else { 2.0 });
-            }
-            (f, w)
-        }
-    };
-    let refs: Vec<&[Complex64]> = fields.iter().map(|v| v.as_slice()).collect();
-    let mut components = plan.type1(&refs)?;
-    if which == OrderParameter::Concentration {
-        components[0][zero_mode(modes)] = Complex64::default();
+    let mut spectra = ParticleSpectra::new(opts.modes_for(box_length), opts.tolerance)?;
+    let mut one = spectra.of(x, p, box_length, &[which])?;
+    Ok(one.pop().expect("one spectrum per order parameter"))
+}
+
+/// Spectra of order parameters of particle configurations on one NUFFT plan: every requested
+/// parameter's components (1 for `c'`, 3 for `n`, 6 for `Q`) are spread in one pass over the
+/// rods, so each rod's kernel is evaluated once and the points sorted once per configuration,
+/// and the plan's buffers serve every configuration that follows (the snapshots of a run).
+/// Each spectrum equals [`particle_coefficients`]'s for that parameter bit for bit.
+#[derive(Debug)]
+pub struct ParticleSpectra {
+    plan: NufftPlan,
+    modes: usize,
+}
+
+impl ParticleSpectra {
+    /// A plan for `modes` Fourier modes per axis at NUFFT tolerance `tolerance`.
+    pub fn new(modes: usize, tolerance: f64) -> Result<Self, NufftError> {
+        Ok(Self {
+            plan: NufftPlan::new([modes; 3], tolerance)?,
+            modes,
+        })
     }
-    Ok(Spectrum {
-        modes,
-        box_length,
-        components,
-        weights,
-    })
+
+    /// Modes per axis.
+    pub fn modes(&self) -> usize {
+        self.modes
+    }
+
+    /// The spectra of `which` (in that order) of the rods with centres `x` and unit
+    /// orientations `p` in a box of side `box_length`.
+    pub fn of(
+        &mut self,
+        x: &[[f64; 3]],
+        p: &[[f64; 3]],
+        box_length: f64,
+        which: &[OrderParameter],
+    ) -> Result<Vec<Spectrum>, NufftError> {
+        if p.len() != x.len() {
+            return Err(NufftError::Length {
+                which: 0,
+                got: p.len(),
+                expected: x.len(),
+            });
+        }
+        self.plan.set_points(x, box_length)?;
+        let inv_n = 1.0 / x.len().max(1) as f64;
+        let parts: Vec<(Vec<Vec<Complex64>>, Vec<f64>)> = which
+            .iter()
+            .map(|&w| order_parameter_fields(w, p, inv_n))
+            .collect();
+        let refs: Vec<&[Complex64]> = parts
+            .iter()
+            .flat_map(|(fields, _)| fields.iter().map(|f| f.as_slice()))
+            .collect();
+        let mut components = self.plan.type1(&refs)?.into_iter();
+        Ok(which
+            .iter()
+            .zip(parts)
+            .map(|(&w, (fields, weights))| {
+                let mut comps: Vec<Vec<Complex64>> =
+                    components.by_ref().take(fields.len()).collect();
+                if w == OrderParameter::Concentration {
+                    comps[0][zero_mode(self.modes)] = Complex64::default();
+                }
+                Spectrum {
+                    modes: self.modes,
+                    box_length,
+                    components: comps,
+                    weights,
+                }
+            })
+            .collect())
+    }
+}
+
+/// The point strengths of an order parameter (each rod's value over `N`), one vector per
+/// component, and the components' weights.
+fn order_parameter_fields(
+    which: OrderParameter,
+    p: &[[f64; 3]],
+    inv_n: f64,
+) -> (Vec<Vec<Complex64>>, Vec<f64>) {
+    let field = |f: &dyn Fn(&[f64; 3]) -> f64| -> Vec<Complex64> {
+        p.iter()
+            .map(|q| Complex64::new(f(q) * inv_n, 0.0))
+            .collect()
+    };
+    match which {
+        OrderParameter::Concentration => (vec![field(&|_| 1.0)], vec![1.0]),
+        OrderParameter::Polarity => ((0..3).map(|d| field(&|q| q[d])).collect(), vec![1.0; 3]),
+        OrderParameter::Nematic => SYM_PAIRS
+            .iter()
+            .map(|&(i, j)| {
+                let iso = if i == j { 1.0 / 3.0 } else { 0.0 };
+                (
+                    field(&|q| q[i] * q[j] - iso),
+                    if i == j { 1.0 } else { 2.0 },
+                )
+            })
+            .unzip(),
+    }
 }
 
 /// Fourier coefficients of a vector field sampled at `N` points (`x`, values `v`), the point

@@ -4,7 +4,7 @@
 //! velocity spectrum of a sinusoidal force density is the exact Stokes solution.
 
 use motile_analysis::correlation::{
-    CorrelationOptions, OrderParameter, grid_coefficients, particle_coefficients,
+    CorrelationOptions, OrderParameter, ParticleSpectra, grid_coefficients, particle_coefficients,
     sampled_vector_coefficients, velocity_modes, velocity_spectrum,
 };
 use motile_analysis::nufft::direct_type1;
@@ -129,6 +129,81 @@ fn particle_coefficients_match_the_direct_sum() {
             "component {d}: max error {err:.2e} (scale {scale:.2e})"
         );
     }
+}
+
+/// One rod's value of an order parameter's component.
+type Strength = Box<dyn Fn(&[f64; 3]) -> f64>;
+
+/// One plan for c', n and Q, reused for a second configuration of another size: every
+/// component against the direct sum of its strengths (relative L2 error within the NUFFT
+/// tolerance), each spectrum bit for bit the one-parameter call's, c' without its k = 0 mode.
+#[test]
+fn particle_spectra_share_one_plan_and_match_the_direct_sums() {
+    let (l, modes) = (10.0, 8);
+    let opts = CorrelationOptions {
+        modes: Some(modes),
+        ..Default::default()
+    };
+    let all = [
+        OrderParameter::Concentration,
+        OrderParameter::Polarity,
+        OrderParameter::Nematic,
+    ];
+    let mut spectra = ParticleSpectra::new(modes, opts.tolerance).unwrap();
+    for (n, seed) in [(500, 21), (1300, 22)] {
+        let (x, p) = random_rods(n, l, seed);
+        let got = spectra.of(&x, &p, l, &all).unwrap();
+        for (which, spec) in all.iter().zip(&got) {
+            let alone = particle_coefficients(&x, &p, l, *which, &opts).unwrap();
+            assert!(
+                spec.components == alone.components && spec.weights == alone.weights,
+                "{which:?} at N = {n}: the shared plan's spectrum differs from the one-parameter call's"
+            );
+            let strengths: Vec<Strength> = match which {
+                OrderParameter::Concentration => vec![Box::new(|_| 1.0)],
+                OrderParameter::Polarity => (0..3)
+                    .map(|d| Box::new(move |q: &[f64; 3]| q[d]) as Strength)
+                    .collect(),
+                OrderParameter::Nematic => motile_analysis::correlation::SYM_PAIRS
+                    .iter()
+                    .map(|&(i, j)| {
+                        let iso = if i == j { 1.0 / 3.0 } else { 0.0 };
+                        Box::new(move |q: &[f64; 3]| q[i] * q[j] - iso) as Strength
+                    })
+                    .collect(),
+            };
+            assert_eq!(spec.components.len(), strengths.len(), "{which:?}");
+            for (c, f) in strengths.iter().enumerate() {
+                let s: Vec<Complex64> = p
+                    .iter()
+                    .map(|q| Complex64::new(f(q) / n as f64, 0.0))
+                    .collect();
+                let mut exact = direct_type1(&x, l, &s, [modes; 3]);
+                if *which == OrderParameter::Concentration {
+                    let c = modes / 2; // k = 0 sits at the centre of the cube
+                    exact[(c * modes + c) * modes + c] = Complex64::default();
+                }
+                let err = spec.components[c]
+                    .iter()
+                    .zip(&exact)
+                    .map(|(a, b)| (a - b).norm_sqr())
+                    .sum::<f64>()
+                    .sqrt();
+                let norm = exact.iter().map(|b| b.norm_sqr()).sum::<f64>().sqrt();
+                assert!(
+                    err <= opts.tolerance * norm,
+                    "{which:?} component {c} at N = {n}: relative L2 error {:.2e} > {:.0e}",
+                    err / norm,
+                    opts.tolerance
+                );
+            }
+        }
+    }
+    let (x, p) = random_rods(10, l, 23);
+    assert!(
+        spectra.of(&x, &p[..9], l, &all).is_err(),
+        "9 orientations for 10 rods"
+    );
 }
 
 /// Velocities as swimming rods have them (a swim speed along `p` plus a smaller flow part):

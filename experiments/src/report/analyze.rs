@@ -7,8 +7,8 @@ use crate::io::{IoError, write_atomic};
 use crate::report::plot::{Chart, Series, line_chart};
 use hdf5_pure::{AttrValue, FileBuilder};
 use motile_analysis::correlation::{
-    CorrelationOptions, OrderParameter, RadialCorrelation, Spectrum, grid_coefficients,
-    particle_coefficients, velocity_spectrum,
+    CorrelationOptions, OrderParameter, ParticleSpectra, RadialCorrelation, Spectrum,
+    grid_coefficients, velocity_spectrum,
 };
 use motile_analysis::stats::{
     correlation_length, mean_squared_displacement, orientation_autocorrelation, unwrap,
@@ -107,32 +107,45 @@ pub struct AnalysisReport {
     pub timeseries: TimeSeries,
 }
 
+/// The spectra of a particle snapshot's order parameters (on `spectra`, a plan kept from one
+/// snapshot to the next) and, where it has force points, of its flow.
 fn particle_fields(
     s: &ParticleSnapshot,
     opts: &AnalyzeOptions,
+    spectra: &mut Option<ParticleSpectra>,
 ) -> Result<Vec<(String, Spectrum)>, String> {
     let copts = CorrelationOptions {
         modes: opts.modes,
         shell_width: opts.shell_width,
         tolerance: opts.tolerance,
     };
-    let mut out = Vec::new();
-    for (name, which) in [
-        ("c", OrderParameter::Concentration),
-        ("n", OrderParameter::Polarity),
-        ("Q", OrderParameter::Nematic),
-    ] {
-        let spec =
-            particle_coefficients(&s.positions, &s.orientations, s.box_length, which, &copts)
-                .map_err(|e| e.to_string())?;
-        out.push((name.to_string(), spec));
+    let modes = copts.modes_for(s.box_length);
+    if spectra.as_ref().is_none_or(|p| p.modes() != modes) {
+        *spectra = Some(ParticleSpectra::new(modes, opts.tolerance).map_err(|e| e.to_string())?);
     }
+    let plan = spectra.as_mut().expect("a plan was just made");
+    let order = plan
+        .of(
+            &s.positions,
+            &s.orientations,
+            s.box_length,
+            &[
+                OrderParameter::Concentration,
+                OrderParameter::Polarity,
+                OrderParameter::Nematic,
+            ],
+        )
+        .map_err(|e| e.to_string())?;
+    let mut out: Vec<(String, Spectrum)> = ["c", "n", "Q"]
+        .into_iter()
+        .map(String::from)
+        .zip(order)
+        .collect();
     if let Some(PointForces {
         points: pts,
         forces: f,
     }) = &s.forces
     {
-        let modes = copts.modes_for(s.box_length);
         let mut spec =
             velocity_spectrum(pts, f, s.box_length, opts.viscosity, modes, opts.tolerance)
                 .map_err(|e| e.to_string())?;
@@ -191,9 +204,10 @@ pub fn analyze(snaps: &[Snapshot], opts: &AnalyzeOptions) -> Result<AnalysisRepo
     opts.validate()?;
     let first = snaps.first().ok_or("the run has no snapshots")?;
     let kind = snapshot_kind(first);
+    let mut spectra = None;
     let per = snaps
         .iter()
-        .map(|s| analyse_snapshot(s, first, opts))
+        .map(|s| analyse_snapshot(s, first, opts, &mut spectra))
         .collect::<Result<Vec<_>, String>>()?;
     // Fields may be missing from some snapshots (the initial one of a hydrodynamic run has no
     // force density, so no velocity): the columns are those of the richest snapshot, and a
@@ -229,6 +243,7 @@ fn analyse_snapshot(
     s: &Snapshot,
     first: &Snapshot,
     opts: &AnalyzeOptions,
+    spectra: &mut Option<ParticleSpectra>,
 ) -> Result<SnapshotAnalysis, String> {
     let (fields, msd, orientation) = match (s, first) {
         (Snapshot::Particle(p), Snapshot::Particle(p0)) => {
@@ -241,7 +256,7 @@ fn analyse_snapshot(
                 ));
             }
             (
-                particle_fields(p, opts)?,
+                particle_fields(p, opts, spectra)?,
                 Some(mean_squared_displacement(&unwrapped(p0), &unwrapped(p))),
                 Some(orientation_autocorrelation(
                     &p0.orientations,

@@ -426,41 +426,36 @@ fn order_correlations(
 }
 
 /// `Corr[c]` and `Corr[n]` of the particle snapshots from `t_start`, averaged, on `modes`
-/// Fourier modes per axis.
+/// Fourier modes per axis (one plan, both spread in one pass per snapshot).
 fn rod_scale_correlations(
     snaps: &[Snapshot],
     t_start: f64,
     modes: usize,
 ) -> anyhow::Result<Vec<(String, motile_analysis::correlation::RadialCorrelation)>> {
-    use motile_analysis::correlation::{CorrelationOptions, OrderParameter, particle_coefficients};
-    let opts = CorrelationOptions {
-        modes: Some(modes),
-        ..CorrelationOptions::default()
-    };
-    let mut out = Vec::new();
-    for (name, which) in [
-        ("c", OrderParameter::Concentration),
-        ("n", OrderParameter::Polarity),
-    ] {
-        let mut sum: Option<motile_analysis::correlation::RadialCorrelation> = None;
-        let mut count = 0usize;
-        for s in snaps {
-            let Snapshot::Particle(p) = s else { continue };
-            if p.time < t_start - 1e-9 {
-                continue;
-            }
-            let corr =
-                particle_coefficients(&p.positions, &p.orientations, p.box_length, which, &opts)?
-                    .correlation(None);
-            count += 1;
-            crate::report::statistics::add_to(&mut sum, corr);
-        }
-        if let Some(mut acc) = sum {
-            acc.value.iter_mut().for_each(|v| *v /= count as f64);
-            out.push((name.to_string(), acc));
-        }
-    }
-    Ok(out)
+    use crate::report::statistics::{snapshot_curves, summed};
+    use motile_analysis::correlation::OrderParameter;
+    let window: Vec<_> = snaps
+        .iter()
+        .filter_map(|s| match s {
+            Snapshot::Particle(p) if p.time >= t_start - 1e-9 => Some(p),
+            _ => None,
+        })
+        .collect();
+    let curves = snapshot_curves(
+        &window,
+        &[OrderParameter::Concentration, OrderParameter::Polarity],
+        modes,
+        &|spec, _, _| spec.correlation(None),
+    )?;
+    Ok(["c", "n"]
+        .into_iter()
+        .enumerate()
+        .filter_map(|(k, name)| {
+            let mut acc = summed(curves.iter().map(|c| &c[k]))?;
+            acc.value.iter_mut().for_each(|v| *v /= window.len() as f64);
+            Some((name.to_string(), acc))
+        })
+        .collect())
 }
 
 /// The velocity magnitude on the plane z = 0 of a snapshot, in mean-field units. Particle runs:

@@ -9,7 +9,8 @@ use crate::io::rundir::{RunDir, TimeSeries};
 use crate::io::snapshot::{ParticleSnapshot, Snapshot, read_snapshot};
 use anyhow::Context;
 use motile_analysis::correlation::{
-    CorrelationOptions, OrderParameter, RadialCorrelation, pair_correlation, particle_coefficients,
+    CorrelationOptions, OrderParameter, ParticleSpectra, RadialCorrelation, Spectrum,
+    pair_correlation,
 };
 use motile_analysis::stats::{
     correlation_length, mean_squared_displacement, orientation_autocorrelation, unwrap,
@@ -88,12 +89,24 @@ impl RunStatistics {
         let pick = |lo: f64, hi: f64| -> Vec<&ParticleSnapshot> {
             snaps.iter().filter(|s| in_window(s, lo, hi)).collect()
         };
-        let modes = rod_scale_modes(snaps[0].box_length);
-        let zeros = |lo: f64, hi: f64| corr_zeros(&pick(lo, hi), modes);
+        // Each snapshot's correlations once; the halves and the whole average them.
+        let all: Vec<&ParticleSnapshot> = snaps.iter().collect();
+        let curves = snapshot_curves(
+            &all,
+            &ORDER_PARAMETERS,
+            rod_scale_modes(snaps[0].box_length),
+            &|spec, _, _| spec.correlation(None),
+        )?;
+        let zeros = |lo: f64, hi: f64| {
+            let picked: Vec<usize> = (0..snaps.len())
+                .filter(|&i| in_window(&snaps[i], lo, hi))
+                .collect();
+            corr_zeros(&curves, &picked)
+        };
         let (a, b, all) = (
-            zeros(window.t0, mid)?,
-            zeros(mid, window.t1)?,
-            zeros(window.t0, window.t1)?,
+            zeros(window.t0, mid),
+            zeros(mid, window.t1),
+            zeros(window.t0, window.t1),
         );
         let corr_zeros = [0, 1, 2].map(|k| Estimate {
             value: all[k],
@@ -139,31 +152,66 @@ pub fn pair_correlations(
     let Some(first) = snaps.first() else {
         return Ok(Vec::new());
     };
-    let opts = CorrelationOptions {
-        modes: Some(pair_modes(first.box_length)),
-        ..CorrelationOptions::default()
-    };
-    let mut out = Vec::new();
-    for (name, which) in [
-        ("c", OrderParameter::Concentration),
-        ("n", OrderParameter::Polarity),
-        ("Q", OrderParameter::Nematic),
-    ] {
-        let mut sum: Option<RadialCorrelation> = None;
-        for s in &snaps {
-            let spec =
-                particle_coefficients(&s.positions, &s.orientations, s.box_length, which, &opts)?;
-            add_to(
-                &mut sum,
-                pair_correlation(&spec, which, s.positions.len(), Some(PAIR_SHELL)),
-            );
-        }
-        if let Some(mut acc) = sum {
+    let window: Vec<&ParticleSnapshot> = snaps.iter().collect();
+    let curves = snapshot_curves(
+        &window,
+        &ORDER_PARAMETERS,
+        pair_modes(first.box_length),
+        &|spec, which, rods| pair_correlation(spec, which, rods, Some(PAIR_SHELL)),
+    )?;
+    Ok(["c", "n", "Q"]
+        .into_iter()
+        .enumerate()
+        .filter_map(|(k, name)| {
+            let mut acc = summed(curves.iter().map(|c| &c[k]))?;
             acc.value.iter_mut().for_each(|v| *v /= snaps.len() as f64);
-            out.push((name, acc));
-        }
+            Some((name, acc))
+        })
+        .collect())
+}
+
+/// The order parameters of the statistics, in the order of their columns.
+pub(crate) const ORDER_PARAMETERS: [OrderParameter; 3] = [
+    OrderParameter::Concentration,
+    OrderParameter::Polarity,
+    OrderParameter::Nematic,
+];
+
+/// A curve of an order parameter's spectrum of `rods` rods.
+pub(crate) type CurveOf<'a> = &'a dyn Fn(&Spectrum, OrderParameter, usize) -> RadialCorrelation;
+
+/// `curve` of each of `which` in every snapshot of `snaps`, on `modes` modes per axis, indexed
+/// `[snapshot][parameter]`: one NUFFT plan for them all, each snapshot's parameters spread in one
+/// pass over its rods.
+pub(crate) fn snapshot_curves(
+    snaps: &[&ParticleSnapshot],
+    which: &[OrderParameter],
+    modes: usize,
+    curve: CurveOf,
+) -> anyhow::Result<Vec<Vec<RadialCorrelation>>> {
+    let mut spectra = ParticleSpectra::new(modes, CorrelationOptions::default().tolerance)?;
+    snaps
+        .iter()
+        .map(|s| {
+            let specs = spectra.of(&s.positions, &s.orientations, s.box_length, which)?;
+            Ok(specs
+                .iter()
+                .zip(which)
+                .map(|(spec, &w)| curve(spec, w, s.positions.len()))
+                .collect())
+        })
+        .collect()
+}
+
+/// The sum of `curves` (in order); `None` without any.
+pub(crate) fn summed<'a>(
+    curves: impl IntoIterator<Item = &'a RadialCorrelation>,
+) -> Option<RadialCorrelation> {
+    let mut sum = None;
+    for c in curves {
+        add_to(&mut sum, c.clone());
     }
-    Ok(out)
+    sum
 }
 
 /// Add correlation `c` to the running sum `sum` (the first one starts it).
@@ -265,34 +313,15 @@ fn msd_at(snaps: &[&ParticleSnapshot], lag: f64) -> f64 {
     .unwrap_or(f64::NAN)
 }
 
-/// The first zeros (l) of `Corr[c]`, `Corr[n]` and `Corr[Q]` averaged over `snaps`, on `modes`
-/// modes per axis (NaN where one does not cross zero, or without snapshots).
-fn corr_zeros(snaps: &[&ParticleSnapshot], modes: usize) -> anyhow::Result<[f64; 3]> {
-    let opts = CorrelationOptions {
-        modes: Some(modes),
-        ..CorrelationOptions::default()
-    };
-    let mut zeros = [f64::NAN; 3];
-    for (k, which) in [
-        OrderParameter::Concentration,
-        OrderParameter::Polarity,
-        OrderParameter::Nematic,
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        let mut sum: Option<RadialCorrelation> = None;
-        for s in snaps {
-            let c =
-                particle_coefficients(&s.positions, &s.orientations, s.box_length, which, &opts)?
-                    .correlation(None);
-            add_to(&mut sum, c);
-        }
-        if let Some(acc) = sum {
-            zeros[k] = correlation_length(&acc.r, &acc.value).unwrap_or(f64::NAN);
-        }
-    }
-    Ok(zeros)
+/// The first zeros (l) of `Corr[c]`, `Corr[n]` and `Corr[Q]` averaged over the snapshots
+/// `picked` of `curves` (each snapshot's three correlations; NaN where one does not cross zero,
+/// or without snapshots).
+fn corr_zeros(curves: &[Vec<RadialCorrelation>], picked: &[usize]) -> [f64; 3] {
+    [0, 1, 2].map(|k| {
+        summed(picked.iter().map(|&i| &curves[i][k]))
+            .and_then(|acc| correlation_length(&acc.r, &acc.value))
+            .unwrap_or(f64::NAN)
+    })
 }
 
 #[cfg(test)]
