@@ -266,6 +266,90 @@ impl PointCells {
         pair: impl Fn(&Hits, usize, &mut A, &mut A) + Sync,
         add: impl Fn(&mut A, &A) + Sync,
     ) -> Vec<A> {
+        self.symmetric_with(
+            |tk, c3, hits| {
+                self.collect_hits(tk, c3, cutoff, true, hits);
+                prepare(hits);
+            },
+            pair,
+            add,
+        )
+    }
+
+    /// [`Self::symmetric`] over the pairs of `list` ([`Self::forward_pairs`], found once):
+    /// each target's hits rebuilt from the list (the same separations, bit for bit), then
+    /// `prepare` and `pair` as there. The same pairs in the same order: the same sums.
+    pub(crate) fn symmetric_listed<A: Send + Default + Clone>(
+        &self,
+        list: &PairList,
+        prepare: impl Fn(&mut Hits) + Sync,
+        pair: impl Fn(&Hits, usize, &mut A, &mut A) + Sync,
+        add: impl Fn(&mut A, &A) + Sync,
+    ) -> Vec<A> {
+        self.symmetric_with(
+            |tk, _, hits| {
+                list.fill(self, tk, hits);
+                prepare(hits);
+            },
+            pair,
+            add,
+        )
+    }
+
+    /// Every target's forward-half hits ([`Self::collect_hits`]): the other point and the
+    /// periodic shift between them, 5 bytes a pair. What [`Self::symmetric_listed`] reads
+    /// instead of searching the stencil again (the sums of one GMRES solve share the points).
+    pub(crate) fn forward_pairs(&self, cutoff: f64) -> PairList {
+        let n = self.n;
+        let l = self.l;
+        let per_cell: Vec<(Vec<usize>, Vec<u32>, Vec<u8>)> = (0..n * n * n)
+            .into_par_iter()
+            .map_init(Hits::default, |hits, c| {
+                let c3 = [(c % n) as i64, ((c / n) % n) as i64, (c / (n * n)) as i64];
+                let mut out = (Vec::new(), Vec::new(), Vec::new());
+                for tk in self.start[c]..self.start[c + 1] {
+                    hits.clear();
+                    self.collect_hits(tk, c3, cutoff, true, hits);
+                    out.0.push(hits.len);
+                    let yt = self.sorted[tk];
+                    for h in 0..hits.len {
+                        let j = hits.index[h] as usize;
+                        let r = [hits.x[h], hits.y[h], hits.z[h]];
+                        // r = (y_t - shift) - y_j with shift in {-L, 0, L} per axis.
+                        let code = [0, 1, 2].iter().rev().fold(0u8, |acc, &d| {
+                            let shift = yt[d] - self.sorted[j][d] - r[d];
+                            3 * acc + (1.0 + (shift / l).round()) as u8
+                        });
+                        out.1.push(hits.index[h]);
+                        out.2.push(code);
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut list = PairList {
+            start: Vec::with_capacity(self.members.len() + 1),
+            index: Vec::new(),
+            shift: Vec::new(),
+        };
+        list.start.push(0);
+        for (counts, index, shift) in per_cell {
+            for k in counts {
+                list.start.push(list.start.last().copied().unwrap_or(0) + k);
+            }
+            list.index.extend(index);
+            list.shift.extend(shift);
+        }
+        list
+    }
+
+    /// The phased traversal of [`Self::symmetric`], each target's hits from `fill`.
+    fn symmetric_with<A: Send + Default + Clone>(
+        &self,
+        fill: impl Fn(usize, [i64; 3], &mut Hits) + Sync,
+        pair: impl Fn(&Hits, usize, &mut A, &mut A) + Sync,
+        add: impl Fn(&mut A, &A) + Sync,
+    ) -> Vec<A> {
         let n = self.n;
         assert!(n >= 5, "the symmetric sum needs at least 5 cells per axis");
         let nn = n * n;
@@ -280,8 +364,7 @@ impl PointCells {
                     let c3 = [(c % n) as i64, ((c / n) % n) as i64, z as i64];
                     for tk in self.start[c]..self.start[c + 1] {
                         hits.clear();
-                        self.collect_hits(tk, c3, cutoff, true, &mut hits);
-                        prepare(&mut hits);
+                        fill(tk, c3, &mut hits);
                         let mut own = A::default();
                         let target = self.is_own(tk);
                         for h in 0..hits.len {
@@ -326,6 +409,48 @@ fn wrap(u: i64, n: i64, l: f64) -> (i64, f64) {
         (u - n, l)
     } else {
         (u, 0.0)
+    }
+}
+
+/// Every target's forward-half pairs ([`PointCells::forward_pairs`]), in cell order: target
+/// `t`'s are `start[t]..start[t + 1]`, each the other point (cell order) and the periodic shift
+/// between them (`sx + 3 sy + 9 sz`, each in 0..3 for -L, 0, L).
+#[derive(Debug)]
+pub(crate) struct PairList {
+    start: Vec<usize>,
+    index: Vec<u32>,
+    shift: Vec<u8>,
+}
+
+impl PairList {
+    #[cfg(test)]
+    /// Pairs stored.
+    pub(crate) fn len(&self) -> usize {
+        self.index.len()
+    }
+
+    /// Target `t`'s hits into `hits`, the separations computed as [`Hits::push_run`] does
+    /// (the shifted target minus the other point): the same bits.
+    fn fill(&self, cells: &PointCells, t: usize, hits: &mut Hits) {
+        let run = self.start[t]..self.start[t + 1];
+        let l = cells.l;
+        let yt = cells.sorted[t];
+        hits.clear();
+        hits.reserve(run.len());
+        for (h, k) in run.clone().enumerate() {
+            let j = self.index[k] as usize;
+            let code = self.shift[k];
+            let sx = (f64::from(code % 3) - 1.0) * l;
+            let sy = (f64::from((code / 3) % 3) - 1.0) * l;
+            let sz = (f64::from(code / 9) - 1.0) * l;
+            let tt = [yt[0] - sx, yt[1] - sy, yt[2] - sz];
+            hits.x[h] = tt[0] - cells.xs[j];
+            hits.y[h] = tt[1] - cells.ys[j];
+            hits.z[h] = tt[2] - cells.zs[j];
+            hits.index[h] = j as u32;
+        }
+        hits.len = run.len();
+        hits.target = t;
     }
 }
 

@@ -33,7 +33,7 @@ use crate::ewald::spectral::estimates::{
     Accepted, AttemptTolerance, ErrorScale, StressletOutputs, estimate_from, estimate_parts,
     report_of, stresslet_estimates,
 };
-use crate::ewald::spectral::real_space::{rpy_assemble, rpy_real, stresslet_real};
+use crate::ewald::spectral::real_space::{RpyPairCache, rpy_assemble, rpy_real, stresslet_real};
 use crate::ewald::spectral::refinement::{Refinement, check_tolerance};
 use crate::ewald::window::{MAX_SUPPORT, Window};
 use crate::model::geometry::{Vec3, dot, floor_i64, wrap_position};
@@ -579,7 +579,7 @@ fn rpy_attempt(
     all_finite(comm, points)?;
     let (l, a) = (geometry.box_length, geometry.radius);
     let cells = PointCells::build(points, l, prm.cutoff, geometry.group).own_first(owned);
-    let mut real = rpy_real(&cells, prm, a, l, forces);
+    let mut real = rpy_real(&cells, &mut RpyPairCache::default(), prm, a, l, forces);
     real.truncate(owned);
     let grid = Grid::new(prm, l, comm);
     let spread = grid.spread(comm, &points[..owned], &forces[..owned]);

@@ -60,7 +60,7 @@ use crate::ewald::spectral::estimates::{
     Accepted, AttemptTolerance, ErrorScale, StressletOutputs, estimate, report_of,
     stresslet_estimates,
 };
-use crate::ewald::spectral::real_space::{rpy_assemble, rpy_real, stresslet_real};
+use crate::ewald::spectral::real_space::{RpyPairCache, rpy_assemble, rpy_real, stresslet_real};
 use crate::ewald::spectral::refinement::{Refinement, check_tolerance};
 use crate::model::geometry::{Vec3, dot};
 use crate::model::units::VISCOSITY;
@@ -241,6 +241,7 @@ impl SpectralEwald {
             group,
             grid_points,
             cells: PointCells::build(points, l, p.cutoff, group),
+            rpy_pairs: RpyPairCache::default(),
         })
     }
 
@@ -255,15 +256,15 @@ impl SpectralEwald {
     ) -> Result<(Vec<Vec3>, Weights), SumError> {
         let (l, a, g) = (geometry.box_length, geometry.radius, geometry.group);
         let t0 = Instant::now();
-        let prep = self.prepare(p, l, points, g)?;
-        let (pts, cells) = (&prep.grid_points, &prep.cells);
+        let mut prep = self.prepare(p, l, points, g)?;
         let xi = p.xi;
         let t1 = Instant::now();
         let attempt = self.attempt(&p, l);
         let real = match self.gpu.as_mut() {
-            Some(gpu) => gpu.rpy_real_part(attempt, cells, a, forces)?,
-            None => rpy_real(cells, &p, a, l, forces),
+            Some(gpu) => gpu.rpy_real_part(attempt, &prep.cells, a, forces)?,
+            None => rpy_real(&prep.cells, &mut prep.rpy_pairs, &p, a, l, forces),
         };
+        let pts = &prep.grid_points;
         // Fourier space.
         let t2 = Instant::now();
         let uf: [Vec<f64>; 3] = match self.gpu.as_mut() {
@@ -422,6 +423,8 @@ struct Prepared {
     group: usize,
     grid_points: GridPoints,
     cells: PointCells,
+    /// The RPY real-space pairs, from the preparation's second sum on.
+    rpy_pairs: RpyPairCache,
 }
 
 impl SpectralEwald {
