@@ -74,6 +74,8 @@ where
     c.configure_mesh()
         .x_desc(chart.x_label)
         .y_desc(chart.y_label)
+        .x_label_formatter(&axis_number)
+        .y_label_formatter(&axis_number)
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 17))
         .draw()
@@ -110,6 +112,18 @@ where
         .draw()
         .map_err(|e| e.to_string())?;
     root.present().map_err(|e| e.to_string())
+}
+
+/// A linear axis's tick label as plotters prints it, without the sign of a zero (a tick at
+/// -1e-17 read "-0.0").
+fn axis_number(v: &f64) -> String {
+    use plotters::coord::ranged1d::ValueFormatter;
+    use plotters::coord::types::RangedCoordf64;
+    let s = RangedCoordf64::format(v);
+    match s.strip_prefix('-') {
+        Some(rest) if rest.chars().all(|c| c == '0' || c == '.') => rest.to_string(),
+        _ => s,
+    }
 }
 
 /// The corner whose box (45% of the width, 12% of the height per legend entry, at least 20%)
@@ -735,7 +749,15 @@ where
 
 #[cfg(test)]
 mod tests {
-    use super::{log_tick, ticks_125};
+    use super::{axis_number, log_tick, ticks_125};
+
+    #[test]
+    fn linear_ticks_read_zero_without_a_sign() {
+        assert_eq!(axis_number(&-1e-17), "0.0");
+        assert_eq!(axis_number(&-0.0), "0.0");
+        assert_eq!(axis_number(&-0.25), "-0.25");
+        assert_eq!(axis_number(&0.5), "0.5");
+    }
 
     #[test]
     fn log_axes_tick_at_one_two_five_values() {
