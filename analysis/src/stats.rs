@@ -110,6 +110,22 @@ impl GrowthFit {
     }
 }
 
+/// The least-squares slope of the points `(x, y)`: `sum (x - xm)(y - ym) / sum (x - xm)^2`;
+/// `None` with fewer than two points or no spread in `x`.
+pub fn least_squares_slope(points: &[(f64, f64)]) -> Option<f64> {
+    let n = points.len() as f64;
+    if points.len() < 2 {
+        return None;
+    }
+    let xm = points.iter().map(|p| p.0).sum::<f64>() / n;
+    let ym = points.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = points.iter().map(|p| (p.0 - xm).powi(2)).sum();
+    if sxx == 0.0 {
+        return None;
+    }
+    Some(points.iter().map(|p| (p.0 - xm) * (p.1 - ym)).sum::<f64>() / sxx)
+}
+
 /// Fit `y = A exp(rate t)` over `t0 <= t <= t1` by least squares on `ln y` (samples with
 /// `y > 0` only); `None` with fewer than 3 samples. The standard error allows for correlated
 /// residuals (integrated autocorrelation of the residuals).
@@ -127,10 +143,7 @@ pub fn fit_growth_rate(t: &[f64], y: &[f64], t0: f64, t1: f64) -> Option<GrowthF
     let tm = pts.iter().map(|p| p.0).sum::<f64>() / n as f64;
     let ym = pts.iter().map(|p| p.1).sum::<f64>() / n as f64;
     let stt: f64 = pts.iter().map(|p| (p.0 - tm).powi(2)).sum();
-    if stt == 0.0 {
-        return None;
-    }
-    let rate = pts.iter().map(|p| (p.0 - tm) * (p.1 - ym)).sum::<f64>() / stt;
+    let rate = least_squares_slope(&pts)?;
     let r: Vec<f64> = pts.iter().map(|p| p.1 - ym - rate * (p.0 - tm)).collect();
     let res: f64 = r.iter().map(|v| v * v).sum();
     // Residuals of a time series are correlated (a noisy norm sampled faster than it
@@ -369,6 +382,16 @@ pub fn fit_complex_rate(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn least_squares_slope_of_a_line_and_of_too_little() {
+        let line: Vec<(f64, f64)> = (0..5).map(|i| (i as f64, 3.0 - 0.25 * i as f64)).collect();
+        let s = least_squares_slope(&line).unwrap();
+        assert!((s + 0.25).abs() < 1e-15, "slope {s} of y = 3 - x/4");
+        assert_eq!(least_squares_slope(&line[..2]), Some(-0.25));
+        assert_eq!(least_squares_slope(&line[..1]), None);
+        assert_eq!(least_squares_slope(&[(1.0, 0.0), (1.0, 2.0)]), None);
+    }
 
     #[test]
     fn growth_fit_recovers_an_exponential_and_its_error_bar_covers_noise() {

@@ -87,18 +87,18 @@ pub struct StudyReport {
 
 /// One knob of [`KNOBS`], by name.
 #[derive(Clone, Copy, Debug)]
-struct Knob {
+struct Knob<'a> {
     /// The knob's name.
     name: &'static str,
     /// The model it belongs to: "particle" or "meanfield".
     model: &'static str,
     /// The values swept by default, comma-separated, least to most accurate.
     defaults: &'static str,
-    /// The reference setting.
-    reference: &'static str,
+    /// The reference setting (the knob's own, or the study's `--reference`).
+    reference: &'a str,
 }
 
-fn knob(name: &str) -> anyhow::Result<Knob> {
+fn knob(name: &str) -> anyhow::Result<Knob<'static>> {
     KNOBS
         .iter()
         .find(|k| k.0 == name)
@@ -239,8 +239,7 @@ pub fn study(
 ) -> anyhow::Result<StudyReport> {
     let mut knob = knob(&opts.knob)?;
     if let Some(r) = &opts.reference {
-        // Once per study: the knob's reference names the one asked for everywhere.
-        knob.reference = Box::leak(r.clone().into_boxed_str());
+        knob.reference = r;
     }
     let accuracy = opts.accuracy;
     if !(accuracy > 0.0 && accuracy < 1.0) {
@@ -289,7 +288,7 @@ pub fn study(
 }
 
 /// The scene's run the knob is swept on: its first of the knob's model (or the one named).
-fn base_run(scene: &Scene, opts: &StudyOptions, knob: Knob) -> anyhow::Result<RunConfig> {
+fn base_run(scene: &Scene, opts: &StudyOptions, knob: Knob<'_>) -> anyhow::Result<RunConfig> {
     scene
         .runs
         .iter()
@@ -309,7 +308,7 @@ fn base_run(scene: &Scene, opts: &StudyOptions, knob: Knob) -> anyhow::Result<Ru
 }
 
 /// The settings to run, the reference last, each with its config.
-fn plan(base: &RunConfig, opts: &StudyOptions, knob: Knob) -> anyhow::Result<Vec<Setting>> {
+fn plan(base: &RunConfig, opts: &StudyOptions, knob: Knob<'_>) -> anyhow::Result<Vec<Setting>> {
     let mut values: Vec<String> = opts
         .values
         .clone()
@@ -336,7 +335,7 @@ fn plan(base: &RunConfig, opts: &StudyOptions, knob: Knob) -> anyhow::Result<Vec
 fn setting_config(
     base: &RunConfig,
     (t_end, statistics): (Option<f64>, Option<f64>),
-    knob: Knob,
+    knob: Knob<'_>,
     value: &str,
 ) -> anyhow::Result<RunConfig> {
     Ok(match base {
@@ -455,7 +454,7 @@ fn run_outcome(config: &RunConfig, dir: &Path) -> anyhow::Result<Outcome> {
 }
 
 /// Each setting's error against the reference (the last run, which must have finished).
-fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoint>> {
+fn study_points(runs: &[SettingRun], knob: Knob<'_>) -> anyhow::Result<Vec<StudyPoint>> {
     let Some(SettingRun {
         outcome: Ok(reference_outcome),
         ..
@@ -517,7 +516,7 @@ fn study_points(runs: &[SettingRun], knob: Knob) -> anyhow::Result<Vec<StudyPoin
 }
 
 /// `study_<knob>.csv`.
-fn write_csv(points: &[StudyPoint], knob: Knob, out: &Path) -> anyhow::Result<()> {
+fn write_csv(points: &[StudyPoint], knob: Knob<'_>, out: &Path) -> anyhow::Result<()> {
     let mut csv = String::from(
         "value,reference,wall_seconds,error,history_error,position_error,failure,norm [beta L],norm_spread,decorrelation_rate [beta],rate_spread,msd [l^2],msd_spread,corr_q_zero [l],zero_spread\n",
     );
@@ -548,7 +547,7 @@ fn write_markdown(
     scene: &Scene,
     opts: &StudyOptions,
     base: &RunConfig,
-    knob: Knob,
+    knob: Knob<'_>,
     points: &[StudyPoint],
     cheapest: Option<&StudyPoint>,
     out: &Path,
@@ -669,7 +668,7 @@ fn statistics_table(points: &[StudyPoint], name: &str, w: &StatisticsWindow) -> 
 /// labelled.
 fn write_chart(
     points: &[StudyPoint],
-    knob: Knob,
+    knob: Knob<'_>,
     accuracy: f64,
     cheapest: Option<&StudyPoint>,
     out: &Path,

@@ -13,8 +13,8 @@ use motile_analysis::correlation::{
     pair_correlation,
 };
 use motile_analysis::stats::{
-    correlation_length, mean_squared_displacement, orientation_autocorrelation, unwrap,
-    window_average,
+    correlation_length, least_squares_slope, mean_squared_displacement,
+    orientation_autocorrelation, unwrap, window_average,
 };
 use std::path::Path;
 
@@ -279,17 +279,7 @@ fn decorrelation_rate(snaps: &[&ParticleSnapshot], w: &StatisticsWindow) -> f64 
             .map(|c| (tau, c.ln()))
         })
         .collect();
-    if points.len() < 2 {
-        return f64::NAN;
-    }
-    let n = points.len() as f64;
-    let (mt, my) = points
-        .iter()
-        .fold((0.0, 0.0), |(a, b), (t, y)| (a + t / n, b + y / n));
-    let (num, den) = points.iter().fold((0.0, 0.0), |(a, b), (t, y)| {
-        (a + (t - mt) * (y - my), b + (t - mt) * (t - mt))
-    });
-    -num / den
+    least_squares_slope(&points).map_or(f64::NAN, |s| -s)
 }
 
 /// The MSD at `lag` (rounded down to a whole number of the snapshots' spacing) averaged over
