@@ -6,36 +6,36 @@
 
 use crate::io::write_atomic;
 use crate::report::plot::{Chart, Series, line_chart};
-use crate::report::statistics::{StatisticsWindow, pair_correlations};
+use crate::report::statistics::StatisticsWindow;
+use motile_analysis::correlation::RadialCorrelation;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// One run whose pair structure is drawn: its label, directory and window.
-pub(crate) struct PairRun<'a> {
+/// One run whose pair structure is drawn: its label, window and time-averaged pair
+/// correlations ([`crate::report::statistics::pair_correlations`]).
+pub(crate) struct PairRun {
     /// Legend label (the run's name).
     pub label: String,
-    /// The run directory.
-    pub dir: &'a Path,
     /// The window the correlations are averaged over.
     pub window: StatisticsWindow,
+    /// `(field, curve)` for c, n and Q against r in l.
+    pub curves: Vec<(&'static str, RadialCorrelation)>,
 }
 
 /// Write `pair_correlations.csv` (run, field, r in l, value) and one figure per field into
 /// `out`; nothing where no run has snapshots in its window.
 pub(crate) fn write_pair_correlations(runs: &[PairRun], out: &Path) -> anyhow::Result<()> {
-    let mut curves = Vec::new();
-    for run in runs {
-        let c = pair_correlations(run.dir, &run.window)?;
-        if !c.is_empty() {
-            curves.push((run, c));
-        }
-    }
+    let curves: Vec<(&PairRun, &Vec<(&str, RadialCorrelation)>)> = runs
+        .iter()
+        .filter(|r| !r.curves.is_empty())
+        .map(|r| (r, &r.curves))
+        .collect();
     if curves.is_empty() {
         return Ok(());
     }
     let mut csv = String::from("run,field,r [l],pair correlation [1]\n");
     for (run, fields) in &curves {
-        for (name, c) in fields {
+        for (name, c) in fields.iter() {
             for (r, v) in c.r.iter().zip(&c.value) {
                 writeln!(csv, "\"{}\",{name},{r:e},{v:e}", run.label).expect("string");
             }

@@ -65,9 +65,17 @@ impl RunStatistics {
     /// The statistics of the particle run in `dir` over `window`; `None` where the window
     /// holds fewer than [`MIN_SNAPSHOTS`] snapshots.
     pub fn of(dir: &Path, window: &StatisticsWindow) -> anyhow::Result<Option<Self>> {
-        let run = RunDir::open(dir)?;
+        Self::of_snapshots(dir, &window_snapshots(dir, window)?, window)
+    }
+
+    /// [`Self::of`] from the window's snapshots `snaps` ([`window_snapshots`]) and the time
+    /// series of the run in `dir`.
+    pub fn of_snapshots(
+        dir: &Path,
+        snaps: &[ParticleSnapshot],
+        window: &StatisticsWindow,
+    ) -> anyhow::Result<Option<Self>> {
         let ts = TimeSeries::read(&dir.join("timeseries.csv"))?;
-        let snaps = window_snapshots(&run, window)?;
         if snaps.len() < MIN_SNAPSHOTS {
             return Ok(None);
         }
@@ -125,10 +133,10 @@ impl RunStatistics {
     }
 }
 
-/// The particle snapshots with `t0 <= time <= t1`, in order.
-fn window_snapshots(run: &RunDir, w: &StatisticsWindow) -> anyhow::Result<Vec<ParticleSnapshot>> {
+/// The particle snapshots of the run in `dir` with `t0 <= time <= t1`, in order.
+pub fn window_snapshots(dir: &Path, w: &StatisticsWindow) -> anyhow::Result<Vec<ParticleSnapshot>> {
     let mut out = Vec::new();
-    for path in run.snapshot_paths()? {
+    for path in RunDir::open(dir)?.snapshot_paths()? {
         if let Snapshot::Particle(s) = read_snapshot(&path)?
             && s.time >= w.t0 - 1e-9
             && s.time <= w.t1 + 1e-9
@@ -140,15 +148,12 @@ fn window_snapshots(run: &RunDir, w: &StatisticsWindow) -> anyhow::Result<Vec<Pa
 }
 
 /// The time-averaged pair correlations ([`pair_correlation`]: without each rod's correlation
-/// with itself) of `c`, `n` and `Q` of the particle run in `dir` over `window`, on
+/// with itself) of `c`, `n` and `Q` over the snapshots `snaps` ([`window_snapshots`]), on
 /// [`pair_modes`] modes per axis (a resolution of l/4 up to L/l = 32, so that boxes compare at
-/// the same resolution in `l`), against `r` in `l`: `(name, curve)`, empty without snapshots in
-/// the window.
+/// the same resolution in `l`), against `r` in `l`: `(name, curve)`, empty without snapshots.
 pub fn pair_correlations(
-    dir: &Path,
-    window: &StatisticsWindow,
+    snaps: &[ParticleSnapshot],
 ) -> anyhow::Result<Vec<(&'static str, RadialCorrelation)>> {
-    let snaps = window_snapshots(&RunDir::open(dir)?, window)?;
     let Some(first) = snaps.first() else {
         return Ok(Vec::new());
     };

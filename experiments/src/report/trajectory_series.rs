@@ -11,7 +11,9 @@ use crate::io::write_atomic;
 use crate::report::opened_run::OpenedRun;
 use crate::report::pair_structure::{PairRun, write_pair_correlations};
 use crate::report::plot::{Series, log_chart};
-use crate::report::statistics::{Estimate, MIN_SNAPSHOTS, RunStatistics, StatisticsWindow};
+use crate::report::statistics::{
+    Estimate, MIN_SNAPSHOTS, RunStatistics, StatisticsWindow, pair_correlations, window_snapshots,
+};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -60,8 +62,10 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
         }
         let t_end = run.column("t [1/beta]")?.last().copied().unwrap_or(0.0);
         let window = later_half(t_end);
-        // A run with too few snapshots in its later half has no row.
-        let Some(stats) = RunStatistics::of(run.path(), &window)? else {
+        // The window's snapshots, read once for the statistics and the pair structure; a run
+        // with too few of them has no row.
+        let snaps = window_snapshots(run.path(), &window)?;
+        let Some(stats) = RunStatistics::of_snapshots(run.path(), &snaps, &window)? else {
             continue;
         };
         let name: String = run.path().file_name().map_or_else(
@@ -71,8 +75,8 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
         if config.volume_fraction > 1.0 {
             pair_runs.push(PairRun {
                 label: name.clone(),
-                dir: run.path(),
                 window,
+                curves: pair_correlations(&snaps)?,
             });
         }
         rows.push(Row {
