@@ -22,7 +22,7 @@
 //! take other orders: the list must not change); on CUDA in the `#[ignore]`d test that
 //! `scripts/device_run.sh parity` runs.
 
-use motile_gpu::Backend;
+use motile_gpu::{Backend, Counters};
 use motile_particle::ewald::spectral::SpectralEwald;
 use motile_particle::hydro::dipole::Dipole;
 use motile_particle::hydro::explicit::ExplicitSlender;
@@ -36,7 +36,7 @@ use motile_particle::model::rods::RodSet;
 use motile_particle::model::units::SWIM_SPEED;
 use motile_particle::model::units::{DEFAULT_DIAMETER, ROD_LENGTH};
 use motile_particle::step::constraints::constraints;
-use motile_particle::step::contact::{Constraint, ContactParams, WarmStart};
+use motile_particle::step::contact::{Constraint, ContactParams, ContactReport, WarmStart};
 use motile_particle::step::contact::{ContactProblem, ContactSolver};
 use motile_particle::step::gpu::GpuStep;
 use motile_particle::step::gpu::{DeviceContactProblem, DeviceStepper};
@@ -287,14 +287,49 @@ fn check_solver(dev: &GpuStep, tol: f64) {
         stall_iterations: 0,
         ..ContactParams::default()
     };
-    for (method, params) in [("BBPGD", ContactParams::default()), ("APGD", apgd)] {
-        check_solve(
-            dev,
-            problem,
-            (&cons, &p, &free_v, &free_w),
-            &params,
-            tol,
-            method,
+    let counted: Vec<Vec<(Counters, ContactReport)>> =
+        [("BBPGD", ContactParams::default()), ("APGD", apgd)]
+            .iter()
+            .map(|(method, params)| {
+                check_solve(
+                    dev,
+                    problem,
+                    (&cons, &p, &free_v, &free_w),
+                    params,
+                    tol,
+                    method,
+                )
+            })
+            .collect();
+    check_apgd_work(&counted[0], &counted[1]);
+}
+
+/// APGD's counted work beside BBPGD's on the same problem and start (the set-up is the same):
+/// each BBPGD iteration 4 launches and one download (its four numbers); APGD adds the power
+/// iteration for its step (`POWER_ITERATIONS` x (4 launches, 1 download)) and per iteration 5
+/// launches (4 in the last, which stops before extrapolating) and one download. A change that
+/// adds round trips to APGD fails here.
+fn check_apgd_work(bbpgd: &[(Counters, ContactReport)], apgd: &[(Counters, ContactReport)]) {
+    use motile_particle::step::contact::POWER_ITERATIONS;
+    for ((cb, rb), (ca, ra)) in bbpgd.iter().zip(apgd) {
+        let (kb, ka) = (rb.iterations as i64, ra.accelerated as i64);
+        let kb_before = ra.iterations as i64 - ka;
+        let power = POWER_ITERATIONS as i64;
+        assert!(ka > 0 && rb.accelerated == 0, "APGD {ra:?}, BBPGD {rb:?}");
+        let launches = ca.launches as i64 - cb.launches as i64;
+        let downloads = ca.downloads as i64 - cb.downloads as i64;
+        assert_eq!(
+            (launches, downloads),
+            (
+                4 * (kb_before - kb) + 4 * power + 5 * ka - 1,
+                (kb_before - kb) + power + ka
+            ),
+            "APGD's launches and downloads beyond BBPGD's ({kb} BBPGD iterations; {kb_before} \
+             then {ka} APGD)"
+        );
+        eprintln!(
+            "APGD: {ka} iterations after {kb_before} of BBPGD: {launches} launches and \
+             {downloads} downloads more than BBPGD's {kb} iterations"
         );
     }
 }
@@ -307,9 +342,10 @@ fn check_solve(
     params: &ContactParams,
     tol: f64,
     method: &str,
-) {
+) -> Vec<(Counters, ContactReport)> {
     let (drag, dt) = (LocalDrag::new(DEFAULT_DIAMETER), problem.dt);
     let mut cold: Vec<f64> = Vec::new();
+    let mut counted = Vec::new();
     for warm in [false, true] {
         let initial: Vec<f64> = if warm {
             cold.iter().map(|l| 0.7 * l).collect()
@@ -330,7 +366,9 @@ fn check_solve(
                 &initial,
             )
             .unwrap();
+        let before = dev.counters();
         let (got, got_report) = dev.solve_contacts(problem, params, &initial).unwrap();
+        counted.push((dev.counters().since(&before), got_report.clone()));
         assert_eq!(
             want_report.accelerated > 0,
             params.stall_iterations == 0,
@@ -365,6 +403,7 @@ fn check_solve(
         );
         cold = want;
     }
+    counted
 }
 
 /// Steps of the local-drag level on the device against the CPU's stepper: the same rods after

@@ -190,7 +190,7 @@ fn fused_stats(lam: &[f64], lam_new: &[f64], g: &[f64], g_new: &[f64]) -> [f64; 
 pub const STALL_ITERATIONS: usize = 200;
 
 /// Power iterations for APGD's estimate of `A`'s largest eigenvalue.
-pub(crate) const POWER_ITERATIONS: usize = 30;
+pub const POWER_ITERATIONS: usize = 30;
 
 /// APGD's Lipschitz constant over the power-iteration estimate (which approaches the largest
 /// eigenvalue from below): its step `1/L` stays within the `1/lambda_max` that descent needs.

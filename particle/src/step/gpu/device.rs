@@ -28,6 +28,11 @@ impl GpuStep {
         self.dev.download(buf)
     }
 
+    /// What the device has been asked to do so far: launches, transfers.
+    pub fn counters(&self) -> motile_gpu::Counters {
+        self.dev.counters()
+    }
+
     /// What the device is, in words.
     pub fn describe(&self) -> String {
         self.dev.describe()
