@@ -541,15 +541,19 @@ where
         .margin(15)
         .x_label_area_size(45)
         .y_label_area_size(85)
-        .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+        // Ticks at the 1-2-5 values: plotters' own on a log axis crowd near the powers of ten.
+        .build_cartesian_2d(
+            x0..x1,
+            (y0..y1).log_scale().with_key_points(ticks_125(y0, y1)),
+        )
         .map_err(|e| e.to_string())?;
     c.configure_mesh()
         .x_desc(chart.x_label)
         .y_desc(chart.y_label)
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 17))
-        .y_labels(12)
-        .y_label_formatter(&|v| format!("{v:.1e}"))
+        .x_label_formatter(&axis_number)
+        .y_label_formatter(&|v| format!("{v:.0e}"))
         .draw()
         .map_err(|e| e.to_string())?;
     let clip = |p: &(f64, f64)| p.1 > 0.0 && p.1 >= y0 && p.1 <= y1 && p.0 >= x0 && p.0 <= x1;
