@@ -197,8 +197,10 @@ pub fn particle_coefficients(
 /// Spectra of order parameters of particle configurations on one NUFFT plan: every requested
 /// parameter's components (1 for `c'`, 3 for `n`, 6 for `Q`) are spread in one pass over the
 /// rods, so each rod's kernel is evaluated once and the points sorted once per configuration,
-/// and the plan's buffers serve every configuration that follows (the snapshots of a run).
-/// Each spectrum equals [`particle_coefficients`]'s for that parameter bit for bit.
+/// two real components to a fine grid and transform ([`NufftPlan::type1_real`]), and the
+/// plan's buffers serve every configuration that follows (the snapshots of a run).
+/// Each spectrum equals [`particle_coefficients`]'s for that parameter to rounding (the component
+/// sharing its grid differs).
 #[derive(Debug)]
 pub struct ParticleSpectra {
     plan: NufftPlan,
@@ -237,15 +239,15 @@ impl ParticleSpectra {
         }
         self.plan.set_points(x, box_length)?;
         let inv_n = 1.0 / x.len().max(1) as f64;
-        let parts: Vec<(Vec<Vec<Complex64>>, Vec<f64>)> = which
+        let parts: Vec<(Vec<Vec<f64>>, Vec<f64>)> = which
             .iter()
             .map(|&w| order_parameter_fields(w, p, inv_n))
             .collect();
-        let refs: Vec<&[Complex64]> = parts
+        let refs: Vec<&[f64]> = parts
             .iter()
             .flat_map(|(fields, _)| fields.iter().map(|f| f.as_slice()))
             .collect();
-        let mut components = self.plan.type1(&refs)?.into_iter();
+        let mut components = self.plan.type1_real(&refs)?.into_iter();
         Ok(which
             .iter()
             .zip(parts)
@@ -272,12 +274,9 @@ fn order_parameter_fields(
     which: OrderParameter,
     p: &[[f64; 3]],
     inv_n: f64,
-) -> (Vec<Vec<Complex64>>, Vec<f64>) {
-    let field = |f: &dyn Fn(&[f64; 3]) -> f64| -> Vec<Complex64> {
-        p.iter()
-            .map(|q| Complex64::new(f(q) * inv_n, 0.0))
-            .collect()
-    };
+) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let field =
+        |f: &dyn Fn(&[f64; 3]) -> f64| -> Vec<f64> { p.iter().map(|q| f(q) * inv_n).collect() };
     match which {
         OrderParameter::Concentration => (vec![field(&|_| 1.0)], vec![1.0]),
         OrderParameter::Polarity => ((0..3).map(|d| field(&|q| q[d])).collect(), vec![1.0; 3]),

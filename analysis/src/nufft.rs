@@ -231,6 +231,83 @@ impl NufftPlan {
         out
     }
 
+    /// Type 1 for several real strength vectors (each of length [`Self::num_points`]), two to a
+    /// transform: the pair `(a, b)` is spread as `a + i b`, whose coefficients `F` split by the
+    /// Hermitian symmetry of real data, `A_k = (F_k + conj F_-k) / 2` and
+    /// `B_k = (F_k - conj F_-k) / 2i` (the partner `-k` read from the fine grid, where every
+    /// mode's partner lies). The spreading, transform and deconvolution are real-linear and
+    /// real data give Hermitian grids, so the split is exact but for rounding: each vector's
+    /// coefficients carry its own transform's error (the contract of [`Self::new`]) plus about
+    /// 1e-16 of its partner's magnitude. Half the grids and transforms of [`Self::type1`].
+    /// Returns one mode array per strength vector.
+    pub fn type1_real(&self, strengths: &[&[f64]]) -> Result<Vec<Vec<Complex64>>, NufftError> {
+        for (which, s) in strengths.iter().enumerate() {
+            if s.len() != self.num_points() {
+                return Err(NufftError::Length {
+                    which,
+                    got: s.len(),
+                    expected: self.num_points(),
+                });
+            }
+        }
+        let packed: Vec<Vec<Complex64>> = strengths
+            .chunks(2)
+            .map(|pair| match pair {
+                [a, b] => a
+                    .iter()
+                    .zip(*b)
+                    .map(|(&x, &y)| Complex64::new(x, y))
+                    .collect(),
+                [a] => a.iter().map(|&x| Complex64::new(x, 0.0)).collect(),
+                _ => unreachable!("chunks of two"),
+            })
+            .collect();
+        let refs: Vec<&[Complex64]> = packed.iter().map(|v| v.as_slice()).collect();
+        let mut grids = self.spread(&refs);
+        let mut out = Vec::with_capacity(strengths.len());
+        for (pair, g) in strengths.chunks(2).zip(grids.iter_mut()) {
+            self.fft.process(g, Direction::Forward);
+            let [a, b] = self.extract_split(g);
+            out.push(a);
+            if pair.len() == 2 {
+                out.push(b);
+            }
+        }
+        self.scratch.give_grids(grids);
+        Ok(out)
+    }
+
+    /// [`Self::extract_modes`] of a transformed fine grid of `a + i b` for real `a` and `b`: the
+    /// modes of `a` and of `b`, deconvolved.
+    fn extract_split(&self, fine: &[Complex64]) -> [Vec<Complex64>; 2] {
+        let [m0, m1, m2] = self.modes;
+        let [n0, n1, n2] = self.nf;
+        let at = |q: i64, n: usize| q.rem_euclid(n as i64) as usize;
+        let mut a = vec![Complex64::default(); m0 * m1 * m2];
+        let mut b = vec![Complex64::default(); m0 * m1 * m2];
+        a.par_chunks_mut(m0 * m1)
+            .zip(b.par_chunks_mut(m0 * m1))
+            .enumerate()
+            .for_each(|(i2, (pa, pb))| {
+                let q2 = mode_of(i2, m2);
+                for i1 in 0..m1 {
+                    let q1 = mode_of(i1, m1);
+                    let c21 = self.deconv[2][i2] * self.deconv[1][i1];
+                    for i0 in 0..m0 {
+                        let q0 = mode_of(i0, m0);
+                        let f = fine[(at(q2, n2) * n1 + at(q1, n1)) * n0 + at(q0, n0)];
+                        let g = fine[(at(-q2, n2) * n1 + at(-q1, n1)) * n0 + at(-q0, n0)].conj();
+                        let d = 0.5 * c21 * self.deconv[0][i0];
+                        pa[i1 * m0 + i0] = (f + g) * d;
+                        // (f - g) / 2i = -i (f - g) / 2
+                        let h = f - g;
+                        pb[i1 * m0 + i0] = Complex64::new(h.im, -h.re) * d;
+                    }
+                }
+            });
+        [a, b]
+    }
+
     /// Type 2 for several mode arrays at once (each of length [`Self::num_modes`]). Returns one
     /// vector of point values per mode array, in the caller's point order.
     pub fn type2(&self, coeffs: &[&[Complex64]]) -> Result<Vec<Vec<Complex64>>, NufftError> {

@@ -72,6 +72,66 @@ fn type1_and_type2_match_direct_dft_at_every_tolerance() {
     }
 }
 
+/// Real strengths two to a transform (`type1_real`): each vector's coefficients against its
+/// direct sum within the tolerance, from 1e-1 to 1e-12, for odd and even mode counts (the even
+/// ones' most negative mode has its partner only on the fine grid) and an odd number of
+/// vectors (the last alone); the strengths of swimming rods' order parameters are real and
+/// sum to zero (c' = c - 1 has no k = 0 mode, n and Q average to ~0), like the last vector.
+#[test]
+fn real_strengths_two_to_a_transform_match_the_direct_sums() {
+    for (modes, n, seed) in [([12, 17, 10], 1500, 31), ([32, 37, 30], 800, 41)] {
+        let pts = random_points(n, seed);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed + 1);
+        let mut real: Vec<Vec<f64>> = (0..4)
+            .map(|_| (0..n).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .collect();
+        let mean = real[3].iter().sum::<f64>() / n as f64;
+        real[3].iter_mut().for_each(|v| *v -= mean);
+        let real = [&real[..], &[vec![1.0 / n as f64; n]]].concat();
+        let exact: Vec<Vec<Complex64>> = real
+            .iter()
+            .map(|s| {
+                let c: Vec<Complex64> = s.iter().map(|&v| Complex64::new(v, 0.0)).collect();
+                direct_type1(&pts, L, &c, modes)
+            })
+            .collect();
+        let refs: Vec<&[f64]> = real.iter().map(|v| v.as_slice()).collect();
+        for e in 1..=12 {
+            let tol = 10f64.powi(-e);
+            let mut plan = NufftPlan::new(modes, tol).unwrap();
+            plan.set_points(&pts, L).unwrap();
+            let got = plan.type1_real(&refs).unwrap();
+            assert_eq!(got.len(), real.len());
+            let worst = got
+                .iter()
+                .zip(&exact)
+                .map(|(g, x)| rel_l2(g, x))
+                .fold(0.0, f64::max);
+            eprintln!(
+                "real pairs, modes {modes:?}, tol {tol:.0e}: worst relative L2 error {worst:.2e} \
+                 ({:.2} tol)",
+                worst / tol
+            );
+            assert!(
+                worst <= tol,
+                "modes {modes:?}, real pairs at tol {tol:.0e}: relative L2 error {worst:.3e} = \
+                 {:.2} tol",
+                worst / tol
+            );
+        }
+        let short = vec![0.0; n - 1];
+        let plan = {
+            let mut p = NufftPlan::new(modes, 1e-6).unwrap();
+            p.set_points(&pts, L).unwrap();
+            p
+        };
+        assert!(
+            plan.type1_real(&[&real[0], &short]).is_err(),
+            "a short vector"
+        );
+    }
+}
+
 #[test]
 fn type2_is_the_adjoint_of_type1() {
     let modes = [16, 16, 16];
