@@ -198,9 +198,10 @@ const DIAGNOSTIC_SECONDS_PER_POINT: f64 = 5.27e-7;
 
 /// Seconds of the analysis and comparison per rod and snapshot: the L75 member's 133 s for 31
 /// snapshots of 263 672 rods with their force points on the node's 16 threads (1.63e-5), times
-/// 0.63 for the order parameters' shared NUFFT plan, which took the analysis and comparison of an
-/// L75-sized run (13 snapshots, 2 cores) from 106.3 s to 67.0 s (BENCHMARKS.md, A1).
-const ANALYSIS_SECONDS_PER_ROD_SNAPSHOT: f64 = 1.03e-5;
+/// 0.41 for the order parameters' shared NUFFT plan and their real components two to a
+/// transform, which took the analysis and comparison of an L75-sized run (13 snapshots, 2 cores)
+/// from 109.3 s to 44.9 s (BENCHMARKS.md, A1).
+const ANALYSIS_SECONDS_PER_ROD_SNAPSHOT: f64 = 6.7e-6;
 
 /// Seconds of a mean-field run's analysis and comparison per grid point and snapshot (the
 /// `paper-dilute` mf128 member on the H200 node: 40 s for 9 snapshots of 128^3).
