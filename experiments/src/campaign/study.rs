@@ -27,7 +27,7 @@ use std::path::Path;
 
 /// The knobs `motile study` sweeps: name, model, default values (least to most accurate) and the
 /// reference setting.
-pub const KNOBS: [(&str, &str, &str, &str); 7] = [
+pub const KNOBS: [(&str, &str, &str, &str); 8] = [
     (
         "sum_tolerance",
         "particle",
@@ -42,6 +42,7 @@ pub const KNOBS: [(&str, &str, &str, &str); 7] = [
         "sbt",
     ),
     ("dt", "particle", "0.04,0.02,0.01,0.005", "0.0025"),
+    ("gmres_tolerance", "particle", "1e-2,1e-3,1e-4,1e-5", "1e-7"),
     ("meanfield_dt", "meanfield", "0.4,0.2,0.1,0.05", "0.0125"),
     ("grid", "meanfield", "8,12,16,24", "32"),
     ("closure_degree", "meanfield", "10,20,40", "80"),
@@ -122,6 +123,7 @@ fn set_particle(c: &mut ParticleRunConfig, knob: &str, v: &str) -> anyhow::Resul
     match knob {
         "sum_tolerance" => c.hydro.sum_tolerance = num()?,
         "quadrature_points" => c.hydro.quadrature_points = num()? as usize,
+        "gmres_tolerance" => c.hydro.gmres_tolerance = num()?,
         "hydrodynamics" => c.hydrodynamics = v.parse()?,
         "dt" => {
             c.dt = num()?;

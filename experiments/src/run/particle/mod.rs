@@ -13,6 +13,7 @@ mod device;
 mod outputs;
 mod ranked;
 mod state;
+mod wall;
 
 pub use config::*;
 pub use outputs::{COLUMNS, mode_columns};
@@ -27,6 +28,7 @@ use crate::io::rundir::TimeSeries;
 use crate::io::snapshot::{Kinematics, PointForces};
 use crate::run;
 use crate::run::particle::ranked::Ranked;
+use crate::run::particle::wall::WallShares;
 use anyhow::bail;
 use motile_particle::model::rods::RodSet;
 use motile_particle::step::contact::WarmStart;
@@ -98,30 +100,6 @@ pub struct ParticleModel {
     spent: WallShares,
     /// The resident step's last diagnostic, its transform still running ([`Self::settle_diagnostics`]).
     pending: Option<PendingDiagnostics>,
-}
-
-/// Wall seconds of an invocation's steps with their outputs, and of the outputs alone.
-#[derive(Clone, Copy, Debug, Default)]
-struct WallShares {
-    /// The steps with their outputs (checkpoints not included: the run loop writes them).
-    total: f64,
-    /// The time series' rows: the flow's norms, the lowest modes, the CSV files.
-    diagnostics: f64,
-    /// Snapshots (HDF5 and VTK) with the downloads and point forces they need.
-    snapshots: f64,
-}
-
-impl WallShares {
-    /// One line for the log.
-    fn describe(&self) -> String {
-        format!(
-            "wall time of the steps with their outputs {:.1} s: stepping {:.1} s, diagnostics {:.1} s (flow norms, lowest modes, time series), snapshots {:.1} s",
-            self.total,
-            self.total - self.diagnostics - self.snapshots,
-            self.diagnostics,
-            self.snapshots
-        )
-    }
 }
 
 impl std::fmt::Debug for ParticleModel {
@@ -558,6 +536,7 @@ impl ParticleModel {
         };
         self.step = step;
         self.window.1 += 1;
+        self.spent.add_step(&report);
         let t = step as f64 * self.cfg.dt;
         self.warn_accuracy(io, step, &report)?;
         if step.is_multiple_of(diag) {
