@@ -146,9 +146,15 @@ fn csv(rows: &[Row]) -> String {
 
 fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
-        "# Particle runs' statistics\n\nEach run over the later half of its time (the paper averages its concentrated runs over t = 100-200/beta), in particle units. ||u||_2: time average with its batch-means standard error. Decorrelation rate: -d ln <p(t0 + tau).p(t0)>/d tau, least squares over the lags tau in the window's fit range, averaged over origins t0. MSD at the stated lag, averaged over origins. Zeros: first zero of each time-averaged correlation, on 2 L/l Fourier modes per axis (16-64). +-: half the difference between the window's halves.\n\n| run | nu | L/l | rods | level | window (1/beta) | ||u||_2 (beta L) | decorrelation rate (beta) | MSD (l^2) at lag | zeros of Corr[c], Corr[n], Corr[Q] (l) | Corr[Q] zero (L) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "# Particle runs' statistics\n\nEach run over the later half of its time (the paper averages its concentrated runs over t = 100-200/beta), in particle units. ||u||_2: time average with its batch-means standard error. Decorrelation rate: -d ln <p(t0 + tau).p(t0)>/d tau, least squares over the lags tau in the window's fit range, averaged over origins t0. MSD at the stated lag, averaged over origins. Zeros: first zero of each time-averaged correlation, on 2 L/l Fourier modes per axis (16-64). +-: half the difference between the window's halves (none where a half has no value: a correlation that does not cross zero within L/2 in one half).\n\n| run | nu | L/l | rods | level | window (1/beta) | ||u||_2 (beta L) | decorrelation rate (beta) | MSD (l^2) at lag | zeros of Corr[c], Corr[n], Corr[Q] (l) | Corr[Q] zero (L) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
-    let pm = |e: &Estimate| format!("{:.4} +- {:.4}", e.value, e.spread);
+    let pm = |e: &Estimate| {
+        if e.spread.is_finite() {
+            format!("{:.4} +- {:.4}", e.value, e.spread)
+        } else {
+            format!("{:.4} (a half has none)", e.value)
+        }
+    };
     for r in rows {
         let z = r.stats.corr_zeros;
         writeln!(

@@ -32,6 +32,16 @@ impl StageTimes {
     }
 }
 
+impl std::ops::AddAssign<&StageTimes> for StageTimes {
+    fn add_assign(&mut self, other: &StageTimes) {
+        self.cells += other.cells;
+        self.constraints += other.constraints;
+        self.free_velocities += other.free_velocities;
+        self.contacts += other.contacts;
+        self.update += other.update;
+    }
+}
+
 /// What a step did.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct StepReport {

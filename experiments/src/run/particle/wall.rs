@@ -15,7 +15,8 @@ pub(crate) struct WallShares {
     /// The stepper's own stages, summed over the steps taken on the CPU (zero for resident
     /// steps, whose stages run on the device).
     stages: StageTimes,
-    /// Seconds in the periodic sums over the same steps.
+    /// Seconds in the periodic sums over the same steps (counted within the stages' seconds:
+    /// the stages call the sums).
     sum_seconds: f64,
     /// The periodic sums over the same steps.
     sums: usize,
@@ -36,7 +37,7 @@ impl WallShares {
         let s = &self.stages;
         if s.as_array().iter().sum::<f64>() > 0.0 {
             line += &format!(
-                "; the steps' stages: cells {:.1} s, constraints {:.1} s, free velocities {:.1} s, contacts {:.1} s, update {:.1} s; periodic sums {:.1} s ({} sums, {} GMRES iterations)",
+                "; the steps' stages: cells {:.1} s, constraints {:.1} s, free velocities {:.1} s, contacts {:.1} s, update {:.1} s; of these, in the periodic sums {:.1} s ({} sums, {} GMRES iterations)",
                 s.cells,
                 s.constraints,
                 s.free_velocities,
@@ -52,14 +53,61 @@ impl WallShares {
 
     /// Add one CPU step's stages.
     pub(crate) fn add_step(&mut self, report: &StepReport) {
-        let (s, r) = (&mut self.stages, &report.seconds);
-        s.cells += r.cells;
-        s.constraints += r.constraints;
-        s.free_velocities += r.free_velocities;
-        s.contacts += r.contacts;
-        s.update += r.update;
+        self.stages += &report.seconds;
         self.sum_seconds += report.hydro.seconds_sums;
         self.sums += report.hydro.sums;
         self.gmres_iterations += report.hydro.gmres_iterations;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two steps' stages and sums add up in the log line, and a run without CPU stages (the
+    /// resident step's) leaves the stage split out.
+    #[test]
+    fn the_log_line_sums_the_steps_stages_and_sums() {
+        let report = StepReport {
+            seconds: StageTimes {
+                cells: 0.5,
+                constraints: 1.0,
+                free_velocities: 2.0,
+                contacts: 4.0,
+                update: 8.0,
+            },
+            hydro: motile_particle::hydro::mobility::HydroReport {
+                seconds_sums: 3.0,
+                sums: 5,
+                gmres_iterations: 3,
+                ..Default::default()
+            },
+            ..StepReport::default()
+        };
+        let mut shares = WallShares {
+            total: 40.0,
+            diagnostics: 2.0,
+            snapshots: 1.0,
+            ..WallShares::default()
+        };
+        assert!(
+            !shares.describe().contains("stages"),
+            "no CPU steps, no stage split: {}",
+            shares.describe()
+        );
+        shares.add_step(&report);
+        shares.add_step(&report);
+        let line = shares.describe();
+        for part in [
+            "stepping 37.0 s",
+            "cells 1.0 s",
+            "constraints 2.0 s",
+            "free velocities 4.0 s",
+            "contacts 8.0 s",
+            "update 16.0 s",
+            "periodic sums 6.0 s (10 sums, 6 GMRES iterations)",
+        ] {
+            assert!(line.contains(part), "'{part}' missing from: {line}");
+        }
     }
 }
