@@ -50,6 +50,9 @@ for f in c n Q; do
   copy runs/paper-concentrated/compare/pair_correlation_$f paper_concentrated_pair_correlation_$f
 done
 copy runs/paper-concentrated/compare/pair_correlations paper_concentrated_pair_correlations csv
+# Both volume fractions side by side: `motile compare runs/paper-concentrated/{L6,L8,L12}
+# docs/gallery/paper-dilute/L75 --out runs/fractions`.
+for f in msd orientation; do copy runs/fractions/$f paper_fractions_$f; done
 copy runs/stability/stability_particle stability_particle
 copy runs/stability/stability_meanfield stability_meanfield_D1e-4
 copy runs/stability_D1e-3/stability_meanfield stability_meanfield_D1e-3

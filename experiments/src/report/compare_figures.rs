@@ -5,7 +5,7 @@
 
 use crate::io::write_atomic;
 use crate::report::curves::{CorrCurve, NormCurve, OrderCorrelation, RunAnalysis, TrajectoryCurve};
-use crate::report::plot::{Chart, Panel, Series, heatmaps, line_chart};
+use crate::report::plot::{Chart, Panel, Series, heatmaps, line_chart, log_chart};
 use motile_particle::model::units::SWIM_SPEED;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -160,16 +160,20 @@ fn write_trajectories(trajectories: &[TrajectoryCurve], out: &Path) -> anyhow::R
             })
             .collect()
     };
+    // Log-log: ballistic swimming is a slope of 2, diffusion one of 1, and the rods of a
+    // concentrated box sit decades below the ballistic line.
     let mut msd = against_time(|tr| &tr.msd);
     msd.push(ballistic(trajectories));
-    line_chart(
+    for s in &mut msd {
+        s.points.retain(|&(t, m)| t > 0.0 && m > 0.0);
+    }
+    log_chart(
         &out.join("msd"),
-        &Chart {
-            title: "Mean squared displacement of the rods",
-            x_label: "t [1/beta]",
-            y_label: "<|x(t) - x(0)|^2> [l^2]",
-            series: msd,
-        },
+        "Mean squared displacement of the rods",
+        "t [1/beta]",
+        "<|x(t) - x(0)|^2> [l^2]",
+        &msd,
+        &[],
     )?;
     line_chart(
         &out.join("orientation"),
@@ -183,17 +187,20 @@ fn write_trajectories(trajectories: &[TrajectoryCurve], out: &Path) -> anyhow::R
     Ok(())
 }
 
-/// Free swimming: ballistic at the swimming speed, `(U t)^2` up to the latest time.
+/// Free swimming: ballistic at the swimming speed, `(U t)^2` from the earliest sampled time
+/// after 0 to the latest, geometric in t (even on the log axis it is drawn on).
 fn ballistic(trajectories: &[TrajectoryCurve]) -> Series {
-    let t_max = trajectories
-        .iter()
-        .flat_map(|tr| tr.t.iter().copied())
-        .fold(0.0, f64::max);
+    let times = || trajectories.iter().flat_map(|tr| tr.t.iter().copied());
+    let t_max = times().fold(0.0, f64::max);
+    let t_min = times()
+        .filter(|t| *t > 0.0)
+        .fold(t_max, f64::min)
+        .max(t_max * 1e-4);
     Series {
         label: "(U t)^2, ballistic at the swimming speed".into(),
         points: (0..=40)
             .map(|k| {
-                let t = t_max * k as f64 / 40.0;
+                let t = t_min * (t_max / t_min).powf(k as f64 / 40.0);
                 (t, (SWIM_SPEED * t).powi(2))
             })
             .collect(),

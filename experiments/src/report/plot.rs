@@ -448,7 +448,9 @@ where
         .map_err(|e| e.to_string())?
         .label(s.label.clone())
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-        if i == 0 || labels.is_empty() {
+        // Markers where the points are few enough to tell apart (a measured curve of many
+        // samples stays a line).
+        if (i == 0 || labels.is_empty()) && s.points.len() <= MAX_MARKED_POINTS {
             let r = if labels.is_empty() { 3 } else { 5 };
             c.draw_series(
                 s.points
@@ -578,8 +580,12 @@ where
     root.present().map_err(|e| e.to_string())
 }
 
-/// A log-log chart of `series` (the first drawn with point markers), each point of `labels`
-/// annotated with its text, to `<stem>.png` and `<stem>.svg`.
+/// Series of more points than this are drawn as lines without markers in [`log_chart`].
+const MAX_MARKED_POINTS: usize = 20;
+
+/// A log-log chart of `series` (the first drawn with point markers, every one where `labels`
+/// is empty; none on a series of more than [`MAX_MARKED_POINTS`] points), each point of
+/// `labels` annotated with its text, to `<stem>.png` and `<stem>.svg`.
 pub fn log_chart(
     stem: &Path,
     title: &str,
