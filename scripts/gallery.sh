@@ -42,7 +42,7 @@ for k in sum_tolerance quadrature_points hydrodynamics dt meanfield_dt grid clos
 done
 copy runs/study_concentrated/study_dt study_dt_concentrated
 # The concentrated series (`motile run paper-concentrated --only L6 --only L8 --only L12 --only mf32`).
-for f in norm_scaling velocity_norm correlation_Q msd orientation; do
+for f in norm_scaling velocity_norm velocity_correlation correlation_Q msd orientation; do
   copy runs/paper-concentrated/compare/$f paper_concentrated_$f
 done
 copy runs/paper-concentrated/compare/particle_statistics paper_concentrated_series csv
