@@ -287,13 +287,20 @@ fn timed(dir: &Path, run: impl FnOnce(&Path) -> anyhow::Result<u64>) -> anyhow::
     Ok((t0.elapsed().as_secs_f64(), steps))
 }
 
-/// Seconds per step from a 2-step run and a longer one, lengthened (6, 30, 150, 750 steps)
-/// until the difference of their wall times is at least a quarter second, so that timer noise
-/// and setup do not decide the answer.
-fn step_time<F>(scratch: &Path, run: impl Fn(f64) -> F) -> anyhow::Result<f64>
+/// The least difference of the two timing runs' wall times (s). A quarter second let a 64^3
+/// mean-field step (0.22 s) be timed over 4 steps, and the first run's cold start scattered
+/// the estimate by 30%; 2 s spans 10 or more steps of the costliest proxies.
+const MIN_TIMED_SECONDS: f64 = 2.0;
+
+/// Seconds per step from a 2-step run and a longer one, lengthened (6, 30, 150, 750 steps, and
+/// never beyond the run's own `run_steps` where that is more than 6: a proxy run past the run's
+/// end may leave what the run resolves) until the difference of their wall times is at least
+/// [`MIN_TIMED_SECONDS`], so that timer noise and setup do not decide the answer.
+fn step_time<F>(scratch: &Path, run_steps: u64, run: impl Fn(f64) -> F) -> anyhow::Result<f64>
 where
     F: FnOnce(&Path) -> anyhow::Result<u64>,
 {
+    let longest = (run_steps as f64).clamp(6.0, 750.0);
     let a = timed(&scratch.join("a"), run(2.0))?;
     let mut steps = 6.0;
     loop {
@@ -304,13 +311,13 @@ where
             b.1,
             a.1
         );
-        if b.0 - a.0 >= 0.25 || steps >= 750.0 {
+        if b.0 - a.0 >= MIN_TIMED_SECONDS || steps >= longest {
             // Noise can still make the difference negative when steps are very cheap: then
             // the longer run's own mean, setup included, bounds the step from above.
             let d = (b.0 - a.0) / (b.1 - a.1) as f64;
             return Ok(if d > 0.0 { d } else { b.0 / b.1 as f64 });
         }
-        steps *= 5.0;
+        steps = (steps * 5.0).min(longest);
     }
 }
 
@@ -332,7 +339,8 @@ fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<Co
         p.t_end = steps * c.dt;
         move |dir: &Path| particle::run_particle(&p, dir, false).map(|s| s.steps)
     };
-    let measured = step_time(scratch, run)?;
+    let steps = (c.t_end / c.dt - 1e-9).ceil() as u64;
+    let measured = step_time(scratch, steps, run)?;
     let ratio = nlogn_ratio(size, measured_size);
     Ok(CostEstimate {
         unit: "rods",
@@ -340,7 +348,7 @@ fn estimate_particle(c: &ParticleRunConfig, scratch: &Path) -> anyhow::Result<Co
         size,
         measured_step_seconds: measured,
         step_seconds: measured * ratio,
-        steps: (c.t_end / c.dt - 1e-9).ceil() as u64,
+        steps,
         steps_at_least: false,
         gpu: None,
         memory_bytes: HostMemoryNeed::particle(size).bytes(),
@@ -360,7 +368,7 @@ fn estimate_meanfield(c: &MeanFieldRunConfig, scratch: &Path) -> anyhow::Result<
         p.t_end = steps * dt;
         move |dir: &Path| meanfield::run_meanfield(&p, dir, false).map(|s| s.steps)
     };
-    let measured = step_time(scratch, run)?;
+    let measured = step_time(scratch, meanfield_steps(c), run)?;
     let (size, measured_size) = (c.grid.pow(3), proxy.grid.pow(3));
     Ok(CostEstimate {
         unit: "grid points",
