@@ -584,7 +584,7 @@ where
 const MAX_MARKED_POINTS: usize = 20;
 
 /// A log-log chart of `series` (the first drawn with point markers, every one where `labels`
-/// is empty; none on a series of more than [`MAX_MARKED_POINTS`] points), each point of
+/// is empty; none on a series of more than `MAX_MARKED_POINTS` (20) points), each point of
 /// `labels` annotated with its text, to `<stem>.png` and `<stem>.svg`.
 pub fn log_chart(
     stem: &Path,
