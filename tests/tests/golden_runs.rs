@@ -34,7 +34,7 @@ const PARTICLE: [(&str, u64); 15] = [
     ("snapshots/snap_000000.h5", 0x2241a2383dfbf66e),
     ("snapshots/snap_000001.h5", 0x4ce5e9bb9b90d02c),
     ("snapshots/snap_000002.h5", 0x52af1969a1f1d499),
-    ("timeseries.csv", 0x62af50562d656047),
+    ("timeseries.csv", 0xc481a4accc671a43),
     ("vtk/rods_000000.vtp", 0x8748c0f8b5e80b72),
     ("vtk/rods_000001.vtp", 0x5743968c092134b2),
     ("vtk/rods_000002.vtp", 0x9bf88dc555aacd8e),
