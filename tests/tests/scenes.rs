@@ -246,6 +246,16 @@ hydrodynamics = "sbt"
     .unwrap()
 }
 
+/// A study of `knob` over `values`, its accuracy 0.5 (the tiny box's runs are short).
+fn study_options(knob: &str, values: &[&str]) -> motile_experiments::campaign::study::StudyOptions {
+    motile_experiments::campaign::study::StudyOptions {
+        knob: knob.into(),
+        values: Some(values.iter().map(|v| v.to_string()).collect()),
+        accuracy: 0.5,
+        ..Default::default()
+    }
+}
+
 #[test]
 fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
     use motile_experiments::campaign::study::{StudyOptions, study};
@@ -314,15 +324,10 @@ fn a_dt_study_shows_first_order_convergence_and_names_the_cheapest_setting() {
 /// not fall on.
 #[test]
 fn a_dt_study_refuses_a_step_that_does_not_divide_its_diagnostic_interval() {
-    use motile_experiments::campaign::study::{StudyOptions, study};
+    use motile_experiments::campaign::study::study;
     let scene = tiny_scene(0.01, 0.4);
     let dir = tempfile::tempdir().unwrap();
-    let opts = StudyOptions {
-        knob: "dt".into(),
-        values: Some(vec!["0.15".to_string()]),
-        accuracy: 0.5,
-        ..Default::default()
-    };
+    let opts = study_options("dt", &["0.15"]);
     let err = study(&scene, &opts, dir.path(), &mut |_| {}).unwrap_err();
     assert!(
         format!("{err:#}").contains("study dt = 0.15")
@@ -330,6 +335,53 @@ fn a_dt_study_refuses_a_step_that_does_not_divide_its_diagnostic_interval() {
         "{err:#}"
     );
     assert!(!dir.path().join("runs").exists(), "a run was started");
+}
+
+/// A GMRES tolerance study sets the tolerance of each run it makes: every run's resolved
+/// config holds its setting, and GMRES takes fewer iterations at the looser one.
+#[test]
+fn a_gmres_tolerance_study_sets_each_runs_tolerance() {
+    use motile_experiments::campaign::study::{StudyOptions, study};
+    let scene = tiny_scene(0.02, 0.2);
+    let dir = tempfile::tempdir().unwrap();
+    let opts = StudyOptions {
+        reference: Some("1e-8".to_string()),
+        ..study_options("gmres_tolerance", &["1e-2"])
+    };
+    let report = study(&scene, &opts, dir.path(), &mut |_| {}).unwrap();
+    assert_eq!(report.points.len(), 2, "{}", report.markdown);
+    let iterations = |value: &str| -> f64 {
+        let run = dir
+            .path()
+            .join("runs")
+            .join(format!("gmres_tolerance_{value}"));
+        let config = std::fs::read_to_string(run.join("config.toml")).unwrap();
+        let tol: f64 = value.parse().unwrap();
+        assert!(
+            config
+                .lines()
+                .any(|l| l.split_once('=').is_some_and(|(k, v)| {
+                    k.trim() == "gmres_tolerance" && v.trim().parse::<f64>() == Ok(tol)
+                })),
+            "gmres_tolerance = {value} not in {}:\n{config}",
+            run.display()
+        );
+        let ts = std::fs::read_to_string(run.join("timeseries.csv")).unwrap();
+        let mut lines = ts.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = header
+            .iter()
+            .position(|h| h.starts_with("gmres_iterations"))
+            .unwrap();
+        lines
+            .map(|l| l.split(',').nth(col).unwrap().parse::<f64>().unwrap())
+            .sum()
+    };
+    let (loose, tight) = (iterations("1e-2"), iterations("1e-8"));
+    assert!(
+        loose < tight,
+        "GMRES iterations summed over the diagnostics: {loose} at 1e-2, {tight} at 1e-8"
+    );
 }
 
 /// A level without flow (`hydrodynamics = "none"`) has error 1 by construction: the study's
