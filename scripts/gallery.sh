@@ -33,6 +33,7 @@ copy runs/onset-0.625/onset onset_0.625
 copy runs/onset-0.625/onset_frequency onset_0.625_frequency
 for L in 16 24 32; do copy runs/study-hydro-L$L/study_hydrodynamics study_hydrodynamics_L$L; done
 copy runs/study-dilute-dt/study_dt study_dt_paper_dilute
+copy runs/study-nodes-paper-dilute/study_quadrature_points study_quadrature_points_paper_dilute
 copy runs/concentrated/compare/correlation_Q concentrated_correlation_Q
 copy runs/concentrated/compare/msd concentrated_msd
 copy runs/concentrated/compare/orientation concentrated_orientation

@@ -481,18 +481,60 @@ fn a_statistics_study_compares_levels_on_what_the_figures_use() {
             .contains("decorrelation_rate [beta]")
     );
     // The comparison of the two runs tables their statistics over each run's later half.
-    let runs: Vec<_> = ["dipole", "sbt"]
+    // A continuum run beside them has its row too, with what the comparison measured.
+    let mf = dir.path().join("mf");
+    let mcfg = motile_experiments::run::meanfield::MeanFieldRunConfig {
+        grid: 8,
+        mode_max: 2,
+        t_end: 2.0,
+        dt_max: 0.05,
+        diagnostic_interval: 0.25,
+        snapshot_interval: 0.5,
+        ..Default::default()
+    };
+    motile_experiments::run::meanfield::run_meanfield(&mcfg, &mf, false).unwrap();
+    let mut runs: Vec<_> = ["dipole", "sbt"]
         .iter()
         .map(|v| dir.path().join("runs").join(format!("hydrodynamics_{v}")))
         .collect();
+    runs.push(mf);
     let out = dir.path().join("compare");
     motile_experiments::report::compare::compare(&runs, &out).unwrap();
     let table = std::fs::read_to_string(out.join("particle_statistics.csv")).unwrap();
-    assert_eq!(table.lines().count(), 3, "{table}");
+    assert_eq!(table.lines().count(), 4, "{table}");
     assert!(
-        table.contains("hydrodynamics_sbt,5,4,320,sbt,2,4,"),
+        table.contains("hydrodynamics_sbt,particle,5,4,320,sbt,2,4,")
+            && table.contains("\nmf,meanfield,NaN,NaN,-,continuum,NaN,NaN,"),
         "{table}"
     );
+    let columns = table.lines().next().unwrap().split(',').count();
+    assert!(
+        table.lines().all(|l| l.split(',').count() == columns),
+        "{columns} columns in every row: {table}"
+    );
+    // Every row's norm in mean-field units is the comparison's summary (same window, same
+    // average).
+    let summary = std::fs::read_to_string(out.join("summary.csv")).unwrap();
+    for row in table.lines().skip(1) {
+        let cells: Vec<&str> = row.split(',').collect();
+        let listed = summary
+            .lines()
+            .find(|l| {
+                l.split(',')
+                    .next()
+                    .unwrap()
+                    .ends_with(&format!("/{}", cells[0]))
+            })
+            .unwrap_or_else(|| panic!("{} not in {summary}", cells[0]));
+        // summary.csv: run,"label",t0,t1,mean_u_l2,std_error and 10 more columns (the label
+        // has commas: counted from the end).
+        let mean: f64 = listed.rsplit(',').nth(11).unwrap().parse().unwrap();
+        let got: f64 = cells[columns - 5].parse().unwrap();
+        assert!(
+            (got - mean).abs() <= 1e-15 * mean.abs() && mean > 0.0,
+            "{row}: {got} against the summary's {mean}"
+        );
+    }
     // The concentrated runs' pair correlations: three fields per run against r in l (0.05 l
     // apart, to L/2 = 2 l), finite, and a figure per field.
     let pairs = std::fs::read_to_string(out.join("pair_correlations.csv")).unwrap();

@@ -666,8 +666,8 @@ fn statistics_table(points: &[StudyPoint], name: &str, w: &StatisticsWindow) -> 
 
 /// `study_<knob>.{png,svg}`: error against wall time of the charted settings (with a flow, a
 /// finite non-zero error), the stated accuracy as a line from the cheapest charted setting to
-/// the reference's wall time, where the reference (error 0 by definition, off a log axis) is
-/// labelled.
+/// the reference's wall time, and the reference (error 0 by definition, off a log axis) as a
+/// vertical line at its wall time, labelled at its top.
 fn write_chart(
     points: &[StudyPoint],
     knob: Knob<'_>,
@@ -711,8 +711,19 @@ fn write_chart(
         .iter()
         .map(|p| (p.seconds, p.error, p.value.clone()))
         .collect();
+    // The reference (error 0, off the log axis) as a vertical line at its wall time over the
+    // charted errors' range, labelled at its top.
     if ref_seconds.is_finite() && !plotted.is_empty() {
-        labels.push((ref_seconds, accuracy, format!("{reference} (reference)")));
+        let (y_lo, y_hi) = plotted
+            .iter()
+            .map(|p| p.error)
+            .chain([accuracy])
+            .fold((f64::INFINITY, 0.0f64), |(a, b), e| (a.min(e), b.max(e)));
+        series.push(Series {
+            label: format!("reference {reference}: its wall time (error 0)"),
+            points: vec![(ref_seconds, y_lo), (ref_seconds, y_hi)],
+        });
+        labels.push((ref_seconds, y_hi, format!("{reference} (reference)")));
     }
     log_chart(
         &out.join(format!("study_{name}")),

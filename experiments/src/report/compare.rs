@@ -17,7 +17,7 @@ use crate::report::curves::{
 use crate::report::opened_run::OpenedRun;
 use crate::report::plot::{Chart, Series, semilog_chart};
 use crate::report::series::write_series;
-use crate::report::trajectory_series::write_particle_statistics;
+use crate::report::trajectory_series::{ComparedColumns, write_particle_statistics};
 use anyhow::{Context, bail};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -114,7 +114,12 @@ fn compare_into(
     write_order_correlations(&curves, &analyses, out)?;
     let corr_u_zeros: Vec<f64> = analyses.iter().map(first_zero_of_u).collect();
     write_series(&curves, &statistics, &corr_u_zeros, earlier, out)?;
-    write_particle_statistics(&opened, out)?;
+    let compared: Vec<ComparedColumns> = statistics
+        .iter()
+        .zip(&analyses)
+        .map(|(s, a)| ComparedColumns::of(s, a))
+        .collect();
+    write_particle_statistics(&opened, &compared, out)?;
     table.push_str(SUMMARY_NOTE);
     write_atomic(&out.join("summary.md"), table.as_bytes())?;
     let figures = CompareFigures::collect(&curves, analyses);

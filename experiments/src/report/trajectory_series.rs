@@ -2,12 +2,16 @@
 //! one row per particle run with snapshots, over the later half of the run (the paper averages
 //! its concentrated runs over t = 100-200/beta): the time-averaged velocity norm with its
 //! standard error, the orientation decorrelation rate, the MSD at a stated lag and the first
-//! zeros of `Corr[c]`, `Corr[n]` and `Corr[Q]` in l and in L ([`RunStatistics`]); and, with
+//! zeros of `Corr[c]`, `Corr[n]` and `Corr[Q]` in l and in L ([`RunStatistics`]); every row also
+//! has what the comparison measured in mean-field units (the norm's time average over the
+//! saturated state, the first zero of `Corr[u]`), so that the continuum's runs compared beside
+//! the particles have their rows too (their particle columns NaN); and, with
 //! concentrated boxes (nu > 1) of two or more sizes, the time-averaged norm against L/l on
 //! log-log axes with its fitted power law and the line l/L the paper finds
 //! (`norm_scaling.{png,svg}`).
 
 use crate::io::write_atomic;
+use crate::report::curves::{NormStatistics, RunAnalysis};
 use crate::report::opened_run::OpenedRun;
 use crate::report::pair_structure::{PairRun, write_pair_correlations};
 use crate::report::plot::{Series, log_chart};
@@ -20,7 +24,49 @@ use std::path::Path;
 /// The lag of the MSD column (1/beta).
 pub const MSD_LAG: f64 = 4.0;
 
-const CSV_HEADER: &str = "run,nu,L/l,rods,level,t0 [1/beta],t1 [1/beta],snapshots,mean_u_l2 [beta L],std_error,decorrelation_rate [beta],rate_spread,msd_lag [1/beta],msd [l^2],msd_spread,corr_c_zero [l],corr_n_zero [l],corr_q_zero [l],corr_q_zero_spread [l],corr_c_zero [L],corr_n_zero [L],corr_q_zero [L]\n";
+const CSV_HEADER: &str = "run,model,nu,L/l,rods,level,t0 [1/beta],t1 [1/beta],snapshots,mean_u_l2 [beta L],std_error,decorrelation_rate [beta],rate_spread,msd_lag [1/beta],msd [l^2],msd_spread,corr_c_zero [l],corr_n_zero [l],corr_q_zero [l],corr_q_zero_spread [l],corr_c_zero [L],corr_n_zero [L],corr_q_zero [L],mean_u_l2 [mf],std_error [mf],t0 [mf],t1 [mf],corr_u_zero [L]\n";
+
+/// What the comparison measured of one run in mean-field units, for every run (particle or
+/// continuum): the norm's time average over the saturated state with its standard error, and
+/// the first zeros of its time-averaged `Corr[u]` and `Corr[Q]` (`r / L`, NaN without one).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ComparedColumns {
+    /// The norm's time average (mean-field units) with its batch-means standard error.
+    pub(crate) mean: f64,
+    /// Its standard error.
+    pub(crate) std_error: f64,
+    /// The averaging window, mean-field units.
+    pub(crate) t0: f64,
+    /// Its end.
+    pub(crate) t1: f64,
+    /// Snapshots in the analysis' averaging window.
+    pub(crate) snapshots: usize,
+    /// First zero of the time-averaged `Corr[u]`, `r / L`.
+    pub(crate) corr_u_zero: f64,
+    /// First zero of the time-averaged `Corr[Q]`, `r / L`.
+    pub(crate) corr_q_zero: f64,
+}
+
+impl ComparedColumns {
+    /// The columns of one run from the comparison's norm statistics and analysis.
+    pub(crate) fn of(s: &NormStatistics, a: &RunAnalysis) -> Self {
+        let zero = |field: &str| {
+            a.lengths
+                .iter()
+                .find(|l| l.field == field)
+                .map_or(f64::NAN, |l| l.length)
+        };
+        Self {
+            mean: s.average.mean,
+            std_error: s.average.std_error,
+            t0: s.saturated_from,
+            t1: s.t_end,
+            snapshots: a.window_count,
+            corr_u_zero: zero("u"),
+            corr_q_zero: zero("Q"),
+        }
+    }
+}
 
 /// One particle run's row.
 struct Row {
@@ -31,6 +77,13 @@ struct Row {
     level: String,
     window: StatisticsWindow,
     stats: RunStatistics,
+    compared: ComparedColumns,
+}
+
+/// One continuum run's row: its name and what the comparison measured.
+struct ContinuumRow {
+    run: String,
+    compared: ComparedColumns,
 }
 
 /// The window of a run ending at `t_end`: its later half, the decorrelation fitted over lags
@@ -48,13 +101,27 @@ fn later_half(t_end: f64) -> StatisticsWindow {
 }
 
 /// `particle_statistics.{csv,md}` of the particle runs among `opened` with at least
-/// [`MIN_SNAPSHOTS`] snapshots in their later half (none: nothing written), and `norm_scaling.{png,svg}` where concentrated ones have two or
-/// more box sizes.
-pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> anyhow::Result<()> {
+/// [`MIN_SNAPSHOTS`] snapshots in their later half (none: nothing written) and of the continuum
+/// runs beside them (`compared`: each run's columns in mean-field units, in the order of
+/// `opened`), and `norm_scaling.{png,svg}` where concentrated ones have two or more box sizes.
+pub(crate) fn write_particle_statistics(
+    opened: &[OpenedRun],
+    compared: &[ComparedColumns],
+    out: &Path,
+) -> anyhow::Result<()> {
     let mut rows = Vec::new();
+    let mut continuum = Vec::new();
     let mut pair_runs = Vec::new();
-    for run in opened {
+    for (run, &compared) in opened.iter().zip(compared) {
+        let name: String = run.path().file_name().map_or_else(
+            || run.path().display().to_string(),
+            |n| n.to_string_lossy().into(),
+        );
         let Some((config, _)) = run.particle() else {
+            continuum.push(ContinuumRow {
+                run: name,
+                compared,
+            });
             continue;
         };
         if run.snapshot_paths.len() < MIN_SNAPSHOTS {
@@ -68,10 +135,6 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
         let Some(stats) = RunStatistics::of_snapshots(run.path(), &snaps, &window)? else {
             continue;
         };
-        let name: String = run.path().file_name().map_or_else(
-            || run.path().display().to_string(),
-            |n| n.to_string_lossy().into(),
-        );
         if config.volume_fraction > 1.0 {
             pair_runs.push(PairRun {
                 label: name.clone(),
@@ -87,15 +150,19 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
             level: config.hydrodynamics.to_string(),
             window,
             stats,
+            compared,
         });
     }
     if rows.is_empty() {
         return Ok(());
     }
-    write_atomic(&out.join("particle_statistics.csv"), csv(&rows).as_bytes())?;
+    write_atomic(
+        &out.join("particle_statistics.csv"),
+        csv(&rows, &continuum).as_bytes(),
+    )?;
     write_atomic(
         &out.join("particle_statistics.md"),
-        markdown(&rows).as_bytes(),
+        markdown(&rows, &continuum).as_bytes(),
     )?;
     let concentrated: Vec<&Row> = rows.iter().filter(|r| r.nu > 1.0).collect();
     // The concentrated runs' structure at the rod scale, in l.
@@ -109,13 +176,22 @@ pub(crate) fn write_particle_statistics(opened: &[OpenedRun], out: &Path) -> any
     Ok(())
 }
 
-fn csv(rows: &[Row]) -> String {
+/// The columns every row has (mean-field units): the norm's average with its standard error
+/// and window, and `Corr[u]`'s first zero in L.
+fn compared_csv(c: &ComparedColumns) -> String {
+    format!(
+        "{:e},{:e},{:e},{:e},{:e}",
+        c.mean, c.std_error, c.t0, c.t1, c.corr_u_zero
+    )
+}
+
+fn csv(rows: &[Row], continuum: &[ContinuumRow]) -> String {
     let mut s = String::from(CSV_HEADER);
     for r in rows {
         let z = r.stats.corr_zeros;
         writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{:e},{:e},{:e},{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+            "{},particle,{},{},{},{},{},{},{},{:e},{:e},{:e},{:e},{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
             r.run,
             r.nu,
             r.box_length,
@@ -138,15 +214,33 @@ fn csv(rows: &[Row]) -> String {
             z[0].value / r.box_length,
             z[1].value / r.box_length,
             z[2].value / r.box_length,
+            compared_csv(&r.compared),
+        )
+        .expect("string");
+    }
+    // The continuum has no rods, box in l, particle window or trajectories: NaN there; its
+    // Corr[Q] zero in L is the comparison's.
+    for c in continuum {
+        let nan = |n: usize| vec!["NaN"; n].join(",");
+        writeln!(
+            s,
+            "{},meanfield,{},-,continuum,{},{},{},{:e},{}",
+            c.run,
+            nan(2),
+            nan(2),
+            c.compared.snapshots,
+            nan(13),
+            c.compared.corr_q_zero,
+            compared_csv(&c.compared),
         )
         .expect("string");
     }
     s
 }
 
-fn markdown(rows: &[Row]) -> String {
+fn markdown(rows: &[Row], continuum: &[ContinuumRow]) -> String {
     let mut s = String::from(
-        "# Particle runs' statistics\n\nEach run over the later half of its time (the paper averages its concentrated runs over t = 100-200/beta), in particle units. ||u||_2: time average with its batch-means standard error. Decorrelation rate: -d ln <p(t0 + tau).p(t0)>/d tau, least squares over the lags tau in the window's fit range, averaged over origins t0. MSD at the stated lag, averaged over origins. Zeros: first zero of each time-averaged correlation, on 2 L/l Fourier modes per axis (16-64). +-: half the difference between the window's halves (none where a half has no value: a correlation that does not cross zero within L/2 in one half).\n\n| run | nu | L/l | rods | level | window (1/beta) | ||u||_2 (beta L) | decorrelation rate (beta) | MSD (l^2) at lag | zeros of Corr[c], Corr[n], Corr[Q] (l) | Corr[Q] zero (L) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "# Particle runs' statistics\n\nEach particle run over the later half of its time (the paper averages its concentrated runs over t = 100-200/beta), in particle units. ||u||_2: time average with its batch-means standard error. Decorrelation rate: -d ln <p(t0 + tau).p(t0)>/d tau, least squares over the lags tau in the window's fit range, averaged over origins t0. MSD at the stated lag, averaged over origins. Zeros: first zero of each time-averaged correlation, on 2 L/l Fourier modes per axis (16-64). +-: half the difference between the window's halves (none where a half has no value: a correlation that does not cross zero within L/2 in one half). The last two columns are the comparison's, for every run in mean-field units (the continuum's too): the norm's time average over the saturated state and Corr[u]'s first zero.\n\n| run | nu | L/l | rods | level | window (1/beta) | ||u||_2 (beta L) | decorrelation rate (beta) | MSD (l^2) at lag | zeros of Corr[c], Corr[n], Corr[Q] (l) | Corr[Q] zero (L) | ||u||_2 (mean-field units) | Corr[u] zero (L) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let pm = |e: &Estimate| {
         if e.spread.is_finite() {
@@ -155,11 +249,17 @@ fn markdown(rows: &[Row]) -> String {
             format!("{:.4} (a half has none)", e.value)
         }
     };
+    let compared = |c: &ComparedColumns| {
+        format!(
+            "{:.4e} +- {:.1e} | {:.3}",
+            c.mean, c.std_error, c.corr_u_zero
+        )
+    };
     for r in rows {
         let z = r.stats.corr_zeros;
         writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {}-{} | {:.4e} +- {:.1e} | {} | {} at {} | {:.2}, {:.2}, {} | {:.3} |",
+            "| {} | {} | {} | {} | {} | {}-{} | {:.4e} +- {:.1e} | {} | {} at {} | {:.2}, {:.2}, {} | {:.3} | {} |",
             r.run,
             r.nu,
             r.box_length,
@@ -176,6 +276,23 @@ fn markdown(rows: &[Row]) -> String {
             z[1].value,
             pm(&z[2]),
             z[2].value / r.box_length,
+            compared(&r.compared),
+        )
+        .expect("string");
+    }
+    for c in continuum {
+        writeln!(
+            s,
+            "| {} | - | - | - | continuum | t_mf = {:.0}-{:.0} | - | - | - | - | {} | {} |",
+            c.run,
+            c.compared.t0,
+            c.compared.t1,
+            if c.compared.corr_q_zero.is_nan() {
+                "none within L/2".to_string()
+            } else {
+                format!("{:.3}", c.compared.corr_q_zero)
+            },
+            compared(&c.compared),
         )
         .expect("string");
     }
