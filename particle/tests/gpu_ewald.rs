@@ -426,3 +426,104 @@ fn binned_spreaders_match_the_atomic_one() {
     }
     eprintln!("{}", rows.join("\n"));
 }
+
+/// The tiled gather (a block per bin, each field's tile of the grid in shared memory) gives the
+/// per-point gather's bits, blocks run in a shuffled order: RPY sums of swimming rods at
+/// tolerances 1e-2 to 1e-4 (tiles where the support fits one, among them grids smaller than a
+/// tile and with a short last bin; the support of 10 at 1e-4 takes the per-point gather) and
+/// point stresslets' velocities with their gradients at 1e-2.
+#[test]
+fn the_tiled_gather_gives_the_per_point_gathers_bits() {
+    use motile_particle::ewald::gpu::{SpreadMethod, cell_bin, tiles_fit};
+    let Some(first) = emulation() else {
+        return;
+    };
+    drop(first);
+    let open = |tiles: bool| {
+        let mut g = GpuFourier::open(Backend::HostEmulation).unwrap();
+        g.set_spread_method(Some(SpreadMethod::Cells));
+        g.set_tiled_gather(tiles);
+        assert!(g.shuffle_blocks(5));
+        g
+    };
+    let fits = |prm: motile_particle::ewald::params::EwaldParams| {
+        tiles_fit(
+            SpreadMethod::Cells,
+            cell_bin(prm.support, prm.modes),
+            prm.support,
+        )
+    };
+    let mut rows = Vec::new();
+    let mut tiled_cases = 0;
+    for (l, n, tol, modes) in [
+        (5.0, 40, 1e-2, None),
+        (8.0, 120, 1e-2, None),
+        (8.0, 120, 1e-3, None),
+        (8.0, 120, 1e-2, Some(22)),
+        (8.0, 120, 1e-2, Some(32)),
+        (8.0, 120, 1e-4, None),
+    ] {
+        let (x, p) = rods(n, l, false, 21);
+        let (y, f) = rod_points(&x, &p, true, 4);
+        let geo = RpyGeometry {
+            box_length: l,
+            radius: A_RPY,
+            group: 4,
+        };
+        let mut cpu = SpectralEwald::new(tol).unwrap();
+        cpu.rpy(&geo, &y, &f).unwrap();
+        let mut fixed = cpu.last_params();
+        if let (Some(f), Some(m)) = (fixed.as_mut(), modes) {
+            f.modes = m;
+        }
+        let prm = fixed.unwrap();
+        tiled_cases += usize::from(fits(prm));
+        let run = |tiles| {
+            let mut s = SpectralEwald::with_device(tol, open(tiles)).unwrap();
+            s.fixed = fixed;
+            vectors(&s.rpy(&geo, &y, &f).unwrap())
+        };
+        let (tiled, per_point) = (run(true), run(false));
+        assert!(
+            tiled == per_point,
+            "RPY tol {tol:e}, grid {}^3: the tiled gather differs, by {:e}",
+            prm.modes,
+            errors(&tiled, &per_point, 0.0).0
+        );
+        rows.push(format!(
+            "RPY tol {tol:.0e}, grid {}^3, support {}{}: the same bits",
+            prm.modes,
+            prm.support,
+            if fits(prm) {
+                ""
+            } else {
+                " (no tile: per point)"
+            }
+        ));
+    }
+    assert!(
+        tiled_cases >= 4,
+        "tiles in {tiled_cases} cases:\n{}",
+        rows.join("\n")
+    );
+    let l = 6.0;
+    let (x, p) = rods(60, l, false, 23);
+    let sigma = vec![SIGMA; x.len()];
+    let mut cpu = SpectralEwald::new(1e-2).unwrap();
+    cpu.stresslets(l, &x, &p, &sigma).unwrap();
+    let fixed = cpu.last_params();
+    assert!(fits(fixed.unwrap()), "stresslets at 1e-2: no tile");
+    let run = |tiles| {
+        let mut s = SpectralEwald::with_device(1e-2, open(tiles)).unwrap();
+        s.fixed = fixed;
+        s.stresslets(l, &x, &p, &sigma).unwrap()
+    };
+    let (tiled, per_point) = (run(true), run(false));
+    assert!(
+        vectors(&tiled.u) == vectors(&per_point.u)
+            && matrices(&tiled.grad) == matrices(&per_point.grad),
+        "stresslets: the tiled gather differs"
+    );
+    rows.push("stresslets tol 1e-2, velocities and gradients: the same bits".into());
+    eprintln!("{}", rows.join("\n"));
+}

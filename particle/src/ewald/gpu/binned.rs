@@ -15,8 +15,14 @@
 //!   atomics of the per-point spreaders run at 1.3-2.7e10 per second on an H100
 //!   (BENCHMARKS.md);
 //!
-//! and the gather runs over the points in bin order for either. The points of one generation
-//! (one GMRES solve) are sorted once. [`SpreadMethod::Atomic`], the per-point spreader in the
+//! and the gather runs over the points in bin order for either: over the output-driven sort's
+//! bins, where a bin's tile of the grid (`(b + p - 1)^3` cells per field) fits
+//! [`GATHER_TILE`] values of shared memory (supports up to 7-9: the explicit level's 6), a
+//! block per bin reads each field's tile once, coalesced, and gathers the bin's points from it
+//! (the grid read about once per bin instead of `p^3` values per point: [`super::work_model`]
+//! counts 2.6-2.7x fewer requested bytes in the explicit level's Fourier part), the same bits as
+//! the thread per point that gathers otherwise. The points of one generation (one GMRES solve)
+//! are sorted once. [`SpreadMethod::Atomic`], the per-point spreader in the
 //! points' own order, stays as the slow twin for the tests.
 //!
 //! Launching is unsafe: each launch says why every index it touches lies inside its buffers.
@@ -25,7 +31,7 @@
 use crate::ewald::gpu::launch::{Fields, Points};
 use crate::ewald::gpu::launch::{Geometry, padded_field};
 use crate::ewald::gpu::signatures::{
-    BinCount, BinOrder, BinScatter, GatherSorted, SpreadCells, SpreadSorted,
+    BinCount, BinOrder, BinScatter, GatherSorted, GatherTiles, SpreadCells, SpreadSorted,
 };
 use motile_gpu::{Buffer, Device, GpuError, THREADS};
 
@@ -303,18 +309,33 @@ pub(crate) fn spread(
     }
 }
 
+/// Values of one field's tile in the tiled gather's shared memory (`GATHER_TILE` in
+/// kernels.cu): tiles of up to 16 cells per axis.
+pub const GATHER_TILE: usize = 4096;
+
+/// Whether the tiled gather takes bins of edge `b` at support `p`: the output-driven sort's
+/// bins (each bin's points in ascending order), a tile of `(b + p - 1)^3` that fits
+/// [`GATHER_TILE`]. The explicit level's support 6 takes it (tiles of 13-15 cells), the
+/// dipole level's 10 (18-19) does not.
+pub fn tiles_fit(method: SpreadMethod, b: usize, p: usize) -> bool {
+    method == SpreadMethod::Cells && (b + p - 1).pow(3) <= GATHER_TILE
+}
+
 /// Gather three fields at the `n` points in bin order (with the window's derivative if
-/// `gradient`): `out` as `launch::gather` writes it, in the points' own order.
+/// `gradient`): `out` as `launch::gather` writes it, in the points' own order. With `tiles`
+/// and bins whose tiles fit ([`tiles_fit`]) a block per bin gathers from each field's tile in
+/// shared memory (the same bits as the per-point gather); otherwise a thread per point.
 pub(crate) fn gather(
     dev: &Device,
     geo: &Geometry,
     bins: &Bins,
     points: Points<'_>,
-    grid: &Buffer,
-    out: &mut Buffer,
+    grids: (&Buffer, &mut Buffer),
     gradient: bool,
+    tiles: bool,
 ) -> Result<(), GpuError> {
     let Points { pos: pts, n } = points;
+    let (grid, out) = grids;
     let (m, p) = (geo.m, geo.window.p);
     assert!(
         p <= 24 && p <= m,
@@ -328,27 +349,61 @@ pub(crate) fn gather(
     let (ni, mi, pi) = (int(n, "points")?, int(m, "grid size")?, int(p, "support")?);
     int(12 * n, "12 x points")?;
     let w = &geo.window;
-    // SAFETY: thread j < n reads perm[j] < n (checked), then as launch::gather's thread
-    // perm[j]: pts, grid (3 n, 3 padded_field(m) checked) and out[c n + perm[j]] for c < outputs
-    // (outputs n checked).
-    unsafe {
-        dev.launch(
-            n,
-            GatherSorted {
-                pts,
-                grid,
-                perm: &bins.perm,
-                out,
-                n: ni,
-                gradient: i32::from(gradient),
-                m: mi,
-                p: pi,
-                l: geo.l,
-                h: w.h,
-                alpha: w.alpha,
-                norm: w.norm,
-            },
-        )
+    let b = bins.key.2;
+    if tiles && tiles_fit(bins.method, b, p) {
+        let nbins = bins.nb.pow(3);
+        check("bin starts", &bins.start, nbins + 1)?;
+        // SAFETY: block k < nbins reads start[k], start[k + 1] (nbins + 1 checked) and
+        // perm[j] < n for j between them (n checked); the grid values of its tile, each index
+        // below m per axis (taken modulo m), fields c < 3 (3 padded_field(m) checked), into a
+        // shared tile of (b + p - 1)^3 <= GATHER_TILE values (tiles_fit); each point's window
+        // starts in its bin (bins by the window's first index, bin_count), so its reads stay
+        // inside the tile; out[c n + i] for c < outputs (outputs n checked).
+        unsafe {
+            dev.launch(
+                nbins * THREADS as usize,
+                GatherTiles {
+                    pts,
+                    grid,
+                    perm: &bins.perm,
+                    start: &bins.start,
+                    out,
+                    n: ni,
+                    gradient: i32::from(gradient),
+                    m: mi,
+                    p: pi,
+                    l: geo.l,
+                    h: w.h,
+                    alpha: w.alpha,
+                    norm: w.norm,
+                    b: int(b, "bin edge")?,
+                    nb: int(bins.nb, "bins per axis")?,
+                },
+            )
+        }
+    } else {
+        // SAFETY: thread j < n reads perm[j] < n (checked), then as launch::gather's thread
+        // perm[j]: pts, grid (3 n, 3 padded_field(m) checked) and out[c n + perm[j]] for c <
+        // outputs (outputs n checked).
+        unsafe {
+            dev.launch(
+                n,
+                GatherSorted {
+                    pts,
+                    grid,
+                    perm: &bins.perm,
+                    out,
+                    n: ni,
+                    gradient: i32::from(gradient),
+                    m: mi,
+                    p: pi,
+                    l: geo.l,
+                    h: w.h,
+                    alpha: w.alpha,
+                    norm: w.norm,
+                },
+            )
+        }
     }
 }
 

@@ -31,7 +31,7 @@ mod scan;
 mod signatures;
 mod work;
 
-pub use binned::{CELL_BIN, CELL_BIN_MAX, SpreadMethod, cell_bin};
+pub use binned::{CELL_BIN, CELL_BIN_MAX, GATHER_TILE, SpreadMethod, cell_bin, tiles_fit};
 pub(crate) use launch::Geometry;
 pub use launch::STRESSLET_FIELDS;
 use launch::{Fields, FourierKind, Points};
@@ -58,6 +58,9 @@ pub struct GpuFourier {
     bins: Option<(u64, binned::Bins)>,
     /// The spreading method, or `None` for [`SpreadMethod::for_support`].
     method: Option<SpreadMethod>,
+    /// Whether the gather over the output-driven sort's bins takes the tiled kernel where its
+    /// tiles fit (the default) or a thread per point.
+    tiled_gather: bool,
 }
 
 /// The cell list's layout on the device: sorted positions, each point's group, cell starts.
@@ -121,6 +124,7 @@ impl GpuFourier {
             cells: None,
             bins: None,
             method: None,
+            tiled_gather: true,
         })
     }
 
@@ -136,6 +140,13 @@ impl GpuFourier {
     pub fn set_spread_method(&mut self, method: Option<SpreadMethod>) {
         self.method = method;
         self.bins = None;
+    }
+
+    /// Gather over the output-driven sort's bins with the tiled kernel where its tiles fit
+    /// (`true`, the default) or with a thread per point (`false`): the same bits either way;
+    /// for tests and benchmarks that compare them.
+    pub fn set_tiled_gather(&mut self, on: bool) {
+        self.tiled_gather = on;
     }
 
     /// On the host emulation, run blocks in a new random order at every launch (`seed`
@@ -289,7 +300,8 @@ impl GpuFourier {
         let back = &input.grids;
         match (&self.bins, method) {
             (Some((_, b)), m) if m != SpreadMethod::Atomic => {
-                binned::gather(dev, geo, b, points, back, &mut out, gradient)?;
+                let tiles = self.tiled_gather;
+                binned::gather(dev, geo, b, points, (back, &mut out), gradient, tiles)?;
             }
             _ => launch::gather(dev, geo, pts, back, &mut out, n, gradient)?,
         }

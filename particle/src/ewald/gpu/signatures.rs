@@ -8,6 +8,7 @@ motile_gpu::kernels! {
     /// and its kernels.
     pub(crate) const KERNELS = concat!(
         include_str!("kernels.cu"),
+        include_str!("gather_tiles.cu"),
         include_str!("resident.cu"),
         include_str!("scan.cu")
     );
@@ -135,6 +136,25 @@ motile_gpu::kernels! {
         h: f64,
         alpha: f64,
         norm: f64,
+    }
+
+    /// The gather over the bins of the output-driven sort, each field's tile in shared memory.
+    pub(crate) struct GatherTiles = "gather_tiles" {
+        pts: &'a Buffer<f64>,
+        grid: &'a Buffer<f64>,
+        perm: &'a Buffer<i32>,
+        start: &'a Buffer<i32>,
+        out: &'a mut Buffer<f64>,
+        n: i32,
+        gradient: i32,
+        m: i32,
+        p: i32,
+        l: f64,
+        h: f64,
+        alpha: f64,
+        norm: f64,
+        b: i32,
+        nb: i32,
     }
 
     /// The RPY multiplication of three force spectra (sphere radius `a`), in place.

@@ -3,7 +3,7 @@
 //! request, the distinct grid lines each warp touches, and global and shared-memory atomics,
 //! for each [`SpreadMethod`]; no device needed.
 
-use super::binned::SpreadMethod;
+use super::binned::{SpreadMethod, tiles_fit};
 use super::scan::SCAN_ONE_BLOCK;
 
 /// One phase's work in the work model ([`work_model`]): what its kernels request of global
@@ -166,21 +166,50 @@ pub fn work_model(
     } else {
         own
     };
-    let gather_lines = warp_lines(&order, &first, m, p) * 3.0;
-    rows.push(PhaseWork {
-        grid_lines: gather_lines,
-        ..phase(
-            "gather",
-            2,
-            8.0 * outputs * n // zeroed output
-            + n * 24.0
-            + if sorted { 4.0 * n } else { 0.0 }
-            + n * p3 * 3.0 * 8.0
-            + 8.0 * outputs * n,
-            0.0,
-            0.0,
-        )
-    });
+    let (pb, b) = (p.min(m), method.bin_edge(p.min(m), m));
+    if tiles_fit(method, b, pb) {
+        // A block per non-empty bin reads its start, each field's tile of t^3 cells (rows of t
+        // consecutive values: (t - 1)/16 + 1 lines of 16 doubles on average), its points'
+        // indices and coordinates, and writes their outputs.
+        let nb = m.div_ceil(b);
+        let mut occupied: Vec<usize> = first
+            .iter()
+            .map(|f| (f[2] / b * nb + f[1] / b) * nb + f[0] / b)
+            .collect();
+        occupied.sort_unstable();
+        occupied.dedup();
+        let bins = occupied.len() as f64;
+        let t = (b + pb - 1) as f64;
+        rows.push(PhaseWork {
+            grid_lines: 3.0 * bins * t * t * ((t - 1.0) / 16.0 + 1.0),
+            ..phase(
+                "gather",
+                2,
+                8.0 * outputs * n // zeroed output
+                + 8.0 * (nb * nb * nb) as f64
+                + 3.0 * bins * t * t * t * 8.0
+                + n * (4.0 + 24.0)
+                + 8.0 * outputs * n,
+                0.0,
+                0.0,
+            )
+        });
+    } else {
+        rows.push(PhaseWork {
+            grid_lines: warp_lines(&order, &first, m, p) * 3.0,
+            ..phase(
+                "gather",
+                2,
+                8.0 * outputs * n // zeroed output
+                + n * 24.0
+                + if sorted { 4.0 * n } else { 0.0 }
+                + n * p3 * 3.0 * 8.0
+                + 8.0 * outputs * n,
+                0.0,
+                0.0,
+            )
+        });
+    }
     rows.push(phase("values down", 0, 8.0 * outputs * n, 0.0, 0.0));
     rows
 }
