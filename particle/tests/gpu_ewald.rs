@@ -446,6 +446,10 @@ fn the_tiled_gather_gives_the_per_point_gathers_bits() {
         assert!(g.shuffle_blocks(5));
         g
     };
+    let tiled_launches = |s: &SpectralEwald| {
+        let c = s.device_counters().expect("a device's counters");
+        c.by_kernel.get("gather_tiles").copied().unwrap_or(0)
+    };
     let fits = |prm: motile_particle::ewald::params::EwaldParams| {
         tiles_fit(
             SpreadMethod::Cells,
@@ -478,12 +482,21 @@ fn the_tiled_gather_gives_the_per_point_gathers_bits() {
         }
         let prm = fixed.unwrap();
         tiled_cases += usize::from(fits(prm));
+        // The values and the tiled kernel's launches.
         let run = |tiles| {
             let mut s = SpectralEwald::with_device(tol, open(tiles)).unwrap();
             s.fixed = fixed;
-            vectors(&s.rpy(&geo, &y, &f).unwrap())
+            let v = vectors(&s.rpy(&geo, &y, &f).unwrap());
+            (v, tiled_launches(&s))
         };
-        let (tiled, per_point) = (run(true), run(false));
+        let ((tiled, launched), (per_point, none)) = (run(true), run(false));
+        assert!(
+            none == 0 && (launched > 0) == fits(prm),
+            "tol {tol:e}, grid {}^3: the tiled gather launched {launched} times (fits: {}), \
+             {none} times when switched off",
+            prm.modes,
+            fits(prm)
+        );
         assert!(
             tiled == per_point,
             "RPY tol {tol:e}, grid {}^3: the tiled gather differs, by {:e}",
@@ -516,9 +529,14 @@ fn the_tiled_gather_gives_the_per_point_gathers_bits() {
     let run = |tiles| {
         let mut s = SpectralEwald::with_device(1e-2, open(tiles)).unwrap();
         s.fixed = fixed;
-        s.stresslets(l, &x, &p, &sigma).unwrap()
+        let v = s.stresslets(l, &x, &p, &sigma).unwrap();
+        (v, tiled_launches(&s))
     };
-    let (tiled, per_point) = (run(true), run(false));
+    let ((tiled, launched), (per_point, none)) = (run(true), run(false));
+    assert!(
+        launched > 0 && none == 0,
+        "stresslets: the tiled gather launched {launched} and {none} times"
+    );
     assert!(
         vectors(&tiled.u) == vectors(&per_point.u)
             && matrices(&tiled.grad) == matrices(&per_point.grad),

@@ -233,6 +233,9 @@ def test_interrupted_run_resumes_to_the_same_result(runs, tmp_path):
         if timer is None and t >= 0.6:  # after the first checkpoint, well before the end
             timer = threading.Timer(0.0, _thread.interrupt_main)
             timer.start()
+            # Wait here for the interrupt to be sent: the run goes on meanwhile, but cannot
+            # end before it (a starved timer thread once let a whole run finish first).
+            timer.join()
 
     # The message says how to continue from Python, not from a shell.
     with pytest.raises(KeyboardInterrupt, match=r"checkpoint.*motile\.resume\("):

@@ -504,7 +504,7 @@ fn a_statistics_study_compares_levels_on_what_the_figures_use() {
     assert_eq!(table.lines().count(), 4, "{table}");
     assert!(
         table.contains("hydrodynamics_sbt,particle,5,4,320,sbt,2,4,")
-            && table.contains("\nmf,meanfield,NaN,NaN,-,continuum,NaN,NaN,"),
+            && table.contains("\nmf,meanfield,NaN,NaN,NaN,continuum,NaN,NaN,"),
         "{table}"
     );
     let columns = table.lines().next().unwrap().split(',').count();

@@ -224,9 +224,9 @@ fn csv(rows: &[Row], continuum: &[ContinuumRow]) -> String {
         let nan = |n: usize| vec!["NaN"; n].join(",");
         writeln!(
             s,
-            "{},meanfield,{},-,continuum,{},{},{},{:e},{}",
+            "{},meanfield,{},continuum,{},{},{},{:e},{}",
             c.run,
-            nan(2),
+            nan(3),
             nan(2),
             c.compared.snapshots,
             nan(13),

@@ -20,7 +20,7 @@
 //! [`GATHER_TILE`] values of shared memory (supports up to 7-9: the explicit level's 6), a
 //! block per bin reads each field's tile once, coalesced, and gathers the bin's points from it
 //! (the grid read about once per bin instead of `p^3` values per point: [`super::work_model`]
-//! counts 2.6-2.7x fewer requested bytes in the explicit level's Fourier part), the same bits as
+//! counts 2.6x fewer requested bytes in the explicit level's Fourier part), the same bits as
 //! the thread per point that gathers otherwise. The points of one generation (one GMRES solve)
 //! are sorted once. [`SpreadMethod::Atomic`], the per-point spreader in the
 //! points' own order, stays as the slow twin for the tests.
@@ -341,6 +341,11 @@ pub(crate) fn gather(
         p <= 24 && p <= m,
         "a support of at most 24 and at most the grid"
     );
+    let b = bins.method.bin_edge(p, m);
+    // The tiled kernel's reads stay inside a bin's tile only for the bins of these points,
+    // this grid and this support.
+    assert_eq!(bins.key, (m, p, b), "bins of this grid, support and method");
+    assert_eq!(bins.n, n, "bins of these points");
     let outputs = if gradient { 12 } else { 3 };
     check("points", pts, 3 * n)?;
     check("grid", grid, 3 * padded_field(m))?;
@@ -349,7 +354,6 @@ pub(crate) fn gather(
     let (ni, mi, pi) = (int(n, "points")?, int(m, "grid size")?, int(p, "support")?);
     int(12 * n, "12 x points")?;
     let w = &geo.window;
-    let b = bins.key.2;
     if tiles && tiles_fit(bins.method, b, p) {
         let nbins = bins.nb.pow(3);
         check("bin starts", &bins.start, nbins + 1)?;

@@ -169,8 +169,8 @@ pub fn work_model(
     let (pb, b) = (p.min(m), method.bin_edge(p.min(m), m));
     if tiles_fit(method, b, pb) {
         // A block per non-empty bin reads its start, each field's tile of t^3 cells (rows of t
-        // consecutive values: (t - 1)/16 + 1 lines of 16 doubles on average), its points'
-        // indices and coordinates, and writes their outputs.
+        // consecutive values: (t - 1)/16 + 1 lines of 16 doubles on average) and, per field,
+        // its points' indices and coordinates again, and writes their outputs.
         let nb = m.div_ceil(b);
         let mut occupied: Vec<usize> = first
             .iter()
@@ -188,7 +188,7 @@ pub fn work_model(
                 8.0 * outputs * n // zeroed output
                 + 8.0 * (nb * nb * nb) as f64
                 + 3.0 * bins * t * t * t * 8.0
-                + n * (4.0 + 24.0)
+                + 3.0 * n * (4.0 + 24.0)
                 + 8.0 * outputs * n,
                 0.0,
                 0.0,
